@@ -1,0 +1,3 @@
+from hfsmc.cli import main
+
+main()

@@ -1,0 +1,224 @@
+"""The one builder: a schema-valid neutral :class:`Document` becomes the IR.
+
+It turns data into frozen dataclasses with spans and reports what is local to
+one node (durations, duplicate names, value types).  Everything that needs
+the whole tree (targets, initial states, periods) is done by the passes in
+:mod:`hfsmc.lower`.
+"""
+
+from __future__ import annotations
+
+import ast
+from typing import Any
+
+from hfsmc.durations import parse_us
+from hfsmc.errors import Diagnostics
+from hfsmc.frontend.source import Document, PathKey
+from hfsmc.ir import (
+    Automaton,
+    Code,
+    DictValue,
+    Import,
+    Interface,
+    Model,
+    Parameter,
+    State,
+    Transition,
+    Value,
+    Variable,
+)
+
+DEFAULT_ROOT_PERIOD_MS = 100
+_LITERAL_TYPES: dict[type, str] = {bool: "bool", int: "int", float: "float", str: "str", list: "list"}
+_PY_TYPES = {"bool": bool, "int": int, "float": float, "str": str, "list": list, "dict": dict}
+
+
+def build(doc: Document, diags: Diagnostics) -> Model:
+    return _Builder(doc, diags).model()
+
+
+def _freeze(v: Any) -> Value:
+    if isinstance(v, list):
+        return tuple(_freeze(x) for x in v)
+    if isinstance(v, dict):
+        return DictValue(tuple((str(k), _freeze(x)) for k, x in v.items()))
+    return v  # type: ignore[no-any-return]
+
+
+class _Builder:
+    def __init__(self, doc: Document, diags: Diagnostics) -> None:
+        self.doc = doc
+        self.diags = diags
+        self.data: dict[str, Any] = doc.data
+
+    # -- helpers -----------------------------------------------------------
+    def code(self, node: dict[str, Any] | None, path: PathKey, key: str) -> Code | None:
+        if not node or node.get(key) is None:
+            return None
+        text = node[key]
+        if isinstance(text, bool):  # `when: true`
+            text = "True" if text else "False"
+        p = (*path, key)
+        return Code(str(text), self.doc.span(p), self.doc.cont_col(p))
+
+    def duration(self, node: dict[str, Any], path: PathKey, key: str) -> int | None:
+        if key not in node:
+            return None
+        us = parse_us(node[key])
+        if us is None:
+            self.diags.error("E110", f"`{node[key]}` is not a duration: write 250ms, 2s, 1.5s or 2m",
+                             self.doc.span((*path, key)))
+        return us
+
+    def period(self, node: dict[str, Any], path: PathKey) -> int | None:
+        us = self.duration(node, path, "period")
+        if us is None:
+            return None
+        if us % 1000 or us < 1000:
+            self.diags.error("E111", f"period `{node['period']}` must be a whole number of "
+                             "milliseconds, at least 1ms", self.doc.span((*path, "period")))
+            return None
+        return us // 1000
+
+    # -- the model ---------------------------------------------------------
+    def model(self) -> Model:
+        d = self.data
+        language = d.get("language", "python")
+        root = self.automaton(d, (), "", DEFAULT_ROOT_PERIOD_MS)
+        interrupt_us = self.duration(d, (), "interrupt_timeout")
+        return Model(
+            name=d["name"],
+            language=language,
+            description=d.get("description"),
+            imports=tuple(Import(t, self.doc.span(("imports", i))) for i, t in enumerate(d.get("imports", []))),
+            interfaces=self.interfaces(),
+            parameters=self.parameters(),
+            variables=self.variables(language),
+            functions=self.code(d, (), "functions"),
+            on_shutdown=self.code(d, (), "on_shutdown"),
+            on_interrupt=d.get("on_interrupt"),
+            interrupt_timeout_us=interrupt_us,
+            root=root,
+            file=self.doc.file,
+            span=self.doc.span(()),
+        )
+
+    def interfaces(self) -> tuple[Interface, ...]:
+        out = []
+        for name, spec in (self.data.get("interfaces") or {}).items():
+            opts = tuple(sorted((str(k), str(v)) for k, v in (spec.get("options") or {}).items()))
+            out.append(Interface(name, spec["type"], spec.get("url"), opts,
+                                 self.doc.key_span(("interfaces", name))))
+        return tuple(out)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        out = []
+        for name, spec in (self.data.get("parameters") or {}).items():
+            path: PathKey = ("parameters", name)
+            default = self.coerce(spec["default"], spec["type"], (*path, "default"))
+            out.append(Parameter(name, spec["type"], default, self.doc.key_span(path)))
+        return tuple(out)
+
+    def variables(self, language: str) -> tuple[Variable, ...]:
+        out = []
+        for name, spec in (self.data.get("variables") or {}).items():
+            path: PathKey = ("variables", name)
+            span = self.doc.key_span(path)
+            if isinstance(spec, dict):
+                vtype, init = spec["type"], spec["init"]
+                if language == "python" and vtype not in _PY_TYPES:
+                    self.diags.error("E103", f"variable type `{vtype}` is not one of "
+                                     f"{', '.join(_PY_TYPES)} (a cpp model may name any C++ type)",
+                                     self.doc.span((*path, "type")))
+                elif vtype in _PY_TYPES:
+                    init = self.coerce(init, vtype, (*path, "init"))
+                out.append(Variable(name, vtype, _freeze(init), True, span))
+            else:
+                vtype = _LITERAL_TYPES[type(spec)]
+                out.append(Variable(name, vtype, _freeze(spec), False, span))
+        return tuple(out)
+
+    def coerce(self, value: Any, vtype: str, path: PathKey) -> Value:
+        """Check (and for text from XML, convert) a literal against its declared type."""
+        want = _PY_TYPES.get(vtype)
+        if want is None:  # a C++ type: the initializer is C++ code
+            return value if not isinstance(value, (list, dict)) else _freeze(value)
+        if isinstance(value, want) and not (want is int and isinstance(value, bool)):
+            return _freeze(value)
+        if want is float and isinstance(value, int) and not isinstance(value, bool):
+            return float(value)
+        if isinstance(value, str) and path[-1] in ("init", "default") and self.doc.format != "yaml":
+            converted = _from_text(value, vtype)
+            if converted is not None:
+                return converted
+        self.diags.error("E101", f"`{path[-1]}` must be a {vtype}, not {value!r}", self.doc.span(path))
+        return _freeze(value)
+
+    # -- states ------------------------------------------------------------
+    def automaton(self, node: dict[str, Any], path: PathKey, owner: str, parent_ms: int) -> Automaton:
+        written = self.period(node, path)
+        period_ms = written if written is not None else parent_ms
+        states = tuple(
+            self.state(name, spec or {}, (*path, "states", name), owner, period_ms)
+            for name, spec in (node.get("states") or {}).items()
+        )
+        initial = node.get("initial", "")
+        return Automaton(
+            owner=owner,
+            period_ms=period_ms,
+            period_written=written is not None,
+            initial=initial,
+            history=bool(node.get("history", False)),
+            states=states,
+            span=self.doc.key_span((*path, "states")),
+            initial_span=self.doc.span((*path, "initial")) if "initial" in node else self.doc.key_span(path),
+        )
+
+    def state(self, name: str, node: dict[str, Any], path: PathKey, parent: str, period_ms: int) -> State:
+        spath = f"{parent}/{name}" if parent else name
+        span = self.doc.key_span(path)
+        auto = None
+        if "states" in node:
+            auto = self.automaton(node, path, spath, period_ms)
+        else:
+            for key in ("initial", "period", "history"):
+                if key in node:
+                    self.diags.error("E138", f"`{key}` needs a sub-automaton: state `{spath}` has no "
+                                     "`states`", self.doc.key_span((*path, key)))
+        final = bool(node.get("final", False))
+        if final and auto is not None:
+            self.diags.error("E135", f"final state `{spath}` cannot hold a sub-automaton",
+                             self.doc.key_span((*path, "final")))
+        trans = tuple(self.transition(i, t, (*path, "transitions", i), spath)
+                      for i, t in enumerate(node.get("transitions") or []))
+        if final and trans:
+            self.diags.error("E134", f"final state `{spath}` cannot have transitions",
+                             self.doc.key_span((*path, "transitions")))
+        return State(name, spath, self.code(node, path, "entry"), self.code(node, path, "during"),
+                     self.code(node, path, "exit"), trans, final, auto, span)
+
+    def transition(self, index: int, node: dict[str, Any], path: PathKey, source: str) -> Transition:
+        after = self.duration(node, path, "after")
+        when = self.code(node, path, "when")
+        if when is None and "after" not in node:
+            self.diags.error("E137", f"transition {index} of `{source}` needs `when`, `after` or both",
+                             self.doc.span(path))
+        return Transition(index, node["to"], when, after, self.code(node, path, "do"),
+                          node.get("name"), self.doc.span(path), self.doc.span((*path, "to")))
+
+
+def _from_text(text: str, vtype: str) -> Value:
+    """Values written as XML attribute text."""
+    try:
+        if vtype == "str":
+            return text
+        if vtype == "bool":
+            return {"true": True, "false": False}.get(text.strip().lower())
+        if vtype == "int":
+            return int(text)
+        if vtype == "float":
+            return float(text)
+        value = ast.literal_eval(text)
+        return _freeze(value) if isinstance(value, _PY_TYPES[vtype]) else None
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        return None

@@ -1,0 +1,136 @@
+"""The ``hfsmc`` command line: thin, it prints diagnostics and sets the exit status.
+
+Exit status: 0 clean (warnings allowed), 1 model errors, 2 usage errors.  A
+Python traceback is shown only with ``--verbose``; without it an unexpected
+crash is reported in one line as an internal error.
+"""
+
+from __future__ import annotations
+
+import sys
+import traceback
+from collections.abc import Callable, Iterable
+from functools import wraps
+from pathlib import Path
+from typing import Any, TypeVar
+
+import click
+
+from hfsmc import __version__
+from hfsmc.compiler import Result, compile_file
+from hfsmc.errors import Diagnostic, HfsmcError, UsageError, render_json, render_text
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _guard(fn: F) -> F:
+    """Turn hfsmc errors into diagnostics and any other crash into one line."""
+
+    @wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        verbose = bool(click.get_current_context().find_root().params.get("verbose"))
+        try:
+            return fn(*args, **kwargs)
+        except (click.exceptions.Exit, click.ClickException, click.Abort):
+            raise
+        except UsageError as e:
+            click.echo(f"hfsmc: error: {e}", err=True)
+            sys.exit(2)
+        except HfsmcError as e:
+            _print(e.diagnostics, {}, "text")
+            sys.exit(1)
+        except KeyboardInterrupt:
+            sys.exit(130)
+        except Exception as e:  # a bug: say so in one line, traceback only on request
+            if verbose:
+                traceback.print_exc()
+            click.echo(f"hfsmc: internal error: {type(e).__name__}: {e} "
+                       "(please report it; --verbose shows the traceback)", err=True)
+            sys.exit(3)
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _print(diags: Iterable[Diagnostic], sources: dict[str, list[str]], fmt: str) -> None:
+    diags = list(diags)
+    if fmt == "json":
+        click.echo(render_json(diags), nl=False)
+    elif diags:
+        click.echo(render_text(diags, sources, color=sys.stderr.isatty()), err=True, nl=False)
+
+
+def _compile_or_exit(path: str) -> Result:
+    """Compile one model; print its diagnostics; exit 1 when it has errors."""
+    result = compile_file(path)
+    _print(result.diagnostics, {path: result.lines}, "text")
+    if not result.ok:
+        sys.exit(1)
+    return result
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="hfsmc")
+@click.option("--verbose", is_flag=True, help="Show tracebacks of internal errors.")
+def main(verbose: bool) -> None:
+    """Compile hierarchical finite state machines into robot components."""
+
+
+@main.command()
+@click.argument("models", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text",
+              help="Diagnostics as compiler text (stderr) or JSON (stdout).")
+@click.option("--strict", is_flag=True, help="Warnings fail the check too.")
+@click.option("--dump-ir", is_flag=True, help="Print the lowered IR of each clean model.")
+@_guard
+def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool) -> None:
+    """Parse, validate and check MODELS; print every problem of every model."""
+    from hfsmc.dump import dump
+
+    results = [compile_file(m) for m in models]
+    all_diags = [d for r in results for d in r.diagnostics]
+    _print(all_diags, {r.path: r.lines for r in results}, fmt)
+    if dump_ir:
+        for r in results:
+            if r.model is not None:
+                click.echo(dump(r.model), nl=False)
+    failed = any(not r.ok for r in results) or (strict and any(all_diags))
+    if fmt == "text":
+        errors = sum(d.severity == "error" for d in all_diags)
+        warnings = len(all_diags) - errors
+        if all_diags:
+            click.echo(f"{len(models)} model(s): {errors} error(s), {warnings} warning(s)", err=True)
+    sys.exit(1 if failed else 0)
+
+
+@main.command()
+@click.argument("model", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False),
+              help="OUT.svg, OUT.png or OUT.dot (default: MODEL's name with .svg).")
+@click.option("--state", "state_path", metavar="PATH", help="Draw only this state's sub-automaton.")
+@_guard
+def diagram(model: str, output: str | None, state_path: str | None) -> None:
+    """Draw MODEL with Graphviz: sub-automata as nested clusters."""
+    from hfsmc.emit.dot import write_diagram
+
+    result = _compile_or_exit(model)
+    assert result.model is not None
+    out = Path(output) if output else Path(model).with_suffix(".svg")
+    if out.suffix.lower() not in (".svg", ".png", ".dot"):
+        raise UsageError(f"{out}: the diagram's file name must end in .svg, .png or .dot")
+    write_diagram(result.model, out, state_path)
+    click.echo(f"wrote {out}", err=True)
+
+
+@main.command()
+@click.argument("source", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="OUT.yaml or OUT.xml; an existing YAML file is edited in place (comments kept).")
+@_guard
+def convert(source: str, output: str) -> None:
+    """Convert SOURCE between YAML and XML (and legacy XML to version 1)."""
+    from hfsmc.convert import convert_model
+
+    result = _compile_or_exit(source)
+    assert result.model is not None
+    for line in convert_model(result, Path(output)):
+        click.echo(line, err=True)

@@ -1,0 +1,55 @@
+"""The pipeline from a model file to a checked IR: load, validate, build, lower."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hfsmc import schema
+from hfsmc.builder import build
+from hfsmc.errors import Diagnostic, Diagnostics, HfsmcError
+from hfsmc.frontend import load
+from hfsmc.frontend.source import Document
+from hfsmc.ir import Model
+from hfsmc.lower import lower
+
+
+@dataclass
+class Result:
+    """What compiling one file gave: the model (None when it has errors) and why."""
+
+    path: str
+    model: Model | None
+    diagnostics: list[Diagnostic]
+    lines: list[str] = field(default_factory=list)
+    document: Document | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.model is not None and not any(d.severity == "error" for d in self.diagnostics)
+
+
+def compile_file(path: str, text: str | None = None) -> Result:
+    """Every diagnostic of one model file; the model when it has no errors."""
+    diags = Diagnostics()
+    doc: Document | None = None
+    try:
+        doc = load(path, diags, text)
+        if not diags.has_errors:
+            schema.validate(doc, diags)
+        if diags.has_errors:
+            return Result(path, None, diags.sorted(), doc.lines, doc)
+        model = lower(build(doc, diags), diags)
+    except HfsmcError as e:
+        diags.extend(e.diagnostics)
+        return Result(path, None, diags.sorted(), doc.lines if doc else _lines(path, text), doc)
+    return Result(path, None if diags.has_errors else model, diags.sorted(), doc.lines, doc)
+
+
+def _lines(path: str, text: str | None) -> list[str]:
+    if text is not None:
+        return text.splitlines()
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return f.read(1 << 20).splitlines()
+    except OSError:
+        return []

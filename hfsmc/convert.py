@@ -1,0 +1,118 @@
+"""``hfsmc convert``: YAML ↔ XML (and legacy XML → version 1).
+
+YAML is written with ruamel.yaml's round-trip dumper.  When the output YAML
+file already exists and holds a model, it is edited in place: unchanged keys
+keep their comments and their layout, changed values are replaced, removed
+keys are dropped and new keys added.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+from typing import Any
+
+from ruamel.yaml import YAML
+from ruamel.yaml.comments import CommentedMap, CommentedSeq
+from ruamel.yaml.error import YAMLError
+from ruamel.yaml.scalarstring import LiteralScalarString
+
+from hfsmc.compiler import Result
+from hfsmc.emit.data import model_to_data
+from hfsmc.errors import UsageError
+from hfsmc.fsutil import write_atomic
+from hfsmc.ir import Model
+from hfsmc.resources import schema_file
+
+
+
+def _yaml() -> YAML:
+    y = YAML(typ="rt")
+    y.preserve_quotes = True
+    y.width = 100
+    y.indent(mapping=2, sequence=4, offset=2)
+    return y
+
+
+def _styled(v: Any) -> Any:
+    """Plain data with multi-line strings as `|` blocks."""
+    if isinstance(v, dict):
+        m = CommentedMap()
+        for k, x in v.items():
+            m[k] = _styled(x)
+        return m
+    if isinstance(v, list):
+        return CommentedSeq(_styled(x) for x in v)
+    if isinstance(v, str) and "\n" in v.rstrip("\n"):
+        return LiteralScalarString(v if v.endswith("\n") else v + "\n")
+    return v
+
+
+def _merge(old: Any, new: Any) -> Any:
+    """``new`` written over ``old``, keeping what of ``old`` (comments, style) still holds."""
+    if isinstance(old, CommentedMap) and isinstance(new, dict):
+        for k in [k for k in old if k not in new]:
+            del old[k]
+        for k, v in new.items():
+            old[k] = _merge(old[k], v) if k in old else _styled(v)
+        return old
+    if isinstance(old, CommentedSeq) and isinstance(new, list) and len(old) == len(new):
+        for i, v in enumerate(new):
+            old[i] = _merge(old[i], v)
+        return old
+    if type(old) is not bool and old == new and not isinstance(new, (dict, list)):
+        return old
+    return _styled(new)
+
+
+def schema_line(out: Path) -> str:
+    """The editor hint naming the installed schema, relative to ``out``'s folder."""
+    schema = Path(str(schema_file("hfsm.schema.json"))).resolve()
+    rel = os.path.relpath(schema, out.resolve().parent)
+    return f"# yaml-language-server: $schema={rel}\n"
+
+
+def to_yaml(model: Model, existing: str | None = None, out: Path | None = None) -> str:
+    """The model as YAML; over ``existing`` YAML text when given (comments kept)."""
+    data = model_to_data(model)
+    y = _yaml()
+    doc: Any = None
+    if existing is not None:
+        try:
+            doc = y.load(existing)
+        except YAMLError:
+            doc = None
+    buf = io.StringIO()
+    if isinstance(doc, CommentedMap):
+        y.dump(_merge(doc, data), buf)
+        return buf.getvalue()
+    y.dump(_styled(data), buf)
+    return (schema_line(out) if out is not None else "") + buf.getvalue()
+
+
+def convert_model(result: Result, out: Path) -> list[str]:
+    """Write ``result``'s model to ``out`` in the format its suffix names; report lines."""
+    model = result.model
+    assert model is not None
+    suffix = out.suffix.lower()
+    if suffix in (".yaml", ".yml"):
+        existing = None
+        if out.exists():
+            try:
+                existing = out.read_text("utf-8")
+            except (OSError, UnicodeDecodeError):
+                existing = None
+        text = to_yaml(model, existing, out)
+        how = "edited in place" if existing is not None else "wrote"
+    elif suffix == ".xml":
+        from hfsmc.emit.xml import to_xml
+
+        text = to_xml(model)
+        how = "wrote"
+    else:
+        raise UsageError(f"{out}: the output's name must end in .yaml, .yml or .xml")
+    write_atomic(out, text)
+    n_states = sum(1 for _ in model.states())
+    n_trans = sum(len(s.transitions) for s in model.states())
+    return [f"{how} {out}: {n_states} states, {n_trans} transitions"]

@@ -1,0 +1,42 @@
+"""Durations as written in models: ``250ms``, ``2s``, ``1.5s``, ``2m``, or a bare
+integer meaning milliseconds (VisualStates compatibility)."""
+
+from __future__ import annotations
+
+import re
+from fractions import Fraction
+
+_RE = re.compile(r"^\s*([0-9]+(?:\.[0-9]+)?)\s*(ms|s|m)?\s*$")
+_US_PER_UNIT = {"ms": 1000, "s": 1_000_000, "m": 60_000_000}
+
+
+def parse_us(value: object) -> int | None:
+    """Microseconds in ``value``, or None when it is not a duration.
+
+    Exact (no float rounding); durations finer than a microsecond are refused.
+    """
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return value * 1000 if value >= 0 else None
+    if not isinstance(value, str):
+        return None
+    m = _RE.match(value)
+    if m is None:
+        return None
+    us = Fraction(m.group(1)) * _US_PER_UNIT[m.group(2) or "ms"]
+    return int(us) if us.denominator == 1 else None
+
+
+def format_us(us: int) -> str:
+    """The shortest exact spelling of a duration: ``100ms``, ``2s``, ``1.5s``, ``2m``."""
+    if us % 60_000_000 == 0 and us >= 60_000_000:
+        return f"{us // 60_000_000}m"
+    if us % 1_000_000 == 0 and us > 0:
+        return f"{us // 1_000_000}s"
+    if us % 1000 == 0:
+        ms = us // 1000
+        if ms >= 1000 and (ms % 100 == 0):
+            return f"{Fraction(ms, 1000).numerator / Fraction(ms, 1000).denominator:g}s"
+        return f"{ms}ms"
+    return f"{Fraction(us, 1000).numerator / Fraction(us, 1000).denominator!r}ms"

@@ -1,0 +1,1 @@
+"""Back ends: code, diagrams and model files written from the IR."""

@@ -1,0 +1,92 @@
+"""The IR as plain YAML-shaped data (the inverse of the builder), for writers."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hfsmc.durations import format_us
+from hfsmc.ir import Automaton, Code, DictValue, Model, State, Transition, Value
+
+
+def thaw(v: Value) -> Any:
+    """A frozen literal back to lists and dicts."""
+    if isinstance(v, DictValue):
+        return {k: thaw(x) for k, x in v.items}
+    if isinstance(v, tuple):
+        return [thaw(x) for x in v]
+    return v
+
+
+def _code(c: Code | None) -> str | None:
+    return None if c is None else c.text
+
+
+def model_to_data(model: Model) -> dict[str, Any]:
+    d: dict[str, Any] = {"hfsm": 1, "name": model.name, "language": model.language}
+    if model.description is not None:
+        d["description"] = model.description
+    if model.imports:
+        d["imports"] = [i.text for i in model.imports]
+    if model.interfaces:
+        d["interfaces"] = {
+            i.name: {"type": i.type, **({"url": i.url} if i.url is not None else {}),
+                     **({"options": dict(i.options)} if i.options else {})}
+            for i in model.interfaces
+        }
+    if model.parameters:
+        d["parameters"] = {p.name: {"type": p.type, "default": thaw(p.default)} for p in model.parameters}
+    if model.variables:
+        d["variables"] = {
+            v.name: {"type": v.type, "init": thaw(v.init)} if v.typed or v.type == "dict" else thaw(v.init)
+            for v in model.variables
+        }
+    if model.functions is not None:
+        d["functions"] = model.functions.text
+    if model.on_shutdown is not None:
+        d["on_shutdown"] = model.on_shutdown.text
+    if model.on_interrupt is not None:
+        d["on_interrupt"] = model.on_interrupt
+    if model.interrupt_timeout_us is not None:
+        d["interrupt_timeout"] = format_us(model.interrupt_timeout_us)
+    d.update(_automaton(model.root))
+    return d
+
+
+def _automaton(a: Automaton) -> dict[str, Any]:
+    d: dict[str, Any] = {}
+    if a.period_written:
+        d["period"] = f"{a.period_ms}ms" if a.period_ms % 1000 else format_us(a.period_ms * 1000)
+    d["initial"] = a.initial
+    if a.history:
+        d["history"] = True
+    d["states"] = {s.name: _state(s) for s in a.states}
+    return d
+
+
+def _state(s: State) -> dict[str, Any]:
+    d: dict[str, Any] = {}
+    for kind in ("entry", "during", "exit"):
+        text = _code(getattr(s, kind))
+        if text is not None:
+            d[kind] = text
+    if s.final:
+        d["final"] = True
+    if s.transitions:
+        d["transitions"] = [_transition(t) for t in s.transitions]
+    if s.automaton is not None:
+        d.update(_automaton(s.automaton))
+    return d
+
+
+def _transition(t: Transition) -> dict[str, Any]:
+    d: dict[str, Any] = {}
+    if t.name is not None:
+        d["name"] = t.name
+    d["to"] = t.target
+    if t.when is not None:
+        d["when"] = t.when.text
+    if t.after_us is not None:
+        d["after"] = format_us(t.after_us)
+    if t.do is not None:
+        d["do"] = t.do.text
+    return d

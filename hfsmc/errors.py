@@ -1,0 +1,203 @@
+"""Source positions, diagnostics and the one error tree of hfsmc.
+
+Every problem hfsmc finds in a model is a :class:`Diagnostic` with a
+:class:`Span` (file, 1-based line and column).  Stages collect diagnostics in a
+:class:`Diagnostics` bag so that all problems of a model are reported in one
+run; a stage that cannot go on raises the matching :class:`HfsmcError`
+subclass carrying everything collected so far.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Literal, NoReturn
+
+Severity = Literal["error", "warning"]
+
+# Every diagnostic code hfsmc emits, with a one-line summary (docs and tests use it).
+CODES: dict[str, str] = {
+    # reading the file
+    "E001": "the file cannot be read (missing, empty, binary, not UTF-8, too large)",
+    "E002": "syntax error in the YAML or XML document",
+    "E003": "duplicate key in a YAML mapping",
+    "E004": "forbidden XML construct (DOCTYPE, entity, XInclude, processing instruction)",
+    "E005": "not an hfsm document (unknown root element or top-level shape)",
+    "E006": "the model nests deeper than hfsmc accepts",
+    # schema
+    "E100": "unknown key",
+    "E101": "wrong type",
+    "E102": "missing required key",
+    "E103": "invalid value",
+    "E104": "unsupported format version",
+    # durations and periods
+    "E110": "malformed duration",
+    "E111": "period not a whole number of milliseconds, or below 1 ms",
+    # names and structure
+    "E120": "not an identifier",
+    "E121": "duplicate name",
+    "E122": "name used for two kinds of things",
+    "E130": "sub-automaton without initial state",
+    "E131": "initial state is not a child of this sub-automaton",
+    "E132": "transition to an unknown state",
+    "E133": "transition to a state that is not a sibling",
+    "E134": "transition out of a final state",
+    "E135": "final state with a sub-automaton",
+    "E136": "on_interrupt is not a state of the root sub-automaton",
+    "E137": "transition without `when` or `after`",
+    "E138": "initial, period or history without states",
+    "E139": "interrupt_timeout without on_interrupt",
+    # snippets
+    "E140": "syntax error in a Python snippet",
+    "E141": "undefined name in a Python snippet",
+    "E142": "assignment to a parameter",
+    "E143": "malformed import",
+    # warnings
+    "W201": "unreachable state",
+    "W202": "state with no way out that is not final",
+    "W203": "transition shadowed by an earlier one that always fires first",
+    "W204": "on_interrupt state can never reach a final state",
+}
+
+
+@dataclass(frozen=True, slots=True, order=True)
+class Span:
+    """A position in a model file: 1-based line and column."""
+
+    file: str
+    line: int
+    col: int
+
+    def __str__(self) -> str:
+        return f"{self.file}:{self.line}:{self.col}"
+
+    def shifted(self, lines: int = 0, col: int | None = None) -> Span:
+        return Span(self.file, self.line + lines, self.col if col is None else col)
+
+
+@dataclass(frozen=True, slots=True)
+class Diagnostic:
+    code: str
+    message: str
+    span: Span
+    severity: Severity = "error"
+    notes: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "file": self.span.file,
+            "line": self.span.line,
+            "col": self.span.col,
+            "severity": self.severity,
+            "code": self.code,
+            "message": self.message,
+            "notes": list(self.notes),
+        }
+
+
+@dataclass
+class Diagnostics:
+    """An ordered bag of diagnostics, shared by the stages of one model."""
+
+    items: list[Diagnostic] = field(default_factory=list)
+
+    def error(self, code: str, message: str, span: Span, *notes: str) -> None:
+        self.items.append(Diagnostic(code, message, span, "error", notes))
+
+    def warning(self, code: str, message: str, span: Span, *notes: str) -> None:
+        self.items.append(Diagnostic(code, message, span, "warning", notes))
+
+    def extend(self, other: Iterable[Diagnostic]) -> None:
+        self.items.extend(other)
+
+    @property
+    def has_errors(self) -> bool:
+        return any(d.severity == "error" for d in self.items)
+
+    def __iter__(self) -> Iterator[Diagnostic]:
+        return iter(self.items)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def sorted(self) -> list[Diagnostic]:
+        return sorted(self.items, key=lambda d: (d.span, d.code))
+
+
+class HfsmcError(Exception):
+    """Base of every error hfsmc reports to a user (never shown as a traceback)."""
+
+    def __init__(self, diagnostics: Iterable[Diagnostic]) -> None:
+        self.diagnostics = list(diagnostics)
+        first = self.diagnostics[0] if self.diagnostics else None
+        super().__init__(f"{first.span}: {first.message}" if first else "hfsmc error")
+
+
+class ParseError(HfsmcError):
+    """The file could not be read as YAML or XML."""
+
+
+class SchemaError(HfsmcError):
+    """The document does not follow the model schema."""
+
+
+class CheckError(HfsmcError):
+    """The model is well formed but wrong (names, targets, snippets)."""
+
+
+class EmitError(HfsmcError):
+    """Output could not be written."""
+
+
+class UsageError(Exception):
+    """Bad command-line use (exit status 2)."""
+
+
+def fail(cls: type[HfsmcError], code: str, message: str, span: Span, *notes: str) -> NoReturn:
+    """Raise ``cls`` with a single positioned diagnostic; never returns."""
+    raise cls([Diagnostic(code, message, span, "error", notes)])
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str | None:
+    """A "did you mean" note for a misspelt ``word``, or None."""
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f"did you mean `{close[0]}`?" if close else None
+
+
+# ---------------------------------------------------------------------------
+# rendering
+
+
+def _source_line(lines: dict[str, list[str]], span: Span) -> str | None:
+    text = lines.get(span.file)
+    if text is None or not 1 <= span.line <= len(text):
+        return None
+    return text[span.line - 1]
+
+
+def render_text(diags: Iterable[Diagnostic], sources: dict[str, list[str]], color: bool = False) -> str:
+    """Compiler-style text: ``file:line:col: error[E101]: message``, source line, caret."""
+    out: list[str] = []
+    for d in diags:
+        sev = d.severity
+        if color:
+            tint = "\x1b[1;31m" if sev == "error" else "\x1b[1;35m"
+            head = f"\x1b[1m{d.span}:\x1b[0m {tint}{sev}[{d.code}]:\x1b[0m \x1b[1m{d.message}\x1b[0m"
+        else:
+            head = f"{d.span}: {sev}[{d.code}]: {d.message}"
+        out.append(head)
+        line = _source_line(sources, d.span)
+        if line is not None:
+            shown = line.rstrip("\n").expandtabs(1)
+            if len(shown) > 200:
+                shown = shown[:200] + "..."
+            out.append(f"  {shown}")
+            out.append("  " + " " * max(0, min(d.span.col - 1, len(shown))) + "^")
+        out.extend(f"  note: {n}" for n in d.notes)
+    return "\n".join(out) + ("\n" if out else "")
+
+
+def render_json(diags: Iterable[Diagnostic]) -> str:
+    return json.dumps([d.as_dict() for d in diags], indent=2) + "\n"

@@ -1,0 +1,55 @@
+"""The neutral form both front ends hand to the builder.
+
+A :class:`Document` is the model as plain data (dicts, lists, str, int, float,
+bool, None) shaped like the YAML format, plus the source position of every
+value and every mapping key, addressed by its path from the root
+(``("states", "Follow", "transitions", 0, "when")``).  The JSON Schema
+validator and the builder only ever see this form, so YAML, XML and legacy
+files share one validation and one builder.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from hfsmc.errors import Span
+
+PathKey = tuple[str | int, ...]
+Format = Literal["yaml", "xml", "visualstates", "visualhfsm"]
+
+# Limits enforced by every front end (docs/limits in the README).
+MAX_FILE_BYTES = 50 * 1024 * 1024
+MAX_DEPTH = 400  # nesting of YAML/XML containers (about 130 levels of states)
+MAX_NODES = 5_000_000  # values after alias expansion
+
+
+@dataclass
+class Document:
+    file: str
+    format: Format
+    lines: list[str]
+    data: Any = None
+    spans: dict[PathKey, Span] = field(default_factory=dict)
+    key_spans: dict[PathKey, Span] = field(default_factory=dict)
+    # Column (1-based) where the 2nd and later lines of a multi-line string start.
+    cont_cols: dict[PathKey, int] = field(default_factory=dict)
+
+    def span(self, path: PathKey) -> Span:
+        """Position of the value at ``path``, or of its nearest ancestor."""
+        p = tuple(path)
+        while p:
+            s = self.spans.get(p)
+            if s is not None:
+                return s
+            p = p[:-1]
+        return self.spans.get((), Span(self.file, 1, 1))
+
+    def key_span(self, path: PathKey) -> Span:
+        """Position of the key that names ``path`` (falls back to its value)."""
+        s = self.key_spans.get(tuple(path))
+        return s if s is not None else self.span(path)
+
+    def cont_col(self, path: PathKey) -> int:
+        c = self.cont_cols.get(tuple(path))
+        return c if c is not None else self.span(path).col

@@ -1,0 +1,166 @@
+"""YAML front end: ruamel.yaml's round-trip loader, which keeps positions."""
+
+from __future__ import annotations
+
+import datetime
+from typing import Any
+
+from ruamel.yaml import YAML
+from ruamel.yaml.comments import CommentedMap, CommentedSeq
+from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.scalarstring import (
+    DoubleQuotedScalarString,
+    FoldedScalarString,
+    LiteralScalarString,
+    SingleQuotedScalarString,
+)
+
+from hfsmc.errors import Diagnostics, ParseError, Span, fail
+from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, Document, PathKey
+
+
+def _yaml() -> YAML:
+    y = YAML(typ="rt")
+    y.preserve_quotes = True  # so that a quoted scalar's content column is known
+    y.allow_duplicate_keys = False
+    return y
+
+
+def load_yaml(file: str, text: str, diags: Diagnostics) -> Document:
+    """Parse ``text`` and return its neutral :class:`Document`.
+
+    Raises :class:`ParseError` for malformed YAML (position of the problem).
+    Non-fatal oddities (non-string keys) go to ``diags``.
+    """
+    lines = text.splitlines()
+    doc = Document(file, "yaml", lines)
+    try:
+        root = _yaml().load(text)
+    except MarkedYAMLError as e:
+        mark = e.problem_mark or e.context_mark
+        span = Span(file, mark.line + 1, mark.column + 1) if mark else Span(file, 1, 1)
+        code = "E003" if type(e).__name__ == "DuplicateKeyError" else "E002"
+        problem = (e.problem or e.context or "malformed YAML").strip()
+        if code == "E003":
+            problem = _duplicate_message(e)
+        fail(ParseError, code, problem, span)
+    except YAMLError as e:  # reader errors (bad characters) and the like
+        pos = getattr(e, "position", None)
+        span = _offset_span(file, text, pos) if isinstance(pos, int) else Span(file, 1, 1)
+        fail(ParseError, "E002", _first_line(str(e)), span)
+    except RecursionError:
+        fail(ParseError, "E006", f"the document nests deeper than {MAX_DEPTH} levels", Span(file, 1, 1))
+    doc.spans[()] = Span(file, 1, 1)
+    doc.data = _Walker(doc, diags).walk(root)
+    return doc
+
+
+def _duplicate_message(e: MarkedYAMLError) -> str:
+    problem = (e.problem or "").strip()
+    # ruamel says: 'found duplicate key "X" with value "..." (original value: "...")'
+    if problem.startswith("found duplicate key"):
+        head = problem.split(" with value", 1)[0]
+        return head.replace("found duplicate key", "duplicate key") + " in this mapping"
+    return problem or "duplicate key"
+
+
+def _first_line(s: str) -> str:
+    return s.strip().splitlines()[0] if s.strip() else "malformed YAML"
+
+
+def _offset_span(file: str, text: str, offset: int) -> Span:
+    before = text[:offset]
+    line = before.count("\n") + 1
+    col = offset - (before.rfind("\n") + 1) + 1
+    return Span(file, line, col)
+
+
+class _Walker:
+    """Copies ruamel's tree into plain data and records every position.
+
+    Iterative, so deep documents do not hit Python's recursion limit, and
+    bounded, so alias bombs cannot blow up memory.
+    """
+
+    def __init__(self, doc: Document, diags: Diagnostics) -> None:
+        self.doc = doc
+        self.diags = diags
+        self.nodes = 0
+
+    def _span(self, line: int, col: int) -> Span:
+        return Span(self.doc.file, line + 1, col + 1)
+
+    def walk(self, root: Any) -> Any:
+        out: list[Any] = [None]
+        # stack of (source node, setter, path, depth)
+        stack: list[tuple[Any, Any, PathKey, int]] = [(root, (out, 0), (), 0)]
+        while stack:
+            node, (holder, slot), path, depth = stack.pop()
+            self.nodes += 1
+            if self.nodes > MAX_NODES:
+                fail(ParseError, "E006", f"the document expands to more than {MAX_NODES} values "
+                     "(aliases?)", Span(self.doc.file, 1, 1))
+            if depth > MAX_DEPTH:
+                fail(ParseError, "E006", f"the document nests deeper than {MAX_DEPTH} levels",
+                     self.doc.span(path))
+            if isinstance(node, CommentedMap):
+                m: dict[str, Any] = {}
+                holder[slot] = m
+                for k in node:
+                    kl, kc = node.lc.key(k)
+                    key = k
+                    if not isinstance(k, str):
+                        key = str(k)
+                        self.diags.error("E101", f"mapping keys must be strings, not `{k!r}`",
+                                         self._span(kl, kc))
+                    kp = (*path, key)
+                    self.doc.key_spans[kp] = self._span(kl, kc)
+                    vl, vc = node.lc.value(k)
+                    self._record_value(kp, node[k], vl, vc)
+                    m[key] = None
+                    stack.append((node[k], (m, key), kp, depth + 1))
+            elif isinstance(node, CommentedSeq):
+                seq: list[Any] = [None] * len(node)
+                holder[slot] = seq
+                for i, item in enumerate(node):
+                    il, ic = node.lc.item(i)
+                    ip = (*path, i)
+                    self._record_value(ip, item, il, ic)
+                    stack.append((item, (seq, i), ip, depth + 1))
+            else:
+                holder[slot] = _scalar(node)
+        return out[0]
+
+    def _record_value(self, path: PathKey, value: Any, line: int, col: int) -> None:
+        """Position of the first character of a value's content."""
+        if isinstance(value, (LiteralScalarString, FoldedScalarString)):
+            # The mark is on the `|`/`>` indicator; the content starts on the next
+            # non-blank line, at the block's indentation.
+            lines = self.doc.lines
+            ln = line + 1
+            while ln < len(lines) and not lines[ln].strip():
+                ln += 1
+            indent = len(lines[ln]) - len(lines[ln].lstrip(" ")) if ln < len(lines) else col
+            self.doc.spans[path] = self._span(ln, indent)
+            self.doc.cont_cols[path] = indent + 1
+            return
+        if isinstance(value, (DoubleQuotedScalarString, SingleQuotedScalarString)):
+            col += 1
+        self.doc.spans[path] = self._span(line, col)
+
+
+def _scalar(v: Any) -> Any:
+    if v is None or isinstance(v, bool):
+        return v
+    if isinstance(v, int):
+        return int(v)
+    if isinstance(v, float):
+        return float(v)
+    if isinstance(v, str):
+        return str(v)
+    if isinstance(v, (datetime.date, datetime.datetime)):
+        return v.isoformat()
+    if isinstance(v, bytes):
+        return v.decode("latin-1")
+    # tagged scalars and anything exotic: keep their text
+    return str(getattr(v, "value", v))

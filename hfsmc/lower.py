@@ -1,0 +1,188 @@
+"""Lowering: the ordered list of named passes run on the built IR.
+
+Each pass takes the model and the diagnostics bag and returns the model
+(unchanged for pure checks).  The order matters and is stated next to each
+pass; ``hfsmc check --dump-ir`` prints the result of the whole list.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+from hfsmc.errors import Diagnostics, did_you_mean
+from hfsmc.ir import Automaton, Model, State, Transition
+from hfsmc.pycheck import HELPERS, check_python_snippets
+
+Pass = Callable[[Model, Diagnostics], Model]
+
+
+@dataclass(frozen=True, slots=True)
+class NamedPass:
+    name: str
+    run: Pass
+    why: str
+
+
+def _walk_autos(model: Model) -> Iterator[tuple[Automaton, State | None]]:
+    yield model.root, None
+    for s in model.states():
+        if s.automaton is not None:
+            yield s.automaton, s
+
+
+def resolve_initials(model: Model, diags: Diagnostics) -> Model:
+    for auto, owner in _walk_autos(model):
+        where = f"state `{owner.path}`" if owner else "the root"
+        if not auto.initial:
+            diags.error("E130", f"the sub-automaton of {where} has no `initial` state",
+                        auto.initial_span, f"its states: {', '.join(s.name for s in auto.states)}")
+        elif auto.state(auto.initial) is None:
+            names = [s.name for s in auto.states]
+            elsewhere = [s.path for s in model.states() if s.name == auto.initial]
+            note = did_you_mean(auto.initial, names)
+            notes = [note] if note else []
+            if elsewhere:
+                notes.append(f"`{auto.initial}` is at {', '.join(elsewhere)}, not a child of {where}")
+            diags.error("E131", f"initial state `{auto.initial}` is not a child of {where}",
+                        auto.initial_span, *notes)
+    return model
+
+
+def resolve_targets(model: Model, diags: Diagnostics) -> Model:
+    for auto, _owner in _walk_autos(model):
+        names = [s.name for s in auto.states]
+        for state in auto.states:
+            for t in state.transitions:
+                if t.target in names:
+                    continue
+                elsewhere = [s.path for s in model.states() if s.name == t.target]
+                if elsewhere:
+                    diags.error("E133", f"`{state.path}` -> `{t.target}`: transitions join siblings only",
+                                t.target_span, f"`{t.target}` is at {', '.join(elsewhere)}",
+                                "leave the parent state, or move the transition up a level")
+                else:
+                    note = did_you_mean(t.target, names)
+                    diags.error("E132", f"transition to unknown state `{t.target}`", t.target_span,
+                                *((note,) if note else (f"siblings: {', '.join(names)}",)))
+    return model
+
+
+def resolve_interrupt(model: Model, diags: Diagnostics) -> Model:
+    target = model.on_interrupt
+    if target is not None and model.root.state(target) is None:
+        note = did_you_mean(target, [s.name for s in model.root.states])
+        diags.error("E136", f"on_interrupt names `{target}`, which is not a state of the root "
+                    "sub-automaton", model.span, *((note,) if note else ()))
+    if model.interrupt_timeout_us is not None and target is None:
+        diags.error("E139", "interrupt_timeout has no effect without on_interrupt", model.span)
+    return model
+
+
+def check_snippets(model: Model, diags: Diagnostics) -> Model:
+    if model.language == "python":
+        check_python_snippets(model, diags)
+    return model
+
+
+def _always_first(earlier: Transition, later: Transition) -> bool:
+    """``earlier`` holds whenever ``later`` could first fire, so ``later`` never fires."""
+    unconditional = earlier.when is None or earlier.when.text.strip() == "True"
+    return unconditional and (earlier.after_us or 0) <= (later.after_us or 0)
+
+
+def check_flow(model: Model, diags: Diagnostics) -> Model:
+    """Reachability, dead ends and shadowed transitions (warnings only)."""
+    for auto, owner in _walk_autos(model):
+        exits_above = owner is not None and _can_leave(model, owner)
+        reached = {auto.initial}
+        if owner is None and model.on_interrupt:
+            reached.add(model.on_interrupt)
+        todo = list(reached)
+        while todo:
+            s = auto.state(todo.pop())
+            for t in s.transitions if s else ():
+                if t.target not in reached:
+                    reached.add(t.target)
+                    todo.append(t.target)
+        for s in auto.states:
+            if s.name not in reached:
+                diags.warning("W201", f"state `{s.path}` is unreachable", s.span,
+                              f"no transition of its siblings leads to it from `{auto.initial}`")
+            elif not s.final and not s.transitions and not exits_above:
+                diags.warning("W202", f"state `{s.path}` has no way out and is not final", s.span,
+                              "add a transition, or mark it `final: true`")
+            for i, later in enumerate(s.transitions):
+                for earlier in s.transitions[:i]:
+                    if _always_first(earlier, later):
+                        diags.warning("W203", f"transition {later.index} of `{s.path}` never fires: "
+                                      f"transition {earlier.index} always fires first", later.span)
+                        break
+    _check_interrupt_ends(model, diags)
+    return model
+
+
+def _check_interrupt_ends(model: Model, diags: Diagnostics) -> None:
+    start = model.root.state(model.on_interrupt) if model.on_interrupt else None
+    if start is None:
+        return
+    seen, todo = {start.name}, [start]
+    while todo:
+        s = todo.pop()
+        if s.final:
+            return
+        for t in s.transitions:
+            nxt = model.root.state(t.target)
+            if nxt is not None and nxt.name not in seen:
+                seen.add(nxt.name)
+                todo.append(nxt)
+    diags.warning("W204", f"on_interrupt state `{start.name}` never reaches a final state, so an "
+                  "interrupted component stops only at interrupt_timeout or a second signal",
+                  start.span)
+
+
+def check_names(model: Model, diags: Diagnostics) -> Model:
+    """Variables, parameters, interfaces and helpers share one namespace in snippets."""
+    seen: dict[str, str] = {name: "a helper" for name in HELPERS}
+    groups = (("variable", model.variables), ("parameter", model.parameters),
+              ("interface", model.interfaces))
+    for kind, items in groups:
+        for item in items:
+            other = seen.get(item.name)
+            if other is not None:
+                diags.error("E122", f"{kind} `{item.name}` is already {other}", item.span)
+            else:
+                seen[item.name] = f"a {kind}"
+    return model
+
+
+def _can_leave(model: Model, state: State) -> bool:
+    """Whether ``state`` or one of its ancestors has a transition out."""
+    parts = state.path.split("/")
+    for i in range(len(parts), 0, -1):
+        anc = model.find("/".join(parts[:i]))
+        if anc is not None and anc.transitions:
+            return True
+    return False
+
+
+PASSES: tuple[NamedPass, ...] = (
+    NamedPass("check_names", check_names,
+              "first: snippet checks below assume one meaning per name"),
+    NamedPass("resolve_initials", resolve_initials,
+              "before flow analysis, which walks sub-automata from their initial state"),
+    NamedPass("resolve_targets", resolve_targets,
+              "before flow analysis, which follows transitions to their targets"),
+    NamedPass("resolve_interrupt", resolve_interrupt,
+              "on_interrupt is an extra entry point for reachability"),
+    NamedPass("check_snippets", check_snippets,
+              "needs the final sets of variables, parameters and functions, not the states"),
+    NamedPass("check_flow", check_flow,
+              "last: warnings only, meaningful once names and targets resolve"),
+)
+
+
+def lower(model: Model, diags: Diagnostics) -> Model:
+    for p in PASSES:
+        model = p.run(model, diags)
+    return model

@@ -1,0 +1,196 @@
+"""Checks of Python snippets: syntax, undefined names, assignments to parameters.
+
+Every snippet is parsed on its own with :mod:`ast` (exact syntax error
+positions).  For undefined names, all snippets are then joined into one
+synthetic module, each as a function body with its line numbers moved to a
+range of its own, and pyflakes checks that module once, with the model's
+names as extra builtins.  Each message is mapped back to its snippet, and
+from there to the model file.
+"""
+
+from __future__ import annotations
+
+import ast
+import builtins
+from bisect import bisect_right
+from dataclasses import dataclass
+
+from pyflakes import messages as pyflakes_messages
+from pyflakes.checker import Checker
+
+from hfsmc.errors import Diagnostics
+from hfsmc.ir import Code, Model
+
+HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
+_REPORTED = (pyflakes_messages.UndefinedName, pyflakes_messages.UndefinedLocal)
+
+
+@dataclass(frozen=True, slots=True)
+class Snippet:
+    kind: str  # entry | during | exit | when | do | functions | on_shutdown
+    where: str  # state path, or "" for the root's snippets
+    code: Code
+
+    @property
+    def mode(self) -> str:
+        return "eval" if self.kind == "when" else "exec"
+
+
+def snippets(model: Model) -> list[Snippet]:
+    """Every snippet of the model in model order (functions first)."""
+    out: list[Snippet] = []
+    if model.functions is not None:
+        out.append(Snippet("functions", "", model.functions))
+    for s in model.states():
+        for kind in ("entry", "during", "exit"):
+            code = getattr(s, kind)
+            if code is not None:
+                out.append(Snippet(kind, s.path, code))
+        for t in s.transitions:
+            if t.when is not None:
+                out.append(Snippet("when", s.path, t.when))
+            if t.do is not None:
+                out.append(Snippet("do", s.path, t.do))
+    if model.on_shutdown is not None:
+        out.append(Snippet("on_shutdown", "", model.on_shutdown))
+    return out
+
+
+def import_statement(text: str) -> str:
+    """``numpy as np`` → ``import numpy as np``; full statements are kept."""
+    t = text.strip()
+    return t if t.startswith(("import ", "from ")) else f"import {t}"
+
+
+def _parse(sn: Snippet, diags: Diagnostics) -> ast.AST | None:
+    try:
+        return ast.parse(sn.code.text, filename=sn.code.span.file, mode=sn.mode)
+    except SyntaxError as e:
+        line, col = e.lineno or 1, e.offset or 1
+        where = f" of `{sn.where}`" if sn.where else ""
+        diags.error("E140", f"syntax error in {sn.kind}{where}: {e.msg}", sn.code.position(line, col))
+    except (ValueError, MemoryError, RecursionError) as e:  # NUL bytes, absurd nesting
+        diags.error("E140", f"cannot parse {sn.kind}: {e}", sn.code.span)
+    return None
+
+
+def _imported_names(model: Model, diags: Diagnostics) -> set[str]:
+    names: set[str] = set()
+    for imp in model.imports:
+        try:
+            tree = ast.parse(import_statement(imp.text))
+        except SyntaxError:
+            tree = None
+        stmt = tree.body[0] if tree is not None and len(tree.body) == 1 else None
+        if not isinstance(stmt, (ast.Import, ast.ImportFrom)):
+            diags.error("E143", f"`{imp.text}` is not an import: write `math`, `numpy as np` "
+                        "or `from math import pi`", imp.span)
+            continue
+        for alias in stmt.names:
+            if alias.name == "*":
+                diags.error("E143", "`import *` hides which names a snippet uses", imp.span)
+            names.add(alias.asname or alias.name.split(".")[0])
+    return names
+
+
+def _module_names(tree: ast.AST) -> set[str]:
+    """Names bound at the top level of the `functions` code."""
+    out: set[str] = set()
+    for node in getattr(tree, "body", []):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            out.add(node.name)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            out.update((a.asname or a.name.split(".")[0]) for a in node.names)
+        else:
+            for sub in ast.walk(node):
+                if isinstance(sub, ast.Name) and isinstance(sub.ctx, ast.Store):
+                    out.add(sub.id)
+    return out
+
+
+def check_python_snippets(model: Model, diags: Diagnostics) -> None:
+    variables = [v.name for v in model.variables]
+    params = {p.name for p in model.parameters}
+    known = (set(HELPERS) | set(variables) | params | {i.name for i in model.interfaces}
+             | _imported_names(model, diags))
+    parsed: list[tuple[Snippet, ast.AST]] = []
+    for sn in snippets(model):
+        tree = _parse(sn, diags)
+        if tree is None:
+            continue
+        parsed.append((sn, tree))
+        if sn.kind == "functions":
+            known |= _module_names(tree)
+        _check_param_writes(sn, tree, params, diags)
+    _check_undefined(model.file, parsed, variables, known, diags)
+
+
+def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables: list[str],
+                     known: set[str], diags: Diagnostics) -> None:
+    body: list[ast.stmt] = []
+    bases: list[int] = []
+    line = 1
+    for n, (sn, tree) in enumerate(parsed):
+        nlines = sn.code.text.count("\n") + 1
+        ast.increment_lineno(tree, line - 1)
+        if sn.kind == "functions":
+            body.extend(tree.body)  # type: ignore[attr-defined]
+        else:
+            stmts: list[ast.stmt]
+            if isinstance(tree, ast.Expression):
+                stmts = [ast.Return(value=tree.body, lineno=line, col_offset=0)]
+            else:
+                stmts = list(tree.body) or [ast.Pass(lineno=line, col_offset=0)]  # type: ignore[attr-defined]
+            if variables:
+                stmts.insert(0, ast.Global(names=list(variables), lineno=line, col_offset=0))
+            body.append(ast.FunctionDef(
+                name=f"_snippet_{n}", args=ast.arguments(posonlyargs=[], args=[], kwonlyargs=[],
+                                                         kw_defaults=[], defaults=[]),
+                body=stmts, decorator_list=[], returns=None, type_params=[],
+                lineno=line, col_offset=0))
+        bases.append(line)
+        line += nlines
+    module = ast.Module(body=body, type_ignores=[])
+    ast.fix_missing_locations(module)
+    try:
+        checker = Checker(module, filename=file, builtins=known | set(dir(builtins)))
+    except RecursionError:
+        return  # absurdly nested code: the syntax check has already had its say
+    seen: set[tuple[int, int, str]] = set()
+    for msg in sorted(checker.messages, key=lambda m: (m.lineno, m.col)):
+        if not isinstance(msg, _REPORTED):
+            continue
+        i = bisect_right(bases, msg.lineno) - 1
+        sn = parsed[i][0]
+        pos = sn.code.position(msg.lineno - bases[i] + 1, msg.col + 1)
+        name = msg.message_args[0]
+        if (pos.line, pos.col, name) in seen:
+            continue
+        seen.add((pos.line, pos.col, name))
+        where = f" of `{sn.where}`" if sn.where else ""
+        diags.error("E141", f"undefined name `{name}` in {sn.kind}{where}", pos,
+                    "not a variable, parameter, interface, function, import, helper or builtin")
+
+
+def _check_param_writes(sn: Snippet, tree: ast.AST, params: set[str], diags: Diagnostics) -> None:
+    if not params:
+        return
+
+    def visit(nodes: list[ast.AST], globals_: set[str], top: bool) -> None:
+        for node in nodes:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                declared = {n for g in ast.walk(node) if isinstance(g, ast.Global) for n in g.names}
+                visit(list(node.body), declared, False)
+                continue
+            if isinstance(node, (ast.Lambda, ast.ClassDef)):
+                continue
+            if isinstance(node, ast.comprehension):  # its target is local to it
+                visit([node.iter, *node.ifs], globals_, top)
+                continue
+            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                if node.id in params and (top or node.id in globals_):
+                    diags.error("E142", f"parameter `{node.id}` is read-only; make it a variable to "
+                                "change it", sn.code.position(node.lineno, node.col_offset + 1))
+            visit(list(ast.iter_child_nodes(node)), globals_, top)
+
+    visit(list(ast.iter_child_nodes(tree)), set(), True)

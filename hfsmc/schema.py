@@ -1,0 +1,124 @@
+"""Validation of the neutral document against ``schemas/hfsm.schema.json``.
+
+The validator is the ``jsonschema`` library; this module only turns its
+errors into positioned diagnostics (key position for unknown keys, with a
+"did you mean"; value position for wrong types and values).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from functools import cache
+from typing import Any
+
+from jsonschema import Draft202012Validator
+from jsonschema.exceptions import ValidationError, best_match
+
+from hfsmc.errors import Diagnostics, did_you_mean
+from hfsmc.frontend.source import Document, PathKey
+from hfsmc.resources import json_schema
+
+_TYPE_NAMES = {
+    "object": "a mapping",
+    "array": "a list",
+    "string": "a string",
+    "integer": "an integer",
+    "number": "a number",
+    "boolean": "a boolean (true or false)",
+    "null": "nothing",
+}
+
+
+@cache
+def _validator() -> Draft202012Validator:
+    schema = json_schema()
+    Draft202012Validator.check_schema(schema)
+    return Draft202012Validator(schema)
+
+
+def validate(doc: Document, diags: Diagnostics) -> None:
+    """Add a diagnostic for every schema violation of ``doc``."""
+    for err in _validator().iter_errors(doc.data):
+        _report(doc, err, diags)
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, bool) or value is None:
+        return {True: "true", False: "false", None: "nothing"}[value]
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, str):
+        return f"the string {value!r}" if len(value) < 40 else "a string"
+    return f"the number {value!r}"
+
+
+def _expected(types: str | Iterable[str]) -> str:
+    names = [types] if isinstance(types, str) else list(types)
+    words = [_TYPE_NAMES.get(t, t) for t in names if t != "null"] or ["nothing"]
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
+
+
+def _field(path: PathKey) -> str:
+    named = [p for p in path if isinstance(p, str)]
+    return f"`{named[-1]}`" if named else "the document"
+
+
+def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
+    path: PathKey = tuple(err.absolute_path)
+    schema = err.schema if isinstance(err.schema, dict) else {}
+    v = err.validator
+    if v in ("anyOf", "oneOf") and err.context:
+        _report(doc, best_match(err.context), diags)
+        return
+    if "x-error" in schema and v not in ("type", "required", "additionalProperties"):
+        code = schema.get("x-code", "E103")
+        if path == ("hfsm",):
+            code = "E104"
+        diags.error(code, schema["x-error"].format(value=err.instance), doc.span(path))
+        return
+    if v == "additionalProperties":
+        allowed = list((err.schema.get("properties") or {}).keys())  # type: ignore[union-attr]
+        for key in err.instance:
+            if key in allowed:
+                continue
+            note = did_you_mean(key, allowed)
+            notes = (note,) if note else (f"allowed here: {', '.join(allowed)}",)
+            diags.error("E100", f"unknown key `{key}`", doc.key_span((*path, key)), *notes)
+        return
+    if v == "propertyNames":
+        # err.instance is the offending key itself; report the sub-error at the key.
+        sub = err.context[0] if err.context else None
+        sub_schema = sub.schema if sub is not None and isinstance(sub.schema, dict) else {}
+        code = sub_schema.get("x-code", "E103")
+        msg = sub_schema.get("x-error", "invalid name `{value}`").format(value=err.instance)
+        diags.error(code, msg, doc.key_span((*path, err.instance)))
+        return
+    if v == "required":
+        for key in err.validator_value:  # type: ignore[union-attr]
+            if key not in err.instance:
+                span = doc.key_span(path) if path else doc.span(())
+                diags.error("E102", f"missing required key `{key}` in {_field(path)}", span)
+        return
+    if v == "type":
+        code = "E101"
+        if path == ("hfsm",):
+            code = "E104"
+        diags.error(code, f"{_field(path)} must be {_expected(err.validator_value)}, "  # type: ignore[arg-type]
+                    f"not {_describe(err.instance)}", doc.span(path))
+        return
+    if v == "enum":
+        allowed = [str(x) for x in err.validator_value]  # type: ignore[union-attr]
+        note = did_you_mean(str(err.instance), allowed)
+        diags.error("E103", f"{_field(path)} must be one of {', '.join(allowed)}; "
+                    f"not {_describe(err.instance)}", doc.span(path), *((note,) if note else ()))
+        return
+    if v == "const":
+        code = "E104" if path == ("hfsm",) else "E103"
+        diags.error(code, f"{_field(path)} must be {err.validator_value!r}", doc.span(path))
+        return
+    if v in ("minProperties", "minItems", "minLength"):
+        diags.error("E103", f"{_field(path)} must not be empty", doc.span(path))
+        return
+    diags.error("E103", f"{_field(path)}: {err.message}", doc.span(path))
