@@ -26,7 +26,6 @@ from hfsmc.ir import Model
 from hfsmc.resources import schema_file
 
 
-
 def _yaml() -> YAML:
     y = YAML(typ="rt")
     y.preserve_quotes = True

@@ -146,7 +146,7 @@ def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables
             body.append(ast.FunctionDef(
                 name=f"_snippet_{n}", args=ast.arguments(posonlyargs=[], args=[], kwonlyargs=[],
                                                          kw_defaults=[], defaults=[]),
-                body=stmts, decorator_list=[], returns=None, type_params=[],
+                body=stmts, decorator_list=[], returns=None,
                 lineno=line, col_offset=0))
         bases.append(line)
         line += nlines
@@ -187,9 +187,9 @@ def _check_param_writes(sn: Snippet, tree: ast.AST, params: set[str], diags: Dia
             if isinstance(node, ast.comprehension):  # its target is local to it
                 visit([node.iter, *node.ifs], globals_, top)
                 continue
-            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
-                if node.id in params and (top or node.id in globals_):
-                    diags.error("E142", f"parameter `{node.id}` is read-only; make it a variable to "
+            if (isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store)
+                    and node.id in params and (top or node.id in globals_)):
+                diags.error("E142", f"parameter `{node.id}` is read-only; make it a variable to "
                                 "change it", sn.code.position(node.lineno, node.col_offset + 1))
             visit(list(ast.iter_child_nodes(node)), globals_, top)
 

@@ -38,8 +38,15 @@ def _validator() -> Draft202012Validator:
 
 def validate(doc: Document, diags: Diagnostics) -> None:
     """Add a diagnostic for every schema violation of ``doc``."""
+    found = Diagnostics()
     for err in _validator().iter_errors(doc.data):
-        _report(doc, err, diags)
+        _report(doc, err, found)
+    # jsonschema raises one `required` error per missing key; each report names all of them.
+    seen: set[tuple[str, str, object]] = set()
+    for d in found:
+        if (d.code, d.message, d.span) not in seen:
+            seen.add((d.code, d.message, d.span))
+            diags.items.append(d)
 
 
 def _describe(value: Any) -> str:
@@ -67,6 +74,7 @@ def _field(path: PathKey) -> str:
 
 def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
     path: PathKey = tuple(err.absolute_path)
+    instance: Any = err.instance
     schema = err.schema if isinstance(err.schema, dict) else {}
     v = err.validator
     if v in ("anyOf", "oneOf") and err.context:
@@ -80,7 +88,7 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
         return
     if v == "additionalProperties":
         allowed = list((err.schema.get("properties") or {}).keys())  # type: ignore[union-attr]
-        for key in err.instance:
+        for key in instance:
             if key in allowed:
                 continue
             note = did_you_mean(key, allowed)
@@ -93,11 +101,11 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
         sub_schema = sub.schema if sub is not None and isinstance(sub.schema, dict) else {}
         code = sub_schema.get("x-code", "E103")
         msg = sub_schema.get("x-error", "invalid name `{value}`").format(value=err.instance)
-        diags.error(code, msg, doc.key_span((*path, err.instance)))
+        diags.error(code, msg, doc.key_span((*path, str(instance))))
         return
     if v == "required":
         for key in err.validator_value:  # type: ignore[union-attr]
-            if key not in err.instance:
+            if key not in instance:
                 span = doc.key_span(path) if path else doc.span(())
                 diags.error("E102", f"missing required key `{key}` in {_field(path)}", span)
         return

@@ -51,8 +51,42 @@ def load_yaml(file: str, text: str, diags: Diagnostics) -> Document:
     except RecursionError:
         fail(ParseError, "E006", f"the document nests deeper than {MAX_DEPTH} levels", Span(file, 1, 1))
     doc.spans[()] = Span(file, 1, 1)
+    if "&" in text:  # anchors exist: bound the expansion of their aliases first
+        _check_expansion(file, root)
     doc.data = _Walker(doc, diags).walk(root)
     return doc
+
+
+def _check_expansion(file: str, root: Any) -> None:
+    """Refuse alias bombs and recursive aliases before anything expands them.
+
+    Counts the values the document would have with every alias expanded, in
+    one pass over the distinct nodes (sizes memoised by identity).
+    """
+    size: dict[int, int] = {}
+    on_path: set[int] = set()
+    stack: list[tuple[Any, bool]] = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        if not isinstance(node, (CommentedMap, CommentedSeq)):
+            continue
+        key = id(node)
+        children = list(node.values()) if isinstance(node, CommentedMap) else list(node)
+        if done:
+            on_path.discard(key)
+            size[key] = 1 + sum(size.get(id(c), 1) for c in children)
+            if size[key] > MAX_NODES:
+                fail(ParseError, "E006", f"aliases expand the document to more than {MAX_NODES} "
+                     "values", Span(file, 1, 1))
+            continue
+        if key in on_path:
+            fail(ParseError, "E006", "an alias refers to a mapping or list that contains it",
+                 Span(file, 1, 1))
+        if key in size:
+            continue
+        on_path.add(key)
+        stack.append((node, True))
+        stack.extend((c, False) for c in children)
 
 
 def _duplicate_message(e: MarkedYAMLError) -> str:

@@ -1,0 +1,63 @@
+# hfsmc: the one entry point. `make test` and `make demo` set everything up on a
+# fresh Debian machine: Debian packages through apt-get (sudo when not root,
+# skipped when present) and a virtualenv .venv with the package and its tools.
+
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+DEB_PACKAGES := graphviz tmux
+EXAMPLES := $(wildcard examples/*/*.yaml)
+PYTEST_ARGS ?=
+
+.PHONY: all setup deps test demo bench golden lint examples clean
+
+all: test
+
+deps:
+	@missing=""; \
+	for p in $(DEB_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	$(PY) -c 'import ensurepip, venv' 2>/dev/null || missing="$$missing python3-venv"; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e '.[dev]'
+	touch $@
+
+setup: deps $(STAMP)
+
+lint: setup
+	$(BIN)/ruff check hfsmc tests bench
+	$(BIN)/mypy
+
+test: lint
+	$(BIN)/pytest $(PYTEST_ARGS)
+
+# Until the Python component lands, the demo checks and draws every example.
+demo: setup
+	@mkdir -p build/diagrams
+	$(BIN)/hfsmc check $(EXAMPLES)
+	@for m in $(EXAMPLES); do \
+	  out=build/diagrams/$$(basename $${m%.*}).svg; \
+	  $(BIN)/hfsmc diagram $$m -o $$out || exit 1; \
+	done
+	@echo; echo "All examples check clean. Diagrams: $$(ls build/diagrams/*.svg | tr '\n' ' ')"
+
+bench: setup
+	$(BIN)/python bench/frontend.py --json bench/results.json
+
+golden: setup
+	$(BIN)/python tests/regen_golden.py
+
+examples: setup
+	$(BIN)/hfsmc check --strict $(EXAMPLES)
+
+clean:
+	rm -rf build dist *.egg-info .pytest_cache .mypy_cache .ruff_cache bench/_work

@@ -1,0 +1,56 @@
+"""Regenerate the golden files of every example (``make golden``).
+
+tests/golden/NAME.ir.txt  the lowered IR (``hfsmc check --dump-ir``)
+tests/golden/NAME.dot     the Graphviz source of ``hfsmc diagram``
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+GOLDEN = ROOT / "tests" / "golden"
+sys.path.insert(0, str(ROOT))
+
+from hfsmc.compiler import compile_file  # noqa: E402
+from hfsmc.dump import dump  # noqa: E402
+from hfsmc.emit.dot import to_dot  # noqa: E402
+from hfsmc.ir import Model  # noqa: E402
+
+GENERATORS: dict[str, Callable[[Model], str]] = {"ir.txt": dump, "dot": to_dot}
+
+
+def examples() -> list[Path]:
+    return sorted((ROOT / "examples").glob("*/*.yaml"))
+
+
+def render(example: Path, suffix: str) -> str:
+    rel = example.relative_to(ROOT)
+    result = compile_file(str(rel))
+    assert result.model is not None, f"{rel} does not compile: {result.diagnostics}"
+    return GENERATORS[suffix](result.model)
+
+
+def golden_path(example: Path, suffix: str) -> Path:
+    return GOLDEN / f"{example.stem}.{suffix}"
+
+
+def main() -> None:
+    import os
+
+    os.chdir(ROOT)  # spans and file names in the output are relative to the repository
+    GOLDEN.mkdir(exist_ok=True)
+    for ex in examples():
+        for suffix in GENERATORS:
+            path = golden_path(ex, suffix)
+            text = render(ex, suffix)
+            old = path.read_text("utf-8") if path.exists() else None
+            if old != text:
+                path.write_text(text, "utf-8")
+                print(f"updated {path.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main()
