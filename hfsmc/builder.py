@@ -59,15 +59,15 @@ class _Builder:
         if isinstance(text, bool):  # `when: true`
             text = "True" if text else "False"
         p = (*path, key)
-        return Code(str(text), self.doc.span(p), self.doc.cont_col(p))
+        return Code(str(text), self.doc.span(p), self.doc.cont_col(p), self.doc.segments.get(p, ()))
 
     def duration(self, node: dict[str, Any], path: PathKey, key: str) -> int | None:
         if key not in node:
             return None
         us = parse_us(node[key])
         if us is None:
-            self.diags.error("E110", f"`{node[key]}` is not a duration: write 250ms, 2s, 1.5s or 2m",
-                             self.doc.span((*path, key)))
+            self.diags.error("E110", f"`{node[key]}` is not a duration: write 250ms, 2s, 1.5s or 2m "
+                             "(at most a year, whole microseconds)", self.doc.span((*path, key)))
         return us
 
     def period(self, node: dict[str, Any], path: PathKey) -> int | None:
@@ -101,6 +101,9 @@ class _Builder:
             root=root,
             file=self.doc.file,
             span=self.doc.span(()),
+            on_interrupt_span=self.doc.span(("on_interrupt",)) if "on_interrupt" in d else None,
+            interrupt_timeout_span=(self.doc.key_span(("interrupt_timeout",))
+                                    if "interrupt_timeout" in d else None),
         )
 
     def interfaces(self) -> tuple[Interface, ...]:
@@ -141,8 +144,11 @@ class _Builder:
     def coerce(self, value: Any, vtype: str, path: PathKey) -> Value:
         """Check (and for text from XML, convert) a literal against its declared type."""
         want = _PY_TYPES.get(vtype)
-        if want is None:  # a C++ type: the initializer is C++ code
-            return value if not isinstance(value, (list, dict)) else _freeze(value)
+        if want is None:  # a C++ type: the initializer is C++ code, kept as text in every format
+            return _cpp_text(value)
+        if want is int and isinstance(value, int) and not -(2**63) <= value < 2**63:
+            self.diags.error("E103", f"`{path[-1]}` {value} does not fit in 64 bits", self.doc.span(path))
+            return 0
         if isinstance(value, want) and not (want is int and isinstance(value, bool)):
             return _freeze(value)
         if want is float and isinstance(value, int) and not isinstance(value, bool):
@@ -222,3 +228,14 @@ def _from_text(text: str, vtype: str) -> Value:
         return _freeze(value) if isinstance(value, _PY_TYPES[vtype]) else None
     except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
         return None
+
+
+def _cpp_text(value: Any) -> str:
+    """A C++ initializer written as a YAML literal, as C++ text."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list):
+        return "{" + ", ".join(_cpp_text(v) for v in value) + "}"
+    if isinstance(value, dict):
+        return "{" + ", ".join(_cpp_text(v) for v in value.values()) + "}"
+    return str(value)

@@ -8,7 +8,7 @@ from hfsmc import schema
 from hfsmc.builder import build
 from hfsmc.errors import Diagnostic, Diagnostics, HfsmcError
 from hfsmc.frontend import load
-from hfsmc.frontend.source import Document
+from hfsmc.frontend.source import Document, split_lines
 from hfsmc.ir import Model
 from hfsmc.lower import lower
 
@@ -47,9 +47,9 @@ def compile_file(path: str, text: str | None = None) -> Result:
 
 def _lines(path: str, text: str | None) -> list[str]:
     if text is not None:
-        return text.splitlines()
+        return split_lines(text)
     try:
         with open(path, encoding="utf-8", errors="replace") as f:
-            return f.read(1 << 20).splitlines()
+            return split_lines(f.read(1 << 20))
     except OSError:
         return []

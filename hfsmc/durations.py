@@ -8,6 +8,7 @@ from fractions import Fraction
 
 _RE = re.compile(r"^\s*([0-9]+(?:\.[0-9]+)?)\s*(ms|s|m)?\s*$")
 _US_PER_UNIT = {"ms": 1000, "s": 1_000_000, "m": 60_000_000}
+MAX_US = 366 * 24 * 3600 * 1_000_000  # a year: far beyond any mission, far inside int64
 
 
 def parse_us(value: object) -> int | None:
@@ -18,14 +19,14 @@ def parse_us(value: object) -> int | None:
     if isinstance(value, bool):
         return None
     if isinstance(value, int):
-        return value * 1000 if value >= 0 else None
+        return value * 1000 if 0 <= value * 1000 <= MAX_US else None
     if not isinstance(value, str):
         return None
     m = _RE.match(value)
     if m is None:
         return None
     us = Fraction(m.group(1)) * _US_PER_UNIT[m.group(2) or "ms"]
-    return int(us) if us.denominator == 1 else None
+    return int(us) if us.denominator == 1 and us <= MAX_US else None
 
 
 def format_us(us: int) -> str:

@@ -22,7 +22,7 @@ CODES: dict[str, str] = {
     # reading the file
     "E001": "the file cannot be read (missing, empty, binary, not UTF-8, too large)",
     "E002": "syntax error in the YAML or XML document",
-    "E003": "duplicate key in a YAML mapping",
+    "E003": "duplicate key in a YAML mapping, or a repeated XML element",
     "E004": "forbidden XML construct (DOCTYPE, entity, XInclude, processing instruction)",
     "E005": "not an hfsm document (unknown root element or top-level shape)",
     "E006": "the model nests deeper than hfsmc accepts",
@@ -54,6 +54,8 @@ CODES: dict[str, str] = {
     "E141": "undefined name in a Python snippet",
     "E142": "assignment to a parameter",
     "E143": "malformed import",
+    # output
+    "E150": "output cannot be written (a value the output format cannot hold, a failing tool)",
     # warnings
     "W201": "unreachable state",
     "W202": "state with no way out that is not final",
@@ -190,7 +192,9 @@ def render_text(diags: Iterable[Diagnostic], sources: dict[str, list[str]], colo
         out.append(head)
         line = _source_line(sources, d.span)
         if line is not None:
-            shown = line.rstrip("\n").expandtabs(1)
+            # one character per column, so the caret stays under it; no raw control bytes
+            shown = "".join(ch if ch >= " " or ch == "\t" else "\ufffd" for ch in line)
+            shown = shown.expandtabs(1)
             if len(shown) > 200:
                 shown = shown[:200] + "..."
             out.append(f"  {shown}")

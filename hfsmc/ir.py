@@ -22,7 +22,7 @@ class DictValue:
     items: tuple[tuple[str, Value], ...]
 
 
-Value: TypeAlias = None | bool | int | float | str | tuple["Value", ...] | DictValue
+Value: TypeAlias = bool | int | float | str | tuple["Value", ...] | DictValue | None
 
 SNIPPET_KINDS = ("entry", "during", "exit", "when", "do", "functions", "on_shutdown")
 
@@ -39,9 +39,19 @@ class Code:
     text: str
     span: Span = field(compare=False)
     cont_col: int = field(default=1, compare=False)
+    # Folded YAML scalars: (offset in text, model line, model col) of each source line.
+    segments: tuple[tuple[int, int, int], ...] = field(default=(), compare=False)
 
     def position(self, line: int, col: int) -> Span:
         """Model position of 1-based (line, col) inside the snippet text."""
+        if self.segments:
+            rows = self.text.split("\n")
+            offset = sum(len(r) + 1 for r in rows[:max(line - 1, 0)]) + max(col - 1, 0)
+            best = self.segments[0]
+            for seg in self.segments:
+                if seg[0] <= offset:
+                    best = seg
+            return Span(self.span.file, best[1], best[2] + offset - best[0])
         if line <= 1:
             return Span(self.span.file, self.span.line, self.span.col + max(col - 1, 0))
         return Span(self.span.file, self.span.line + line - 1, self.cont_col + max(col - 1, 0))
@@ -144,6 +154,8 @@ class Model:
     root: Automaton
     file: str = field(compare=False)
     span: Span = field(compare=False)
+    on_interrupt_span: Span | None = field(default=None, compare=False)
+    interrupt_timeout_span: Span | None = field(default=None, compare=False)
 
     def states(self) -> Iterator[State]:
         """Every state, depth first, parents before children, in model order."""

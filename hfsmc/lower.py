@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from hfsmc.errors import Diagnostics, did_you_mean
+from hfsmc.errors import Diagnostics, Span, did_you_mean
 from hfsmc.ir import Automaton, Model, State, Transition
 from hfsmc.pycheck import HELPERS, check_python_snippets
 
@@ -73,9 +73,10 @@ def resolve_interrupt(model: Model, diags: Diagnostics) -> Model:
     if target is not None and model.root.state(target) is None:
         note = did_you_mean(target, [s.name for s in model.root.states])
         diags.error("E136", f"on_interrupt names `{target}`, which is not a state of the root "
-                    "sub-automaton", model.span, *((note,) if note else ()))
+                    "sub-automaton", model.on_interrupt_span or model.span, *((note,) if note else ()))
     if model.interrupt_timeout_us is not None and target is None:
-        diags.error("E139", "interrupt_timeout has no effect without on_interrupt", model.span)
+        diags.error("E139", "interrupt_timeout has no effect without on_interrupt",
+                    model.interrupt_timeout_span or model.span)
     return model
 
 
@@ -94,6 +95,8 @@ def _always_first(earlier: Transition, later: Transition) -> bool:
 def check_flow(model: Model, diags: Diagnostics) -> Model:
     """Reachability, dead ends and shadowed transitions (warnings only)."""
     for auto, owner in _walk_autos(model):
+        if auto.state(auto.initial) is None:
+            continue  # E130/E131 already said so; reachability would only repeat it
         exits_above = owner is not None and _can_leave(model, owner)
         reached = {auto.initial}
         if owner is None and model.on_interrupt:
@@ -144,15 +147,16 @@ def _check_interrupt_ends(model: Model, diags: Diagnostics) -> None:
 def check_names(model: Model, diags: Diagnostics) -> Model:
     """Variables, parameters, interfaces and helpers share one namespace in snippets."""
     seen: dict[str, str] = {name: "a helper" for name in HELPERS}
-    groups = (("variable", model.variables), ("parameter", model.parameters),
-              ("interface", model.interfaces))
-    for kind, items in groups:
-        for item in items:
-            other = seen.get(item.name)
-            if other is not None:
-                diags.error("E122", f"{kind} `{item.name}` is already {other}", item.span)
-            else:
-                seen[item.name] = f"a {kind}"
+    declared: list[tuple[Span, str, str]] = sorted(
+        [(v.span, "variable", v.name) for v in model.variables]
+        + [(p.span, "parameter", p.name) for p in model.parameters]
+        + [(i.span, "interface", i.name) for i in model.interfaces])
+    for span, kind, name in declared:  # in file order: the later declaration is the wrong one
+        other = seen.get(name)
+        if other is not None:
+            diags.error("E122", f"{kind} `{name}` is already {other}", span)
+        else:
+            seen[name] = f"a {kind}"
     return model
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ast
 import builtins
+import re
 from bisect import bisect_right
 from dataclasses import dataclass
 
@@ -22,6 +23,7 @@ from hfsmc.errors import Diagnostics
 from hfsmc.ir import Code, Model
 
 HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
+_DEFINED = re.compile(r"^(?:def|class)\s+([A-Za-z_]\w*)|^([A-Za-z_]\w*)\s*=", re.M)
 _REPORTED = (pyflakes_messages.UndefinedName, pyflakes_messages.UndefinedLocal)
 
 
@@ -64,7 +66,9 @@ def import_statement(text: str) -> str:
 
 def _parse(sn: Snippet, diags: Diagnostics) -> ast.AST | None:
     try:
-        return ast.parse(sn.code.text, filename=sn.code.span.file, mode=sn.mode)
+        # Not the model's file name: CPython re-reads that file to place the caret of a
+        # syntax error, which would give columns from the wrong line.
+        return ast.parse(sn.code.text, filename="<snippet>", mode=sn.mode)
     except SyntaxError as e:
         line, col = e.lineno or 1, e.offset or 1
         where = f" of `{sn.where}`" if sn.where else ""
@@ -117,16 +121,18 @@ def check_python_snippets(model: Model, diags: Diagnostics) -> None:
     for sn in snippets(model):
         tree = _parse(sn, diags)
         if tree is None:
+            if sn.kind == "functions":  # still know what it meant to define: no E141 cascade
+                known |= {a or b for a, b in _DEFINED.findall(sn.code.text)}
             continue
         parsed.append((sn, tree))
         if sn.kind == "functions":
             known |= _module_names(tree)
         _check_param_writes(sn, tree, params, diags)
-    _check_undefined(model.file, parsed, variables, known, diags)
+    _check_undefined(model.file, parsed, variables, params, known, diags)
 
 
 def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables: list[str],
-                     known: set[str], diags: Diagnostics) -> None:
+                     params: set[str], known: set[str], diags: Diagnostics) -> None:
     body: list[ast.stmt] = []
     bases: list[int] = []
     line = 1
@@ -163,7 +169,10 @@ def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables
         i = bisect_right(bases, msg.lineno) - 1
         sn = parsed[i][0]
         pos = sn.code.position(msg.lineno - bases[i] + 1, msg.col + 1)
-        name = msg.message_args[0]
+        args = msg.message_args
+        name = args if isinstance(args, str) else args[0]
+        if isinstance(msg, pyflakes_messages.UndefinedLocal) and name in params:
+            continue  # an assignment to a parameter: E142 says it better
         if (pos.line, pos.col, name) in seen:
             continue
         seen.add((pos.line, pos.col, name))

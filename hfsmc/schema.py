@@ -82,9 +82,15 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
         return
     if "x-error" in schema and v not in ("type", "required", "additionalProperties"):
         code = schema.get("x-code", "E103")
+        span = doc.span(path)
+        if "propertyNames" in err.schema_path:  # the offending value is a key of `path`
+            span = doc.key_span((*path, str(instance)))
+        message = schema["x-error"].format(value=instance)
         if path == ("hfsm",):
             code = "E104"
-        diags.error(code, schema["x-error"].format(value=err.instance), doc.span(path))
+            if isinstance(instance, str):
+                message = f"`hfsm` must be the number 1, not the string {instance!r}"
+        diags.error(code, message, span)
         return
     if v == "additionalProperties":
         allowed = list((err.schema.get("properties") or {}).keys())  # type: ignore[union-attr]

@@ -3,14 +3,18 @@
 The drawing follows the VisualStates paper: a state is a circle with its name
 inside, the initial state of each sub-automaton a double circle; final states
 are filled grey (an initial final state is a grey double circle).  A composite
-state is a cluster labelled with its name, period and ``history``.  A
-transition is an arrow labelled with its name, ``[when]`` and ``after``.
+state is a cluster labelled with its name, period and ``history`` (and, as a
+cluster cannot be a double circle, ``initial`` and a bold border when it is
+the initial state).  A transition is an arrow labelled with its name,
+``[when]`` and ``after``; long lines are cut with an ellipsis.
 
 Node ids are the states' full paths, always quoted, so they cannot collide
 whatever the names; helper nodes carry a ``#``, which no path contains.  An
 edge to or from a composite state is drawn between anchor nodes inside the
-clusters (the initial child, recursively) and clipped at the cluster's border
-with ``lhead`` / ``ltail`` (``compound=true``).
+clusters (a leaf reached through initial children going in, one far from the
+initial child going out) and clipped at the cluster's border with ``lhead`` /
+``ltail`` (``compound=true``); its label is a text node the arrow runs
+through, so that it always sits outside the clusters.
 
 Labels are Graphviz escStrings: backslashes are doubled (no ``\\N``, ``\\l``
 surprises), ``&`` becomes ``&amp;`` (Graphviz decodes entities even in plain
@@ -21,7 +25,6 @@ the ``graphviz`` package.  The same model always gives the same DOT bytes.
 from __future__ import annotations
 
 import unicodedata
-from collections.abc import Iterator
 from pathlib import Path
 
 import graphviz
@@ -33,8 +36,6 @@ from hfsmc.ir import Automaton, Code, Model, State, Transition
 
 # Longest line of a label (conditions, names), in characters, before "…".
 LABEL_LIMIT = 40
-# Longest tooltip (the full, unshortened text shown on hover in SVG).
-TOOLTIP_LIMIT = 1000
 ELLIPSIS = "…"
 
 FONT = "Helvetica,Arial,sans-serif"
@@ -84,11 +85,9 @@ def to_dot(model: Model, state_path: str | None = None) -> str:
         node_attr=NODE_ATTRS,
         edge_attr=EDGE_ATTRS,
     )
-    _draw_states(g, auto, depth=0)
-    for parent, state in _states_in(auto):
-        for t in state.transitions:
-            _draw_transition(g, state, t, parent)
-    return g.source
+    _draw_automaton(g, auto, depth=0)
+    source: str = g.source
+    return source if source.endswith("\n") else source + "\n"
 
 
 def write_diagram(model: Model, out: Path, state_path: str | None) -> None:
@@ -117,14 +116,23 @@ def render(source: str, fmt: str) -> bytes:
             "Graphviz `dot` not found: install the graphviz package (apt-get install graphviz)"
         ) from None
     except graphviz.CalledProcessError as e:
-        detail = _stderr_text(e.stderr) or "no message"
         raise UsageError(
-            f"Graphviz `dot` failed (exit status {e.returncode}): {detail}"
+            f"Graphviz `dot` failed (exit status {e.returncode}): {_stderr_text(e.stderr)}"
             " (write the diagram as .dot to see its source)"
         ) from None
+    except OSError as e:
+        raise UsageError(f"cannot run Graphviz `dot`: {e}") from None
     if not data:
         raise UsageError(f"Graphviz `dot` produced no {fmt.upper()} output")
     return data
+
+
+def _stderr_text(stderr: bytes | str | None) -> str:
+    """The last lines dot wrote on stderr, on one line."""
+    if isinstance(stderr, bytes):
+        stderr = stderr.decode("utf-8", errors="replace")
+    lines = [ln.strip() for ln in (stderr or "").splitlines() if ln.strip()]
+    return _shorten(" / ".join(lines[-3:]), 300) if lines else "no message"
 
 
 # ---------------------------------------------------------------------------
@@ -135,19 +143,19 @@ def _select(model: Model, state_path: str | None) -> tuple[Automaton, str]:
     """The sub-automaton to draw and the diagram's title."""
     root_period = format_us(model.root.period_ms * 1000)
     if state_path is None:
-        return model.root, f"{model.name}  (period {root_period})"
+        return model.root, f"{model.name} · period {root_period}"
     state = model.find(state_path)
     composites = [s.path for s in model.states() if s.automaton is not None]
     if state is None:
         msg = f"--state {state_path}: no such state in model `{model.name}`"
-        hint = did_you_mean(state_path, [s.path for s in model.states()])
+        hint = did_you_mean(state_path, composites)
         raise UsageError(f"{msg} ({hint})" if hint else msg + _listing(composites))
     if state.automaton is None:
         raise UsageError(
             f"--state {state_path}: state `{state.path}` has no sub-automaton to draw"
             + _listing(composites)
         )
-    return state.automaton, f"{model.name}: {state.path}  ({_automaton_note(state.automaton)})"
+    return state.automaton, f"{model.name}: {state.path} · {_automaton_note(state.automaton)}"
 
 
 def _listing(composites: list[str]) -> str:
@@ -156,20 +164,16 @@ def _listing(composites: list[str]) -> str:
     return "; composite states: " + ", ".join(composites)
 
 
-def _states_in(auto: Automaton) -> Iterator[tuple[Automaton, State]]:
-    """Every state of ``auto`` and its nested sub-automata, parents first, with
-    the sub-automaton that holds it."""
-    for s in auto.states:
-        yield auto, s
-        if s.automaton is not None:
-            yield from _states_in(s.automaton)
-
-
 # ---------------------------------------------------------------------------
 # states
 
 
-def _draw_states(g: graphviz.Digraph, auto: Automaton, depth: int) -> None:
+def _draw_automaton(g: graphviz.Digraph, auto: Automaton, depth: int) -> None:
+    """The states of ``auto`` (clusters for composite ones), then its transitions.
+
+    Everything goes in ``auto``'s own cluster: the label nodes of transitions
+    must sit in the cluster of the sub-automaton they belong to.
+    """
     for s in auto.states:
         initial = s.name == auto.initial
         if s.automaton is None:
@@ -177,7 +181,7 @@ def _draw_states(g: graphviz.Digraph, auto: Automaton, depth: int) -> None:
             continue
         with g.subgraph(name=_cluster_id(s)) as c:
             c.attr(
-                label=_esc_lines([s.name, _automaton_note(s.automaton)]),
+                label=_esc_lines([s.name, _automaton_note(s.automaton, initial)], left=True),
                 style="rounded,filled" + (",bold" if initial else ""),
                 fillcolor=CLUSTER_FILLS[depth % len(CLUSTER_FILLS)],
                 color="#4a5a70",
@@ -185,15 +189,18 @@ def _draw_states(g: graphviz.Digraph, auto: Automaton, depth: int) -> None:
                 fontsize="13",
                 labeljust="l",
                 margin="12",
-                tooltip=_esc_lines([s.path + (" (initial)" if initial else "")]),
+                tooltip=s.path,
             )
-            _draw_states(c, s.automaton, depth + 1)
+            _draw_automaton(c, s.automaton, depth + 1)
+    for s in auto.states:
+        for t in s.transitions:
+            _draw_transition(g, s, t, auto)
 
 
 def _state_attrs(s: State, initial: bool) -> dict[str, str]:
     attrs = {
-        "label": _esc_lines([_shorten(s.name, LABEL_LIMIT)]),
-        "tooltip": _esc_lines([s.path]),
+        "label": _esc_lines([s.name]),  # never shortened: names tell states apart
+        "tooltip": s.path,  # identifiers and `/`: nothing to escape
     }
     if initial:
         attrs["shape"] = "doublecircle"
@@ -203,14 +210,19 @@ def _state_attrs(s: State, initial: bool) -> dict[str, str]:
     return attrs
 
 
-def _automaton_note(auto: Automaton) -> str:
+def _automaton_note(auto: Automaton, initial: bool = False) -> str:
+    """``period 100ms``, with `` · history`` when on; a composite initial state
+    (a cluster cannot be a double circle) says ``initial`` first."""
     note = f"period {format_us(auto.period_ms * 1000)}"
-    return note + " · history" if auto.history else note
+    if auto.history:
+        note += " · history"
+    return "initial · " + note if initial else note
 
 
 def _node_id(s: State) -> str:
-    # Always quoted by the graphviz package (a path is never a bare DOT keyword
-    # problem: `node`, `edge`... are quoted too); a path contains no `:`.
+    # The path itself: unique, and quoted by the graphviz package whenever
+    # needed (a `/`, a DOT keyword such as `node`); it never holds a `:`,
+    # which graphviz would read as a port.
     return s.path
 
 
@@ -218,14 +230,49 @@ def _cluster_id(s: State) -> str:
     return f"cluster_{s.path}"
 
 
-def _anchor(s: State) -> State:
-    """The node an edge to or from ``s`` attaches to: ``s``, or its initial leaf."""
+def _entry_anchor(s: State) -> State:
+    """The node an edge into ``s`` attaches to: ``s``, or its initial leaf.
+
+    The initial child is what the layout puts first in a cluster, so edges
+    come in where the sub-automaton starts.
+    """
     while s.automaton is not None:
         child = s.automaton.state(s.automaton.initial)
         if child is None:  # cannot happen in a checked model
             break
         s = child
     return s
+
+
+def _exit_anchor(s: State) -> State:
+    """The node an edge out of ``s`` attaches to: ``s``, or a leaf far from the start.
+
+    With ``rankdir=LR`` and ``newrank`` an edge's tail node sets the rank of its
+    head; leaving from the child farthest (in transitions) from the initial one
+    puts the target to the right of the whole cluster, not beside it.
+    """
+    while s.automaton is not None:
+        s = _farthest(s.automaton)
+    return s
+
+
+def _farthest(auto: Automaton) -> State:
+    """The child of ``auto`` with the longest shortest path from the initial child
+    (the last such in model order); unreachable children do not count."""
+    start = auto.state(auto.initial) or auto.states[0]
+    dist = {start.name: 0}
+    queue = [start]
+    for s in queue:  # breadth first: the list grows while it is walked
+        for t in s.transitions:
+            nxt = auto.state(t.target)
+            if nxt is not None and nxt.name not in dist:
+                dist[nxt.name] = dist[s.name] + 1
+                queue.append(nxt)
+    best = start
+    for s in auto.states:
+        if s.name in dist and dist[s.name] >= dist[best.name]:
+            best = s
+    return best
 
 
 # ---------------------------------------------------------------------------
@@ -237,33 +284,24 @@ def _draw_transition(g: graphviz.Digraph, src: State, t: Transition, parent: Aut
     if dst is None:  # cannot happen in a checked model
         raise UsageError(f"transition of `{src.path}` to unknown state `{t.target}`")
     label = _esc_lines(_label_lines(t))
-    tooltip = _tooltip(src, dst, t)
-    if dst is src and src.automaton is not None:
-        _draw_composite_loop(g, src, t, label, tooltip)
+    tail, head = _node_id(_exit_anchor(src)), _node_id(_entry_anchor(dst))
+    if src.automaton is None and dst.automaton is None:
+        g.edge(tail, head, label=label)
         return
-    attrs: dict[str, str] = {"label": label, "tooltip": tooltip}
-    if src.automaton is not None:
-        attrs["ltail"] = _cluster_id(src)
-    if dst.automaton is not None:
-        attrs["lhead"] = _cluster_id(dst)
-    g.edge(_node_id(_anchor(src)), _node_id(_anchor(dst)), **attrs)
-
-
-def _draw_composite_loop(
-    g: graphviz.Digraph, s: State, t: Transition, label: str, tooltip: str
-) -> None:
-    """A self-transition of a composite state: out of the cluster and back into it.
-
-    Graphviz cannot draw a loop on a cluster (an edge clipped at both ends by
-    the same cluster is refused), so the loop goes through a tiny helper node
-    just outside the cluster.
-    """
-    via = f"#loop {s.path} {t.index}"  # `#` and spaces never occur in a path
-    g.node(via, label="", shape="point", width="0.03", style="invis")
-    anchor = _node_id(_anchor(s))
-    cluster = _cluster_id(s)
-    g.edge(anchor, via, label=label, tooltip=tooltip, ltail=cluster, arrowhead="none")
-    g.edge(via, anchor, tooltip=tooltip, lhead=cluster)
+    # To or from a composite state: the edge runs between anchor nodes and is
+    # clipped at the cluster's border.  dot would place an ordinary label at
+    # the middle of the unclipped edge, possibly inside the cluster (and an
+    # xlabel gets no room and overlaps nodes), so the label is a small text
+    # node of its own, outside the clusters, that the arrow runs through.  It
+    # also lets a composite state's self-transition leave the cluster and come
+    # back, which a single edge clipped twice by one cluster cannot do.
+    via = f"#{src.path} {t.index}"  # `#` and spaces never occur in a path
+    g.node(via, label=label, shape="plaintext", style="", width="0", height="0",
+           margin="0.04,0.02", fontsize=EDGE_ATTRS["fontsize"])
+    out = {"ltail": _cluster_id(src)} if src.automaton is not None else {}
+    into = {"lhead": _cluster_id(dst)} if dst.automaton is not None else {}
+    g.edge(tail, via, arrowhead="none", **out)
+    g.edge(via, head, **into)
 
 
 def _label_lines(t: Transition) -> list[str]:
@@ -275,18 +313,6 @@ def _label_lines(t: Transition) -> list[str]:
     if t.after_us is not None:
         lines.append(f"after {format_us(t.after_us)}")
     return lines
-
-
-def _tooltip(src: State, dst: State, t: Transition) -> str:
-    """The full transition (nothing shortened), shown on hover in SVG."""
-    parts = [f"{src.path} → {dst.path}"]
-    if t.name:
-        parts.append(_one_line(t.name))
-    if t.when is not None:
-        parts.append(f"[{_code_line(t.when)}]")
-    if t.after_us is not None:
-        parts.append(f"after {format_us(t.after_us)}")
-    return _esc_lines([_shorten(p, TOOLTIP_LIMIT) for p in parts])
 
 
 # ---------------------------------------------------------------------------
@@ -319,15 +345,20 @@ def _esc(text: str) -> str:
             out.append("&amp;")
         elif ch == "\t":
             out.append(" ")
-        elif unicodedata.category(ch) in ("Cc", "Cs") or ch in "\u2028\u2029":
-            # Control characters (and lone surrogates) are invalid in SVG's
-            # XML: show them as Python would spell them.
+        elif unicodedata.category(ch) in ("Cc", "Cs") or ch in "\u2028\u2029\ufffe\uffff":
+            # Control characters (and the like) are invalid in SVG's XML or
+            # break lines: show them as Python would spell them.
             out.append(ascii(ch)[1:-1].replace("\\", "\\\\"))
         else:
             out.append(ch)
     return "".join(out)
 
 
-def _esc_lines(lines: list[str]) -> str:
-    """Label lines joined by centred line breaks, never taken for an HTML label."""
-    return graphviz.nohtml("\\n".join(_esc(line) for line in lines))
+def _esc_lines(lines: list[str], left: bool = False) -> str:
+    """Label lines, centred (or left-justified), never taken for an HTML label."""
+    if left:
+        text = "".join(_esc(line) + "\\l" for line in lines)
+    else:
+        text = "\\n".join(_esc(line) for line in lines)
+    label: str = graphviz.nohtml(text)
+    return label

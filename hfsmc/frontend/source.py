@@ -10,6 +10,7 @@ files share one validation and one builder.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -24,6 +25,18 @@ MAX_DEPTH = 400  # nesting of YAML/XML containers (about 130 levels of states)
 MAX_NODES = 5_000_000  # values after alias expansion
 
 
+_BREAK = re.compile(r"\r\n|\r|\n")
+
+
+def split_lines(text: str) -> list[str]:
+    """Lines as YAML and XML count them (CR, LF, CRLF): unlike str.splitlines(),
+    form feeds, U+2028 and the like do not end a line."""
+    lines = _BREAK.split(text)
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
 @dataclass
 class Document:
     file: str
@@ -34,6 +47,9 @@ class Document:
     key_spans: dict[PathKey, Span] = field(default_factory=dict)
     # Column (1-based) where the 2nd and later lines of a multi-line string start.
     cont_cols: dict[PathKey, int] = field(default_factory=dict)
+    # For folded (`>`) and multi-line plain scalars, whose line breaks became spaces:
+    # (offset in the value, line, col) where each source line's text starts.
+    segments: dict[PathKey, tuple[tuple[int, int, int], ...]] = field(default_factory=dict)
 
     def span(self, path: PathKey) -> Span:
         """Position of the value at ``path``, or of its nearest ancestor."""

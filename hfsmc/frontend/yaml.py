@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime
-from typing import Any
+from typing import Any, NoReturn
 
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
@@ -16,7 +16,7 @@ from ruamel.yaml.scalarstring import (
 )
 
 from hfsmc.errors import Diagnostics, ParseError, Span, fail
-from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, Document, PathKey
+from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, Document, PathKey, split_lines
 
 
 def _yaml() -> YAML:
@@ -32,24 +32,21 @@ def load_yaml(file: str, text: str, diags: Diagnostics) -> Document:
     Raises :class:`ParseError` for malformed YAML (position of the problem).
     Non-fatal oddities (non-string keys) go to ``diags``.
     """
-    lines = text.splitlines()
+    lines = split_lines(text)
     doc = Document(file, "yaml", lines)
     try:
         root = _yaml().load(text)
     except MarkedYAMLError as e:
-        mark = e.problem_mark or e.context_mark
-        span = Span(file, mark.line + 1, mark.column + 1) if mark else Span(file, 1, 1)
-        code = "E003" if type(e).__name__ == "DuplicateKeyError" else "E002"
-        problem = (e.problem or e.context or "malformed YAML").strip()
-        if code == "E003":
-            problem = _duplicate_message(e)
-        fail(ParseError, code, problem, span)
+        _fail_marked(file, e)
     except YAMLError as e:  # reader errors (bad characters) and the like
         pos = getattr(e, "position", None)
         span = _offset_span(file, text, pos) if isinstance(pos, int) else Span(file, 1, 1)
         fail(ParseError, "E002", _first_line(str(e)), span)
     except RecursionError:
         fail(ParseError, "E006", f"the document nests deeper than {MAX_DEPTH} levels", Span(file, 1, 1))
+    except Exception as e:  # an explicit tag whose value cannot be built (`!!int abc`)
+        fail(ParseError, "E002", f"a tagged value cannot be read: {_first_line(str(e)) or type(e).__name__}",
+             _failing_node(file, text))
     doc.spans[()] = Span(file, 1, 1)
     if "&" in text:  # anchors exist: bound the expansion of their aliases first
         _check_expansion(file, root)
@@ -87,6 +84,49 @@ def _check_expansion(file: str, root: Any) -> None:
         on_path.add(key)
         stack.append((node, True))
         stack.extend((c, False) for c in children)
+
+
+def _fail_marked(file: str, e: MarkedYAMLError) -> NoReturn:
+    mark = e.problem_mark or e.context_mark
+    span = Span(file, mark.line + 1, mark.column + 1) if mark else Span(file, 1, 1)
+    code = "E003" if type(e).__name__ == "DuplicateKeyError" else "E002"
+    problem = (e.problem or e.context or "malformed YAML").strip()
+    notes: tuple[str, ...] = ()
+    if code == "E003":
+        problem = _duplicate_message(e)
+    ctx, cmark = (e.context or ""), e.context_mark
+    if ctx.startswith("while parsing a flow") and cmark is not None and mark is not None \
+            and mark.line > cmark.line and mark.column <= cmark.column:
+        # The parser notices only at the next token; the unclosed bracket is the mistake.
+        opener = "{" if "mapping" in ctx else "["
+        notes = (f"the parser stopped at line {mark.line + 1}: {problem}",)
+        problem = f"this `{opener}` is never closed"
+        span = Span(file, cmark.line + 1, cmark.column + 1)
+    fail(ParseError, code, problem, span, *notes)
+
+
+def _failing_node(file: str, text: str) -> Span:
+    """Position of the innermost node whose value cannot be constructed."""
+    y = _yaml()
+    try:
+        root = y.compose(text)
+    except Exception:
+        return Span(file, 1, 1)
+    order: list[Any] = []
+    stack = [root] if root is not None else []
+    while stack:  # pre-order, reversed below: children before parents
+        node = stack.pop()
+        order.append(node)
+        value = getattr(node, "value", None)
+        if isinstance(value, list):
+            for item in value:
+                stack.extend(item if isinstance(item, tuple) else (item,))
+    for node in reversed(order):
+        try:
+            y.constructor.construct_object(node, deep=True)
+        except Exception:
+            return Span(file, node.start_mark.line + 1, node.start_mark.column + 1)
+    return Span(file, 1, 1)
 
 
 def _duplicate_message(e: MarkedYAMLError) -> str:
@@ -140,8 +180,10 @@ class _Walker:
             if isinstance(node, CommentedMap):
                 m: dict[str, Any] = {}
                 holder[slot] = m
+                here = self.doc.span(path)
                 for k in node:
-                    kl, kc = node.lc.key(k)
+                    # keys brought in by a `<<:` merge have no position of their own
+                    kl, kc = node.lc.data.get(k, (here.line - 1, here.col - 1))[:2]
                     key = k
                     if not isinstance(k, str):
                         key = str(k)
@@ -149,7 +191,8 @@ class _Walker:
                                          self._span(kl, kc))
                     kp = (*path, key)
                     self.doc.key_spans[kp] = self._span(kl, kc)
-                    vl, vc = node.lc.value(k)
+                    pos = node.lc.data.get(k)
+                    vl, vc = (pos[2], pos[3]) if pos else (kl, kc)
                     self._record_value(kp, node[k], vl, vc)
                     m[key] = None
                     stack.append((node[k], (m, key), kp, depth + 1))
@@ -167,6 +210,11 @@ class _Walker:
 
     def _record_value(self, path: PathKey, value: Any, line: int, col: int) -> None:
         """Position of the first character of a value's content."""
+        lines = self.doc.lines
+        if (type(value) is str and line < len(lines)
+                and lines[line][col:col + len(value)] != value):
+            # a plain scalar folded over several lines
+            self.doc.segments[path] = _segments(lines, value, line, col)
         if isinstance(value, (LiteralScalarString, FoldedScalarString)):
             # The mark is on the `|`/`>` indicator; the content starts on the next
             # non-blank line, at the block's indentation.
@@ -177,10 +225,36 @@ class _Walker:
             indent = len(lines[ln]) - len(lines[ln].lstrip(" ")) if ln < len(lines) else col
             self.doc.spans[path] = self._span(ln, indent)
             self.doc.cont_cols[path] = indent + 1
+            if isinstance(value, FoldedScalarString):
+                self.doc.segments[path] = _segments(lines, str(value), ln, indent)
             return
         if isinstance(value, (DoubleQuotedScalarString, SingleQuotedScalarString)):
             col += 1
         self.doc.spans[path] = self._span(line, col)
+
+
+def _segments(lines: list[str], text: str, line: int, col: int) -> tuple[tuple[int, int, int], ...]:
+    """Where each source line of a folded scalar starts in its value.
+
+    Folding turns line breaks into spaces but keeps each line's text, so every
+    source line is found verbatim, in order.  Stops at the first line that is
+    not (a comment, a closing bracket): positions after it fall back to the
+    plain line arithmetic of :class:`hfsmc.ir.Code`.
+    """
+    segs: list[tuple[int, int, int]] = []
+    pos, end, ln = 0, len(text.rstrip()), line
+    while ln < len(lines) and pos < end:
+        src = lines[ln]
+        start = col if ln == line else len(src) - len(src.lstrip(" "))
+        chunk = src[start:].rstrip()
+        if chunk:
+            idx = text.find(chunk, pos)
+            if idx < 0:
+                break
+            segs.append((idx, ln + 1, start + 1))
+            pos = idx + len(chunk)
+        ln += 1
+    return tuple(segs)
 
 
 def _scalar(v: Any) -> Any:

@@ -1,0 +1,637 @@
+"""XML front end: hfsm version-1 documents (SPEC 2.6) into the neutral Document.
+
+Four steps, each of which may stop with positioned diagnostics:
+
+1. refuse what could make a parser fetch or expand anything (DOCTYPE, entity
+   declarations and references, XInclude), before lxml sees the text;
+2. parse with a locked-down lxml parser (syntax errors keep lxml's line:col);
+3. validate against ``schemas/hfsm.xsd`` and turn every XSD error into a
+   diagnostic at the element or attribute it is about;
+4. convert the tree into the YAML-shaped data the YAML front end would give
+   for the same model, with a span for every value and every key.
+
+lxml only knows each element's line, so columns come from the source text:
+``_Source`` blanks out comments, CDATA and processing instructions, after
+which the n-th start tag in the text is the n-th element of the tree.
+"""
+
+from __future__ import annotations
+
+import re
+import textwrap
+from bisect import bisect_right
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+from lxml import etree
+
+from hfsmc.errors import Diagnostic, Diagnostics, ParseError, SchemaError, Span, did_you_mean, fail
+from hfsmc.frontend.source import MAX_NODES, Document, PathKey
+from hfsmc.resources import schema_file
+
+Element = etree._Element
+
+_XS = "{http://www.w3.org/2001/XMLSchema}"
+_XINCLUDE = ("http://www.w3.org/2001/XInclude", "http://www.w3.org/2003/XInclude")
+_LEGACY = ("VisualStates", "VisualHFSM")  # SPEC 2.7; their import is still to come
+_ROOT_TYPE = "hfsm"  # the XSD's type of the root element
+_MAX_XSD_ROUNDS = 20  # re-validations after dropping unexpected elements (see _validate)
+
+
+def _parser() -> etree.XMLParser:
+    """A parser that never loads, fetches or expands anything."""
+    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
+                           dtd_validation=False, huge_tree=False, remove_comments=True,
+                           remove_pis=True, encoding="utf-8")
+
+
+def load_xml(file: str, text: str, diags: Diagnostics) -> Document:
+    """Parse, check and convert an XML model; see the module docstring.
+
+    Raises :class:`ParseError` (E002 syntax, E004 forbidden construct, E005
+    not an hfsm document, E006 too deep or too big) or :class:`SchemaError`
+    (every XSD violation); duplicate names go to ``diags``.
+    """
+    src = _Source(file, text)
+    doc = Document(file, "xml", src.lines())
+    _refuse_declarations(src)
+    root = _parse(src)
+    index = _Index(src, root)
+    _refuse_after_parse(root, index)
+    _check_root(root, index)
+    problems = _validate(root, index)
+    if problems:
+        raise SchemaError(problems)
+    doc.data = _Converter(doc, index, diags).model(root)
+    return doc
+
+
+# ---------------------------------------------------------------------------
+# the source text
+
+
+_HIDDEN = re.compile(r"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>", re.S)
+_BREAK = re.compile(r"\r\n?|\n")  # XML's line breaks (not str.splitlines()'s many)
+
+
+def _blank(m: re.Match[str]) -> str:
+    return re.sub(r"[^\r\n]", " ", m.group())
+
+
+class _Source:
+    """The text, offset → line:col, and a copy with comments, CDATA and PIs blanked."""
+
+    def __init__(self, file: str, text: str) -> None:
+        self.file = file
+        self.text = text
+        self.starts = [0, *(m.end() for m in _BREAK.finditer(text))]
+        self.masked = _HIDDEN.sub(_blank, text)  # same length, so offsets agree
+
+    def span(self, offset: int) -> Span:
+        i = bisect_right(self.starts, offset) - 1
+        return Span(self.file, i + 1, offset - self.starts[i] + 1)
+
+    def lines(self) -> list[str]:
+        return _BREAK.split(self.text)
+
+
+# ---------------------------------------------------------------------------
+# refusing what could fetch or expand
+
+
+_DECLARATION = re.compile(r"<!(DOCTYPE|ENTITY|ELEMENT|ATTLIST|NOTATION)\b", re.I)
+_ENTITY_REF = re.compile(r"&([^#\s;&<>\"']+);")
+_PREDEFINED = {"amp", "lt", "gt", "quot", "apos"}
+
+
+def _refuse_declarations(src: _Source) -> None:
+    """E004 for a DTD or a named entity, found in the text before any parsing."""
+    m = _DECLARATION.search(src.masked)
+    if m:
+        fail(ParseError, "E004", f"`<!{m.group(1)}` is not allowed: hfsm files take no DTD, so "
+             "nothing is ever fetched or expanded", src.span(m.start()))
+    for m in _ENTITY_REF.finditer(src.masked):
+        if m.group(1) not in _PREDEFINED:
+            fail(ParseError, "E004", f"entity reference `&{m.group(1)};` is not allowed",
+                 src.span(m.start()), "only &amp; &lt; &gt; &quot; &apos; and character "
+                 "references such as &#233; (or CDATA for code)")
+
+
+_LIBXML_POS = re.compile(r", line \d+, column \d+$")
+
+
+def _parse(src: _Source) -> Element:
+    try:
+        return etree.fromstring(src.text.encode("utf-8", "surrogatepass"), _parser())
+    except etree.XMLSyntaxError as e:
+        line, col = e.position if e.position else (e.lineno or 1, 1)
+        span = Span(src.file, max(line, 1), max(col, 1))
+        msg = _LIBXML_POS.sub("", str(e.msg or "malformed XML"))
+        if "Excessive depth" in msg:
+            fail(ParseError, "E006", "the document nests deeper than 256 elements", span)
+        fail(ParseError, "E002", msg, span)
+
+
+def _refuse_after_parse(root: Element, index: _Index) -> None:
+    """Belt and braces: a DTD the text scan missed, entity nodes, XInclude."""
+    info: Any = root.getroottree().docinfo  # lxml-stubs lack DocInfo.doctype
+    if info.doctype or info.internalDTD is not None or info.externalDTD is not None:
+        fail(ParseError, "E004", "a DTD is not allowed in hfsm files", index.span(root))
+    count = 0
+    for node in root.iter():
+        count += 1
+        if isinstance(node, etree._Entity):
+            fail(ParseError, "E004", "entity references are not allowed",
+                 Span(index.src.file, _line(node), 1))
+        if isinstance(node.tag, str) and etree.QName(node).namespace in _XINCLUDE:
+            fail(ParseError, "E004", "XInclude is not allowed: an hfsm file is self-contained",
+                 index.span(node))
+    if count > MAX_NODES:
+        fail(ParseError, "E006", f"the document has more than {MAX_NODES} elements",
+             index.span(root))
+
+
+def _check_root(root: Element, index: _Index) -> None:
+    name = etree.QName(root)
+    if name.namespace is None and name.localname == "hfsm":
+        return
+    if name.localname == "hfsm":
+        fail(ParseError, "E005", f"the `<hfsm>` element takes no namespace (it is in "
+             f"`{name.namespace}`)", index.span(root), "drop the xmlns attribute")
+    if name.namespace is None and name.localname in _LEGACY:
+        fail(ParseError, "E005", f"legacy {name.localname} import not supported yet",
+             index.span(root), "convert it by hand to an <hfsm version=\"1\"> model for now")
+    fail(ParseError, "E005", f"not an hfsm model: the root element is `<{_shown(root)}>`",
+         index.span(root), 'an hfsm XML model starts with <hfsm version="1" name="...">')
+
+
+def _line(el: Element) -> int:
+    line = el.sourceline
+    return line if isinstance(line, int) and line > 0 else 1
+
+
+def _shown(el: Element) -> str:
+    """An element's name as written (prefix:local)."""
+    q = etree.QName(el)
+    return f"{el.prefix}:{q.localname}" if el.prefix else q.localname
+
+
+# ---------------------------------------------------------------------------
+# positions
+
+
+_START_TAG = re.compile(r"<([^\s/>!?][^\s/>]*)")
+_ATTRIBUTE = re.compile(r"\s+([^\s=/>]+)\s*=\s*(?:\"([^\"]*)\"|'([^']*)')")
+_TAG_END = re.compile(r"\s*(/?)>")
+
+
+@dataclass(frozen=True, slots=True)
+class _Tag:
+    attributes: dict[str, tuple[int, int]]  # name -> offsets of the name and of the value
+    content: int | None  # offset just after `>`; None for an empty-element tag
+
+
+class _Index:
+    """Source offsets of every element, attribute and element content."""
+
+    def __init__(self, src: _Source, root: Element) -> None:
+        self.src = src
+        self.offsets: dict[Element, int] = {}
+        self.tags: dict[Element, _Tag] = {}
+        starts = _START_TAG.finditer(src.masked)
+        for el, m in zip(root.iter(etree.Element), starts, strict=False):
+            if m.group(1).rpartition(":")[2] != etree.QName(el).localname:
+                break  # cannot happen for a well-formed file; keep lxml's line numbers
+            self.offsets[el] = m.start()
+
+    def span(self, el: Element) -> Span:
+        off = self.offsets.get(el)
+        if off is None:
+            return Span(self.src.file, _line(el), 1)
+        return self.src.span(off)
+
+    def tag(self, el: Element) -> _Tag:
+        found = self.tags.get(el)
+        if found is None:
+            found = self.tags[el] = self._scan(el)
+        return found
+
+    def _scan(self, el: Element) -> _Tag:
+        off = self.offsets.get(el)
+        if off is None:
+            return _Tag({}, None)
+        text = self.src.masked
+        m = _START_TAG.match(text, off)
+        i = m.end() if m else off
+        attributes: dict[str, tuple[int, int]] = {}
+        while (a := _ATTRIBUTE.match(text, i)) is not None:
+            value = a.start(2) if a.group(2) is not None else a.start(3)
+            attributes[a.group(1)] = (a.start(1), value)
+            i = a.end()
+        end = _TAG_END.match(text, i)
+        return _Tag(attributes, end.end() if end and not end.group(1) else None)
+
+    def written(self, el: Element, name: str) -> str:
+        """An attribute's name as written: `xml:lang` for lxml's `{...}lang`."""
+        if not name.startswith("{"):
+            return name
+        local = name.rpartition("}")[2]
+        return next((n for n in self.tag(el).attributes if n.rpartition(":")[2] == local), local)
+
+    def attribute(self, el: Element, name: str) -> tuple[Span, Span]:
+        """Spans of an attribute's name and of its value's first character."""
+        offs = self.tag(el).attributes.get(name)
+        if offs is None:
+            s = self.span(el)
+            return s, s
+        return self.src.span(offs[0]), self.src.span(offs[1])
+
+    def text(self, el: Element, n: int) -> Span:
+        """Span of character ``n`` of the element's text content."""
+        start = self.tag(el).content
+        if start is None:
+            return self.span(el)
+        return self.src.span(_text_offset(self.src.text, start, n))
+
+
+def _after(text: str, marker: str, i: int) -> int:
+    j = text.find(marker, i)
+    return len(text) if j < 0 else j + len(marker)
+
+
+def _text_offset(text: str, start: int, n: int) -> int:
+    """Source offset of the n-th character of the content starting at ``start``.
+
+    CDATA markers, comments and PIs take no characters of the content; an
+    entity or character reference takes one, as does a CRLF.
+    """
+    i, cdata = start, False
+    while i < len(text):
+        if cdata and text.startswith("]]>", i):
+            cdata, i = False, i + 3
+            continue
+        if not cdata and text.startswith("<![CDATA[", i):
+            cdata, i = True, i + 9
+            continue
+        if not cdata and text.startswith(("<!--", "<?"), i):
+            i = _after(text, "-->" if text[i + 1] == "!" else "?>", i)
+            continue
+        if n == 0:
+            return i
+        n -= 1
+        if not cdata and text[i] == "&":
+            i = _after(text, ";", i)
+        else:
+            i += 2 if text.startswith("\r\n", i) else 1
+    return min(i, len(text))
+
+
+def clean_text(raw: str) -> tuple[str, int, int]:
+    """Element text as the model means it: ``(text, first, margin)``.
+
+    A blank first line (the rest of the start tag's line) and the indentation
+    before the closing tag are dropped and the rest is dedented, so that code
+    written indented inside XML is ordinary code.  ``first`` is the index in
+    ``raw`` of the text's first character, ``margin`` the indentation removed.
+    Writers use this to check that a text reads back unchanged.
+    """
+    if not raw.strip(" \t\n"):
+        return "", 0, 0  # only layout: an empty element
+    start = 0
+    nl = raw.find("\n")
+    if nl >= 0 and not raw[:nl].strip(" \t"):
+        start = nl + 1
+    body = raw[start:]
+    last = body.rfind("\n")
+    if last >= 0 and not body[last + 1:].strip(" \t"):
+        body = body[:last + 1]
+    text = textwrap.dedent(body)
+    margin = _margin(body, text)
+    first_line = body.split("\n", 1)[0]
+    indent = len(first_line) - len(first_line.lstrip(" \t"))
+    return text, start + min(indent, margin), margin
+
+
+def _margin(body: str, text: str) -> int:
+    """The indentation dedent removed (lines correspond one to one)."""
+    for before, after in zip(body.split("\n"), text.split("\n"), strict=False):
+        if before.strip(" \t"):
+            return len(before) - len(after)
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# XSD validation
+
+
+@dataclass(frozen=True, slots=True)
+class _Type:
+    """What the XSD allows in an element of one complex type."""
+
+    children: dict[str, str]  # element name -> its type
+    attributes: dict[str, str]  # attribute name -> its type
+
+
+@dataclass(frozen=True, slots=True)
+class _Grammar:
+    schema: etree.XMLSchema
+    types: dict[str, _Type]
+    enums: dict[str, tuple[str, ...]]  # simple type -> allowed values
+
+    def type_of(self, el: Element) -> _Type | None:
+        """The complex type of ``el``, found from the root down."""
+        chain = [*reversed(list(el.iterancestors())), el]
+        name: str | None = _ROOT_TYPE
+        for child in chain[1:]:
+            t = self.types.get(name or "")
+            name = t.children.get(str(child.tag)) if t else None
+        return self.types.get(name or "")
+
+
+@cache
+def _grammar() -> _Grammar:
+    """The parsed XSD, and the names it allows where (for "did you mean")."""
+    tree = etree.fromstring(schema_file("hfsm.xsd").read_bytes(), _parser())
+    types: dict[str, _Type] = {}
+    for ct in tree.iterfind(f"{_XS}complexType"):
+        children = {str(e.get("name")): str(e.get("type")) for e in ct.iter(f"{_XS}element")}
+        attrs = {str(a.get("name")): str(a.get("type")) for a in ct.iter(f"{_XS}attribute")}
+        types[str(ct.get("name"))] = _Type(children, attrs)
+    enums = {str(st.get("name")): tuple(str(e.get("value")) for e in st.iter(f"{_XS}enumeration"))
+             for st in tree.iterfind(f"{_XS}simpleType")}
+    return _Grammar(etree.XMLSchema(tree), types, enums)
+
+
+def _validate(root: Element, index: _Index) -> list[Diagnostic]:
+    """Every XSD violation of the document.
+
+    libxml2 stops checking an element's children at the first unexpected
+    one, so unexpected elements are dropped and the tree validated again
+    until nothing new turns up.  The tree is only used further when valid.
+    """
+    grammar = _grammar()
+    out: list[Diagnostic] = []
+    seen: set[tuple[Span, str, str]] = set()
+    for _ in range(_MAX_XSD_ROUNDS):
+        if grammar.schema.validate(root):
+            break
+        stray: list[Element] = []
+        log: Any = grammar.schema.error_log  # iterable, though lxml-stubs do not say so
+        for entry in log:
+            el = _element_at(root, entry.path)
+            d = _diagnose(entry.message, el, index, grammar)
+            if (d.span, d.code, d.message) not in seen:
+                seen.add((d.span, d.code, d.message))
+                out.append(d)
+            if "This element is not expected" in entry.message and el is not root:
+                stray.append(el)
+        if not stray:
+            break
+        for el in stray:
+            parent = el.getparent()
+            if parent is not None:
+                parent.remove(el)
+    return out
+
+
+def _element_at(root: Element, path: str | None) -> Element:
+    try:
+        found = root.getroottree().xpath(path) if path else []
+    except etree.XPathError:
+        found = []
+    return found[0] if isinstance(found, list) and found and isinstance(found[0], Element) else root
+
+
+_XSD_MESSAGE = re.compile(r"^Element '([^']*)'(?:, attribute '([^']*)')?: (.*)$", re.S)
+_EXPECTED = re.compile(r"Expected is (?:one of )?\( ([^)]*) \)")
+
+
+def _diagnose(message: str, el: Element, index: _Index, grammar: _Grammar) -> Diagnostic:
+    m = _XSD_MESSAGE.match(message.strip())
+    attr, what = (m.group(2), m.group(3)) if m else (None, message.strip())
+    tag = _shown(el)
+    if attr is not None:
+        return _attribute_problem(el, attr, what, index, grammar)
+    if "This element is not expected" in what:
+        return _unknown_element(el, index, grammar)
+    if "is required but missing" in what:
+        missing = re.search(r"attribute '([^']*)'", what)
+        name = missing.group(1) if missing else "?"
+        return Diagnostic("E102", f"missing required attribute `{name}` of `<{tag}>`",
+                          index.span(el))
+    if "Missing child element" in what:
+        names = _EXPECTED.search(what)
+        wanted = " or ".join(f"`<{n.strip()}>`" for n in names.group(1).split(",")) if names \
+            else "a child element"
+        return Diagnostic("E102", f"`<{tag}>` needs at least one {wanted}", index.span(el))
+    if "Element content is not allowed" in what:
+        child = next(iter(el), el)
+        return Diagnostic("E101", f"`<{tag}>` holds text, not elements", index.span(child),
+                          "error", ("write < as &lt; and & as &amp;, or put the code in "
+                                    "<![CDATA[ ... ]]>",))
+    if "Character content other than whitespace" in what:
+        return Diagnostic("E101", f"`<{tag}>` holds elements, not text", index.span(el))
+    return Diagnostic("E103", f"`<{tag}>`: {what.rstrip('.')}", index.span(el))
+
+
+def _unknown_element(el: Element, index: _Index, grammar: _Grammar) -> Diagnostic:
+    parent = el.getparent()
+    ptype = grammar.type_of(parent) if parent is not None else None
+    allowed = list(ptype.children) if ptype else []
+    pname = _shown(parent) if parent is not None else "?"
+    note = did_you_mean(_shown(el), allowed)
+    notes = (note,) if note else (f"allowed in `<{pname}>`: {', '.join(allowed) or 'nothing'}",)
+    return Diagnostic("E100", f"unknown element `<{_shown(el)}>` in `<{pname}>`", index.span(el),
+                      "error", notes)
+
+
+def _attribute_problem(el: Element, attr: str, what: str, index: _Index,
+                       grammar: _Grammar) -> Diagnostic:
+    value = el.get(attr, "")
+    attr = index.written(el, attr)
+    key_span, value_span = index.attribute(el, attr)
+    etype = grammar.type_of(el)
+    allowed = etype.attributes if etype else {}
+    if "is not allowed" in what and "value" not in what:
+        note = did_you_mean(attr, allowed)
+        notes = (note,) if note else (f"allowed on `<{_shown(el)}>`: {', '.join(allowed)}",)
+        return Diagnostic("E100", f"unknown attribute `{attr}` of `<{_shown(el)}>`", key_span,
+                          "error", notes)
+    kind = allowed.get(attr, "")
+    if kind == "identifier":
+        return Diagnostic("E120", f"`{value}` is not an identifier (letters, digits and _, not "
+                          "starting with a digit)", value_span)
+    if kind == "duration":
+        return Diagnostic("E110", f"`{value}` is not a duration: write 250ms, 2s, 1.5s or 2m "
+                          "(a bare number means milliseconds)", value_span)
+    if kind == "flag":
+        return Diagnostic("E101", f"`{attr}` must be true or false, not {value!r}", value_span)
+    if kind == "version":
+        return Diagnostic("E104", f"unsupported format version {value}: this hfsmc reads "
+                          "version 1", value_span)
+    choices = grammar.enums.get(kind)
+    if choices:
+        note = did_you_mean(value, choices)
+        return Diagnostic("E103", f"`{attr}` must be one of {', '.join(choices)}; not {value!r}",
+                          value_span, "error", (note,) if note else ())
+    if not value:
+        return Diagnostic("E103", f"`{attr}` must not be empty", value_span)
+    return Diagnostic("E103", f"`{attr}`: {what.rstrip('.')}", value_span)
+
+
+# ---------------------------------------------------------------------------
+# conversion to the neutral data
+
+# Elements that stand for one mapping key: a second one is a duplicate key.
+_SINGLE = frozenset({"description", "functions", "on_shutdown", "automaton", "entry", "during",
+                     "exit", "when", "do"})
+
+
+def _flag(value: str) -> bool:
+    return value == "true"  # the XSD allows only true and false
+
+
+class _Converter:
+    """The valid tree as the YAML front end's data, with spans."""
+
+    def __init__(self, doc: Document, index: _Index, diags: Diagnostics) -> None:
+        self.doc = doc
+        self.index = index
+        self.diags = diags
+
+    def model(self, root: Element) -> dict[str, Any]:
+        d: dict[str, Any] = {}
+        self.doc.spans[()] = self.index.span(root)
+        self.attr(root, (), d, "version", "hfsm", int)
+        self.attr(root, (), d, "name")
+        self.attr(root, (), d, "language")
+        for child in self.children(root):
+            tag = child.tag
+            if tag == "import":
+                imports = d.setdefault("imports", [])
+                self.first_key(child, ("imports",))
+                imports.append(self.text(child, ("imports", len(imports))))
+            elif tag in ("interface", "parameter", "variable"):
+                self.declaration(child, d, str(tag))
+            elif tag == "automaton":
+                self.automaton(child, (), d)
+            else:
+                d[str(tag)] = self.text(child, (str(tag),))
+        if "states" not in d:
+            self.diags.error("E102", "missing required element `<automaton>` in `<hfsm>`",
+                             self.index.span(root), "the root sub-automaton, with the states")
+        return d
+
+    # -- helpers -------------------------------------------------------------
+    def children(self, el: Element) -> Iterator[Element]:
+        """Child elements; a second singleton (two `<entry>`) is reported and skipped."""
+        seen: dict[str, Element] = {}
+        for child in el.iterchildren(etree.Element):
+            tag = str(child.tag)
+            if tag in _SINGLE and tag in seen:
+                line = self.index.span(seen[tag]).line
+                self.diags.error("E003", f"`<{tag}>` is given twice in this `<{el.tag}>`",
+                                 self.index.span(child), f"the first is on line {line}")
+                continue
+            seen[tag] = child
+            yield child
+
+    def put(self, d: dict[str, Any], path: PathKey, value: Any, key: Span, span: Span) -> None:
+        d[str(path[-1])] = value
+        self.doc.key_spans[path] = key
+        self.doc.spans[path] = span
+
+    def attr(self, el: Element, path: PathKey, d: dict[str, Any], name: str,
+             key: str | None = None, convert: Callable[[str], Any] = str) -> None:
+        value = el.get(name)
+        if value is not None:
+            key_span, value_span = self.index.attribute(el, name)
+            self.put(d, (*path, key or name), convert(value), key_span, value_span)
+
+    def first_key(self, el: Element, path: PathKey) -> None:
+        """Position of a list or mapping made of repeated elements: its first one."""
+        if path not in self.doc.spans:
+            self.doc.spans[path] = self.doc.key_spans[path] = self.index.span(el)
+
+    def text(self, el: Element, path: PathKey) -> str:
+        """A text element's content, positioned at its first character."""
+        raw = el.text or ""
+        if el.get("verbatim") == "true":
+            text, first, margin = raw, 0, 0
+        else:
+            text, first, margin = clean_text(raw)
+        self.doc.key_spans[path] = self.index.span(el)
+        self.doc.spans[path] = self.index.text(el, first)
+        self.doc.cont_cols[path] = 1 + margin
+        return text
+
+    def named(self, el: Element, path: PathKey, group: dict[str, Any],
+              kind: str) -> tuple[dict[str, Any], PathKey] | None:
+        """A new entry of a mapping keyed by the element's `name` (None if a duplicate)."""
+        name = el.get("name", "")
+        if name in group:
+            _, value_span = self.index.attribute(el, "name")
+            self.diags.error("E121", f"duplicate {kind} name `{name}`", value_span,
+                             f"the first `{name}` is on line {self.doc.key_span((*path, name)).line}")
+            return None
+        item: dict[str, Any] = {}
+        self.put(group, (*path, name), item, self.index.span(el), self.index.span(el))
+        return item, (*path, name)
+
+    # -- declarations ----------------------------------------------------------
+    def declaration(self, el: Element, d: dict[str, Any], tag: str) -> None:
+        key = f"{tag}s"
+        self.first_key(el, (key,))
+        found = self.named(el, (key,), d.setdefault(key, {}), tag)
+        if found is None:
+            return
+        item, path = found
+        for name in ("type", "url", "default", "init", "description"):
+            self.attr(el, path, item, name)
+        for option in el.iterchildren("option"):
+            self.first_key(option, (*path, "options"))
+            opt = self.named(option, (*path, "options"), item.setdefault("options", {}), "option")
+            if opt is not None:
+                _, opath = opt
+                _, value_span = self.index.attribute(option, "value")
+                self.put(item["options"], opath, option.get("value", ""), self.index.span(option),
+                         value_span)
+
+    # -- states ----------------------------------------------------------------
+    def automaton(self, el: Element, path: PathKey, d: dict[str, Any]) -> None:
+        for name in ("period", "initial", "on_interrupt", "interrupt_timeout"):
+            self.attr(el, path, d, name)
+        self.attr(el, path, d, "history", convert=_flag)
+        states: dict[str, Any] = {}
+        self.put(d, (*path, "states"), states, self.index.span(el), self.index.span(el))
+        for child in self.children(el):
+            self.state(child, (*path, "states"), states)
+
+    def state(self, el: Element, path: PathKey, states: dict[str, Any]) -> None:
+        found = self.named(el, path, states, "state")
+        if found is None:
+            return
+        sd, sp = found
+        self.attr(el, sp, sd, "final", convert=_flag)
+        for child in self.children(el):
+            tag = str(child.tag)
+            if tag == "transition":
+                self.transition(child, sp, sd)
+            elif tag == "automaton":
+                self.automaton(child, sp, sd)
+            else:
+                sd[tag] = self.text(child, (*sp, tag))
+
+    def transition(self, el: Element, path: PathKey, sd: dict[str, Any]) -> None:
+        self.first_key(el, (*path, "transitions"))
+        items = sd.setdefault("transitions", [])
+        tp: PathKey = (*path, "transitions", len(items))
+        td: dict[str, Any] = {}
+        items.append(td)
+        self.doc.spans[tp] = self.index.span(el)
+        for name in ("name", "to", "after"):
+            self.attr(el, tp, td, name)
+        for child in self.children(el):
+            td[str(child.tag)] = self.text(child, (*tp, str(child.tag)))

@@ -1,0 +1,117 @@
+"""Random valid models survive YAML → XML → YAML with an equal IR."""
+
+from __future__ import annotations
+
+import io
+from typing import Any
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from ruamel.yaml import YAML
+
+from hfsmc.compiler import compile_file
+from hfsmc.convert import _styled, to_yaml
+from hfsmc.emit.xml import to_xml
+
+IDENT = st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,8}", fullmatch=True)
+# Printable text with quotes, markup characters and non-ASCII, as code may hold.
+TEXT = st.text(st.characters(codec="utf-8", exclude_categories=("Cs", "Cc")), max_size=12)
+DURATION = st.sampled_from(["1ms", "50ms", "100ms", "1s", "1.5s", "2m", 250, "0.5ms"])
+PERIOD = st.sampled_from(["1ms", "20ms", "100ms", "1s", 40])
+
+
+@st.composite
+def snippets(draw: st.DrawFn, kind: str) -> str:
+    """Valid code using the model's variables x (int) and s (str)."""
+    s = draw(TEXT)
+    if kind == "when":
+        return draw(st.sampled_from([f"x > {draw(st.integers(-5, 5))}", "True", "s == " + repr(s),
+                                     "elapsed() > 0.5 and not done()", "x < 3 or s != '<&>'"]))
+    lines = draw(st.lists(st.sampled_from([
+        "x = x + 1", f"s = {s!r}", "log(s)", "if x > 2:\n    x = 0", 'log("a < b & \\"c\\"")',
+        "s = '''tri\nple'''", "x = 1  # comment ]]> <!-- -->",
+    ]), min_size=1, max_size=3))
+    return "\n".join(lines)
+
+
+@st.composite
+def states(draw: st.DrawFn, depth: int) -> dict[str, Any]:
+    names = draw(st.lists(IDENT, min_size=1, max_size=4, unique=True))
+    out: dict[str, Any] = {}
+    for name in names:
+        node: dict[str, Any] = {}
+        for kind in ("entry", "during", "exit"):
+            if draw(st.booleans()):
+                node[kind] = draw(snippets(kind))
+        if depth > 0 and draw(st.booleans()):
+            node["states"] = draw(states(depth - 1))
+            node["initial"] = draw(st.sampled_from(sorted(node["states"])))
+            if draw(st.booleans()):
+                node["period"] = draw(PERIOD)
+            if draw(st.booleans()):
+                node["history"] = draw(st.booleans())
+        elif draw(st.booleans()):
+            node["final"] = True
+        if not node.get("final"):
+            trans = []
+            for _ in range(draw(st.integers(0, 3))):
+                t: dict[str, Any] = {"to": draw(st.sampled_from(names))}
+                if draw(st.booleans()):
+                    t["when"] = draw(snippets("when"))
+                if "when" not in t or draw(st.booleans()):
+                    t["after"] = draw(DURATION)
+                if draw(st.booleans()):
+                    t["do"] = draw(snippets("do"))
+                if draw(st.booleans()):
+                    t["name"] = draw(TEXT)
+                trans.append(t)
+            if trans:
+                node["transitions"] = trans
+        out[name] = node
+    return out
+
+
+@st.composite
+def models(draw: st.DrawFn) -> dict[str, Any]:
+    root = draw(states(2))
+    m: dict[str, Any] = {"hfsm": 1, "name": draw(IDENT), "language": "python"}
+    if draw(st.booleans()):
+        m["description"] = draw(TEXT)
+    m["imports"] = draw(st.lists(st.sampled_from(["math", "json as j", "from os import path"]),
+                                 unique=True, max_size=2))
+    m["parameters"] = {"p": {"type": "float", "default": draw(st.floats(-1e6, 1e6, allow_nan=False))},
+                       "q": {"type": "str", "default": draw(TEXT)}}
+    m["variables"] = {"x": draw(st.integers(-10**6, 10**6)), "s": draw(TEXT),
+                      "l": {"type": "list", "init": draw(st.lists(st.integers(), max_size=3))},
+                      "d": {"type": "dict", "init": {"k": draw(TEXT)}}}
+    if draw(st.booleans()):
+        m["functions"] = "def f():\n    return x\n"
+    if draw(st.booleans()):
+        m["on_interrupt"] = draw(st.sampled_from(sorted(root)))
+        if draw(st.booleans()):
+            m["interrupt_timeout"] = draw(DURATION)
+    if draw(st.booleans()):
+        m["period"] = draw(PERIOD)
+    m["initial"] = draw(st.sampled_from(sorted(root)))
+    m["states"] = root
+    return m
+
+
+def dump_yaml(data: dict[str, Any]) -> str:
+    buf = io.StringIO()
+    YAML(typ="rt").dump(_styled(data), buf)
+    return buf.getvalue()
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(models())
+def test_yaml_xml_yaml_equal_ir(data: dict[str, Any]) -> None:
+    first = compile_file("m.yaml", text=dump_yaml(data))
+    assert first.model is not None, first.diagnostics
+    xml = to_xml(first.model)
+    second = compile_file("m.xml", text=xml)
+    assert second.model is not None, (second.diagnostics, xml)
+    assert second.model == first.model
+    third = compile_file("m2.yaml", text=to_yaml(second.model))
+    assert third.model == first.model, third.diagnostics

@@ -1,0 +1,49 @@
+"""The wheel carries the schemas and templates, and works from outside the repository."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import ROOT
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("dist")
+    # --no-isolation: build with the virtualenv's setuptools, no download.
+    subprocess.run([sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", str(out)],
+                   cwd=ROOT, check=True, capture_output=True, timeout=300, stdin=subprocess.DEVNULL)
+    (whl,) = out.glob("hfsmc-*.whl")
+    return whl
+
+
+@pytest.mark.slow
+def test_wheel_contents(wheel: Path) -> None:
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for required in ("hfsmc/cli.py", "hfsmc/schemas/hfsm.schema.json", "hfsmc/schemas/hfsm.xsd",
+                     "hfsmc/templates/README.md", "hfsmc/frontend/yaml.py", "hfsmc/emit/dot.py"):
+        assert required in names, f"{required} missing from {wheel.name}"
+    entry = next(n for n in names if n.endswith("entry_points.txt"))
+    assert "hfsmc = hfsmc.cli:main" in zipfile.ZipFile(wheel).read(entry).decode()
+    assert not any(n.startswith(("tests/", "examples/", "bench/")) for n in names)
+
+
+@pytest.mark.slow
+def test_wheel_runs_outside_the_repository(wheel: Path, tmp_path: Path) -> None:
+    site = tmp_path / "site"
+    zipfile.ZipFile(wheel).extractall(site)
+    model = tmp_path / "tl.yaml"
+    model.write_text((ROOT / "examples/traffic_light/traffic_light.yaml").read_text())
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import hfsmc, hfsmc.cli;"
+        "assert hfsmc.__file__.startswith(sys.argv[1]), hfsmc.__file__;"
+        "sys.argv = ['hfsmc', 'check', sys.argv[2]]; hfsmc.cli.main()"
+    )
+    r = subprocess.run([sys.executable, "-c", code, str(site), str(model)], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr
