@@ -15,7 +15,7 @@ from hfsmc.compiler import Result, compile_file
 from hfsmc.emit.xml import to_xml
 from hfsmc.errors import Diagnostics, EmitError
 from hfsmc.frontend import load
-from hfsmc.frontend.xml import clean_text
+from hfsmc.frontend.xmlsource import clean_text
 from hfsmc.ir import Code, Model
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -4,7 +4,7 @@ Written by hand rather than through lxml's serializer so that the layout is
 fixed (two-space indent, attributes in a set order) and code reads as code:
 multi-line snippets are indented under their element, and CDATA is used
 when the code holds ``<`` or ``&``.  Every text is checked to read back
-exactly through the XML front end's :func:`~hfsmc.frontend.xml.clean_text`;
+exactly through the XML front end's :func:`~hfsmc.frontend.xmlsource.clean_text`;
 one that would not (significant leading or trailing whitespace) is written
 ``verbatim="true"``.  So YAML → XML → YAML gives an equal IR.
 """
@@ -16,7 +16,7 @@ import re
 from hfsmc.durations import format_us
 from hfsmc.emit.data import thaw
 from hfsmc.errors import Diagnostic, EmitError, Span
-from hfsmc.frontend.xml import clean_text
+from hfsmc.frontend.xmlsource import clean_text
 from hfsmc.ir import Automaton, Code, Model, State, Transition, Value
 
 _INDENT = "  "

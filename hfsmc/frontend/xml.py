@@ -11,15 +11,13 @@ Four steps, each of which may stop with positioned diagnostics:
    for the same model, with a span for every value and every key.
 
 lxml only knows each element's line, so columns come from the source text:
-``_Source`` blanks out comments, CDATA and processing instructions, after
+``XmlSource`` blanks out comments, CDATA and processing instructions, after
 which the n-th start tag in the text is the n-th element of the tree.
 """
 
 from __future__ import annotations
 
 import re
-import textwrap
-from bisect import bisect_right
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cache
@@ -28,23 +26,24 @@ from typing import Any
 from lxml import etree
 
 from hfsmc.errors import Diagnostic, Diagnostics, ParseError, SchemaError, Span, did_you_mean, fail
-from hfsmc.frontend.source import MAX_NODES, Document, PathKey
+from hfsmc.frontend.source import Document, PathKey
+from hfsmc.frontend.xmlsource import (
+    Element,
+    XmlIndex,
+    XmlSource,
+    clean_text,
+    parse_safely,
+    refuse_after_parse,
+    refuse_declarations,
+    safe_parser,
+    written_name,
+)
 from hfsmc.resources import schema_file
 
-Element = etree._Element
-
 _XS = "{http://www.w3.org/2001/XMLSchema}"
-_XINCLUDE = ("http://www.w3.org/2001/XInclude", "http://www.w3.org/2003/XInclude")
 _LEGACY = ("VisualStates", "VisualHFSM")  # SPEC 2.7; their import is still to come
 _ROOT_TYPE = "hfsm"  # the XSD's type of the root element
 _MAX_XSD_ROUNDS = 20  # re-validations after dropping unexpected elements (see _validate)
-
-
-def _parser() -> etree.XMLParser:
-    """A parser that never loads, fetches or expands anything."""
-    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
-                           dtd_validation=False, huge_tree=False, remove_comments=True,
-                           remove_pis=True, encoding="utf-8")
 
 
 def load_xml(file: str, text: str, diags: Diagnostics) -> Document:
@@ -54,12 +53,12 @@ def load_xml(file: str, text: str, diags: Diagnostics) -> Document:
     not an hfsm document, E006 too deep or too big) or :class:`SchemaError`
     (every XSD violation); duplicate names go to ``diags``.
     """
-    src = _Source(file, text)
+    src = XmlSource(file, text)
     doc = Document(file, "xml", src.lines())
-    _refuse_declarations(src)
-    root = _parse(src)
-    index = _Index(src, root)
-    _refuse_after_parse(root, index)
+    refuse_declarations(src)
+    root = parse_safely(src)
+    index = XmlIndex(src, root)
+    refuse_after_parse(root, index)
     _check_root(root, index)
     problems = _validate(root, index)
     if problems:
@@ -68,92 +67,7 @@ def load_xml(file: str, text: str, diags: Diagnostics) -> Document:
     return doc
 
 
-# ---------------------------------------------------------------------------
-# the source text
-
-
-_HIDDEN = re.compile(r"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>", re.S)
-_BREAK = re.compile(r"\r\n?|\n")  # XML's line breaks (not str.splitlines()'s many)
-
-
-def _blank(m: re.Match[str]) -> str:
-    return re.sub(r"[^\r\n]", " ", m.group())
-
-
-class _Source:
-    """The text, offset → line:col, and a copy with comments, CDATA and PIs blanked."""
-
-    def __init__(self, file: str, text: str) -> None:
-        self.file = file
-        self.text = text
-        self.starts = [0, *(m.end() for m in _BREAK.finditer(text))]
-        self.masked = _HIDDEN.sub(_blank, text)  # same length, so offsets agree
-
-    def span(self, offset: int) -> Span:
-        i = bisect_right(self.starts, offset) - 1
-        return Span(self.file, i + 1, offset - self.starts[i] + 1)
-
-    def lines(self) -> list[str]:
-        return _BREAK.split(self.text)
-
-
-# ---------------------------------------------------------------------------
-# refusing what could fetch or expand
-
-
-_DECLARATION = re.compile(r"<!(DOCTYPE|ENTITY|ELEMENT|ATTLIST|NOTATION)\b", re.I)
-_ENTITY_REF = re.compile(r"&([^#\s;&<>\"']+);")
-_PREDEFINED = {"amp", "lt", "gt", "quot", "apos"}
-
-
-def _refuse_declarations(src: _Source) -> None:
-    """E004 for a DTD or a named entity, found in the text before any parsing."""
-    m = _DECLARATION.search(src.masked)
-    if m:
-        fail(ParseError, "E004", f"`<!{m.group(1)}` is not allowed: hfsm files take no DTD, so "
-             "nothing is ever fetched or expanded", src.span(m.start()))
-    for m in _ENTITY_REF.finditer(src.masked):
-        if m.group(1) not in _PREDEFINED:
-            fail(ParseError, "E004", f"entity reference `&{m.group(1)};` is not allowed",
-                 src.span(m.start()), "only &amp; &lt; &gt; &quot; &apos; and character "
-                 "references such as &#233; (or CDATA for code)")
-
-
-_LIBXML_POS = re.compile(r", line \d+, column \d+$")
-
-
-def _parse(src: _Source) -> Element:
-    try:
-        return etree.fromstring(src.text.encode("utf-8", "surrogatepass"), _parser())
-    except etree.XMLSyntaxError as e:
-        line, col = e.position if e.position else (e.lineno or 1, 1)
-        span = Span(src.file, max(line, 1), max(col, 1))
-        msg = _LIBXML_POS.sub("", str(e.msg or "malformed XML"))
-        if "Excessive depth" in msg:
-            fail(ParseError, "E006", "the document nests deeper than 256 elements", span)
-        fail(ParseError, "E002", msg, span)
-
-
-def _refuse_after_parse(root: Element, index: _Index) -> None:
-    """Belt and braces: a DTD the text scan missed, entity nodes, XInclude."""
-    info: Any = root.getroottree().docinfo  # lxml-stubs lack DocInfo.doctype
-    if info.doctype or info.internalDTD is not None or info.externalDTD is not None:
-        fail(ParseError, "E004", "a DTD is not allowed in hfsm files", index.span(root))
-    count = 0
-    for node in root.iter():
-        count += 1
-        if isinstance(node, etree._Entity):
-            fail(ParseError, "E004", "entity references are not allowed",
-                 Span(index.src.file, _line(node), 1))
-        if isinstance(node.tag, str) and etree.QName(node).namespace in _XINCLUDE:
-            fail(ParseError, "E004", "XInclude is not allowed: an hfsm file is self-contained",
-                 index.span(node))
-    if count > MAX_NODES:
-        fail(ParseError, "E006", f"the document has more than {MAX_NODES} elements",
-             index.span(root))
-
-
-def _check_root(root: Element, index: _Index) -> None:
+def _check_root(root: Element, index: XmlIndex) -> None:
     name = etree.QName(root)
     if name.namespace is None and name.localname == "hfsm":
         return
@@ -163,163 +77,8 @@ def _check_root(root: Element, index: _Index) -> None:
     if name.namespace is None and name.localname in _LEGACY:
         fail(ParseError, "E005", f"legacy {name.localname} import not supported yet",
              index.span(root), "convert it by hand to an <hfsm version=\"1\"> model for now")
-    fail(ParseError, "E005", f"not an hfsm model: the root element is `<{_shown(root)}>`",
+    fail(ParseError, "E005", f"not an hfsm model: the root element is `<{written_name(root)}>`",
          index.span(root), 'an hfsm XML model starts with <hfsm version="1" name="...">')
-
-
-def _line(el: Element) -> int:
-    line = el.sourceline
-    return line if isinstance(line, int) and line > 0 else 1
-
-
-def _shown(el: Element) -> str:
-    """An element's name as written (prefix:local)."""
-    q = etree.QName(el)
-    return f"{el.prefix}:{q.localname}" if el.prefix else q.localname
-
-
-# ---------------------------------------------------------------------------
-# positions
-
-
-_START_TAG = re.compile(r"<([^\s/>!?][^\s/>]*)")
-_ATTRIBUTE = re.compile(r"\s+([^\s=/>]+)\s*=\s*(?:\"([^\"]*)\"|'([^']*)')")
-_TAG_END = re.compile(r"\s*(/?)>")
-
-
-@dataclass(frozen=True, slots=True)
-class _Tag:
-    attributes: dict[str, tuple[int, int]]  # name -> offsets of the name and of the value
-    content: int | None  # offset just after `>`; None for an empty-element tag
-
-
-class _Index:
-    """Source offsets of every element, attribute and element content."""
-
-    def __init__(self, src: _Source, root: Element) -> None:
-        self.src = src
-        self.offsets: dict[Element, int] = {}
-        self.tags: dict[Element, _Tag] = {}
-        starts = _START_TAG.finditer(src.masked)
-        for el, m in zip(root.iter(etree.Element), starts, strict=False):
-            if m.group(1).rpartition(":")[2] != etree.QName(el).localname:
-                break  # cannot happen for a well-formed file; keep lxml's line numbers
-            self.offsets[el] = m.start()
-
-    def span(self, el: Element) -> Span:
-        off = self.offsets.get(el)
-        if off is None:
-            return Span(self.src.file, _line(el), 1)
-        return self.src.span(off)
-
-    def tag(self, el: Element) -> _Tag:
-        found = self.tags.get(el)
-        if found is None:
-            found = self.tags[el] = self._scan(el)
-        return found
-
-    def _scan(self, el: Element) -> _Tag:
-        off = self.offsets.get(el)
-        if off is None:
-            return _Tag({}, None)
-        text = self.src.masked
-        m = _START_TAG.match(text, off)
-        i = m.end() if m else off
-        attributes: dict[str, tuple[int, int]] = {}
-        while (a := _ATTRIBUTE.match(text, i)) is not None:
-            value = a.start(2) if a.group(2) is not None else a.start(3)
-            attributes[a.group(1)] = (a.start(1), value)
-            i = a.end()
-        end = _TAG_END.match(text, i)
-        return _Tag(attributes, end.end() if end and not end.group(1) else None)
-
-    def written(self, el: Element, name: str) -> str:
-        """An attribute's name as written: `xml:lang` for lxml's `{...}lang`."""
-        if not name.startswith("{"):
-            return name
-        local = name.rpartition("}")[2]
-        return next((n for n in self.tag(el).attributes if n.rpartition(":")[2] == local), local)
-
-    def attribute(self, el: Element, name: str) -> tuple[Span, Span]:
-        """Spans of an attribute's name and of its value's first character."""
-        offs = self.tag(el).attributes.get(name)
-        if offs is None:
-            s = self.span(el)
-            return s, s
-        return self.src.span(offs[0]), self.src.span(offs[1])
-
-    def text(self, el: Element, n: int) -> Span:
-        """Span of character ``n`` of the element's text content."""
-        start = self.tag(el).content
-        if start is None:
-            return self.span(el)
-        return self.src.span(_text_offset(self.src.text, start, n))
-
-
-def _after(text: str, marker: str, i: int) -> int:
-    j = text.find(marker, i)
-    return len(text) if j < 0 else j + len(marker)
-
-
-def _text_offset(text: str, start: int, n: int) -> int:
-    """Source offset of the n-th character of the content starting at ``start``.
-
-    CDATA markers, comments and PIs take no characters of the content; an
-    entity or character reference takes one, as does a CRLF.
-    """
-    i, cdata = start, False
-    while i < len(text):
-        if cdata and text.startswith("]]>", i):
-            cdata, i = False, i + 3
-            continue
-        if not cdata and text.startswith("<![CDATA[", i):
-            cdata, i = True, i + 9
-            continue
-        if not cdata and text.startswith(("<!--", "<?"), i):
-            i = _after(text, "-->" if text[i + 1] == "!" else "?>", i)
-            continue
-        if n == 0:
-            return i
-        n -= 1
-        if not cdata and text[i] == "&":
-            i = _after(text, ";", i)
-        else:
-            i += 2 if text.startswith("\r\n", i) else 1
-    return min(i, len(text))
-
-
-def clean_text(raw: str) -> tuple[str, int, int]:
-    """Element text as the model means it: ``(text, first, margin)``.
-
-    A blank first line (the rest of the start tag's line) and the indentation
-    before the closing tag are dropped and the rest is dedented, so that code
-    written indented inside XML is ordinary code.  ``first`` is the index in
-    ``raw`` of the text's first character, ``margin`` the indentation removed.
-    Writers use this to check that a text reads back unchanged.
-    """
-    if not raw.strip(" \t\n"):
-        return "", 0, 0  # only layout: an empty element
-    start = 0
-    nl = raw.find("\n")
-    if nl >= 0 and not raw[:nl].strip(" \t"):
-        start = nl + 1
-    body = raw[start:]
-    last = body.rfind("\n")
-    if last >= 0 and not body[last + 1:].strip(" \t"):
-        body = body[:last + 1]
-    text = textwrap.dedent(body)
-    margin = _margin(body, text)
-    first_line = body.split("\n", 1)[0]
-    indent = len(first_line) - len(first_line.lstrip(" \t"))
-    return text, start + min(indent, margin), margin
-
-
-def _margin(body: str, text: str) -> int:
-    """The indentation dedent removed (lines correspond one to one)."""
-    for before, after in zip(body.split("\n"), text.split("\n"), strict=False):
-        if before.strip(" \t"):
-            return len(before) - len(after)
-    return 0
 
 
 # ---------------------------------------------------------------------------
@@ -353,7 +112,7 @@ class _Grammar:
 @cache
 def _grammar() -> _Grammar:
     """The parsed XSD, and the names it allows where (for "did you mean")."""
-    tree = etree.fromstring(schema_file("hfsm.xsd").read_bytes(), _parser())
+    tree = etree.fromstring(schema_file("hfsm.xsd").read_bytes(), safe_parser())
     types: dict[str, _Type] = {}
     for ct in tree.iterfind(f"{_XS}complexType"):
         children = {str(e.get("name")): str(e.get("type")) for e in ct.iter(f"{_XS}element")}
@@ -364,7 +123,7 @@ def _grammar() -> _Grammar:
     return _Grammar(etree.XMLSchema(tree), types, enums)
 
 
-def _validate(root: Element, index: _Index) -> list[Diagnostic]:
+def _validate(root: Element, index: XmlIndex) -> list[Diagnostic]:
     """Every XSD violation of the document.
 
     libxml2 stops checking an element's children at the first unexpected
@@ -408,10 +167,10 @@ _XSD_MESSAGE = re.compile(r"^Element '([^']*)'(?:, attribute '([^']*)')?: (.*)$"
 _EXPECTED = re.compile(r"Expected is (?:one of )?\( ([^)]*) \)")
 
 
-def _diagnose(message: str, el: Element, index: _Index, grammar: _Grammar) -> Diagnostic:
+def _diagnose(message: str, el: Element, index: XmlIndex, grammar: _Grammar) -> Diagnostic:
     m = _XSD_MESSAGE.match(message.strip())
     attr, what = (m.group(2), m.group(3)) if m else (None, message.strip())
-    tag = _shown(el)
+    tag = written_name(el)
     if attr is not None:
         return _attribute_problem(el, attr, what, index, grammar)
     if "This element is not expected" in what:
@@ -436,18 +195,18 @@ def _diagnose(message: str, el: Element, index: _Index, grammar: _Grammar) -> Di
     return Diagnostic("E103", f"`<{tag}>`: {what.rstrip('.')}", index.span(el))
 
 
-def _unknown_element(el: Element, index: _Index, grammar: _Grammar) -> Diagnostic:
+def _unknown_element(el: Element, index: XmlIndex, grammar: _Grammar) -> Diagnostic:
     parent = el.getparent()
     ptype = grammar.type_of(parent) if parent is not None else None
     allowed = list(ptype.children) if ptype else []
-    pname = _shown(parent) if parent is not None else "?"
-    note = did_you_mean(_shown(el), allowed)
+    pname = written_name(parent) if parent is not None else "?"
+    note = did_you_mean(written_name(el), allowed)
     notes = (note,) if note else (f"allowed in `<{pname}>`: {', '.join(allowed) or 'nothing'}",)
-    return Diagnostic("E100", f"unknown element `<{_shown(el)}>` in `<{pname}>`", index.span(el),
+    return Diagnostic("E100", f"unknown element `<{written_name(el)}>` in `<{pname}>`", index.span(el),
                       "error", notes)
 
 
-def _attribute_problem(el: Element, attr: str, what: str, index: _Index,
+def _attribute_problem(el: Element, attr: str, what: str, index: XmlIndex,
                        grammar: _Grammar) -> Diagnostic:
     value = el.get(attr, "")
     attr = index.written(el, attr)
@@ -456,8 +215,8 @@ def _attribute_problem(el: Element, attr: str, what: str, index: _Index,
     allowed = etype.attributes if etype else {}
     if "is not allowed" in what and "value" not in what:
         note = did_you_mean(attr, allowed)
-        notes = (note,) if note else (f"allowed on `<{_shown(el)}>`: {', '.join(allowed)}",)
-        return Diagnostic("E100", f"unknown attribute `{attr}` of `<{_shown(el)}>`", key_span,
+        notes = (note,) if note else (f"allowed on `<{written_name(el)}>`: {', '.join(allowed)}",)
+        return Diagnostic("E100", f"unknown attribute `{attr}` of `<{written_name(el)}>`", key_span,
                           "error", notes)
     kind = allowed.get(attr, "")
     if kind == "identifier":
@@ -496,7 +255,7 @@ def _flag(value: str) -> bool:
 class _Converter:
     """The valid tree as the YAML front end's data, with spans."""
 
-    def __init__(self, doc: Document, index: _Index, diags: Diagnostics) -> None:
+    def __init__(self, doc: Document, index: XmlIndex, diags: Diagnostics) -> None:
         self.doc = doc
         self.index = index
         self.diags = diags
