@@ -13,6 +13,7 @@ from __future__ import annotations
 import ast
 import builtins
 import re
+import textwrap
 from bisect import bisect_right
 from dataclasses import dataclass
 
@@ -24,6 +25,8 @@ from hfsmc.ir import Code, Model
 
 HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
 _DEFINED = re.compile(r"^(?:def|class)\s+([A-Za-z_]\w*)|^([A-Za-z_]\w*)\s*=", re.M)
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_INDENT = "    "
 _REPORTED = (pyflakes_messages.UndefinedName, pyflakes_messages.UndefinedLocal)
 
 
@@ -133,42 +136,62 @@ def check_python_snippets(model: Model, diags: Diagnostics) -> None:
 
 def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables: list[str],
                      params: set[str], known: set[str], diags: Diagnostics) -> None:
-    body: list[ast.stmt] = []
+    """pyflakes over all snippets at once: one module, each snippet a function.
+
+    The module is assembled as text and parsed once (C speed).  Should the
+    assembly not parse (it always should: each snippet parsed alone), the
+    snippets are checked one by one instead.
+    """
+    names = known | set(dir(builtins))
+    groups = [parsed]
+    while groups:
+        group = groups.pop()
+        joined = _joined(group, variables)
+        if joined is None:
+            if len(group) > 1:
+                groups.extend([item] for item in group)
+            continue
+        try:
+            checker = Checker(joined[0], filename=file, builtins=names)
+        except RecursionError:
+            continue  # absurdly nested code: the syntax check has already had its say
+        _report_undefined(checker, group, joined[1], params, diags)
+
+
+def _joined(group: list[tuple[Snippet, ast.AST]], variables: list[str]) -> tuple[ast.Module, list[int]] | None:
+    """The group's snippets as one parsed module and the first line of each snippet."""
+    glob = f"    global {', '.join(variables)}\n" if variables else ""
+    parts: list[str] = []
     bases: list[int] = []
     line = 1
-    for n, (sn, tree) in enumerate(parsed):
-        nlines = sn.code.text.count("\n") + 1
-        ast.increment_lineno(tree, line - 1)
+    for n, (sn, _tree) in enumerate(group):
+        text = sn.code.text if sn.code.text.endswith("\n") else sn.code.text + "\n"
         if sn.kind == "functions":
-            body.extend(tree.body)  # type: ignore[attr-defined]
+            head, body, tail = "", text, ""
         else:
-            stmts: list[ast.stmt]
-            if isinstance(tree, ast.Expression):
-                stmts = [ast.Return(value=tree.body, lineno=line, col_offset=0)]
-            else:
-                stmts = list(tree.body) or [ast.Pass(lineno=line, col_offset=0)]  # type: ignore[attr-defined]
-            if variables:
-                stmts.insert(0, ast.Global(names=list(variables), lineno=line, col_offset=0))
-            body.append(ast.FunctionDef(
-                name=f"_snippet_{n}", args=ast.arguments(posonlyargs=[], args=[], kwonlyargs=[],
-                                                         kw_defaults=[], defaults=[]),
-                body=stmts, decorator_list=[], returns=None,
-                lineno=line, col_offset=0))
+            head = f"def _snippet_{n}():\n{glob}" + ("    return (\n" if sn.mode == "eval" else "")
+            body = textwrap.indent(text, _INDENT, lambda _line: True)
+            tail = "    )\n" if sn.mode == "eval" else "    pass\n"
+        line += head.count("\n")
         bases.append(line)
-        line += nlines
-    module = ast.Module(body=body, type_ignores=[])
-    ast.fix_missing_locations(module)
+        parts += (head, body, tail)
+        line += body.count("\n") + tail.count("\n")
     try:
-        checker = Checker(module, filename=file, builtins=known | set(dir(builtins)))
-    except RecursionError:
-        return  # absurdly nested code: the syntax check has already had its say
+        return ast.parse("".join(parts)), bases
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        return None
+
+
+def _report_undefined(checker: Checker, group: list[tuple[Snippet, ast.AST]], bases: list[int],
+                      params: set[str], diags: Diagnostics) -> None:
     seen: set[tuple[int, int, str]] = set()
     for msg in sorted(checker.messages, key=lambda m: (m.lineno, m.col)):
         if not isinstance(msg, _REPORTED):
             continue
         i = bisect_right(bases, msg.lineno) - 1
-        sn = parsed[i][0]
-        pos = sn.code.position(msg.lineno - bases[i] + 1, msg.col + 1)
+        sn = group[max(i, 0)][0]
+        shift = 0 if sn.kind == "functions" else len(_INDENT)
+        pos = sn.code.position(msg.lineno - bases[i] + 1, msg.col - shift + 1)
         args = msg.message_args
         name = args if isinstance(args, str) else args[0]
         if isinstance(msg, pyflakes_messages.UndefinedLocal) and name in params:
@@ -182,8 +205,8 @@ def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables
 
 
 def _check_param_writes(sn: Snippet, tree: ast.AST, params: set[str], diags: Diagnostics) -> None:
-    if not params:
-        return
+    if params.isdisjoint(_IDENTIFIER.findall(sn.code.text)):
+        return  # cheap: most snippets never name a parameter
 
     def visit(nodes: list[ast.AST], globals_: set[str], top: bool) -> None:
         for node in nodes:
