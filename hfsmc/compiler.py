@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import gc
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from hfsmc import schema
@@ -28,8 +31,31 @@ class Result:
         return self.model is not None and not any(d.severity == "error" for d in self.diagnostics)
 
 
+@contextmanager
+def _no_cyclic_gc() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector.
+
+    Loading a model makes millions of small objects that all stay alive until
+    the end; the collector's repeated passes over them cost about a third of
+    the check's time and grow faster than the model.  Reference counting
+    still frees everything; the collector resumes afterwards.
+    """
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
 def compile_file(path: str, text: str | None = None) -> Result:
     """Every diagnostic of one model file; the model when it has no errors."""
+    with _no_cyclic_gc():
+        return _compile(path, text)
+
+
+def _compile(path: str, text: str | None) -> Result:
     diags = Diagnostics()
     doc: Document | None = None
     try:

@@ -52,9 +52,10 @@ def resolve_initials(model: Model, diags: Diagnostics) -> Model:
 def resolve_targets(model: Model, diags: Diagnostics) -> Model:
     for auto, _owner in _walk_autos(model):
         names = [s.name for s in auto.states]
+        siblings = set(names)  # a set: sub-automata may have hundreds of states
         for state in auto.states:
             for t in state.transitions:
-                if t.target in names:
+                if t.target in siblings:
                     continue
                 elsewhere = [s.path for s in model.states() if s.name == t.target]
                 if elsewhere:
@@ -94,16 +95,18 @@ def _always_first(earlier: Transition, later: Transition) -> bool:
 
 def check_flow(model: Model, diags: Diagnostics) -> Model:
     """Reachability, dead ends and shadowed transitions (warnings only)."""
+    leavable = _leavable(model)
     for auto, owner in _walk_autos(model):
-        if auto.state(auto.initial) is None:
+        by_name = {s.name: s for s in auto.states}
+        if auto.initial not in by_name:
             continue  # E130/E131 already said so; reachability would only repeat it
-        exits_above = owner is not None and _can_leave(model, owner)
+        exits_above = owner is not None and leavable[owner.path]
         reached = {auto.initial}
         if owner is None and model.on_interrupt:
             reached.add(model.on_interrupt)
         todo = list(reached)
         while todo:
-            s = auto.state(todo.pop())
+            s = by_name.get(todo.pop())
             for t in s.transitions if s else ():
                 if t.target not in reached:
                     reached.add(t.target)
@@ -160,14 +163,12 @@ def check_names(model: Model, diags: Diagnostics) -> Model:
     return model
 
 
-def _can_leave(model: Model, state: State) -> bool:
-    """Whether ``state`` or one of its ancestors has a transition out."""
-    parts = state.path.split("/")
-    for i in range(len(parts), 0, -1):
-        anc = model.find("/".join(parts[:i]))
-        if anc is not None and anc.transitions:
-            return True
-    return False
+def _leavable(model: Model) -> dict[str, bool]:
+    """For each state path: whether it or one of its ancestors has a transition out."""
+    out: dict[str, bool] = {}
+    for s in model.states():  # parents before children
+        out[s.path] = bool(s.transitions) or out.get(s.path.rpartition("/")[0], False)
+    return out
 
 
 PASSES: tuple[NamedPass, ...] = (

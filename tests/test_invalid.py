@@ -145,7 +145,7 @@ _SUMMARY = re.compile(r"^\d+ model\(s\): \d+ error\(s\), \d+ warning\(s\)$")
 
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_cli_text_has_compiler_shape(case: Expected) -> None:
-    """``FILE:LINE:COL: error[EXXX]: message``, the source line, a caret under the column."""
+    """``FILE:LINE:COL: error[E123]: message``, the source line, a caret under the column."""
     result = run_cli("check", case.path)
     assert result.exit_code == 1, result.output
     assert "Traceback" not in result.output
@@ -157,7 +157,7 @@ def test_cli_text_has_compiler_shape(case: Expected) -> None:
     i = 0
     while i < len(out) - 1:
         m = _HEAD.match(out[i])
-        assert m, f"line {i + 1} of the output is not `FILE:LINE:COL: error[EXXX]: ...`: {out[i]!r}"
+        assert m, f"line {i + 1} of the output is not `FILE:LINE:COL: error[E123]: ...`: {out[i]!r}"
         assert m["file"] == case.path
         heads.append(out[i])
         line, col = int(m["line"]), int(m["col"])
