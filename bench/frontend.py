@@ -278,7 +278,7 @@ def best_of(k: int, fn: Callable[[], T], *, gc_on: bool = True) -> tuple[Timing,
         finally:
             gc.enable()
         wall, cpu = min(wall, w1 - w0), min(cpu, c1 - c0)
-    return Timing(wall, cpu), result  # type: ignore[no-any-return]
+    return Timing(wall, cpu), result
 
 
 def bare_parse(text: str) -> Any:
@@ -488,6 +488,23 @@ def machine() -> dict[str, Any]:
     }
 
 
+def hfsmc_revision() -> dict[str, Any]:
+    """The hfsmc version and, in a git checkout, the commit measured (dirty: hfsmc/ edited)."""
+    from hfsmc import __version__
+
+    out: dict[str, Any] = {"version": __version__, "commit": None, "dirty": None}
+    repo = HERE.parent
+    try:
+        out["commit"] = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short", "HEAD"],
+                                       capture_output=True, text=True, check=True).stdout.strip()
+        status = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--", "hfsmc"],
+                                capture_output=True, text=True, check=True).stdout
+        out["dirty"] = bool(status.strip())
+    except (OSError, subprocess.CalledProcessError):
+        pass
+    return out
+
+
 def _version(dist: str, module: Any) -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -563,11 +580,13 @@ def main(argv: list[str] | None = None) -> int:
         print(s, flush=True)
 
     info = machine()
+    revision = hfsmc_revision()
     load_before = loadavg()
     log(f"machine: {info['cpu']}, {info['cores']} cores, {info['memory_gib']} GiB; "
         f"Python {info['python']}; ruamel.yaml {info['ruamel.yaml']}, "
         f"jsonschema {info['jsonschema']}, pyflakes {info['pyflakes']}; "
-        f"load average {load_before}")
+        f"load average {load_before}; hfsmc {revision['version']} at {revision['commit']}"
+        f"{' (hfsmc/ modified)' if revision['dirty'] else ''}")
     startup = run_cli(["--version"])
     log(f"CLI start-up (hfsmc --version): wall {startup.time.wall:.3f} s, "
         f"peak RSS {startup.peak_rss_mib:.0f} MiB\n")
@@ -670,6 +689,7 @@ def main(argv: list[str] | None = None) -> int:
                            "YAML(typ='rt').load of the same generated model; seconds, "
                            "best of k; cpu = this process's CPU time",
             "machine": info,
+            "hfsmc": revision,
             "load_average": {"before": load_before, "after": load_after},
             "targets": {"check_over_parse_max": TARGET_RATIO,
                         "check_time_ratio_per_size_ratio_max": TARGET_GROWTH},

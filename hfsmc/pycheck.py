@@ -27,6 +27,7 @@ HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
 _DEFINED = re.compile(r"^(?:def|class)\s+([A-Za-z_]\w*)|^([A-Za-z_]\w*)\s*=", re.M)
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _INDENT = "    "
+_CHUNK = 100  # snippets per module handed to pyflakes
 _REPORTED = (pyflakes_messages.UndefinedName, pyflakes_messages.UndefinedLocal)
 
 
@@ -120,30 +121,32 @@ def check_python_snippets(model: Model, diags: Diagnostics) -> None:
     params = {p.name for p in model.parameters}
     known = (set(HELPERS) | set(variables) | params | {i.name for i in model.interfaces}
              | _imported_names(model, diags))
-    parsed: list[tuple[Snippet, ast.AST]] = []
+    parsed: list[Snippet] = []  # trees are dropped at once: a big model has 100,000s
     for sn in snippets(model):
         tree = _parse(sn, diags)
         if tree is None:
             if sn.kind == "functions":  # still know what it meant to define: no E141 cascade
                 known |= {a or b for a, b in _DEFINED.findall(sn.code.text)}
             continue
-        parsed.append((sn, tree))
+        parsed.append(sn)
         if sn.kind == "functions":
             known |= _module_names(tree)
         _check_param_writes(sn, tree, params, diags)
     _check_undefined(model.file, parsed, variables, params, known, diags)
 
 
-def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables: list[str],
+def _check_undefined(file: str, parsed: list[Snippet], variables: list[str],
                      params: set[str], known: set[str], diags: Diagnostics) -> None:
-    """pyflakes over all snippets at once: one module, each snippet a function.
+    """pyflakes over the snippets in chunks: one module each, a snippet a function.
 
-    The module is assembled as text and parsed once (C speed).  Should the
-    assembly not parse (it always should: each snippet parsed alone), the
-    snippets are checked one by one instead.
+    Each chunk is assembled as text and parsed at C speed.  Chunks, not one
+    module: CPython's parser slows down per function as a module grows, and
+    names from `functions` reach pyflakes as builtins anyway.  Should a chunk
+    not parse (it always should: each snippet parsed alone), its snippets are
+    checked one by one instead.
     """
     names = known | set(dir(builtins))
-    groups = [parsed]
+    groups = [parsed[i:i + _CHUNK] for i in range(0, len(parsed), _CHUNK)]
     while groups:
         group = groups.pop()
         joined = _joined(group, variables)
@@ -158,17 +161,19 @@ def _check_undefined(file: str, parsed: list[tuple[Snippet, ast.AST]], variables
         _report_undefined(checker, group, joined[1], params, diags)
 
 
-def _joined(group: list[tuple[Snippet, ast.AST]], variables: list[str]) -> tuple[ast.Module, list[int]] | None:
+def _joined(group: list[Snippet], variables: list[str]) -> tuple[ast.Module, list[int]] | None:
     """The group's snippets as one parsed module and the first line of each snippet."""
-    glob = f"    global {', '.join(variables)}\n" if variables else ""
     parts: list[str] = []
     bases: list[int] = []
     line = 1
-    for n, (sn, _tree) in enumerate(group):
+    for n, sn in enumerate(group):
         text = sn.code.text if sn.code.text.endswith("\n") else sn.code.text + "\n"
         if sn.kind == "functions":
             head, body, tail = "", text, ""
         else:
+            used = set(_IDENTIFIER.findall(text))
+            declared = [v for v in variables if v in used]  # a `global` per variable it names
+            glob = f"    global {', '.join(declared)}\n" if declared else ""
             head = f"def _snippet_{n}():\n{glob}" + ("    return (\n" if sn.mode == "eval" else "")
             body = textwrap.indent(text, _INDENT, lambda _line: True)
             tail = "    )\n" if sn.mode == "eval" else "    pass\n"
@@ -182,14 +187,14 @@ def _joined(group: list[tuple[Snippet, ast.AST]], variables: list[str]) -> tuple
         return None
 
 
-def _report_undefined(checker: Checker, group: list[tuple[Snippet, ast.AST]], bases: list[int],
+def _report_undefined(checker: Checker, group: list[Snippet], bases: list[int],
                       params: set[str], diags: Diagnostics) -> None:
     seen: set[tuple[int, int, str]] = set()
     for msg in sorted(checker.messages, key=lambda m: (m.lineno, m.col)):
         if not isinstance(msg, _REPORTED):
             continue
         i = bisect_right(bases, msg.lineno) - 1
-        sn = group[max(i, 0)][0]
+        sn = group[max(i, 0)]
         shift = 0 if sn.kind == "functions" else len(_INDENT)
         pos = sn.code.position(msg.lineno - bases[i] + 1, msg.col - shift + 1)
         args = msg.message_args
@@ -205,8 +210,9 @@ def _report_undefined(checker: Checker, group: list[tuple[Snippet, ast.AST]], ba
 
 
 def _check_param_writes(sn: Snippet, tree: ast.AST, params: set[str], diags: Diagnostics) -> None:
-    if params.isdisjoint(_IDENTIFIER.findall(sn.code.text)):
-        return  # cheap: most snippets never name a parameter
+    if (sn.mode == "eval" and ":=" not in sn.code.text) or params.isdisjoint(
+            _IDENTIFIER.findall(sn.code.text)):
+        return  # cheap: most snippets never assign (or even name) a parameter
 
     def visit(nodes: list[ast.AST], globals_: set[str], top: bool) -> None:
         for node in nodes:

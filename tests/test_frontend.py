@@ -214,3 +214,30 @@ def test_duration_spellings(text: str | int, us: int) -> None:
 @pytest.mark.parametrize("bad", ["2 sec", "-5ms", "1e3ms", "", "ms", True, 1.5, "0.0000001s"])
 def test_bad_durations(bad: object) -> None:
     assert parse_us(bad) is None
+
+
+def _many_states(n: int, bad: int) -> str:
+    lines = ["variables: {v: 0}", "initial: S0", "states:"]
+    for i in range(n):
+        entry = "v = missing_name + 1" if i == bad else f"v = v + {i}"
+        lines.append(f"  S{i}: {{entry: '{entry}', transitions: [{{to: S{(i + 1) % n}, after: 1s}}]}}")
+    return "\n".join(lines) + "\n"
+
+
+def test_undefined_name_found_past_chunk_boundaries() -> None:
+    """Snippets are checked in chunks; positions stay exact in every chunk."""
+    r = comp(_many_states(350, bad=237))
+    assert codes(r) == [("E141", 6 + 237, 22)]
+
+
+def test_snippets_checked_one_by_one_when_a_chunk_does_not_parse(monkeypatch: pytest.MonkeyPatch) -> None:
+    from hfsmc import pycheck
+
+    real = pycheck._joined
+
+    def picky(group: list[pycheck.Snippet], variables: list[str]) -> object:
+        return None if len(group) > 1 else real(group, variables)
+
+    monkeypatch.setattr(pycheck, "_joined", picky)
+    r = comp(_many_states(30, bad=17))
+    assert codes(r) == [("E141", 6 + 17, 21)]
