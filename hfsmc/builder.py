@@ -129,12 +129,14 @@ class _Builder:
             span = self.doc.key_span(path)
             if isinstance(spec, dict):
                 vtype, init = spec["type"], spec["init"]
-                if language == "python" and vtype not in _PY_TYPES:
+                if vtype in _PY_TYPES:
+                    init = self.coerce(init, vtype, (*path, "init"))
+                elif language == "python":
                     self.diags.error("E103", f"variable type `{vtype}` is not one of "
                                      f"{', '.join(_PY_TYPES)} (a cpp model may name any C++ type)",
                                      self.doc.span((*path, "type")))
-                elif vtype in _PY_TYPES:
-                    init = self.coerce(init, vtype, (*path, "init"))
+                else:  # a C++ type: its initializer is C++ code, kept as text in every format
+                    init = _cpp_text(init)
                 out.append(Variable(name, vtype, _freeze(init), True, span))
             else:
                 vtype = _LITERAL_TYPES[type(spec)]
@@ -143,9 +145,7 @@ class _Builder:
 
     def coerce(self, value: Any, vtype: str, path: PathKey) -> Value:
         """Check (and for text from XML, convert) a literal against its declared type."""
-        want = _PY_TYPES.get(vtype)
-        if want is None:  # a C++ type: the initializer is C++ code, kept as text in every format
-            return _cpp_text(value)
+        want = _PY_TYPES[vtype]
         if want is int and isinstance(value, int) and not -(2**63) <= value < 2**63:
             self.diags.error("E103", f"`{path[-1]}` {value} does not fit in 64 bits", self.doc.span(path))
             return 0

@@ -115,3 +115,27 @@ def test_yaml_xml_yaml_equal_ir(data: dict[str, Any]) -> None:
     assert second.model == first.model
     third = compile_file("m2.yaml", text=to_yaml(second.model))
     assert third.model == first.model, third.diagnostics
+
+
+def test_cpp_initializers_survive_xml() -> None:
+    """C++ variables keep their initializer as C++ text in every format."""
+    text = """\
+hfsm: 1
+name: cppish
+language: cpp
+imports: ["<vector>"]
+variables:
+  speed: {type: double, init: 0.5}
+  ready: {type: bool, init: false}
+  path: {type: "std::vector<int>", init: [1, 2, 3]}
+  n: 3
+initial: A
+states:
+  A: {entry: "speed = 1.0;", final: true}
+"""
+    first = compile_file("c.yaml", text=text)
+    assert first.model is not None, first.diagnostics
+    inits = {v.name: v.init for v in first.model.variables}
+    assert inits == {"speed": "0.5", "ready": False, "path": "{1, 2, 3}", "n": 3}
+    second = compile_file("c.xml", text=to_xml(first.model))
+    assert second.model == first.model, second.diagnostics
