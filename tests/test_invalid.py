@@ -211,7 +211,7 @@ def test_caret_sits_on_the_named_thing(case: Expected) -> None:
         if m is None:
             continue
         name = m[1]
-        assert 1 <= d.span.line <= len(src), f"{d.span} is outside the file"
+        assert d.span.line in range(1, len(src) + 1), f"{d.span} is outside the file"
         at = src[d.span.line - 1][d.span.col - 1:]
         assert re.match(re.escape(name) + r"(?![A-Za-z0-9_])", at), (
             f"{d.span}: {d.code} {d.message!r}: the caret is on {at[:30]!r}, not on `{name}`")
