@@ -284,15 +284,33 @@ def test_undefined_names_at_their_xml_position() -> None:
     assert ("E141", "m.xml:15:20") in got  # first line indented: dedented, still exact
 
 
-def test_entity_before_an_error_shifts_no_line() -> None:
-    """A Code maps columns linearly, so `&gt;` (4 characters for 1) shifts the rest of
-    its line; the line stays right.  The writer uses CDATA, so its output is exact."""
+def test_entity_before_an_error_keeps_exact_columns() -> None:
+    """`&gt;` is 4 columns for 1 character: every name is still found at its column."""
     r = comp(wrap(UNDEFINED))
     lines = wrap(UNDEFINED).splitlines()
+    found = 0
     for d in r.diagnostics:
         if d.code == "E141":
             name = d.message.split("`")[1]
-            assert name in lines[d.span.line - 1]
+            line = lines[d.span.line - 1]
+            assert line[d.span.col - 1:].startswith(name), (d, line)
+            found += 1
+    assert found >= 3
+
+
+def test_entities_and_char_references_on_several_lines() -> None:
+    body = """<functions>
+    def f(a):
+        if a &gt; 1 and a &lt; &#51;: return a &amp; nope1
+        return a &gt;= 2 or nope2
+  </functions>
+  <automaton initial="A"><state name="A" final="true"/></automaton>"""
+    r = comp(wrap(body))
+    text = wrap(body).splitlines()
+    got = [(d.span.line, d.span.col) for d in r.diagnostics if d.code == "E141"]
+    assert len(got) == 2
+    for (line, col), name in zip(got, ("nope1", "nope2"), strict=True):
+        assert text[line - 1][col - 1:].startswith(name)
 
 
 @pytest.mark.parametrize("xml, code, at, note", [

@@ -324,7 +324,26 @@ class _Converter:
         self.doc.key_spans[path] = self.index.span(el)
         self.doc.spans[path] = self.index.text(el, first)
         self.doc.cont_cols[path] = 1 + margin
+        if self.index.has_reference(el, len(raw)):
+            # `&gt;` is 4 columns for 1 character: columns are no longer linear
+            self.doc.segments[path] = self.char_positions(el, raw, text, first, margin)
         return text
+
+    def char_positions(self, el: Element, raw: str, text: str, first: int,
+                       margin: int) -> tuple[tuple[int, int, int], ...]:
+        """(offset in text, line, col) of every character of ``text``."""
+        out: list[tuple[int, int, int]] = []
+        offset, raw_start = 0, first
+        raw_lines = raw[first:].split("\n")
+        for k, line in enumerate(text.split("\n")):
+            raw_line = raw_lines[k] if k < len(raw_lines) else ""
+            skip = 0 if k == 0 else min(margin, len(raw_line) - len(raw_line.lstrip(" \t")))
+            for c in range(len(line) + 1):
+                span = self.index.text(el, raw_start + skip + c)
+                out.append((offset + c, span.line, span.col))
+            offset += len(line) + 1
+            raw_start += len(raw_line) + 1
+        return tuple(out)
 
     def named(self, el: Element, path: PathKey, group: dict[str, Any],
               kind: str) -> tuple[dict[str, Any], PathKey] | None:

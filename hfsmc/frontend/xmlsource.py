@@ -206,6 +206,15 @@ class XmlIndex:
         return self.src.span(_text_offset(self.src.text, start, n))
 
 
+    def has_reference(self, el: Element, n: int) -> bool:
+        """Whether the element's first ``n`` text characters hold an entity or character reference."""
+        start = self.tag(el).content
+        if start is None:
+            return False
+        end = _text_offset(self.src.text, start, n)
+        return "&" in self.src.masked[start:end]
+
+
 def _after(text: str, marker: str, i: int) -> int:
     j = text.find(marker, i)
     return len(text) if j < 0 else j + len(marker)
