@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pyflakes import messages as pyflakes_messages
 from pyflakes.checker import Checker
 
-from hfsmc.errors import Diagnostics
+from hfsmc.errors import Diagnostics, did_you_mean
 from hfsmc.ir import Code, Model
 
 HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
@@ -158,7 +158,7 @@ def _check_undefined(file: str, parsed: list[Snippet], variables: list[str],
             checker = Checker(joined[0], filename=file, builtins=names)
         except RecursionError:
             continue  # absurdly nested code: the syntax check has already had its say
-        _report_undefined(checker, group, joined[1], params, diags)
+        _report_undefined(checker, group, joined[1], params, known, diags)
 
 
 def _joined(group: list[Snippet], variables: list[str]) -> tuple[ast.Module, list[int]] | None:
@@ -188,7 +188,7 @@ def _joined(group: list[Snippet], variables: list[str]) -> tuple[ast.Module, lis
 
 
 def _report_undefined(checker: Checker, group: list[Snippet], bases: list[int],
-                      params: set[str], diags: Diagnostics) -> None:
+                      params: set[str], known: set[str], diags: Diagnostics) -> None:
     seen: set[tuple[int, int, str]] = set()
     for msg in sorted(checker.messages, key=lambda m: (m.lineno, m.col)):
         if not isinstance(msg, _REPORTED):
@@ -205,8 +205,9 @@ def _report_undefined(checker: Checker, group: list[Snippet], bases: list[int],
             continue
         seen.add((pos.line, pos.col, name))
         where = f" of `{sn.where}`" if sn.where else ""
-        diags.error("E141", f"undefined name `{name}` in {sn.kind}{where}", pos,
-                    "not a variable, parameter, interface, function, import, helper or builtin")
+        note = did_you_mean(name, known) or ("not a variable, parameter, interface, function, "
+                                             "import, helper or builtin")
+        diags.error("E141", f"undefined name `{name}` in {sn.kind}{where}", pos, note)
 
 
 def _check_param_writes(sn: Snippet, tree: ast.AST, params: set[str], diags: Diagnostics) -> None:

@@ -241,3 +241,11 @@ def test_snippets_checked_one_by_one_when_a_chunk_does_not_parse(monkeypatch: py
     monkeypatch.setattr(pycheck, "_joined", picky)
     r = comp(_many_states(30, bad=17))
     assert codes(r) == [("E141", 6 + 17, 21)]
+
+
+def test_undefined_name_suggests_a_model_name() -> None:
+    r = comp("parameters: {speed: {type: float, default: 1}}\ninitial: A\n"
+             "states:\n  A: {during: 'x = speeed', final: true}\n")
+    (d,) = r.diagnostics
+    assert (d.code, d.span.line, d.span.col) == ("E141", 6, 20)
+    assert d.notes == ("did you mean `speed`?",)
