@@ -19,6 +19,7 @@ from ruamel.yaml.error import YAMLError
 from ruamel.yaml.scalarstring import LiteralScalarString
 
 from hfsmc.compiler import Result
+from hfsmc.durations import parse_us
 from hfsmc.emit.data import model_to_data
 from hfsmc.errors import UsageError
 from hfsmc.fsutil import write_atomic
@@ -60,9 +61,19 @@ def _merge(old: Any, new: Any) -> Any:
         for i, v in enumerate(new):
             old[i] = _merge(old[i], v)
         return old
-    if type(old) is not bool and old == new and not isinstance(new, (dict, list)):
+    if not isinstance(new, (dict, list)) and _same(old, new):
         return old
     return _styled(new)
+
+
+def _same(old: Any, new: Any) -> bool:
+    """Whether the user's spelling ``old`` means ``new`` (`5000ms` is `5s`, `true` is `True`)."""
+    if isinstance(old, bool) or isinstance(new, bool):
+        return old is new or (isinstance(old, bool) and new == str(old))
+    if old == new:
+        return True
+    us = parse_us(new)
+    return us is not None and isinstance(old, (str, int)) and parse_us(old) == us
 
 
 def schema_line(out: Path) -> str:

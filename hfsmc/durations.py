@@ -31,13 +31,15 @@ def parse_us(value: object) -> int | None:
 
 def format_us(us: int) -> str:
     """The shortest exact spelling of a duration: ``100ms``, ``2s``, ``1.5s``, ``2m``."""
-    if us % 60_000_000 == 0 and us >= 60_000_000:
+    if us >= 60_000_000 and us % 60_000_000 == 0:
         return f"{us // 60_000_000}m"
-    if us % 1_000_000 == 0 and us > 0:
-        return f"{us // 1_000_000}s"
-    if us % 1000 == 0:
-        ms = us // 1000
-        if ms >= 1000 and (ms % 100 == 0):
-            return f"{Fraction(ms, 1000).numerator / Fraction(ms, 1000).denominator:g}s"
-        return f"{ms}ms"
-    return f"{Fraction(us, 1000).numerator / Fraction(us, 1000).denominator!r}ms"
+    if us >= 1_000_000 and us % 100_000 == 0:  # whole tenths of a second read best in s
+        return f"{_decimal(us, 6)}s"
+    return f"{_decimal(us, 3)}ms"
+
+
+def _decimal(n: int, places: int) -> str:
+    """``n / 10**places`` written exactly, without trailing zeros (integers only, no float)."""
+    whole, frac = divmod(n, 10**places)
+    digits = f"{frac:0{places}d}".rstrip("0")
+    return f"{whole}.{digits}" if digits else str(whole)

@@ -75,9 +75,6 @@ class Span:
     def __str__(self) -> str:
         return f"{self.file}:{self.line}:{self.col}"
 
-    def shifted(self, lines: int = 0, col: int | None = None) -> Span:
-        return Span(self.file, self.line + lines, self.col if col is None else col)
-
 
 @dataclass(frozen=True, slots=True)
 class Diagnostic:

@@ -1,4 +1,4 @@
-"""Files shipped with hfsmc: schemas and templates (inside the wheel)."""
+"""Files shipped with hfsmc inside the wheel (schemas; templates come with the back ends)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,6 @@ from typing import Any
 
 def schema_file(name: str) -> Traversable:
     return files("hfsmc.schemas").joinpath(name)
-
-
-def template_dir(target: str) -> Traversable:
-    return files("hfsmc.templates").joinpath(target)
 
 
 @cache

@@ -154,3 +154,15 @@ def test_convert_rejects_unknown_suffix(tmp_path: Path) -> None:
     code, _, err = run("convert", TRAFFIC, "-o", str(tmp_path / "x.json"))
     assert code == 2
     assert "must end in .yaml, .yml or .xml" in err
+
+
+def test_convert_in_place_keeps_equivalent_spellings(tmp_path: Path) -> None:
+    """`5000ms` means `5s` and `true` means `True`: an in-place edit leaves them as written."""
+    src = tmp_path / "m.yaml"
+    original = WARNY.replace("name: warny", "name: warny\nlanguage: python").replace(
+        "after: 2s", "after: 2000ms").replace(
+        "  A:\n", "  A:\n    during: 'x = 1'\n").replace("after: 1s}", "after: 1000, when: true}")
+    src.write_text(original)
+    code, _, err = run("convert", str(src), "-o", str(src))
+    assert code == 0, err
+    assert src.read_text() == original

@@ -55,7 +55,7 @@ def model_to_data(model: Model) -> dict[str, Any]:
 def _automaton(a: Automaton) -> dict[str, Any]:
     d: dict[str, Any] = {}
     if a.period_written:
-        d["period"] = f"{a.period_ms}ms" if a.period_ms % 1000 else format_us(a.period_ms * 1000)
+        d["period"] = format_us(a.period_ms * 1000)
     d["initial"] = a.initial
     if a.history:
         d["history"] = True
