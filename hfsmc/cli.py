@@ -132,3 +132,49 @@ def convert(source: str, output: str) -> None:
     assert result.model is not None
     for line in convert_model(result, Path(output)):
         click.echo(line, err=True)
+
+
+@main.command()
+@click.argument("model", type=click.Path(dir_okay=False))
+@click.option("-t", "--target", type=click.Choice(["python", "cpp"]), default="python",
+              show_default=True, help="The language of the component.")
+@click.option("-o", "--output", type=click.Path(file_okay=False),
+              help="The component folder (default: build/NAME).")
+@click.option("--compile", "compile_", is_flag=True, help="C++: also run CMake and the compiler.")
+@click.option("--depfile", type=click.Path(dir_okay=False),
+              help="Also write a make depfile: the component's files depend on MODEL.")
+@click.option("--dump-ir", is_flag=True, help="Print the lowered IR first.")
+@_guard
+def build(model: str, target: str, output: str | None, compile_: bool, depfile: str | None,
+          dump_ir: bool) -> None:
+    """Write the component of MODEL: only files whose content changed are rewritten."""
+    from hfsmc import build as builder
+
+    result = _compile_or_exit(model)
+    assert result.model is not None
+    if dump_ir:
+        from hfsmc.dump import dump
+
+        click.echo(dump(result.model), nl=False)
+    folder = Path(output) if output else Path("build") / result.model.name
+    built = builder.build(result.model, target, folder, Path(depfile) if depfile else None)
+    what = f"{len(built.changed)} of {len(built.files)} file(s) written" if built.changed \
+        else "up to date"
+    click.echo(f"{built.folder}: {what}; run {built.main}", err=True)
+
+
+@main.command(context_settings={"ignore_unknown_options": True})
+@click.argument("model", type=click.Path(dir_okay=False))
+@click.argument("args", nargs=-1, type=click.UNPROCESSED)
+@_guard
+def run(model: str, args: tuple[str, ...]) -> None:
+    """Build MODEL's Python component into a cache and run it with ARGS (after --)."""
+    import os
+
+    from hfsmc import build as builder
+
+    result = _compile_or_exit(model)
+    assert result.model is not None
+    built = builder.build(result.model, "python", builder.cache_folder(model, result.model.name))
+    sys.stderr.flush()
+    os.execv(sys.executable, [sys.executable, str(built.main), *args])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -32,3 +33,93 @@ def write_atomic(path: str | Path, data: bytes | str) -> bool:
         Path(tmp).unlink(missing_ok=True)
         raise
     return True
+
+
+MANIFEST = ".hfsmc-manifest"
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two directories in one step (Linux renameat2); False when not possible here."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    rc = fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
+    return bool(rc == 0)
+
+
+def _old_manifest(target: Path) -> list[str]:
+    try:
+        return (target / MANIFEST).read_text("utf-8").splitlines()
+    except OSError:
+        return []
+
+
+def write_tree(target: str | Path, files: dict[str, bytes], executable: frozenset[str]
+               = frozenset()) -> list[str]:
+    """Make folder ``target`` hold ``files`` (relative path -> bytes); the changed paths.
+
+    The new folder is staged beside the old one and swapped in with one atomic
+    exchange, so a build killed at any moment leaves either the old component
+    or the new one, never a mix.  Files whose bytes did not change are hard
+    links to the old ones (same mtime: make and CMake see no change); files
+    hfsmc did not write (a CMake build folder, a user's notes) are moved over.
+    Where the exchange is not available, each file is replaced atomically.
+    """
+    target = Path(target)
+    old = set(_old_manifest(target)) if target.is_dir() else set()
+    changed = []
+    for rel, data in files.items():
+        try:
+            if (target / rel).read_bytes() == data:
+                continue
+        except OSError:
+            pass
+        changed.append(rel)
+    stale = sorted(old - set(files))
+    if target.is_dir() and not changed and not stale and (target / MANIFEST).is_file():
+        return []
+    target.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".new", dir=target.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    stage.chmod(0o777 & ~umask)  # mkdtemp's 0700 would become the component folder's mode
+    try:
+        for rel, data in files.items():
+            dest = stage / rel
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            if rel not in changed:
+                os.link(target / rel, dest)
+                continue
+            dest.write_bytes(data)
+            if rel in executable:
+                dest.chmod(0o755)
+        (stage / MANIFEST).write_text("".join(f"{r}\n" for r in sorted(files)), "utf-8")
+        if not target.exists():
+            os.rename(stage, target)
+            return changed
+        if not _exchange(stage, target):
+            shutil.rmtree(stage)
+            for rel in changed:
+                write_atomic(target / rel, files[rel])
+                if rel in executable:
+                    (target / rel).chmod(0o755)
+            for rel in stale:
+                (target / rel).unlink(missing_ok=True)
+            write_atomic(target / MANIFEST, "".join(f"{r}\n" for r in sorted(files)))
+            return changed
+        # `stage` now holds the old folder: move what hfsmc did not write back in.
+        for entry in stage.iterdir():
+            rel = entry.name
+            if rel == MANIFEST or rel in old or any(f.startswith(rel + "/") for f in old):
+                continue
+            if not (target / rel).exists():
+                os.rename(entry, target / rel)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return changed

@@ -1,0 +1,52 @@
+"""`hfsmc build` and `hfsmc run`: a checked model becomes a component folder."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from hfsmc.errors import UsageError
+from hfsmc.fsutil import write_atomic, write_tree
+from hfsmc.ir import Model
+
+TARGETS = ("python", "cpp")
+
+
+@dataclass(frozen=True)
+class Built:
+    folder: Path
+    files: tuple[str, ...]  # every file of the component, relative to folder
+    changed: tuple[str, ...]  # the ones this build rewrote
+    main: Path  # what to run
+
+
+def component_files(model: Model, target: str) -> tuple[dict[str, bytes], frozenset[str], str]:
+    """The files of the component, the executable ones, and the one to run."""
+    if target == "python":
+        from hfsmc.emit import python
+
+        return python.component_files(model), frozenset({f"{model.name}.py"}), f"{model.name}.py"
+    raise UsageError("the C++ back end is not there yet: build with -t python")
+
+
+def build(model: Model, target: str, folder: Path, depfile: Path | None = None) -> Built:
+    """Write the component (only files whose bytes changed) and, if asked, a make depfile."""
+    files, executable, main = component_files(model, target)
+    changed = write_tree(folder, files, executable)
+    if depfile is not None:
+        outputs = " ".join(_make_escape(str(folder / f)) for f in sorted(files))
+        write_atomic(depfile, f"{outputs}: {_make_escape(model.file)}\n")
+    return Built(folder, tuple(sorted(files)), tuple(sorted(changed)), folder / main)
+
+
+def _make_escape(path: str) -> str:
+    return path.replace("$", "$$").replace(" ", "\\ ").replace("#", "\\#")
+
+
+def cache_folder(model_path: str, name: str) -> Path:
+    """Where `hfsmc run` keeps the component of a model: one folder per model file."""
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "hfsmc" / "run"
+    digest = hashlib.sha256(os.fsencode(os.path.abspath(model_path))).hexdigest()[:12]
+    return base / f"{name}-{digest}"
