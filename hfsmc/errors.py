@@ -39,6 +39,7 @@ CODES: dict[str, str] = {
     "E120": "not an identifier",
     "E121": "duplicate name",
     "E122": "name used for two kinds of things",
+    "E123": "name reserved for generated code (starts with `_hfsm`)",
     "E130": "sub-automaton without initial state",
     "E131": "initial state is not a child of this sub-automaton",
     "E132": "transition to an unknown state",

@@ -147,6 +147,9 @@ def _check_interrupt_ends(model: Model, diags: Diagnostics) -> None:
                   start.span)
 
 
+RESERVED_PREFIX = "_hfsm"  # generated components name their own symbols with it
+
+
 def check_names(model: Model, diags: Diagnostics) -> Model:
     """Variables, parameters, interfaces and helpers share one namespace in snippets."""
     seen: dict[str, str] = {name: "a helper" for name in HELPERS}
@@ -155,6 +158,10 @@ def check_names(model: Model, diags: Diagnostics) -> Model:
         + [(p.span, "parameter", p.name) for p in model.parameters]
         + [(i.span, "interface", i.name) for i in model.interfaces])
     for span, kind, name in declared:  # in file order: the later declaration is the wrong one
+        if name.startswith(RESERVED_PREFIX):
+            diags.error("E123", f"{kind} `{name}`: names starting with `{RESERVED_PREFIX}` are "
+                        "reserved for generated code", span)
+            continue
         other = seen.get(name)
         if other is not None:
             diags.error("E122", f"{kind} `{name}` is already {other}", span)

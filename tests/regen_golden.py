@@ -2,6 +2,7 @@
 
 tests/golden/NAME.ir.txt  the lowered IR (``hfsmc check --dump-ir``)
 tests/golden/NAME.dot     the Graphviz source of ``hfsmc diagram``
+tests/golden/NAME.component.py.txt  the generated Python component (``hfsmc build -t python``)
 """
 
 from __future__ import annotations
@@ -17,9 +18,17 @@ sys.path.insert(0, str(ROOT))
 from hfsmc.compiler import compile_file  # noqa: E402
 from hfsmc.dump import dump  # noqa: E402
 from hfsmc.emit.dot import to_dot  # noqa: E402
+from hfsmc.emit.python import component_files  # noqa: E402
 from hfsmc.ir import Model  # noqa: E402
 
-GENERATORS: dict[str, Callable[[Model], str]] = {"ir.txt": dump, "dot": to_dot}
+
+
+def python_component(model: Model) -> str:
+    return component_files(model)[f"{model.name}.py"].decode("utf-8")
+
+
+GENERATORS: dict[str, Callable[[Model], str]] = {
+    "ir.txt": dump, "dot": to_dot, "component.py.txt": python_component}
 
 
 def examples() -> list[Path]:

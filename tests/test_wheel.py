@@ -26,7 +26,9 @@ def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_wheel_contents(wheel: Path) -> None:
     names = set(zipfile.ZipFile(wheel).namelist())
     for required in ("hfsmc/cli.py", "hfsmc/schemas/hfsm.schema.json", "hfsmc/schemas/hfsm.xsd",
-                     "hfsmc/templates/README.md", "hfsmc/frontend/yaml.py", "hfsmc/emit/dot.py"):
+                     "hfsmc/templates/README.md", "hfsmc/frontend/yaml.py", "hfsmc/emit/dot.py",
+                     "hfsmc/templates/python/hfsmc_runtime.py",
+                     "hfsmc/templates/python/component.py.j2", "hfsmc/schemas/trace.schema.json"):
         assert required in names, f"{required} missing from {wheel.name}"
     entry = next(n for n in names if n.endswith("entry_points.txt"))
     assert "hfsmc = hfsmc.cli:main" in zipfile.ZipFile(wheel).read(entry).decode()
@@ -47,3 +49,24 @@ def test_wheel_runs_outside_the_repository(wheel: Path, tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-c", code, str(site), str(model)], cwd=tmp_path,
                        capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.slow
+def test_wheel_builds_a_component_that_runs(wheel: Path, tmp_path: Path) -> None:
+    site = tmp_path / "site"
+    zipfile.ZipFile(wheel).extractall(site)
+    model = tmp_path / "blinker.yaml"
+    model.write_text((ROOT / "examples/blinker/blinker.yaml").read_text())
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import hfsmc.cli;"
+        "sys.argv = ['hfsmc', 'build', sys.argv[2], '-o', 'out']; hfsmc.cli.main()"
+    )
+    r = subprocess.run([sys.executable, "-c", code, str(site), str(model)], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr
+    # The component needs neither hfsmc nor site-packages (-I -S): the standard library only.
+    run = subprocess.run([sys.executable, "-I", "-S", "out/blinker.py", "--clock", "virtual",
+                          "--until", "2s", "--trace", "-"], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines()[-1] == '{"t":2000,"ev":"stop","reason":"until"}'

@@ -1,0 +1,1 @@
+"""Templates and runtime modules of the generated Python component (a data package)."""

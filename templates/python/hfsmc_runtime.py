@@ -196,7 +196,7 @@ class Engine:
     def log(self, msg: object) -> None:
         text = str(msg)
         path = self.paths[self.owner]
-        sys.stderr.write(f"[{self.t / 1e6:9.3f}] {path or self.name}: {text}\n")
+        sys.stderr.write(f"[{self.t // 1000 / 1000:9.3f}] {path or self.name}: {text}\n")
         if self.recording:
             self.emit({"t": self.t // 1000, "ev": "log", "state": path, "msg": text})
 

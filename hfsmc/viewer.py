@@ -1,0 +1,169 @@
+"""``hfsmc view``: watch a running component's monitor, or replay a trace, in the terminal.
+
+The view itself (``ViewState``, the rich tree, plain lines) and the monitor
+protocol live in the component's own runtime modules, shipped in
+``hfsmc.templates.python``, so that a component and ``hfsmc view`` show the
+same screen.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+import time
+from collections.abc import Iterator
+from typing import Any
+
+from hfsmc.ir import DictValue, Model, Value
+
+# The component's own modules, shipped as the data package hfsmc.templates (mapped
+# from templates/ by setuptools, a mapping mypy does not follow: they are typed Any here).
+from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
+from hfsmc.templates.python import hfsmc_view as screen  # type: ignore[import-not-found]
+
+Item = tuple[str, Any]
+
+
+class _ViewError(Exception):
+    """A problem reported in one line, with an exit status."""
+
+    def __init__(self, message: str, status: int = 1) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def view(target: str | None, replay: str | None, focus: str | None = None,
+         autofocus: bool = True, speed: float = 1.0, model: str | None = None) -> int:
+    """Run ``hfsmc view`` and return its exit status.
+
+    ``target`` is ``[HOST:]PORT`` of a component started with ``--monitor``;
+    ``replay`` a trace file (``--trace``) played at ``speed`` times real time
+    (0: at once, then the final screen), its tree taken from ``model`` when
+    given, else inferred from the paths in the trace. Errors are one line on
+    stderr: exit 2 for usage errors, 1 for anything else.
+    """
+    try:
+        if (target is None) == (replay is None):
+            raise _ViewError("give either [HOST:]PORT or --replay TRACE", 2)
+        if replay is not None:
+            return _replay(replay, focus, autofocus, speed, model)
+        assert target is not None
+        return _attach(target, focus, autofocus)
+    except _ViewError as e:
+        print(f"hfsmc: error: {e}", file=sys.stderr)
+        return e.status
+
+
+def _attach(target: str, focus: str | None, autofocus: bool) -> int:
+    try:
+        host, port = monitor.parse_address(target)
+    except ValueError as e:
+        raise _ViewError(str(e), 2) from None
+    if port == 0:
+        raise _ViewError(f"bad address {target!r}: port 0 is not a component's port", 2)
+    label = monitor.format_address(host, port)
+    try:
+        sock = monitor.connect(host, port)
+    except OSError as e:
+        raise _ViewError(f"cannot connect to {label}: {e.strerror or e}") from None
+
+    def hang_up() -> None:
+        with contextlib.suppress(OSError):
+            sock.close()
+
+    print(f"hfsmc view: connected to {label}", file=sys.stderr, flush=True)
+    return int(screen.run_viewer(monitor.client_items(sock, label), focus, autofocus, stop=hang_up))
+
+
+def _replay(path: str, focus: str | None, autofocus: bool, speed: float, model: str | None) -> int:
+    if not speed >= 0:  # also refuses NaN
+        raise _ViewError(f"bad --speed {speed}: expected 0 (as fast as possible) or more", 2)
+    records = load_trace(path)
+    structure = screen.infer_structure(records) if model is None else _model_structure(model)
+    state = screen.ViewState(structure)
+    wanted = (focus or "").strip("/")
+    if wanted and wanted not in state.children:
+        where = model if model is not None else path
+        raise _ViewError(f"--focus {focus}: no state of that path in {where}", 2)
+    return int(screen.run_viewer(_replay_items(records, structure, speed, path), focus, autofocus))
+
+
+def load_trace(path: str) -> list[dict[str, Any]]:
+    """The records of a trace file (SPEC 3.7); _ViewError at the first bad line."""
+    records: list[dict[str, Any]] = []
+    try:
+        with open(path, encoding="utf-8") as f:
+            for n, line in enumerate(f, 1):
+                if not line.strip():
+                    continue
+                try:
+                    rec = json.loads(line)
+                except ValueError as e:
+                    raise _ViewError(f"{path}:{n}: bad trace record: {getattr(e, 'msg', e)}") from None
+                why: str | None = screen.check_record(rec)
+                if why is not None:
+                    raise _ViewError(f"{path}:{n}: bad trace record: {why}")
+                records.append(rec)
+    except UnicodeDecodeError:
+        raise _ViewError(f"{path}: not a trace (not UTF-8 text)") from None
+    except OSError as e:
+        raise _ViewError(f"cannot read {path}: {e.strerror or e}") from None
+    if not records:
+        raise _ViewError(f"{path}: no trace records")
+    return records
+
+
+def _replay_items(records: list[dict[str, Any]], structure: dict[str, Any], speed: float,
+                  path: str) -> Iterator[Item]:
+    """The records at their times (scaled by ``speed``), the clock moving in between."""
+    yield "structure", structure
+    start = time.monotonic()
+    for rec in records:
+        if speed > 0:
+            due = start + rec["t"] / 1000 / speed
+            while (now := time.monotonic()) < due:
+                time.sleep(min(0.1, due - now))
+                yield "advance", min(int((time.monotonic() - start) * 1000 * speed), rec["t"])
+        yield "record", rec
+    yield "end", f"replayed {len(records)} records of {path}"
+
+
+def _model_structure(path: str) -> dict[str, Any]:
+    from hfsmc.compiler import compile_file
+    from hfsmc.errors import render_text
+
+    result = compile_file(path)
+    if result.model is None or not result.ok:
+        sys.stderr.write(render_text(result.diagnostics, {path: result.lines},
+                                     color=sys.stderr.isatty()))
+        raise _ViewError(f"{path} has errors; the trace cannot be shown with it")
+    return structure_of(result.model)
+
+
+def _literal(v: Value) -> object:
+    if isinstance(v, DictValue):
+        return {k: _literal(x) for k, x in v.items}
+    if isinstance(v, tuple):
+        return [_literal(x) for x in v]
+    return v
+
+
+def structure_of(model: Model) -> dict[str, Any]:
+    """The structure a component gives its observers (``Observer.start``), from its model."""
+
+    def sibling(path: str, name: str) -> str:
+        parent = path.rpartition("/")[0]
+        return f"{parent}/{name}" if parent else name
+
+    return {
+        "name": model.name,
+        "automata": [{"owner": a.owner, "period_ms": a.period_ms, "initial": a.initial,
+                      "history": a.history} for a in model.automata()],
+        "states": [{"path": s.path, "final": s.final, "composite": s.composite}
+                   for s in model.states()],
+        "transitions": [{"from": s.path, "to": sibling(s.path, t.target), "index": t.index,
+                         "name": t.name} for s in model.states() for t in s.transitions],
+        "variables": [v.name for v in model.variables],
+        "parameters": {p.name: repr(_literal(p.default)) for p in model.parameters},
+    }

@@ -1,0 +1,705 @@
+"""The live terminal view of a running hfsmc component.
+
+Copied beside every generated Python component, and imported by ``hfsmc
+view``: standard library only, ``rich`` imported lazily (without it, or
+without a terminal, the view prints one plain line per transition).
+
+- ``ViewState``: what a viewer knows. The one model fed by the component's
+  observer calls, by the monitor protocol and by trace replay.
+- ``render``: a ``ViewState`` as a rich tree of the hierarchy and a side panel.
+- ``Display``: the observer behind the component's ``--display``.
+- ``run_viewer``: the display loop behind ``hfsmc view``.
+
+The automaton thread only puts items on a queue; one thread of this module
+owns the ``ViewState`` and the terminal, so the two never share data.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import os
+import queue
+import select
+import sys
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any, TextIO
+
+if TYPE_CHECKING:
+    from rich.console import RenderableType
+    from rich.text import Text
+
+RECENT = 8  # transitions and log lines kept for the view
+REFRESH_S = 0.25  # the live view redraws at 4 Hz
+EVENTS = ("start", "enter", "exit", "fire", "log", "error", "interrupt", "stop")
+# Control characters in names or messages could drive the terminal: shown as "?".
+_CONTROL = {c: "?" for c in [*range(32), 127]}
+
+Item = tuple[str, Any]  # ("structure" | "record" | "sample" | "snapshot" | "advance" | ..., payload)
+
+
+def clean(text: object) -> str:
+    """``text`` as a string that is safe to print on a terminal."""
+    return str(text).translate(_CONTROL)
+
+
+def check_record(rec: object) -> str | None:
+    """Why ``rec`` is not a trace record (SPEC 3.7), or None when it is one."""
+    if not isinstance(rec, dict):
+        return "not a JSON object"
+    t = rec.get("t")
+    if not isinstance(t, int) or isinstance(t, bool) or t < 0:
+        return "`t` is not a whole number of milliseconds"
+    ev = rec.get("ev")
+    if not isinstance(ev, str):
+        return "`ev` is missing"
+    needs = {"start": ("name",), "enter": ("state",), "exit": ("state",), "fire": ("from", "to"),
+             "log": ("state", "msg"), "error": ("state", "snippet"), "interrupt": ("reason", "to"),
+             "stop": ("reason",)}.get(ev, ())
+    for key in needs:
+        if not isinstance(rec.get(key), str):
+            return f"`{ev}` record without a string `{key}`"
+    if ev == "fire" and (not isinstance(rec.get("index"), int) or isinstance(rec.get("index"), bool)):
+        return "`fire` record without an integer `index`"
+    return None
+
+
+def infer_structure(records: Iterable[dict[str, Any]]) -> dict[str, Any]:
+    """A structure (as the runtime gives it) guessed from the paths a trace names."""
+    view = ViewState()
+    for rec in records:
+        if rec.get("ev") == "start" and not view.name:
+            view.name = str(rec.get("name", ""))
+        for key in ("state", "from", "to"):
+            path = rec.get(key)
+            if rec.get("ev") in ("enter", "exit", "fire") and isinstance(path, str) and path:
+                view.learn(path)
+    states = [{"path": p, "final": False, "composite": bool(view.children[p])} for p in view.paths()]
+    return {"name": view.name, "automata": [], "states": states, "transitions": [],
+            "variables": [], "parameters": {}}
+
+
+class ViewState:
+    """What a viewer knows about a component: its tree, active states, recent events."""
+
+    def __init__(self, structure: dict[str, Any] | None = None) -> None:
+        self.name = ""
+        self.children: dict[str, list[str]] = {"": []}  # every known path -> child paths
+        self.final: set[str] = set()
+        self.periods: dict[str, int] = {}  # owner path ("" root) -> period of its sub-automaton
+        self.history: set[str] = set()
+        self.transition_names: dict[tuple[str, int], str] = {}
+        self.variable_names: list[str] = []
+        self.parameters: dict[str, str] = {}
+        self.values: dict[str, str] = {}
+        self.active: dict[str, int] = {}  # active path -> entry time (ms), outermost first
+        self.transitions: deque[dict[str, Any]] = deque(maxlen=RECENT)
+        self.logs: deque[dict[str, Any]] = deque(maxlen=RECENT)
+        self.t_ms = 0
+        self.overruns = 0
+        self.started = False
+        self.interrupt: dict[str, Any] | None = None
+        self.stop_reason: str | None = None
+        self.stopped_in: dict[str, int] = {}  # the states the stop exited
+        self.note: str | None = None  # "disconnected", "replayed ...": shown with the status
+        self._exited: dict[str, int] = {}  # exits since the last enter, fire or interrupt
+        if structure is not None:
+            self.apply_structure(structure)
+
+    # -- the tree -----------------------------------------------------------------------
+    def learn(self, path: str) -> None:
+        """Add ``path`` (and its ancestors) to the tree if it is new."""
+        if path in self.children:
+            return
+        parent = path.rpartition("/")[0]
+        self.learn(parent)
+        self.children[parent].append(path)
+        self.children[path] = []
+
+    def paths(self, top: str = "") -> list[str]:
+        """Every known path under ``top``, depth first, in model (or first seen) order."""
+        out: list[str] = []
+        stack = list(reversed(self.children.get(top, [])))
+        while stack:
+            p = stack.pop()
+            out.append(p)
+            stack.extend(reversed(self.children[p]))
+        return out
+
+    def innermost(self) -> str:
+        """The deepest active state ("" when none is)."""
+        return max(self.active, key=lambda p: p.count("/"), default="")
+
+    # -- applying what the component says ------------------------------------------------
+    def apply_structure(self, s: dict[str, Any]) -> None:
+        """Take the component's structure (states in model order, automata, names)."""
+        self.name = str(s.get("name") or self.name)
+        for st in s.get("states", ()):
+            self.learn(str(st["path"]))
+            if st.get("final"):
+                self.final.add(str(st["path"]))
+        for a in s.get("automata", ()):
+            self.periods[str(a["owner"])] = int(a["period_ms"])
+            if a.get("history"):
+                self.history.add(str(a["owner"]))
+        for tr in s.get("transitions", ()):
+            if tr.get("name"):
+                self.transition_names[(str(tr["from"]), int(tr["index"]))] = str(tr["name"])
+        self.variable_names = [str(v) for v in s.get("variables", ())]
+        self.parameters = {str(k): str(v) for k, v in dict(s.get("parameters", {})).items()}
+
+    def apply_record(self, rec: dict[str, Any]) -> None:
+        """Apply one trace record (SPEC 3.7); unknown events only move the time."""
+        ev, t = rec.get("ev"), int(rec.get("t", self.t_ms))
+        if ev == "start":
+            self.active.clear()
+            self.transitions.clear()
+            self.logs.clear()
+            self._exited.clear()
+            self.interrupt, self.stop_reason, self.stopped_in = None, None, {}
+            self.started, self.t_ms = True, t
+            self.name = str(rec.get("name") or self.name)
+            return
+        self.t_ms = max(self.t_ms, t)
+        if ev == "enter":
+            path = str(rec["state"])
+            self.learn(path)
+            self.active[path] = t
+            self._exited.clear()
+        elif ev == "exit":
+            path = str(rec["state"])
+            self._exited[path] = self.active.pop(path, t)
+        elif ev == "fire":
+            src, dst, index = str(rec["from"]), str(rec["to"]), int(rec["index"])
+            self.learn(src)
+            self.learn(dst)
+            self.transitions.append({"t": t, "from": src, "to": dst, "index": index,
+                                     "name": self.transition_names.get((src, index))})
+            self._exited.clear()
+        elif ev == "log":
+            self.logs.append({"t": t, "state": str(rec["state"]), "msg": str(rec["msg"])})
+        elif ev == "error":
+            self.logs.append({"t": t, "state": str(rec["state"]), "error": str(rec["snippet"])})
+        elif ev == "interrupt":
+            self.interrupt = {"t": t, "reason": str(rec["reason"]), "to": str(rec["to"])}
+            self._exited.clear()
+        elif ev == "stop":
+            self.stop_reason = str(rec["reason"])
+            # Exits come innermost first: reversed, the stopped states are outermost first.
+            self.stopped_in = dict(reversed(self._exited.items()))
+            self.stopped_in.update(self.active)
+
+    def apply_sample(self, t_ms: int, values: dict[str, str], overruns: int) -> None:
+        """Take the variables and overrun count sampled at ``t_ms``."""
+        self.t_ms = max(self.t_ms, int(t_ms))
+        self.values = {str(k): str(v) for k, v in values.items()}
+        self.overruns = int(overruns)
+
+    def advance(self, t_ms: int) -> None:
+        """Move the clock on (replay between records); a stopped component's stays."""
+        if self.stop_reason is None:
+            self.t_ms = max(self.t_ms, int(t_ms))
+
+    def snapshot(self) -> dict[str, Any]:
+        """The current state as a monitor ``snapshot`` message (schemas/monitor.md)."""
+        stop = None
+        if self.stop_reason is not None:
+            stop = {"reason": self.stop_reason,
+                    "states": [{"state": p, "since": s} for p, s in self.stopped_in.items()]}
+        return {"type": "snapshot", "t": self.t_ms, "started": self.started,
+                "active": [{"state": p, "since": s} for p, s in self.active.items()],
+                "variables": dict(self.values), "overruns": self.overruns,
+                "transitions": list(self.transitions), "logs": list(self.logs),
+                "interrupt": self.interrupt, "stop": stop}
+
+    def apply_snapshot(self, snap: dict[str, Any]) -> None:
+        """Take a monitor ``snapshot``: a late viewer knows at once what others do."""
+        self.t_ms = int(snap["t"])
+        self.started = bool(snap.get("started", True))
+        self.active = {}
+        for a in snap.get("active", ()):
+            self.learn(str(a["state"]))
+            self.active[str(a["state"])] = int(a["since"])
+        self.values = {str(k): str(v) for k, v in dict(snap.get("variables", {})).items()}
+        self.overruns = int(snap.get("overruns", 0))
+        self.transitions = deque((dict(x) for x in snap.get("transitions", ())), maxlen=RECENT)
+        self.logs = deque((dict(x) for x in snap.get("logs", ())), maxlen=RECENT)
+        self.interrupt = snap.get("interrupt")
+        stop = snap.get("stop")
+        self.stop_reason = str(stop["reason"]) if stop else None
+        self.stopped_in = {str(a["state"]): int(a["since"]) for a in stop["states"]} if stop else {}
+
+    def apply(self, kind: str, payload: Any) -> None:
+        """Apply one queued item (see ``Item``); other kinds are not about the component."""
+        if kind == "structure":
+            self.apply_structure(payload)
+        elif kind == "record":
+            self.apply_record(payload)
+        elif kind == "sample":
+            self.apply_sample(*payload)
+        elif kind == "snapshot":
+            self.apply_snapshot(payload)
+        elif kind == "advance":
+            self.advance(payload)
+
+
+# -- plain lines ---------------------------------------------------------------------------
+def _ts(t_ms: int) -> str:
+    return f"{t_ms / 1000:7.3f}"
+
+
+class PlainLines:
+    """One line per transition, interrupt and stop: the view without a terminal.
+
+    ``lines`` is called *before* the item is applied to the view, so that the
+    start line names the initial states before any of them is left.
+    """
+
+    def __init__(self, focus: str | None = None) -> None:
+        self.focus = (focus or "").strip("/")
+        self._start: int | None = None  # start seen, its line not printed yet
+
+    def _shown(self, path: str) -> bool:
+        return not self.focus or path.startswith(self.focus + "/")
+
+    def lines(self, view: ViewState, kind: str, payload: Any) -> list[str]:
+        out: list[str] = []
+        ev = payload.get("ev") if kind == "record" else None
+        if self._start is not None and kind != "structure" and ev not in ("enter", "log", "error"):
+            inner = view.innermost()
+            out.append(f"{_ts(self._start)}  start {clean(view.name)}" + (f" in {clean(inner)}" if inner else ""))
+            self._start = None
+        if ev == "start":
+            self._start = int(payload["t"])
+        elif ev == "fire" and self._shown(str(payload["from"])):
+            name = view.transition_names.get((str(payload["from"]), int(payload["index"])))
+            out.append(f"{_ts(payload['t'])}  {clean(payload['from'])} -> {clean(payload['to'])}"
+                       + (f"  ({clean(name)})" if name else ""))
+        elif ev == "interrupt":
+            out.append(f"{_ts(payload['t'])}  interrupt ({clean(payload['reason'])}) -> {clean(payload['to'])}")
+        elif ev == "stop":
+            out.append(f"{_ts(payload['t'])}  stop ({clean(payload['reason'])})")
+        elif kind == "snapshot":
+            out.append(_snapshot_line(payload))
+        return out
+
+
+def _snapshot_line(snap: dict[str, Any]) -> str:
+    if snap.get("stop"):
+        return f"{_ts(snap['t'])}  stopped ({clean(snap['stop']['reason'])})"
+    paths = [str(a["state"]) for a in snap.get("active", ())]
+    inner = max(paths, key=lambda p: p.count("/"), default="")
+    return f"{_ts(snap['t'])}  in {clean(inner)}" if inner else f"{_ts(snap['t'])}  not started"
+
+
+# -- the rich view -------------------------------------------------------------------------
+def _dur(ms: int) -> str:
+    ms = max(ms, 0)
+    if ms < 60_000:
+        return f"{ms / 1000:.1f}s"
+    m, s = divmod(ms // 1000, 60)
+    return f"{m}m{s:02d}s" if m < 60 else f"{m // 60}h{m % 60:02d}m"
+
+
+def _lit(view: ViewState, path: str) -> bool:
+    return path in view.active or (view.stop_reason is not None and path in view.stopped_in)
+
+
+def _label(view: ViewState, path: str, collapsed: int) -> Text:
+    from rich.text import Text
+
+    name = clean(path.rpartition("/")[2] or view.name)
+    if path in view.active:
+        label = Text(f"● {name}", style="bold green")
+        label.append(f"  {_dur(view.t_ms - view.active[path])}", style="green")
+    elif view.stop_reason is not None and path in view.stopped_in:
+        label = Text(f"■ {name}", style="bold yellow")
+        label.append(f"  {_dur(view.t_ms - view.stopped_in[path])}, at stop", style="yellow")
+    else:
+        label = Text(f"○ {name}", style="dim")
+    if path in view.final:
+        label.append("  final", style="dim italic")
+    if path in view.periods:
+        label.append(f"  {view.periods[path]} ms" + (" history" if path in view.history else ""),
+                     style="dim")
+    if collapsed:
+        label.append(f"  ▸ {collapsed} states", style="dim")
+    return label
+
+
+def _status(view: ViewState) -> Text:
+    from rich.text import Text
+
+    if view.stop_reason is not None:
+        text = Text(f"stopped ({clean(view.stop_reason)})", style="bold yellow")
+    elif view.interrupt is not None:
+        text = Text(f"interrupt ({clean(view.interrupt['reason'])}) -> {clean(view.interrupt['to'])}",
+                    style="bold red")
+    elif view.started:
+        text = Text("running", style="bold green")
+    else:
+        text = Text("not started", style="dim")
+    if view.note:
+        text.append(f"; {clean(view.note)}", style="bold")
+    return text
+
+
+def _tree(view: ViewState, focus: str, autofocus: bool) -> RenderableType:
+    from rich.text import Text
+    from rich.tree import Tree
+
+    if focus and focus not in view.children:
+        tree = Tree(Text(clean(view.name or "?"), style="bold"))
+        tree.add(Text(f"no state {clean(focus)}", style="yellow"))
+        return tree
+    title = _label(view, focus, 0) if focus else Text(clean(view.name or "?"), style="bold")
+    if not focus and "" in view.periods:
+        title.append(f"  {view.periods['']} ms", style="dim")
+    tree = Tree(title, guide_style="dim")
+    stack: list[tuple[Tree, str]] = [(tree, focus)]
+    while stack:
+        node, path = stack.pop()
+        for child in view.children[path]:
+            grand = view.children[child]
+            expand = bool(grand) and (not autofocus or _lit(view, child) or not view.started)
+            sub = node.add(_label(view, child, 0 if expand else len(grand)))
+            if expand:
+                stack.append((sub, child))
+    return tree
+
+
+def _panel(view: ViewState, autofocus: bool) -> RenderableType:
+    from rich.console import Group
+    from rich.panel import Panel
+    from rich.table import Table
+    from rich.text import Text
+
+    facts = Table.grid(padding=(0, 2))
+    facts.add_column(style="bold")
+    facts.add_column()
+    facts.add_row("time", f"{view.t_ms / 1000:.3f} s")
+    facts.add_row("status", _status(view))
+    facts.add_row("overruns", Text(str(view.overruns), style="bold red" if view.overruns else ""))
+    facts.add_row("autofocus", "on (a: off)" if autofocus else "off (a: on)")
+    parts: list[RenderableType] = [facts]
+    if view.transitions:
+        rows = Table.grid(padding=(0, 1))
+        for tr in reversed(view.transitions):
+            line = Text(f"{tr['t'] / 1000:8.3f}  {clean(tr['from'])} -> {clean(tr['to'])}")
+            if tr.get("name"):
+                line.append(f"  {clean(tr['name'])}", style="cyan")
+            rows.add_row(line)
+        parts += [Text("recent transitions", style="bold"), rows]
+    names = view.variable_names + sorted(set(view.values) - set(view.variable_names))
+    if view.values:
+        rows = Table.grid(padding=(0, 1))
+        for n in names:
+            rows.add_row(Text(clean(n), style="magenta"), Text(clean(view.values.get(n, "?"))))
+        parts += [Text("variables", style="bold"), rows]
+    if view.logs:
+        rows = Table.grid(padding=(0, 1))
+        for lg in view.logs:
+            where = clean(lg["state"]) or "on_shutdown"
+            msg = (Text(f"error in {clean(lg['error'])}", style="red") if "error" in lg
+                   else Text(clean(lg["msg"])))
+            rows.add_row(Text(f"{lg['t'] / 1000:8.3f}"), Text(where, style="dim"), msg)
+        parts += [Text("log", style="bold"), rows]
+    return Panel(Group(*parts), title=clean(view.name or "hfsmc"), title_align="left", expand=False)
+
+
+def render(view: ViewState, focus: str | None = None, autofocus: bool = True,
+           width: int = 120) -> RenderableType:
+    """The view as rich renderables: the tree, and the panel beside (or below) it."""
+    from rich.console import Group
+    from rich.table import Table
+
+    tree, panel = _tree(view, (focus or "").strip("/"), autofocus), _panel(view, autofocus)
+    if width < 100:
+        return Group(tree, panel)
+    grid = Table.grid(padding=(0, 3))
+    grid.add_column(min_width=30)
+    grid.add_column()
+    grid.add_row(tree, panel)
+    return grid
+
+
+def _rich_missing() -> bool:
+    try:
+        import rich  # noqa: F401
+    except ImportError:
+        return True
+    return False
+
+
+def _isatty(stream: TextIO) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+# -- terminal plumbing -------------------------------------------------------------------------
+class _Keys:
+    """Single keys from the terminal (cbreak mode), put on the queue as ("key", ch).
+
+    Only when stdin is a terminal and this process is in its foreground; the
+    terminal's settings are restored by ``stop`` (and at exit, as a safety net).
+    """
+
+    def __init__(self, put: Callable[[Item], None]) -> None:
+        self._put = put
+        self._old: list[Any] | None = None
+        self._fd = -1
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        try:
+            import termios
+            import tty
+
+            fd = sys.stdin.fileno()
+            if not os.isatty(fd) or os.tcgetpgrp(fd) != os.getpgrp():
+                return
+            self._fd, self._old = fd, termios.tcgetattr(fd)
+            tty.setcbreak(fd, termios.TCSANOW)
+        except (ImportError, OSError, ValueError, AttributeError):
+            self._old = None
+            return
+        atexit.register(self.stop)
+        self._thread = threading.Thread(target=self._run, name="hfsmc-keys", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                ready, _, _ = select.select([self._fd], [], [], 0.1)
+                if ready:
+                    data = os.read(self._fd, 64)
+                    if not data:
+                        return
+                    for ch in data.decode("utf-8", "replace"):
+                        self._put(("key", ch))
+        except (OSError, ValueError):
+            return
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(0.3)
+        if self._old is not None:
+            import termios
+
+            with contextlib.suppress(OSError, termios.error):
+                termios.tcsetattr(self._fd, termios.TCSADRAIN, self._old)
+            self._old = None
+        atexit.unregister(self.stop)
+
+
+class _QueueWriter:
+    """Stands in for sys.stdout / sys.stderr under the live view: whole lines go on the
+    queue as ("text", line) and the display thread prints them above the tree."""
+
+    def __init__(self, put: Callable[[Item], None], original: TextIO) -> None:
+        self._put, self.original, self._buf = put, original, ""
+        self.encoding = getattr(original, "encoding", "utf-8")
+
+    def write(self, s: str) -> int:
+        self._buf += s
+        if "\n" in self._buf:
+            done, _, self._buf = self._buf.rpartition("\n")
+            self._put(("text", done))
+        return len(s)
+
+    def flush(self) -> None:
+        if self._buf:
+            self._put(("text", self._buf))
+            self._buf = ""
+
+    def isatty(self) -> bool:
+        return _isatty(self.original)
+
+    def fileno(self) -> int:
+        return self.original.fileno()
+
+
+# -- the display loop ------------------------------------------------------------------------
+class _Screen:
+    """Owns a ViewState and the terminal; consumes items until ("end" | "error" | quit)."""
+
+    def __init__(self, focus: str | None, autofocus: bool, stream: TextIO, live: bool,
+                 quit_key: bool) -> None:
+        self.view = ViewState()
+        self.focus, self.autofocus, self.stream = focus, autofocus, stream
+        self.live, self.quit_key = live, quit_key
+        self.plain = PlainLines(focus)
+
+    def run(self, q: queue.SimpleQueue[Item]) -> tuple[int, str | None]:
+        """(exit status, closing message) once the source ends or the user quits."""
+        return self._run_live(q) if self.live else self._run_plain(q)
+
+    def _run_plain(self, q: queue.SimpleQueue[Item]) -> tuple[int, str | None]:
+        while True:
+            kind, payload = q.get()
+            if kind in ("end", "error"):
+                self._write(self.plain.lines(self.view, kind, payload))
+                return (0 if kind == "end" else 1), payload
+            if kind == "text":
+                continue
+            self._write(self.plain.lines(self.view, kind, payload))
+            self.view.apply(kind, payload)
+
+    def _write(self, lines: list[str]) -> None:
+        if lines:
+            try:
+                self.stream.write("".join(line + "\n" for line in lines))
+                self.stream.flush()
+            except (OSError, ValueError):  # a closed pipe must not stop the component
+                pass
+
+    def _run_live(self, q: queue.SimpleQueue[Item]) -> tuple[int, str | None]:
+        from rich.console import Console
+        from rich.live import Live
+        from rich.text import Text
+
+        console = Console(file=self.stream, highlight=False)
+        result: tuple[int, str | None] | None = None
+        with Live(console=console, auto_refresh=False, redirect_stdout=False,
+                  redirect_stderr=False, vertical_overflow="crop") as live:
+            due = 0.0
+            while result is None:
+                try:
+                    kind, payload = q.get(timeout=max(due - time.monotonic(), 0.0))
+                except queue.Empty:
+                    kind, payload = "tick", None
+                if kind in ("end", "error"):
+                    self.view.note = payload if kind == "end" else None
+                    result = (0 if kind == "end" else 1), payload
+                elif kind == "text":
+                    console.print(Text.from_ansi(payload), soft_wrap=True)
+                elif kind == "key":
+                    if payload in "aA":
+                        self.autofocus, due = not self.autofocus, 0.0
+                    elif payload in "qQ" and self.quit_key:
+                        result = 0, None
+                else:
+                    self.view.apply(kind, payload)
+                if result is not None or time.monotonic() >= due:
+                    live.update(render(self.view, self.focus, self.autofocus, console.width),
+                                refresh=True)
+                    due = time.monotonic() + REFRESH_S
+        return result
+
+
+class Display:
+    """The ``--display`` observer: a live tree on a terminal, plain lines otherwise.
+
+    Every observer call only puts an item on a queue; the display thread owns
+    the view and the terminal, and ``close`` returns within about a second.
+    """
+
+    def __init__(self, focus: str | None = None, autofocus: bool = True,
+                 stream: TextIO | None = None) -> None:
+        self._stream = stream if stream is not None else sys.stdout
+        self._focus, self._autofocus = focus, autofocus
+        self._q: queue.SimpleQueue[Item] = queue.SimpleQueue()
+        self._thread: threading.Thread | None = None
+        self._keys: _Keys | None = None
+        self._writers: list[tuple[str, _QueueWriter]] = []
+
+    def start(self, structure: dict[str, Any]) -> None:
+        live = _isatty(self._stream)
+        if live and _rich_missing():
+            print("display: the rich package is not installed; printing one line per transition",
+                  file=sys.stderr, flush=True)
+            live = False
+        screen = _Screen(self._focus, self._autofocus, self._stream, live, quit_key=False)
+        self._q.put(("structure", structure))
+        if live:
+            self._keys = _Keys(self._q.put)
+            self._keys.start()
+            # Lines the component prints (logs, errors) would tear the live tree apart:
+            # they are printed above it instead.
+            for name in ("stdout", "stderr"):
+                current = getattr(sys, name)
+                if _isatty(current):
+                    writer = _QueueWriter(self._q.put, current)
+                    setattr(sys, name, writer)
+                    self._writers.append((name, writer))
+        self._thread = threading.Thread(target=screen.run, args=(self._q,), name="hfsmc-display",
+                                        daemon=True)
+        self._thread.start()
+
+    def record(self, rec: dict[str, Any]) -> None:
+        self._q.put(("record", rec))
+
+    def sample(self, t_ms: int, values: dict[str, str], overruns: int) -> None:
+        self._q.put(("sample", (t_ms, values, overruns)))
+
+    def close(self) -> None:
+        for _, writer in self._writers:
+            writer.flush()
+        self._q.put(("end", None))
+        if self._thread is not None:
+            self._thread.join(0.8)
+        if self._keys is not None:
+            self._keys.stop()
+        for name, writer in reversed(self._writers):
+            if getattr(sys, name) is writer:
+                setattr(sys, name, writer.original)
+        if self._writers and (self._thread is None or not self._thread.is_alive()):
+            self._drain_text()
+        self._writers = []
+
+    def _drain_text(self) -> None:
+        """Text printed after the display thread ended goes to the real stderr."""
+        while True:
+            try:
+                kind, payload = self._q.get_nowait()
+            except queue.Empty:
+                return
+            if kind == "text":
+                print(payload, file=sys.stderr)
+
+
+def run_viewer(source: Iterable[Item], focus: str | None = None, autofocus: bool = True,
+               stream: TextIO | None = None, stop: Callable[[], None] | None = None) -> int:
+    """Show ``source``'s items (structure, records, samples, snapshots) until it ends.
+
+    The loop of ``hfsmc view``: the source is read by a daemon thread; this
+    thread draws. Returns the exit status: 0 when the source ended (its
+    message goes to stderr), 1 on a source error, 130 on Ctrl-C; ``q`` quits.
+    ``stop`` is called on the way out (to close a connection, say).
+    """
+    out = stream if stream is not None else sys.stdout
+    q: queue.SimpleQueue[Item] = queue.SimpleQueue()
+
+    def pump() -> None:
+        try:
+            for item in source:
+                q.put(item)
+        except Exception as e:  # the source's own errors end the view with a message
+            q.put(("error", f"{type(e).__name__}: {e}"))
+        q.put(("end", None))
+
+    live = _isatty(out) and not _rich_missing()
+    keys = _Keys(q.put) if live else None
+    threading.Thread(target=pump, name="hfsmc-view-source", daemon=True).start()
+    status, message = 130, None
+    try:
+        if keys is not None:
+            keys.start()
+        status, message = _Screen(focus, autofocus, out, live, quit_key=True).run(q)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if keys is not None:
+            keys.stop()
+        if stop is not None:
+            stop()
+    if message:
+        print(f"hfsmc view: {'error: ' if status else ''}{clean(message)}", file=sys.stderr)
+    return status
