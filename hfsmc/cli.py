@@ -178,3 +178,23 @@ def run(model: str, args: tuple[str, ...]) -> None:
     built = builder.build(result.model, "python", builder.cache_folder(model, result.model.name))
     sys.stderr.flush()
     os.execv(sys.executable, [sys.executable, str(built.main), *args])
+
+
+@main.command()
+@click.argument("target", required=False, metavar="[HOST:]PORT")
+@click.option("--replay", metavar="TRACE", type=click.Path(dir_okay=False),
+              help="Play a trace file (written with --trace) instead of watching a component.")
+@click.option("--model", metavar="MODEL", type=click.Path(dir_okay=False),
+              help="With --replay: take the whole tree from the model, not only the states seen.")
+@click.option("--speed", type=float, default=1.0, show_default=True,
+              help="With --replay: times real time; 0 shows the end at once.")
+@click.option("--focus", metavar="PATH", help="Show only this state's sub-automaton.")
+@click.option("--no-autofocus", is_flag=True, help="Show every branch, not only the active ones.")
+@_guard
+def view(target: str | None, replay: str | None, model: str | None, speed: float,
+         focus: str | None, no_autofocus: bool) -> None:
+    """Watch a component started with --monitor [HOST:]PORT, or replay a trace."""
+    from hfsmc.viewer import view as run_view
+
+    sys.exit(run_view(target, replay, focus=focus, autofocus=not no_autofocus, speed=speed,
+                      model=model))

@@ -20,7 +20,7 @@ from hfsmc.ir import DictValue, Model, Value
 # The component's own modules, shipped as the data package hfsmc.templates (mapped
 # from templates/ by setuptools, a mapping mypy does not follow: they are typed Any here).
 from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
-from hfsmc.templates.python import hfsmc_view as screen  # type: ignore[import-not-found]
+from hfsmc.templates.python import hfsmc_view as screen
 
 Item = tuple[str, Any]
 

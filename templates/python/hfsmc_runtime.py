@@ -27,7 +27,7 @@ from typing import IO, Any, NoReturn
 PROTOCOL = 1
 EXIT_STATUS = {"final": 0, "until": 0, "shutdown": 0, "sigint": 130, "sigterm": 143,
                "error": 1, "timeout": 1}
-_SIGNAL_REASON = {signal.SIGINT: "sigint", signal.SIGTERM: "sigterm"}
+_SIGNAL_REASON: dict[int, str] = {signal.SIGINT.value: "sigint", signal.SIGTERM.value: "sigterm"}
 _DURATION = re.compile(r"^\s*([0-9]+(?:\.[0-9]+)?)\s*(ms|s|m)?\s*$")
 _US = {"ms": 1000, "s": 1_000_000, "m": 60_000_000}
 _COMMENT_LINE = re.compile(r"^[ \t]*#.*$", re.M)
@@ -126,6 +126,7 @@ class Engine:
         self.stop_failed = False
         self.overruns = 0
         self.real = False
+        self.clock_start = time.monotonic_ns()
 
     # --- set up by the generated module -------------------------------------------
     def setup(self, m: dict[str, Any]) -> None:
@@ -316,16 +317,18 @@ class Engine:
         """Act on stop requests between ticks. True when something was done."""
         reason, self.request = self.request, None
         sig, self.signal_reason = self.signal_reason, None
+        # Several requests at one boundary: an error first, then the root's final
+        # state, then a signal, then shutdown().
         if reason == "error" and self.interrupting is not None:
             self.stop("error")
+        elif reason == "final":
+            self.stop(self.interrupting or "final")
         elif reason == "error" or sig is not None or reason == "shutdown":
             why = "error" if reason == "error" else sig or "shutdown"
             if self.m["on_interrupt"] >= 0:
                 self.interrupt(why)
             else:
                 self.stop(why)
-        elif reason == "final":
-            self.stop(self.interrupting or "final")
         else:
             return False
         return True
