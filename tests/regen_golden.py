@@ -22,7 +22,6 @@ from hfsmc.emit.python import component_files  # noqa: E402
 from hfsmc.ir import Model  # noqa: E402
 
 
-
 def python_component(model: Model) -> str:
     return component_files(model)[f"{model.name}.py"].decode("utf-8")
 

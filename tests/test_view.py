@@ -1,0 +1,539 @@
+"""The live view: the view model, plain lines, the rich screen, replay, and the
+component's --display as a person sees it (run in tmux, read with capture-pane)."""
+
+from __future__ import annotations
+
+import importlib
+import io
+import json
+import os
+import re
+import shlex
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from itertools import count
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rich.console import Console
+
+from hfsmc.compiler import compile_file
+from hfsmc.viewer import structure_of, view
+from tests.conftest import ROOT
+
+# The component's own module, shipped in the data package hfsmc.templates.
+hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
+Display, PlainLines, ViewState, render = (hfsmc_view.Display, hfsmc_view.PlainLines,
+                                          hfsmc_view.ViewState, hfsmc_view.render)
+
+BLINKER = "examples/blinker/blinker.yaml"
+
+STRUCTURE: dict[str, Any] = {
+    "name": "blinker",
+    "automata": [{"owner": "", "period_ms": 100, "initial": "Blinking", "history": False},
+                 {"owner": "Blinking", "period_ms": 50, "initial": "Lit", "history": True}],
+    "states": [{"path": "Blinking", "final": False, "composite": True},
+               {"path": "Blinking/Lit", "final": False, "composite": False},
+               {"path": "Blinking/Dark", "final": False, "composite": False},
+               {"path": "Paused", "final": False, "composite": False},
+               {"path": "Done", "final": True, "composite": False}],
+    "transitions": [{"from": "Blinking", "to": "Done", "index": 0, "name": "enough"},
+                    {"from": "Blinking", "to": "Paused", "index": 1, "name": "pause"},
+                    {"from": "Blinking/Lit", "to": "Blinking/Dark", "index": 0, "name": None},
+                    {"from": "Blinking/Dark", "to": "Blinking/Lit", "index": 0, "name": None},
+                    {"from": "Paused", "to": "Blinking", "index": 0, "name": "resume"}],
+    "variables": ["led", "count", "pauses"],
+    "parameters": {"blinks": "10"},
+}
+
+# The blinker's trace until it is interrupted while paused (SPEC 3.7 records).
+TRACE = """\
+{"t":0,"ev":"start","name":"blinker"}
+{"t":0,"ev":"enter","state":"Blinking"}
+{"t":0,"ev":"enter","state":"Blinking/Lit"}
+{"t":500,"ev":"fire","from":"Blinking/Lit","to":"Blinking/Dark","index":0}
+{"t":500,"ev":"exit","state":"Blinking/Lit"}
+{"t":500,"ev":"enter","state":"Blinking/Dark"}
+{"t":3000,"ev":"fire","from":"Blinking","to":"Paused","index":1}
+{"t":3000,"ev":"exit","state":"Blinking/Dark"}
+{"t":3000,"ev":"exit","state":"Blinking"}
+{"t":3000,"ev":"enter","state":"Paused"}
+{"t":3000,"ev":"log","state":"Paused","msg":"paused with the LED off"}
+{"t":3200,"ev":"interrupt","reason":"sigint","to":"Done"}
+{"t":3200,"ev":"exit","state":"Paused"}
+{"t":3200,"ev":"enter","state":"Done"}
+{"t":3200,"ev":"exit","state":"Done"}
+{"t":3200,"ev":"log","state":"","msg":"stopped after 1 blinks and 1 pauses"}
+{"t":3200,"ev":"stop","reason":"sigint"}
+"""
+RECORDS: list[dict[str, Any]] = [json.loads(line) for line in TRACE.splitlines()]
+
+
+def fed(records: list[dict[str, Any]], structure: dict[str, Any] | None = STRUCTURE) -> ViewState:
+    v = ViewState(structure)
+    for rec in records:
+        v.apply_record(rec)
+    return v
+
+
+def upto(t: int, ev_count: int | None = None) -> list[dict[str, Any]]:
+    recs = [r for r in RECORDS if r["t"] <= t]
+    return recs if ev_count is None else recs[:ev_count]
+
+
+# -- ViewState ---------------------------------------------------------------------------
+def test_structure_gives_the_tree_in_model_order() -> None:
+    v = ViewState(STRUCTURE)
+    assert v.name == "blinker"
+    assert v.paths() == ["Blinking", "Blinking/Lit", "Blinking/Dark", "Paused", "Done"]
+    assert v.children["Blinking"] == ["Blinking/Lit", "Blinking/Dark"]
+    assert v.final == {"Done"}
+    assert v.periods == {"": 100, "Blinking": 50}
+    assert v.history == {"Blinking"}
+    assert v.transition_names[("Blinking", 1)] == "pause"
+    assert not v.started
+
+
+def test_records_track_active_states_and_entry_times() -> None:
+    v = fed(upto(500))
+    assert v.started
+    assert v.active == {"Blinking": 0, "Blinking/Dark": 500}
+    assert v.innermost() == "Blinking/Dark"
+    assert v.t_ms == 500
+    v = fed(upto(3000))
+    assert v.active == {"Paused": 3000}
+    assert [(t["from"], t["to"], t["name"]) for t in v.transitions] == [
+        ("Blinking/Lit", "Blinking/Dark", None), ("Blinking", "Paused", "pause")]
+    assert list(v.logs) == [{"t": 3000, "state": "Paused", "msg": "paused with the LED off"}]
+
+
+def test_interrupt_and_stop_keep_the_states_the_stop_left() -> None:
+    v = fed(RECORDS)
+    assert v.interrupt == {"t": 3200, "reason": "sigint", "to": "Done"}
+    assert v.stop_reason == "sigint"
+    assert v.active == {}
+    assert v.stopped_in == {"Done": 3200}
+    v.advance(9000)
+    assert v.t_ms == 3200, "a stopped component's clock stays"
+
+
+def test_stop_of_nested_states_lists_them_outermost_first() -> None:
+    recs = [*upto(500), {"t": 900, "ev": "exit", "state": "Blinking/Dark"},
+            {"t": 900, "ev": "exit", "state": "Blinking"},
+            {"t": 900, "ev": "log", "state": "", "msg": "bye"},
+            {"t": 900, "ev": "stop", "reason": "until"}]
+    v = fed(recs)
+    assert list(v.stopped_in.items()) == [("Blinking", 0), ("Blinking/Dark", 500)]
+
+
+def test_errors_are_kept_with_the_logs() -> None:
+    v = fed([*upto(0), {"t": 50, "ev": "error", "state": "Blinking/Lit", "snippet": "during"}])
+    assert list(v.logs) == [{"t": 50, "state": "Blinking/Lit", "error": "during"}]
+
+
+def test_only_the_last_transitions_are_kept() -> None:
+    recs = list(upto(0))
+    for k in range(1, 21):
+        src, dst = ("Blinking/Lit", "Blinking/Dark") if k % 2 else ("Blinking/Dark", "Blinking/Lit")
+        recs += [{"t": 500 * k, "ev": "fire", "from": src, "to": dst, "index": 0},
+                 {"t": 500 * k, "ev": "exit", "state": src}, {"t": 500 * k, "ev": "enter", "state": dst}]
+    v = fed(recs)
+    assert len(v.transitions) == hfsmc_view.RECENT
+    assert v.transitions[-1]["t"] == 10_000
+    assert v.active == {"Blinking": 0, "Blinking/Lit": 10_000}
+
+
+def test_samples_give_variables_overruns_and_time() -> None:
+    v = fed(upto(500))
+    v.apply_sample(740, {"led": "False", "count": "1"}, 3)
+    assert (v.values, v.overruns, v.t_ms) == ({"led": "False", "count": "1"}, 3, 740)
+
+
+def test_a_new_start_resets_the_run() -> None:
+    v = fed([*RECORDS, *upto(0)])
+    assert v.stop_reason is None and v.interrupt is None
+    assert v.active == {"Blinking": 0, "Blinking/Lit": 0}
+
+
+@pytest.mark.parametrize("t", [0, 500, 3000, 3200])
+def test_a_snapshot_gives_a_late_viewer_the_same_view(t: int) -> None:
+    source = fed(upto(t))
+    source.apply_sample(t, {"led": "True"}, 2)
+    late = ViewState(STRUCTURE)
+    late.apply_snapshot(json.loads(json.dumps(source.snapshot())))
+    for attr in ("active", "values", "overruns", "t_ms", "started", "interrupt", "stop_reason",
+                 "stopped_in"):
+        assert getattr(late, attr) == getattr(source, attr), attr
+    assert list(late.transitions) == list(source.transitions)
+    assert list(late.logs) == list(source.logs)
+
+
+def test_the_tree_is_inferred_from_the_paths_of_a_trace() -> None:
+    s = infer = hfsmc_view.infer_structure(RECORDS)
+    assert infer["name"] == "blinker"
+    assert [(x["path"], x["composite"]) for x in s["states"]] == [
+        ("Blinking", True), ("Blinking/Lit", False), ("Blinking/Dark", False),
+        ("Paused", False), ("Done", False)]
+
+
+def test_unknown_paths_are_learned_on_the_way() -> None:
+    v = fed([{"t": 0, "ev": "start", "name": "x"}, {"t": 0, "ev": "enter", "state": "A/B/C"}], None)
+    assert v.paths() == ["A", "A/B", "A/B/C"]
+    assert v.active == {"A/B/C": 0}
+
+
+@pytest.mark.parametrize(("rec", "why"), [
+    ([], "not a JSON object"),
+    ({"ev": "start", "name": "x"}, "`t`"),
+    ({"t": -1, "ev": "start", "name": "x"}, "`t`"),
+    ({"t": True, "ev": "start", "name": "x"}, "`t`"),
+    ({"t": 0}, "`ev` is missing"),
+    ({"t": 0, "ev": "enter"}, "`enter` record without a string `state`"),
+    ({"t": 0, "ev": "fire", "from": "A", "to": "B"}, "`fire` record without an integer `index`"),
+    ({"t": 0, "ev": "log", "state": "A", "msg": 3}, "`msg`"),
+])
+def test_bad_records_are_named(rec: object, why: str) -> None:
+    reason = hfsmc_view.check_record(rec)
+    assert reason is not None and why in reason
+
+
+def test_good_records_pass_the_check() -> None:
+    assert [hfsmc_view.check_record(r) for r in RECORDS] == [None] * len(RECORDS)
+
+
+# -- plain lines -------------------------------------------------------------------------
+def plain(records: list[dict[str, Any]], focus: str | None = None) -> list[str]:
+    v, p, out = ViewState(STRUCTURE), PlainLines(focus), []
+    for rec in records:
+        out += p.lines(v, "record", rec)
+        v.apply_record(rec)
+    return out
+
+
+def test_one_plain_line_per_transition_interrupt_and_stop() -> None:
+    assert plain(RECORDS) == [
+        "  0.000  start blinker in Blinking/Lit",
+        "  0.500  Blinking/Lit -> Blinking/Dark",
+        "  3.000  Blinking -> Paused  (pause)",
+        "  3.200  interrupt (sigint) -> Done",
+        "  3.200  stop (sigint)",
+    ]
+
+
+def test_plain_focus_keeps_the_transitions_inside_one_state() -> None:
+    lines = plain(RECORDS, focus="Blinking")
+    assert "  0.500  Blinking/Lit -> Blinking/Dark" in lines
+    assert not any("Blinking -> Paused" in line for line in lines)
+
+
+def test_the_start_line_names_the_initial_states_before_a_stop() -> None:
+    recs = [*upto(0), {"t": 100, "ev": "exit", "state": "Blinking/Lit"},
+            {"t": 100, "ev": "exit", "state": "Blinking"}, {"t": 100, "ev": "stop", "reason": "until"}]
+    assert plain(recs) == ["  0.000  start blinker in Blinking/Lit", "  0.100  stop (until)"]
+
+
+def test_control_characters_never_reach_the_terminal() -> None:
+    recs = [*upto(0), {"t": 1, "ev": "fire", "from": "Blinking/Lit", "to": "X\x1b[2J", "index": 0}]
+    assert plain(recs)[-1] == "  0.001  Blinking/Lit -> X?[2J"
+
+
+def drive(observer: Any, records: list[dict[str, Any]], samples: bool = True) -> None:
+    """Feed an observer the way the runtime does, from one thread."""
+    observer.start(STRUCTURE)
+    last = 0
+    for rec in records:
+        if samples and rec["t"] != last:  # between instants, as the runtime samples
+            observer.sample(last, {"led": "True", "count": "1", "pauses": "0"}, 0)
+            last = rec["t"]
+        observer.record(rec)
+    observer.close()
+
+
+def test_display_without_a_terminal_prints_plain_lines() -> None:
+    out = io.StringIO()
+    t0 = time.monotonic()
+    drive(Display(stream=out), RECORDS)
+    assert time.monotonic() - t0 < 1.5
+    assert out.getvalue().splitlines() == plain(RECORDS)
+
+
+def test_display_calls_do_not_wait_for_a_blocked_stream() -> None:
+    class Stuck(io.StringIO):
+        def __init__(self) -> None:
+            super().__init__()
+            self.release = threading.Event()
+
+        def write(self, s: str) -> int:
+            self.release.wait(5)
+            return super().write(s)
+
+    stream = Stuck()
+    d = Display(stream=stream)
+    d.start(STRUCTURE)
+    t0 = time.monotonic()
+    for _ in range(200):
+        for rec in RECORDS[:6]:
+            d.record(rec)
+    assert time.monotonic() - t0 < 0.5, "observer calls must not block on the terminal"
+    stream.release.set()
+    d.close()
+
+
+# -- the rich screen -----------------------------------------------------------------------
+GREEN = r"\x1b\[(?:[0-9;]*;)?32m(?:\x1b\[[0-9;]*m)*"  # green foreground, then maybe other SGRs
+
+
+def screen(v: ViewState, width: int = 120, color: bool = False, **kw: Any) -> str:
+    console = Console(file=io.StringIO(), width=width, force_terminal=color,
+                      color_system="standard" if color else None, legacy_windows=False)
+    console.print(render(v, width=width, **kw))
+    out = console.file.getvalue()
+    assert isinstance(out, str)
+    return out
+
+
+def test_screen_shows_active_states_with_time_in_state() -> None:
+    v = fed(upto(500))
+    v.apply_sample(1250, {"led": "False", "count": "1", "pauses": "0"}, 0)
+    text = screen(v)
+    assert re.search(r"● Blinking\s+1\.2s", text)
+    assert re.search(r"● Dark\s+0\.8s", text)
+    assert re.search(r"○ Lit", text)
+    assert re.search(r"○ Done\s+final", text)
+    assert "1.250 s" in text and "running" in text
+    assert re.search(r"count\s+1", text)
+    assert "0.500  Blinking/Lit -> Blinking/Dark" in text
+
+
+def test_active_states_are_green() -> None:
+    text = screen(fed(upto(500)), color=True)
+    assert re.search(GREEN + "● Dark", text), text
+
+
+def test_autofocus_collapses_inactive_branches() -> None:
+    v = fed(upto(3000))
+    text = screen(v)
+    assert "Lit" not in text.split("╭")[0]  # the tree column holds no Lit
+    assert re.search(r"○ Blinking.*▸ 2 states", text)
+    assert re.search(r"● Paused", text)
+    full = screen(v, autofocus=False)
+    assert re.search(r"○ Lit", full) and re.search(r"○ Dark", full)
+    assert "off (a: on)" in full
+
+
+def test_focus_shows_one_sub_automaton() -> None:
+    text = screen(fed(upto(500)), focus="Blinking")
+    tree = [line for line in text.splitlines() if "Dark" in line or "Lit" in line]
+    assert tree
+    assert "Paused" not in text.split("recent")[0].split("╭")[0]
+    assert "no state Nope" in screen(fed(upto(500)), focus="Nope")
+
+
+def test_stopped_screen_shows_the_reason_and_the_last_states() -> None:
+    text = screen(fed(RECORDS))
+    assert "stopped (sigint)" in text
+    assert re.search(r"■ Done.*at stop", text)
+    assert "stopped after 1 blinks" in text
+
+
+def test_narrow_terminals_stack_the_panel_under_the_tree() -> None:
+    lines = screen(fed(upto(500)), width=70).splitlines()
+    tree_row = next(i for i, line in enumerate(lines) if "Dark" in line)
+    panel_row = next(i for i, line in enumerate(lines) if "time" in line)
+    assert panel_row > tree_row
+
+
+# -- replay ----------------------------------------------------------------------------------
+@pytest.fixture
+def trace_file(tmp_path: Path) -> Path:
+    p = tmp_path / "blinker.trace"
+    p.write_text(TRACE)
+    return p
+
+
+def test_replay_prints_the_run(trace_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert view(None, str(trace_file), speed=0) == 0
+    out, err = capsys.readouterr()
+    assert out.splitlines() == [line.replace("  (pause)", "") for line in plain(RECORDS)]
+    assert f"replayed {len(RECORDS)} records" in err
+
+
+def test_replay_with_the_model_names_transitions(trace_file: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    assert view(None, str(trace_file), speed=0, model=BLINKER) == 0
+    assert "  3.000  Blinking -> Paused  (pause)" in capsys.readouterr().out
+
+
+def test_replay_keeps_the_trace_times(trace_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    t0 = time.monotonic()
+    assert view(None, str(trace_file), speed=16) == 0  # 3.2 s of trace in 0.2 s
+    assert 0.19 < time.monotonic() - t0 < 5
+    assert capsys.readouterr().out.splitlines()[-1] == "  3.200  stop (sigint)"
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ('{"t":0,"ev":"start","name":"b"}\nnot json\n', "blinker.trace:2: bad trace record: Expecting value"),
+    ('{"t":0,"ev":"enter"}\n', "blinker.trace:1: bad trace record: `enter` record without a string"),
+    ("\n\n", "blinker.trace: no trace records"),
+])
+def test_bad_traces_are_one_line_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                        text: str, message: str) -> None:
+    p = tmp_path / "blinker.trace"
+    p.write_text(text)
+    assert view(None, str(p), speed=0) == 1
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.startswith("hfsmc: error: ") and message in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(("args", "status", "message"), [
+    ((None, "no/such.trace"), 1, "cannot read no/such.trace: No such file or directory"),
+    ((None, None), 2, "give either [HOST:]PORT or --replay TRACE"),
+    (("1234", "x.trace"), 2, "give either"),
+    (("a:b:c", None), 2, "write an IPv6 address in brackets"),
+    (("99999", None), 2, "port from 0 to 65535"),
+    (("0", None), 2, "port 0"),
+])
+def test_usage_and_file_errors(capsys: pytest.CaptureFixture[str], args: tuple[str | None, str | None],
+                               status: int, message: str) -> None:
+    assert view(*args) == status
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_replay_checks_speed_and_focus(trace_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert view(None, str(trace_file), speed=-1) == 2
+    assert view(None, str(trace_file), speed=float("nan")) == 2
+    assert view(None, str(trace_file), focus="Nope", speed=0) == 2
+    assert "--focus Nope: no state" in capsys.readouterr().err
+
+
+def test_structure_of_a_model_matches_the_runtime_shape() -> None:
+    result = compile_file(BLINKER)
+    assert result.model is not None
+    assert structure_of(result.model) == STRUCTURE
+
+
+# -- as a person sees it: tmux -----------------------------------------------------------------
+_sessions = count()
+
+
+class Tmux:
+    """A private tmux server (its own socket) running one command in a 120x40 pane."""
+
+    def __init__(self, command: str, cwd: Path, after: str = "") -> None:
+        self.socket = f"test-{os.getpid()}-{next(_sessions)}"
+        env = {k: v for k, v in os.environ.items() if k not in ("NO_COLOR", "TMUX")}
+        env["TERM"] = "xterm-256color"
+        self._run("-f", "/dev/null", "new-session", "-d", "-x", "120", "-y", "40",
+                  f"cd {shlex.quote(str(cwd))} && {command}; echo EXIT=$?; {after or ':'}; sleep 60",
+                  env=env)
+
+    def _run(self, *args: str, env: dict[str, str] | None = None) -> str:
+        r = subprocess.run(["tmux", "-u", "-L", self.socket, *args], capture_output=True, text=True,
+                           timeout=10, env=env, stdin=subprocess.DEVNULL, check=True)
+        return r.stdout
+
+    def screen(self, colors: bool = False) -> str:
+        return self._run("capture-pane", "-p", *(["-e"] if colors else []))
+
+    def keys(self, *keys: str) -> None:
+        self._run("send-keys", *keys)
+
+    def wait(self, found: Callable[[str], bool], timeout: float = 15, colors: bool = False) -> str:
+        deadline = time.monotonic() + timeout
+        while True:
+            text = self.screen(colors)
+            if found(text):
+                return text
+            if time.monotonic() > deadline:
+                raise AssertionError(f"not on the screen after {timeout}s:\n{text}")
+            time.sleep(0.1)
+
+    def kill(self) -> None:
+        subprocess.run(["tmux", "-L", self.socket, "kill-server"], capture_output=True, timeout=10,
+                       stdin=subprocess.DEVNULL, check=False)
+
+
+@pytest.fixture
+def tmux() -> Iterator[Callable[..., Tmux]]:
+    made: list[Tmux] = []
+
+    def start(command: str, cwd: Path, after: str = "") -> Tmux:
+        made.append(Tmux(command, cwd, after))
+        return made[-1]
+
+    yield start
+    for t in made:
+        t.kill()
+
+
+def build_blinker(out: Path) -> Path:
+    """The real blinker component, built with `hfsmc build`; its main file."""
+    subprocess.run([sys.executable, "-m", "hfsmc", "build", "-t", "python", BLINKER, "-o", str(out)],
+                   cwd=ROOT, check=True, capture_output=True, timeout=120, stdin=subprocess.DEVNULL)
+    return out / "blinker.py"
+
+
+@pytest.fixture(scope="module")
+def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_blinker(tmp_path_factory.mktemp("component") / "blinker")
+
+
+def py(*args: object) -> str:
+    return " ".join(shlex.quote(str(a)) for a in (sys.executable, *args))
+
+
+@pytest.mark.timeout(60)
+def test_component_display_in_a_terminal(tmux: Callable[..., Tmux], blinker: Path,
+                                         tmp_path: Path) -> None:
+    t = tmux(py(blinker, "--clock", "real", "--until", "6s", "--display"), tmp_path)
+    lit = re.compile(GREEN + "● (Lit|Dark)")  # an active leaf
+    text = t.wait(lambda s: bool(lit.search(s)), colors=True)
+    assert re.search(GREEN + "● Blinking", text)
+    plain_text = t.screen()
+    assert re.search(r"● (Lit|Dark)\s+\d\.\ds", plain_text), plain_text
+    assert "○ Paused" in plain_text and "○ Done" in plain_text and "overruns" in plain_text
+    # While paused (3 s to 4 s), autofocus folds the blinking branch; the log line of
+    # Paused's entry is printed above the tree, not across it.
+    text = t.wait(lambda s: "● Paused" in s)
+    assert re.search(r"○ Blinking.*▸ 2 states", text)
+    assert "Paused: paused with the LED" in text.splitlines()[0]
+    text = t.wait(lambda s: "EXIT=0" in s)
+    assert "stopped (until)" in text and "at stop" in text
+
+
+@pytest.mark.timeout(60)
+def test_component_display_without_rich_prints_lines_and_one_notice(
+        tmux: Callable[..., Tmux], blinker: Path, tmp_path: Path) -> None:
+    code = ("import runpy, sys; sys.modules['rich'] = None; sys.argv = sys.argv[1:]; "
+            "runpy.run_path(sys.argv[0], run_name='__main__')")
+    t = tmux(py("-c", code, blinker, "--clock", "virtual", "--until", "4s", "--display"), tmp_path)
+    text = t.wait(lambda s: "EXIT=" in s)
+    assert "EXIT=0" in text
+    assert text.count("rich package is not installed") == 1
+    assert "  0.500  Blinking/Lit -> Blinking/Dark" in text
+    assert "  3.000  Blinking -> Paused  (pause)" in text
+    assert "  4.000  stop (until)" in text
+
+
+@pytest.mark.timeout(60)
+def test_replay_in_a_terminal_toggles_autofocus_and_quits(tmux: Callable[..., Tmux],
+                                                        tmp_path: Path) -> None:
+    long = TRACE.replace('"t":3200', '"t":600000')  # paused for ten minutes
+    (tmp_path / "long.trace").write_text(long)
+    stty = "stty -a | tr ' ;' '\\n\\n' | grep -x -e -icanon -e icanon -e echo -e -echo | tr '\\n' ' '"
+    t = tmux(py("-m", "hfsmc", "view", "--replay", "long.trace"), tmp_path, stty)
+    text = t.wait(lambda s: "● Paused" in s)
+    assert re.search(r"○ Blinking.*▸ 2 states", text) and "○ Lit" not in text
+    t.keys("a")
+    text = t.wait(lambda s: "○ Lit" in s)
+    assert "○ Dark" in text and "off (a: on)" in text
+    t.keys("q")
+    text = t.wait(lambda s: "EXIT=" in s)
+    assert "EXIT=0" in text
+    assert "icanon echo" in text, "the terminal is back in line mode with echo"
