@@ -34,8 +34,9 @@ $(STAMP): pyproject.toml
 setup: deps $(STAMP)
 
 lint: setup
-	$(BIN)/ruff check hfsmc tests bench
+	$(BIN)/ruff check hfsmc tests bench templates/python
 	$(BIN)/mypy
+	$(BIN)/mypy --strict $(wildcard templates/python/hfsmc_*.py)
 
 test: lint
 	$(BIN)/pytest $(PYTEST_ARGS)
@@ -62,6 +63,7 @@ demo: setup
 bench: setup
 	$(BIN)/python -m pip install -q -e '.[bench]'
 	$(BIN)/python bench/frontend.py --json bench/results.json
+	$(BIN)/python bench/component.py --json bench/results.json
 
 golden: setup
 	$(BIN)/python tests/regen_golden.py

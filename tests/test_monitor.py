@@ -3,6 +3,7 @@ late to a real component. Everything on 127.0.0.1 with port 0, bounded in time."
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import io
 import json
@@ -147,6 +148,12 @@ def is_record(ev: str) -> Callable[[dict[str, Any]], bool]:
     return lambda m: m["type"] == "record" and m["record"]["ev"] == ev
 
 
+def attached(c: Client) -> Client:
+    """``c`` once the server has taken it in (what comes next is not in its snapshot)."""
+    c.until(lambda m: m["type"] == "snapshot")
+    return c
+
+
 def settle(srv: Any) -> None:
     """Wait until the server thread has taken everything queued so far."""
     deadline = time.monotonic() + 5
@@ -242,10 +249,10 @@ def test_snapshot_and_what_follows_add_up_whenever_one_attaches(server: Any, cli
 def test_several_viewers_and_garbage_sent_to_the_port(server: Any, clients: Any) -> None:
     srv = server()
     srv.start(STRUCTURE)
-    viewers = [clients(srv.port) for _ in range(3)]
-    noisy = clients(srv.port)
+    viewers = [attached(clients(srv.port)) for _ in range(3)]
+    noisy = attached(clients(srv.port))
     noisy.sock.sendall(b"GET / HTTP/1.1\r\n\r\n\xff\xfe\x00{\"type\":\"record\"}\n" + os.urandom(4096))
-    half = clients(srv.port)
+    half = attached(clients(srv.port))
     half.sock.shutdown(socket.SHUT_WR)  # as `nc` does at the end of its input: still served
     for rec in RECORDS:
         srv.record(rec)
@@ -257,9 +264,8 @@ def test_several_viewers_and_garbage_sent_to_the_port(server: Any, clients: Any)
 def test_a_flooding_client_is_dropped_and_the_others_go_on(server: Any, clients: Any) -> None:
     srv = server()
     srv.start(STRUCTURE)
-    good = clients(srv.port)
-    flood = clients(srv.port)
-    good.until(lambda m: m["type"] == "snapshot")
+    good = attached(clients(srv.port))
+    flood = attached(clients(srv.port))
     chunk = os.urandom(1 << 16)
     t0 = time.monotonic()
     try:
@@ -277,22 +283,30 @@ def test_a_flooding_client_is_dropped_and_the_others_go_on(server: Any, clients:
 
 
 def test_a_slow_client_is_dropped_without_holding_anything_up(server: Any, clients: Any) -> None:
-    srv = server(buffer_limit=1 << 16)
+    srv = server()
     srv.start(STRUCTURE)
-    slow = clients(srv.port, rcvbuf=4096)  # connects, never reads
-    fast = clients(srv.port)
-    received: list[dict[str, Any]] = []
-    reader = threading.Thread(target=lambda: received.extend(fast.until(is_record("stop"))))
+    slow = attached(clients(srv.port, rcvbuf=4096))  # then never reads
+    fast = attached(clients(srv.port))
+    data = bytearray()
+
+    def read_all() -> None:
+        with contextlib.suppress(OSError):
+            while chunk := fast.sock.recv(1 << 20):
+                data.extend(chunk)
+                if data.endswith(b'"reason":"sigint"}}\n'):
+                    return
+
+    reader = threading.Thread(target=read_all)
     reader.start()
     big = {"t": 0, "ev": "log", "state": "Blinking", "msg": "x" * 1000}
     t0 = time.monotonic()
-    for _ in range(20_000):  # 20 MB: far more than the socket buffers and the client's share
+    for _ in range(20_000):  # 20 MB: far more than the socket buffers and a client's share
         srv.record(big)
     calls = time.monotonic() - t0
     srv.record(RECORDS[-1])
     reader.join(30)
     assert not reader.is_alive()
-    assert sum(m["type"] == "record" for m in received) == 20_001
+    assert data.count(b'"type":"record"') == 20_001
     assert calls < 5, f"20000 observer calls took {calls:.1f}s"
     assert slow.gone()
     assert srv._thread.is_alive()
@@ -301,8 +315,7 @@ def test_a_slow_client_is_dropped_without_holding_anything_up(server: Any, clien
 def test_a_client_killed_mid_stream_changes_nothing(server: Any, clients: Any) -> None:
     srv = server()
     srv.start(STRUCTURE)
-    killed, other = clients(srv.port), clients(srv.port)
-    killed.until(lambda m: m["type"] == "snapshot")
+    killed, other = attached(clients(srv.port)), attached(clients(srv.port))
     for rec in RECORDS[:5]:
         srv.record(rec)
     killed.until(is_record("fire"))
@@ -324,9 +337,11 @@ def test_too_many_clients_are_turned_away(server: Any, clients: Any) -> None:
     third = clients(srv.port)
     assert third.message() is None
     first.close()
-    time.sleep(0.2)
-    srv.record(RECORDS[0])  # a send to the closed client frees its place
-    time.sleep(0.2)
+    deadline = time.monotonic() + 10
+    while len(srv._clients) > 1:  # a send to the closed client fails, freeing its place
+        assert time.monotonic() < deadline
+        srv.record(RECORDS[0])
+        time.sleep(0.05)
     fourth = clients(srv.port)
     assert fourth.message() is not None and fourth.message() is not None
 
@@ -334,7 +349,7 @@ def test_too_many_clients_are_turned_away(server: Any, clients: Any) -> None:
 def test_close_is_quick_even_with_a_stuck_client(server: Any, clients: Any) -> None:
     srv = server(buffer_limit=1 << 24)
     srv.start(STRUCTURE)
-    stuck = clients(srv.port, rcvbuf=4096)
+    stuck = attached(clients(srv.port, rcvbuf=4096))
     big = {"t": 0, "ev": "log", "state": "", "msg": "y" * 1000}
     for _ in range(3000):
         srv.record(big)
@@ -356,7 +371,7 @@ def test_close_without_start_frees_the_port(server: Any) -> None:
 def test_malformed_items_do_not_stop_the_server(server: Any, clients: Any) -> None:
     srv = server()
     srv.start(STRUCTURE)
-    c = clients(srv.port)
+    c = attached(clients(srv.port))
     srv.record({"t": "later", "ev": "enter"})
     srv.sample(1, {"led": object()}, 0)
     srv.record(RECORDS[0])
@@ -367,7 +382,7 @@ def test_malformed_items_do_not_stop_the_server(server: Any, clients: Any) -> No
 # -- the viewer's side ---------------------------------------------------------------------
 def items_from(lines: list[bytes], close: bool = True) -> list[tuple[str, Any]]:
     a, b = socket.socketpair()
-    with a:
+    with a, b:
         a.sendall(b"".join(lines))
         if close:
             a.shutdown(socket.SHUT_WR)
@@ -406,7 +421,7 @@ def test_the_client_says_disconnected() -> None:
 
 
 def test_the_client_skips_overlong_lines(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(hfsmc_monitor, "LINE_LIMIT", 64)
+    monkeypatch.setattr(hfsmc_monitor, "LINE_LIMIT", 100)
     long = line({"type": "record", "record": {**RECORDS[0], "name": "x" * 200}})
     got = items_from([long, line({"type": "record", "record": RECORDS[0]})])
     assert got == [("record", RECORDS[0]), ("end", "disconnected from test:1")]
@@ -524,7 +539,7 @@ def test_late_viewers_of_a_real_component(component: Callable[..., Component],
         assert re.fullmatch(r" +(\d+\.\d{3})  in Blinking/(Lit|Dark)\n", attach), attach
         assert float(attach.split()[0]) >= 1.0, "the current state, not the start"
         assert time.monotonic() - t0 < 5
-        assert doomed.stdout.readline().split()[1:] == ["in", attach.split()[2]]
+        assert re.fullmatch(r" +\d+\.\d{3}  in Blinking/(Lit|Dark)\n", doomed.stdout.readline())
         doomed.kill()  # a viewer killed mid-stream
         out, err = first.communicate(timeout=20)
         assert first.returncode == 0, err

@@ -3,6 +3,7 @@ component's --display as a person sees it (run in tmux, read with capture-pane).
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import io
 import json
@@ -336,6 +337,7 @@ def test_focus_shows_one_sub_automaton() -> None:
 def test_stopped_screen_shows_the_reason_and_the_last_states() -> None:
     text = screen(fed(RECORDS))
     assert "stopped (sigint)" in text
+    assert re.search(r"interrupt\s+sigint at 3\.200 s -> Done", text)
     assert re.search(r"■ Done.*at stop", text)
     assert "stopped after 1 blinks" in text
 
@@ -432,6 +434,7 @@ class Tmux:
         self._run("-f", "/dev/null", "new-session", "-d", "-x", "120", "-y", "40",
                   f"cd {shlex.quote(str(cwd))} && {command}; echo EXIT=$?; {after or ':'}; sleep 60",
                   env=env)
+        self.path = self._run("display-message", "-p", "#{socket_path}").strip()
 
     def _run(self, *args: str, env: dict[str, str] | None = None) -> str:
         r = subprocess.run(["tmux", "-u", "-L", self.socket, *args], capture_output=True, text=True,
@@ -457,6 +460,8 @@ class Tmux:
     def kill(self) -> None:
         subprocess.run(["tmux", "-L", self.socket, "kill-server"], capture_output=True, timeout=10,
                        stdin=subprocess.DEVNULL, check=False)
+        with contextlib.suppress(OSError):  # the server leaves its socket file behind
+            os.unlink(self.path)
 
 
 @pytest.fixture
@@ -524,10 +529,10 @@ def test_component_display_without_rich_prints_lines_and_one_notice(
 @pytest.mark.timeout(60)
 def test_replay_in_a_terminal_toggles_autofocus_and_quits(tmux: Callable[..., Tmux],
                                                         tmp_path: Path) -> None:
-    long = TRACE.replace('"t":3200', '"t":600000')  # paused for ten minutes
+    long = TRACE.replace('"t":3200', '"t":2400000')  # paused for ten minutes at --speed 4
     (tmp_path / "long.trace").write_text(long)
     stty = "stty -a | tr ' ;' '\\n\\n' | grep -x -e -icanon -e icanon -e echo -e -echo | tr '\\n' ' '"
-    t = tmux(py("-m", "hfsmc", "view", "--replay", "long.trace"), tmp_path, stty)
+    t = tmux(py("-m", "hfsmc", "view", "--replay", "long.trace", "--speed", "4"), tmp_path, stty)
     text = t.wait(lambda s: "● Paused" in s)
     assert re.search(r"○ Blinking.*▸ 2 states", text) and "○ Lit" not in text
     t.keys("a")

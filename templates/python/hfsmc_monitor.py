@@ -35,6 +35,7 @@ MAX_CLIENTS = 16  # more connections at once are closed as soon as they are acce
 BUFFER_LIMIT = 1 << 20  # bytes waiting for one client; beyond, the client is dropped
 INPUT_LIMIT = 1 << 20  # bytes one client may send (all ignored); beyond, it is dropped
 LINE_LIMIT = 1 << 24  # longest message a viewer reads
+SLICE = 1 << 16  # bytes of messages made before the sockets are served again
 FAREWELL_S = 0.5  # how long a stopping component tries to deliver the last messages
 
 
@@ -152,9 +153,10 @@ class MonitorServer:
         try:
             self._sel.register(self._listener, selectors.EVENT_READ, "listen")
             self._sel.register(self._wake_r, selectors.EVENT_READ, "wake")
-            ended = self._pump(view)
+            ended, more = self._pump(view)
             while not ended:
-                for key, mask in self._sel.select(0.5):
+                # A burst is sent a slice at a time, the sockets served in between.
+                for key, mask in self._sel.select(0 if more else 0.5):
                     if key.data == "listen":
                         self._accept(view)
                     elif key.data == "wake":
@@ -164,7 +166,7 @@ class MonitorServer:
                             self._read(key.data)
                         if mask & selectors.EVENT_WRITE and self._alive(key.data):
                             self._flush(key.data)
-                ended = self._pump(view)
+                ended, more = self._pump(view)
             self._farewell()
         finally:
             for c in list(self._clients.values()):
@@ -184,12 +186,15 @@ class MonitorServer:
         except OSError:
             pass
 
-    def _pump(self, view: _view.ViewState) -> bool:
-        """Apply the queued items and send them on; True once the component closed."""
+    def _pump(self, view: _view.ViewState) -> tuple[bool, bool]:
+        """Apply queued items and send them on, a slice at a time.
+
+        Returns (the component closed, more items are waiting).
+        """
         self._signalled = False
         chunks: list[bytes] = []
-        ended = False
-        while not ended:
+        size, ended = 0, False
+        while not ended and size < SLICE:
             try:
                 kind, payload = self._q.get_nowait()
             except queue.Empty:
@@ -205,11 +210,12 @@ class MonitorServer:
                 msg = message(kind, payload) if self._clients else None
                 if msg is not None:
                     chunks.append(encode(msg))
+                    size += len(chunks[-1])
             except Exception:  # a malformed item must not stop the monitor
                 continue
         if chunks and self._clients:
             self._send_all(b"".join(chunks))
-        return ended
+        return ended, not ended and size >= SLICE
 
     def _send_all(self, data: bytes) -> None:
         for c in list(self._clients.values()):

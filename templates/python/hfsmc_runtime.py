@@ -127,6 +127,7 @@ class Engine:
         self.overruns = 0
         self.real = False
         self.clock_start = time.monotonic_ns()
+        self.wakeup: socket.socket | None = None
 
     # --- set up by the generated module -------------------------------------------
     def setup(self, m: dict[str, Any]) -> None:
@@ -243,51 +244,56 @@ class Engine:
         self.deadline[0] = 0
         self.owner = self.root
         self.ENTER[self.m["initial"][0]]()
+        self.set_limit()
         while not self.stopping:
             if self.boundary():
                 continue
-            self.instant()
+            self.instants()
         return self.status
 
-    def instant(self) -> None:
-        """Wait for the next instant and run every tick due then, parents first."""
-        t = min(self.deadline[a] for a in self.chain)
-        limit, why = self.limit()
-        if limit is not None and t > limit:
-            if self.wait(limit):
-                self.t = limit
-                self.stop(why)
-            return
-        if not self.wait(t):
-            return
-        self.t = t
-        chain, deadline = self.chain, self.deadline
-        k = 0
-        while k < len(chain):
-            a = chain[k]
-            if deadline[a] <= t:
-                self.TICK[self.cur[a]]()
-                deadline[a] = t + self.period_us[a]
-                if self.real:
-                    self.skip_missed(a)
-                if self.request is not None or self.signal_reason is not None:
-                    return
-            k += 1
-        if self.observers:
-            self.sample()
+    def instants(self) -> None:
+        """Run instants until a stop request: each waits for the earliest deadline of
+        the active chain, then ticks every sub-automaton due then, parents first."""
+        chain, deadline, period = self.chain, self.deadline, self.period_us
+        tick, cur, real = self.TICK, self.cur, self.real
+        while True:
+            if self.signal_reason is not None:  # came between two instants
+                return
+            t = deadline[chain[0]] if len(chain) == 1 else min([deadline[a] for a in chain])
+            limit = self.limit_us
+            if limit is not None and t > limit:
+                if not real or self.wait(limit):
+                    self.t = limit
+                    self.stop(self.limit_why)
+                return
+            if real and not self.wait(t):
+                return
+            self.t = t
+            k = 0
+            while k < len(chain):
+                a = chain[k]
+                if deadline[a] <= t:
+                    tick[cur[a]]()
+                    deadline[a] = t + period[a]
+                    if real:
+                        self.skip_missed(a)
+                    if self.request is not None or self.signal_reason is not None:
+                        return
+                k += 1
+            if self.observers:
+                self.sample()
 
-    def limit(self) -> tuple[int | None, str]:
+    def set_limit(self) -> None:
+        """The earliest of --until and the interrupt's timeout: the stop due then."""
+        self.limit_us, self.limit_why = self.until_us, "until"
         if self.timeout_at is not None and (self.until_us is None or
                                             self.timeout_at <= self.until_us):
-            return self.timeout_at, "timeout"
-        return self.until_us, "until"
+            self.limit_us, self.limit_why = self.timeout_at, "timeout"
 
     def wait(self, t_us: int) -> bool:
         """Virtual: jump. Real: sleep until ``t_us``; False when a signal came first."""
         if self.signal_reason is not None:
             return False
-        if not self.real:
-            return True
         if self.trace is not None:
             self.trace.flush()
         while True:
@@ -298,6 +304,9 @@ class Engine:
                 self.sample()
             timeout = min((t_us - now) / 1e6, _SAMPLE_EVERY_S) if self.observers \
                 else (t_us - now) / 1e6
+            if self.wakeup is None:  # run in-process without install_signals()
+                time.sleep(timeout)
+                continue
             with contextlib.suppress(InterruptedError):
                 select.select([self.wakeup], [], [], timeout)
             self.drain_wakeup()
@@ -338,6 +347,7 @@ class Engine:
         self.interrupting = reason
         if self.m["interrupt_timeout_us"] is not None:
             self.timeout_at = self.t + self.m["interrupt_timeout_us"]
+            self.set_limit()
         if self.recording:
             self.emit({"t": self.t // 1000, "ev": "interrupt", "reason": reason,
                        "to": self.paths[target]})
@@ -388,6 +398,8 @@ class Engine:
             signal.signal(s, self.on_signal)
 
     def drain_wakeup(self) -> None:
+        if self.wakeup is None:
+            return
         try:
             while self.wakeup.recv(512):
                 pass
@@ -612,12 +624,12 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
 
 def _observers(engine: Engine, args: argparse.Namespace) -> None:
     if args.display or args.displaygui == "true":
-        import hfsmc_view
+        import hfsmc_view  # type: ignore[import-not-found]  # beside the component
         engine.observers.append(hfsmc_view.Display(
             focus=args.focus, autofocus=not args.no_autofocus,
             stream=sys.stderr if args.trace == "-" else sys.stdout))
     if args.monitor:
-        import hfsmc_monitor
+        import hfsmc_monitor  # type: ignore[import-not-found]  # beside the component
         try:
             host, port = hfsmc_monitor.parse_address(args.monitor)
             engine.observers.append(hfsmc_monitor.MonitorServer(host, port))
