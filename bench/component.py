@@ -40,18 +40,25 @@ import gc
 import importlib.util
 import json
 import os
-import platform
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+from report import (  # bench/report.py, beside this script
+    hfsmc_revision,
+    loadavg,
+    machine,
+    merge_json,
+    table,
+)
 
 HERE = Path(__file__).resolve().parent
 MODELS = HERE / "models"
@@ -829,25 +836,6 @@ def cpu_figures(mode: Mode, log: Callable[[str], None]) -> dict[str, Any]:
 # Report
 # ---------------------------------------------------------------------------
 
-def machine() -> dict[str, Any]:
-    cpu = platform.processor() or "unknown"
-    mem_gib = None
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemTotal:"):
-                mem_gib = round(int(line.split()[1]) / 1024 / 1024, 1)
-    except OSError:
-        pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": mem_gib,
-            "python": platform.python_version(),
-            "implementation": platform.python_implementation(),
-            "platform": platform.platform()}
-
-
 def libraries() -> dict[str, str | None]:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -858,61 +846,6 @@ def libraries() -> dict[str, str | None]:
         except PackageNotFoundError:
             out[dist] = None
     return out
-
-
-def hfsmc_revision() -> dict[str, Any]:
-    """The hfsmc version and, in a git checkout, the commit measured (dirty: sources edited)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    out: dict[str, Any] = {"commit": None, "dirty": None}
-    try:
-        out["version"] = version("hfsmc")
-    except PackageNotFoundError:
-        out["version"] = None
-    repo = HERE.parent
-    try:
-        out["commit"] = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short", "HEAD"],
-                                       capture_output=True, text=True, check=True).stdout.strip()
-        status = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--",
-                                 "hfsmc", "templates"],
-                                capture_output=True, text=True, check=True).stdout
-        out["dirty"] = bool(status.strip())
-    except (OSError, subprocess.CalledProcessError):
-        pass
-    return out
-
-
-def loadavg() -> list[float]:
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except OSError:
-        return []
-
-
-def table(rows: list[list[str]], header: list[str]) -> Iterator[str]:
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    fmt = "  ".join(f"{{:{'<' if i == 0 else '>'}{w}}}" for i, w in enumerate(widths))
-    yield fmt.format(*header)
-    yield "  ".join("-" * w for w in widths)
-    for r in rows:
-        yield fmt.format(*r)
-
-
-def merge_json(out: Path, figures: dict[str, Any]) -> None:
-    """Set ``out[KEY]``, keeping the other keys of an existing JSON object."""
-    data: dict[str, Any] = {}
-    if out.exists():
-        try:
-            loaded = json.loads(out.read_text(encoding="utf-8"))
-            if isinstance(loaded, dict):
-                data = loaded
-        except json.JSONDecodeError:
-            print(f"warning: {out} is not JSON; overwriting it", file=sys.stderr)
-    data[KEY] = figures
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(out.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    tmp.replace(out)
 
 
 def _verdict(ok: bool) -> str:
@@ -1086,7 +1019,7 @@ def main(argv: list[str] | None = None) -> int:
     for t in targets:
         log(f"  {_verdict(t['met']):6}  {t['target']}: {t['value']}")
     if ns.json:
-        merge_json(ns.json, figures)
+        merge_json(ns.json, KEY, figures)
         log(f"\nwrote {ns.json} (key \"{KEY}\")")
     log(f"\ntargets {'met' if ok else 'NOT all met'} (load average before {load_before}, "
         f"after {load_after})")

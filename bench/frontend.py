@@ -34,9 +34,7 @@ import cProfile
 import gc
 import io
 import itertools
-import json
 import os
-import platform
 import pstats
 import resource
 import shutil
@@ -44,11 +42,13 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
+import report
+from report import hfsmc_revision, loadavg, merge_json, table  # bench/report.py, beside this script
 from ruamel.yaml import YAML
 
 from hfsmc import schema
@@ -463,46 +463,8 @@ def machine() -> dict[str, Any]:
     import pyflakes
     import ruamel.yaml
 
-    cpu = platform.processor() or "unknown"
-    mem_gib = None
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemTotal:"):
-                mem_gib = round(int(line.split()[1]) / 1024 / 1024, 1)
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "memory_gib": mem_gib,
-        "python": platform.python_version(),
-        "implementation": platform.python_implementation(),
-        "platform": platform.platform(),
-        "ruamel.yaml": ruamel.yaml.__version__,
-        "jsonschema": _version("jsonschema", jsonschema),
-        "pyflakes": pyflakes.__version__,
-    }
-
-
-def hfsmc_revision() -> dict[str, Any]:
-    """The hfsmc version and, in a git checkout, the commit measured (dirty: hfsmc/ edited)."""
-    from hfsmc import __version__
-
-    out: dict[str, Any] = {"version": __version__, "commit": None, "dirty": None}
-    repo = HERE.parent
-    try:
-        out["commit"] = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short", "HEAD"],
-                                       capture_output=True, text=True, check=True).stdout.strip()
-        status = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--", "hfsmc"],
-                                capture_output=True, text=True, check=True).stdout
-        out["dirty"] = bool(status.strip())
-    except (OSError, subprocess.CalledProcessError):
-        pass
-    return out
+    return {**report.machine(), "ruamel.yaml": ruamel.yaml.__version__,
+            "jsonschema": _version("jsonschema", jsonschema), "pyflakes": pyflakes.__version__}
 
 
 def _version(dist: str, module: Any) -> str:
@@ -512,39 +474,6 @@ def _version(dist: str, module: Any) -> str:
         return version(dist)
     except PackageNotFoundError:
         return str(getattr(module, "__version__", "?"))
-
-
-def loadavg() -> list[float]:
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except OSError:
-        return []
-
-
-def table(rows: list[list[str]], header: list[str]) -> Iterator[str]:
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    fmt = "  ".join(f"{{:{'<' if i == 0 else '>'}{w}}}" for i, w in enumerate(widths))
-    yield fmt.format(*header)
-    yield "  ".join("-" * w for w in widths)
-    for r in rows:
-        yield fmt.format(*r)
-
-
-def merge_json(out: Path, figures: dict[str, Any]) -> None:
-    """Set ``out["frontend"]``, keeping the other keys of an existing JSON object."""
-    data: dict[str, Any] = {}
-    if out.exists():
-        try:
-            loaded = json.loads(out.read_text(encoding="utf-8"))
-            if isinstance(loaded, dict):
-                data = loaded
-        except json.JSONDecodeError:
-            print(f"warning: {out} is not JSON; overwriting it", file=sys.stderr)
-    data["frontend"] = figures
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(out.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    tmp.replace(out)
 
 
 def default_repeat(n: int) -> int:
@@ -714,7 +643,7 @@ def main(argv: list[str] | None = None) -> int:
             "profile": top,
             "bench_peak_rss_mib": round(rss_mib(), 1),
         }
-        merge_json(ns.json, figures)
+        merge_json(ns.json, "frontend", figures)
         log(f"\nwrote {ns.json} (key \"frontend\")")
     log(f"\ntargets {'met' if ok else 'NOT met'} (load average before {load_before}, "
         f"after {load_after})")

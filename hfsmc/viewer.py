@@ -15,7 +15,8 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-from hfsmc.ir import DictValue, Model, Value
+from hfsmc.emit.data import thaw
+from hfsmc.ir import Model
 
 # The component's own modules, shipped as the data package hfsmc.templates (mapped
 # from templates/ by setuptools, a mapping mypy does not follow: they are typed Any here).
@@ -141,14 +142,6 @@ def _model_structure(path: str) -> dict[str, Any]:
     return structure_of(result.model)
 
 
-def _literal(v: Value) -> object:
-    if isinstance(v, DictValue):
-        return {k: _literal(x) for k, x in v.items}
-    if isinstance(v, tuple):
-        return [_literal(x) for x in v]
-    return v
-
-
 def structure_of(model: Model) -> dict[str, Any]:
     """The structure a component gives its observers (``Observer.start``), from its model."""
 
@@ -165,5 +158,5 @@ def structure_of(model: Model) -> dict[str, Any]:
         "transitions": [{"from": s.path, "to": sibling(s.path, t.target), "index": t.index,
                          "name": t.name} for s in model.states() for t in s.transitions],
         "variables": [v.name for v in model.variables],
-        "parameters": {p.name: repr(_literal(p.default)) for p in model.parameters},
+        "parameters": {p.name: repr(thaw(p.default)) for p in model.parameters},
     }

@@ -35,34 +35,32 @@ def test_wheel_contents(wheel: Path) -> None:
     assert not any(n.startswith(("tests/", "examples/", "bench/")) for n in names)
 
 
-@pytest.mark.slow
-def test_wheel_runs_outside_the_repository(wheel: Path, tmp_path: Path) -> None:
+def hfsmc_from_wheel(wheel: Path, tmp_path: Path, example: str, *args: str,
+                     ) -> subprocess.CompletedProcess[str]:
+    """Run `hfsmc ARGS MODEL` from the unpacked wheel alone, on a copy of an example."""
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    model = tmp_path / "tl.yaml"
-    model.write_text((ROOT / "examples/traffic_light/traffic_light.yaml").read_text())
+    model = tmp_path / Path(example).name
+    model.write_text((ROOT / example).read_text())
     code = (
         "import sys; sys.path.insert(0, sys.argv[1]); import hfsmc, hfsmc.cli;"
         "assert hfsmc.__file__.startswith(sys.argv[1]), hfsmc.__file__;"
-        "sys.argv = ['hfsmc', 'check', sys.argv[2]]; hfsmc.cli.main()"
+        "sys.argv = ['hfsmc', *sys.argv[3:], sys.argv[2]]; hfsmc.cli.main()"
     )
-    r = subprocess.run([sys.executable, "-c", code, str(site), str(model)], cwd=tmp_path,
-                       capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    return subprocess.run([sys.executable, "-c", code, str(site), str(model), *args],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                          stdin=subprocess.DEVNULL)
+
+
+@pytest.mark.slow
+def test_wheel_runs_outside_the_repository(wheel: Path, tmp_path: Path) -> None:
+    r = hfsmc_from_wheel(wheel, tmp_path, "examples/traffic_light/traffic_light.yaml", "check")
     assert r.returncode == 0, r.stderr
 
 
 @pytest.mark.slow
 def test_wheel_builds_a_component_that_runs(wheel: Path, tmp_path: Path) -> None:
-    site = tmp_path / "site"
-    zipfile.ZipFile(wheel).extractall(site)
-    model = tmp_path / "blinker.yaml"
-    model.write_text((ROOT / "examples/blinker/blinker.yaml").read_text())
-    code = (
-        "import sys; sys.path.insert(0, sys.argv[1]); import hfsmc.cli;"
-        "sys.argv = ['hfsmc', 'build', sys.argv[2], '-o', 'out']; hfsmc.cli.main()"
-    )
-    r = subprocess.run([sys.executable, "-c", code, str(site), str(model)], cwd=tmp_path,
-                       capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    r = hfsmc_from_wheel(wheel, tmp_path, "examples/blinker/blinker.yaml", "build", "-o", "out")
     assert r.returncode == 0, r.stderr
     # The component needs neither hfsmc nor site-packages (-I -S): the standard library only.
     run = subprocess.run([sys.executable, "-I", "-S", "out/blinker.py", "--clock", "virtual",

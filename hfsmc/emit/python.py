@@ -23,6 +23,7 @@ from pathlib import Path
 import jinja2
 
 from hfsmc.durations import format_us
+from hfsmc.emit.data import thaw
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, DictValue, Model, State, Value
 from hfsmc.pycheck import import_statement
@@ -284,17 +285,9 @@ def component_files(model: Model) -> dict[str, bytes]:
 
 def _config(model: Model) -> str:
     data = {
-        "parameters": {p.name: _json_value(p.default) for p in model.parameters},
+        "parameters": {p.name: thaw(p.default) for p in model.parameters},
         "interfaces": {i.name: {"type": i.type, "url": i.url, **({"options": dict(i.options)}
                                                                  if i.options else {})}
                        for i in model.interfaces},
     }
     return json.dumps(data, indent=2, ensure_ascii=True)
-
-
-def _json_value(value: Value) -> object:
-    if isinstance(value, DictValue):
-        return {k: _json_value(v) for k, v in value.items}
-    if isinstance(value, tuple):
-        return [_json_value(v) for v in value]
-    return value
