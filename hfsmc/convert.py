@@ -125,4 +125,14 @@ def convert_model(result: Result, out: Path) -> list[str]:
     write_atomic(out, text)
     n_states = sum(1 for _ in model.states())
     n_trans = sum(len(s.transitions) for s in model.states())
-    return [f"{how} {out}: {n_states} states, {n_trans} transitions"]
+    return [*legacy_report(result), f"{how} {out}: {n_states} states, {n_trans} transitions"]
+
+
+def legacy_report(result: Result) -> list[str]:
+    """What the import of a legacy file mapped, and how (SPEC 2.7); nothing for other files."""
+    doc = result.document
+    if doc is None or not doc.notes:
+        return []
+    kind = {"visualstates": "VisualStates", "visualhfsm": "VisualHFSM"}.get(doc.format, doc.format)
+    return [f"{result.path}: {kind} file read as a version-1 model:",
+            *(f"  {span}: {message}" for span, message in doc.notes)]

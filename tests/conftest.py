@@ -15,4 +15,5 @@ def _repo_cwd() -> None:
 
 
 def examples() -> list[Path]:
-    return sorted((ROOT / "examples").glob("*/*.yaml"))
+    """Example models: examples/NAME/NAME.yaml (worlds and other files beside them are not)."""
+    return sorted(p for p in (ROOT / "examples").glob("*/*.yaml") if p.stem == p.parent.name)

@@ -31,7 +31,8 @@ GENERATORS: dict[str, Callable[[Model], str]] = {
 
 
 def examples() -> list[Path]:
-    return sorted((ROOT / "examples").glob("*/*.yaml"))
+    """Example models: examples/NAME/NAME.yaml (worlds and other files beside them are not)."""
+    return sorted(p for p in (ROOT / "examples").glob("*/*.yaml") if p.stem == p.parent.name)
 
 
 def render(example: Path, suffix: str) -> str:
@@ -58,6 +59,10 @@ def main() -> None:
             if old != text:
                 path.write_text(text, "utf-8")
                 print(f"updated {path.relative_to(ROOT)}")
+    from tests.test_legacy import regenerate  # golden YAML of the legacy corpus
+
+    for path in regenerate():
+        print(f"updated {path.relative_to(ROOT)}")
 
 
 if __name__ == "__main__":

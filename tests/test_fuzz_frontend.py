@@ -27,9 +27,10 @@ from ruamel.yaml import YAML
 
 from hfsmc.compiler import Result, compile_file
 from hfsmc.errors import CODES, render_json, render_text
+from tests.conftest import examples
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLES = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "examples").glob("*/*.yaml"))
+EXAMPLES = sorted(str(p.relative_to(ROOT)) for p in examples())
 TEXTS = {p: (ROOT / p).read_text("utf-8") for p in EXAMPLES}
 
 FUZZ = settings(max_examples=400, deadline=None, derandomize=True, database=None,

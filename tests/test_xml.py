@@ -17,9 +17,10 @@ from hfsmc.errors import Diagnostics, EmitError
 from hfsmc.frontend import load
 from hfsmc.frontend.xmlsource import clean_text
 from hfsmc.ir import Code, Model
+from tests.conftest import examples
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLES = sorted((ROOT / "examples").glob("*/*.yaml"))
+EXAMPLES = examples()
 TWINS = sorted((ROOT / "examples").glob("*/*.xml"))
 
 
@@ -382,8 +383,6 @@ def test_malformed_xml_keeps_lxml_position() -> None:
 
 
 @pytest.mark.parametrize("root, message", [
-    ("<VisualStates><state/></VisualStates>", "legacy VisualStates import not supported yet"),
-    ("<VisualHFSM/>", "legacy VisualHFSM import not supported yet"),
     ("<scxml/>", "not an hfsm model"),
     ('<hfsm xmlns="urn:x" version="1" name="m"/>', "takes no namespace"),
 ])

@@ -50,6 +50,8 @@ class Document:
     # For folded (`>`) and multi-line plain scalars, whose line breaks became spaces:
     # (offset in the value, line, col) where each source line's text starts.
     segments: dict[PathKey, tuple[tuple[int, int, int], ...]] = field(default_factory=dict)
+    # What a legacy import mapped and how (`hfsmc convert` prints it as its report).
+    notes: list[tuple[Span, str]] = field(default_factory=list)
 
     def span(self, path: PathKey) -> Span:
         """Position of the value at ``path``, or of its nearest ancestor."""

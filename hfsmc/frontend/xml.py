@@ -41,7 +41,7 @@ from hfsmc.frontend.xmlsource import (
 from hfsmc.resources import schema_file
 
 _XS = "{http://www.w3.org/2001/XMLSchema}"
-_LEGACY = ("VisualStates", "VisualHFSM")  # SPEC 2.7; their import is still to come
+_LEGACY = ("VisualStates", "VisualHFSM")  # SPEC 2.7: read by hfsmc/frontend/legacy.py
 _ROOT_TYPE = "hfsm"  # the XSD's type of the root element
 _MAX_XSD_ROUNDS = 20  # re-validations after dropping unexpected elements (see _validate)
 
@@ -59,7 +59,9 @@ def load_xml(file: str, text: str, diags: Diagnostics) -> Document:
     root = parse_safely(src)
     index = XmlIndex(src, root)
     refuse_after_parse(root, index)
-    _check_root(root, index)
+    legacy = _check_root(root, index, diags)
+    if legacy is not None:
+        return legacy
     problems = _validate(root, index)
     if problems:
         raise SchemaError(problems)
@@ -67,16 +69,18 @@ def load_xml(file: str, text: str, diags: Diagnostics) -> Document:
     return doc
 
 
-def _check_root(root: Element, index: XmlIndex) -> None:
+def _check_root(root: Element, index: XmlIndex, diags: Diagnostics) -> Document | None:
+    """None for an hfsm document; a legacy one is read by its own front end (SPEC 2.7)."""
     name = etree.QName(root)
     if name.namespace is None and name.localname == "hfsm":
-        return
+        return None
     if name.localname == "hfsm":
         fail(ParseError, "E005", f"the `<hfsm>` element takes no namespace (it is in "
              f"`{name.namespace}`)", index.span(root), "drop the xmlns attribute")
     if name.namespace is None and name.localname in _LEGACY:
-        fail(ParseError, "E005", f"legacy {name.localname} import not supported yet",
-             index.span(root), "convert it by hand to an <hfsm version=\"1\"> model for now")
+        from hfsmc.frontend.legacy import load_legacy
+
+        return load_legacy(root, index, diags)
     fail(ParseError, "E005", f"not an hfsm model: the root element is `<{written_name(root)}>`",
          index.span(root), 'an hfsm XML model starts with <hfsm version="1" name="...">')
 

@@ -181,9 +181,16 @@ class _Walker:
                 m: dict[str, Any] = {}
                 holder[slot] = m
                 here = self.doc.span(path)
+                # Keys brought in by `<<:` take their position in the merged mapping
+                # (a mapping made only of merged keys has no position table of its own).
+                positions = {}
+                for merged in reversed(list(getattr(node, "merge", None) or ())):
+                    if isinstance(merged, CommentedMap) and merged.lc.data:
+                        positions.update(merged.lc.data)
+                positions.update(node.lc.data or {})
                 for k in node:
                     # keys brought in by a `<<:` merge have no position of their own
-                    kl, kc = node.lc.data.get(k, (here.line - 1, here.col - 1))[:2]
+                    kl, kc = positions.get(k, (here.line - 1, here.col - 1))[:2]
                     key = k
                     if not isinstance(k, str):
                         key = str(k)
@@ -191,7 +198,7 @@ class _Walker:
                                          self._span(kl, kc))
                     kp = (*path, key)
                     self.doc.key_spans[kp] = self._span(kl, kc)
-                    pos = node.lc.data.get(k)
+                    pos = positions.get(k)
                     vl, vc = (pos[2], pos[3]) if pos else (kl, kc)
                     self._record_value(kp, node[k], vl, vc)
                     m[key] = None

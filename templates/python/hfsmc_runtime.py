@@ -60,6 +60,15 @@ class Unavailable:
     def __setattr__(self, attr: str, value: object) -> NoReturn:
         raise RuntimeError(object.__getattribute__(self, "_why"))
 
+    def __call__(self, *args: object, **kwargs: object) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
+    def __bool__(self) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
+    def __iter__(self) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
     def __repr__(self) -> str:
         return f"<{object.__getattribute__(self, '_why')}>"
 
