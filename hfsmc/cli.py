@@ -198,3 +198,16 @@ def view(target: str | None, replay: str | None, model: str | None, speed: float
 
     sys.exit(run_view(target, replay, focus=focus, autofocus=not no_autofocus, speed=speed,
                       model=model))
+
+
+@main.command(context_settings={"ignore_unknown_options": True, "help_option_names": []})
+@click.argument("args", nargs=-1, type=click.UNPROCESSED)
+@_guard
+def sim(args: tuple[str, ...]) -> None:
+    """Simulated multicopter (MAVLink over UDP) and its camera (MJPEG over HTTP).
+
+    `hfsmc sim --help` lists its options (--world WORLD.yaml, --seed, --truth FILE, ...).
+    """
+    from hfsmc.sim.run import main as run_sim
+
+    sys.exit(run_sim(list(args)))

@@ -28,9 +28,10 @@ from hfsmc.durations import format_us
 from hfsmc.emit import dot
 from hfsmc.errors import UsageError
 from hfsmc.ir import Automaton, Model, State
+from tests.conftest import examples
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLES = sorted(ROOT.glob("examples/*/*.yaml"))
+EXAMPLES = examples()
 SVG_TEXT = "{http://www.w3.org/2000/svg}text"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -20,6 +20,9 @@ YAML; every key is optional and has a default, so ``{}`` is a valid world::
 Colours are RGB. An object moves along its path (``[north, east]`` points)
 at ``speed`` m/s from ``start`` seconds after the simulator starts; at the end
 it stops, or with ``loop: true`` goes back along the path and again.
+
+Unknown keys, wrong types and values out of range raise ``WorldError`` naming
+the file and the key. ``docs/worlds.md`` describes every key and the camera.
 """
 
 from __future__ import annotations
@@ -150,6 +153,12 @@ def _rgb(v: Any, where: str) -> RGB:
     return (v[0], v[1], v[2])
 
 
+def _name(v: Any, where: str) -> str:
+    if not isinstance(v, (str, int)) or isinstance(v, bool) or not str(v):
+        raise WorldError(f"{where}: a name is a non-empty string, not {v!r}")
+    return str(v)
+
+
 def _points(v: Any, where: str) -> tuple[Point, ...]:
     if not isinstance(v, (list, tuple)):
         raise WorldError(f"{where}: a path is a list of [north, east] points")
@@ -160,6 +169,21 @@ def _points(v: Any, where: str) -> tuple[Point, ...]:
             raise WorldError(f"{where}: a point is [north, east] in metres, not {p!r}")
         out.append((float(p[0]), float(p[1])))
     return tuple(out)
+
+
+def _value(v: Any, kind: Any, where: str) -> Any:
+    """A plain value checked against its field's type (annotations are strings here)."""
+    if kind in ("float", float) and isinstance(v, (int, float)) and not isinstance(v, bool):
+        return float(v)
+    if kind in ("int", int) and isinstance(v, int) and not isinstance(v, bool):
+        return v
+    if kind in ("bool", bool) and isinstance(v, bool):
+        return v
+    if kind in ("str", str) and isinstance(v, str):
+        return v
+    names = {"float": "a number", "int": "a whole number", "bool": "true or false",
+             "str": "a string"}
+    raise WorldError(f"{where}: expected {names.get(str(kind), str(kind))}, not {v!r}")
 
 
 def _section(cls: type, data: Any, where: str, converters: dict[str, Any] | None = None) -> Any:
@@ -175,17 +199,43 @@ def _section(cls: type, data: Any, where: str, converters: dict[str, Any] | None
     values = {}
     for k, v in data.items():
         conv = (converters or {}).get(k)
-        if conv is not None:
-            v = conv(v, f"{where}.{k}")
-        elif (isinstance(v, bool) or not isinstance(v, (int, float, str))) and \
-                not (isinstance(v, bool) and k == "loop"):
-            raise WorldError(f"{where}.{k}: expected a number, not {v!r}")
-        values[k] = float(v) if isinstance(v, int) and not isinstance(v, bool) and \
-            fields_[k].type in ("float", float) else v
+        values[k] = conv(v, f"{where}.{k}") if conv is not None else \
+            _value(v, fields_[k].type, f"{where}.{k}")
     try:
         return cls(**values)
     except TypeError as e:
         raise WorldError(f"{where}: {e}") from None
+
+
+def _at_least(where: str, value: float, low: float, high: float = math.inf) -> None:
+    if not low <= value <= high:
+        bound = f"at least {low:g}" if high == math.inf else f"between {low:g} and {high:g}"
+        raise WorldError(f"{where}: must be {bound}, not {value:g}")
+
+
+def _check(w: World) -> None:
+    """Values the simulator cannot use, named by file and key."""
+    f = w.file
+    _at_least(f"{f}: ground.size", w.ground.size, 1.0)
+    _at_least(f"{f}: ground.texture", w.ground.texture, 0.0, 1.0)
+    _at_least(f"{f}: road.width", w.road.width, 0.0)
+    if w.accident is not None:
+        _at_least(f"{f}: accident.radius", w.accident.radius, 0.0)
+    for i, v in enumerate(w.victims):
+        _at_least(f"{f}: victims[{i}].radius", v.radius, 0.05)
+    for i, o in enumerate(w.objects):
+        _at_least(f"{f}: objects[{i}].radius", o.radius, 0.05)
+        _at_least(f"{f}: objects[{i}].speed", o.speed, 0.0)
+        _at_least(f"{f}: objects[{i}].start", o.start, 0.0)
+        if not o.path:
+            raise WorldError(f"{f}: objects[{i}].path: an object needs at least one point")
+    _at_least(f"{f}: camera.width", w.camera.width, 16, 4096)
+    _at_least(f"{f}: camera.height", w.camera.height, 16, 4096)
+    _at_least(f"{f}: camera.hfov_deg", w.camera.hfov_deg, 1.0, 170.0)
+    _at_least(f"{f}: camera.fps", w.camera.fps, 0.5, 120.0)
+    for name in ("max_speed", "max_accel", "max_climb", "battery_wh"):
+        _at_least(f"{f}: vehicle.{name}", getattr(w.vehicle, name), 0.01)
+    _at_least(f"{f}: vehicle.hover_w", w.vehicle.hover_w, 0.0)
 
 
 def parse_world(data: Any, file: str = "<world>") -> World:
@@ -202,12 +252,15 @@ def parse_world(data: Any, file: str = "<world>") -> World:
     victims = tuple(_section(Victim, v, f"{file}: victims[{i}]", color)
                     for i, v in enumerate(data.get("victims") or ()))
     objects = tuple(_section(MovingObject, o, f"{file}: objects[{i}]",
-                             {"color": _rgb, "path": _points, "name": lambda v, w: str(v)})
+                             {"color": _rgb, "path": _points, "name": _name})
                     for i, o in enumerate(data.get("objects") or ()))
     accident = data.get("accident")
-    return World(
+    seed = data.get("seed", 1)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise WorldError(f"{file}: seed: expected a whole number, not {seed!r}")
+    world = World(
         name=str(data.get("name", Path(file).stem)),
-        seed=int(data.get("seed", 1)),
+        seed=seed,
         home=_section(Home, data.get("home"), f"{file}: home"),
         ground=_section(Ground, data.get("ground"), f"{file}: ground", color),
         road=_section(Road, data.get("road"), f"{file}: road", {**color, "points": _points}),
@@ -218,6 +271,8 @@ def parse_world(data: Any, file: str = "<world>") -> World:
         vehicle=_section(Vehicle, data.get("vehicle"), f"{file}: vehicle"),
         file=file,
     )
+    _check(world)
+    return world
 
 
 def load_world(path: str | Path | None) -> World:

@@ -1,0 +1,368 @@
+"""`hfsmc sim`: run the simulated multicopter, its MAVLink link and its camera.
+
+The vehicle is reached as ArduPilot SITL is: it sends from its own UDP socket to
+127.0.0.1:14550 (``udpout``) and reads the replies that come back to that
+socket, so a component or MAVProxy listens with ``udpin:127.0.0.1:14550``.
+
+The physics runs at a fixed step driven by the monotonic clock with absolute
+deadlines; simulated time is steps * dt, so timestamps, telemetry instants and
+sensor noise depend only on the seed and on the step at which commands arrive.
+
+Faults for tests: ``--drop-link-after S --drop-link-for S`` and SIGUSR1 (toggle)
+silence the link both ways; SIGUSR2 pauses and resumes the camera. SIGINT and
+SIGTERM stop cleanly (truth written, sockets closed, exit 0).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import importlib
+import json
+import math
+import signal
+import socket
+import sys
+import time
+from collections.abc import Iterator
+from types import FrameType
+from typing import Any
+
+from hfsmc.fsutil import write_atomic
+from hfsmc.sim.autopilot import Autopilot
+from hfsmc.sim.telemetry import latlon
+from hfsmc.sim.vehicle import Body
+from hfsmc.sim.world import World, WorldError, load_world
+
+DEFAULT_MAVLINK = "udpout:127.0.0.1:14550"
+MAX_DATAGRAMS = 500  # per step: a flood must not starve the physics
+
+
+def parse_url(url: str) -> tuple[str, str, int]:
+    """``udpout:HOST:PORT`` or ``udpin:HOST:PORT`` (``udp:`` is udpin, as in mavutil)."""
+    kind, _, rest = url.partition(":")
+    kind = "udpin" if kind == "udp" else kind
+    host, _, port = rest.rpartition(":")
+    if kind not in ("udpin", "udpout") or not host or not port.isdigit() \
+            or not 0 <= int(port) <= 65535 or (kind == "udpout" and int(port) == 0):
+        raise ValueError(f"--mavlink {url!r}: expected udpout:HOST:PORT or udpin:HOST:PORT")
+    return kind, host, int(port)
+
+
+class Link:
+    """The vehicle's UDP socket. Down, it sends nothing and drops what arrives."""
+
+    def __init__(self, url: str) -> None:
+        self.kind, host, port = parse_url(url)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setblocking(False)
+        self.peer: tuple[str, int] | None = None
+        try:
+            if self.kind == "udpin":
+                self.sock.bind((host, port))
+            else:
+                self.peer = (socket.gethostbyname(host), port)
+        except OSError:
+            self.sock.close()
+            raise
+        self.up = True
+
+    def describe(self) -> str:
+        if self.kind == "udpout" and self.peer is not None:
+            return f"MAVLink to udp:{self.peer[0]}:{self.peer[1]}"
+        host, port = self.sock.getsockname()
+        return f"MAVLink on udpin:{host}:{port} (answers whoever writes to it)"
+
+    def send(self, data: bytes) -> None:
+        if self.up and self.peer is not None:
+            with contextlib.suppress(OSError):  # nobody listening yet, a full buffer: lost
+                self.sock.sendto(data, self.peer)
+
+    def receive(self) -> list[bytes]:
+        out: list[bytes] = []
+        for _ in range(MAX_DATAGRAMS):
+            try:
+                data, addr = self.sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                continue  # an ICMP error reported on the socket: try the next datagram
+            if self.up:
+                if self.kind == "udpin":
+                    self.peer = addr
+                out.append(data)
+        return out
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+class Simulator:
+    """The loop: link → autopilot → physics → telemetry, one fixed step at a time."""
+
+    def __init__(self, world: World, link: Link, *, boot_time: float = 3.0,
+                 truth: str | None = None, drop_after: float | None = None,
+                 drop_for: float = 5.0) -> None:
+        self.world = world
+        self.link = link
+        self.truth_path = truth
+        self.drop = None if drop_after is None else (drop_after, drop_after + drop_for)
+        self.body = Body(world.vehicle, world.seed)
+        self.ap = Autopilot(world, self.body, link.send, boot_time=boot_time, log=self.log)
+        self.pose = self.body.pose
+        self.camera: Any = None
+        self.stopping = False
+        self._link_toggles = 0  # SIGUSR1 count (handled in the loop, not in the handler)
+        self._camera_toggles = 0
+        self._camera_paused = False
+        self._link_forced_down = False
+        self._in_window = False
+        self._truth_failed = False
+
+    def log(self, text: str) -> None:
+        print(f"sim: [{self.body.t:7.2f} s] {text}", file=sys.stderr, flush=True)
+
+    def run(self, duration: float | None = None) -> None:
+        """Fly until stopped (a signal) or until ``duration`` simulated seconds."""
+        dt = self.body.dt
+        per_second = round(1.0 / dt)
+        start = time.monotonic()
+        while not self.stopping:
+            self._faults()
+            for data in self.link.receive():
+                self.ap.receive(data)
+            self.ap.step()
+            self.pose = self.body.pose
+            if self.truth_path and self.body.steps % per_second == 0:
+                self.write_truth()
+            if duration is not None and self.body.t >= duration - 1e-9:
+                break
+            late = time.monotonic() - (start + self.body.steps * dt)
+            if late < 0:
+                time.sleep(-late)
+            elif late > 0.5:  # stalled (suspended, overloaded): go on from now, no burst
+                start += late
+
+    def _faults(self) -> None:
+        forced = self._link_toggles % 2 == 1
+        if forced != self._link_forced_down:
+            self._link_forced_down = forced
+            self.log(f"link {'dropped' if forced else 'restored'} (SIGUSR1)")
+        t = self.body.t
+        in_window = self.drop is not None and self.drop[0] <= t < self.drop[1]
+        if in_window != self._in_window:
+            self._in_window = in_window
+            self.log(f"link {'dropped' if in_window else 'restored'} (--drop-link-after)")
+        self.link.up = not (forced or in_window)
+        paused = self._camera_toggles % 2 == 1
+        if paused != self._camera_paused:
+            self._camera_paused = paused
+            if self.camera is not None:
+                self.camera.pause(paused)
+                self.log(f"camera {'paused' if paused else 'resumed'} (SIGUSR2)")
+            else:
+                self.log("SIGUSR2: no camera to pause")
+
+    @contextlib.contextmanager
+    def signals(self) -> Iterator[None]:
+        """SIGINT/SIGTERM stop, SIGUSR1 toggles the link, SIGUSR2 the camera."""
+
+        def stop(signum: int, frame: FrameType | None) -> None:
+            self.stopping = True
+
+        def usr1(signum: int, frame: FrameType | None) -> None:
+            self._link_toggles += 1
+
+        def usr2(signum: int, frame: FrameType | None) -> None:
+            self._camera_toggles += 1
+
+        handlers = {signal.SIGINT: stop, signal.SIGTERM: stop, signal.SIGUSR1: usr1,
+                    signal.SIGUSR2: usr2}
+        old = {s: signal.signal(s, h) for s, h in handlers.items()}
+        try:
+            yield
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+
+    def truth(self) -> dict[str, Any]:
+        """The ground truth now (what really happened, without sensor noise)."""
+        b, ap, w = self.body, self.ap, self.world
+        t = b.t
+        lat, lon = latlon(w.home, b.north, b.east)
+        home_lat, home_lon = latlon(w.home, 0.0, 0.0)
+
+        def point(p: tuple[float, float] | None) -> dict[str, float] | None:
+            return None if p is None else {"north": _r(p[0], 3), "east": _r(p[1], 3)}
+
+        return {
+            "time": _r(t, 3), "world": w.name, "seed": w.seed, "ready": ap.ready,
+            "link": "up" if self.link.up else "down", "mode": ap.mode_name,
+            "armed": b.armed, "landed": b.landed,
+            "position": {"north": _r(b.north, 3), "east": _r(b.east, 3),
+                         "down": _r(b.down, 3)},
+            "altitude": _r(b.altitude, 3),
+            "velocity": {"north": _r(b.vn, 3), "east": _r(b.ve, 3),
+                         "down": _r(b.vd, 3)},
+            "yaw_deg": _r(math.degrees(b.yaw), 2),
+            "global": {"lat": lat / 1e7, "lon": lon / 1e7,
+                       "alt": _r(w.home.alt + b.altitude, 3)},
+            "battery": {"remaining_pct": _r(100 * b.battery_fraction, 2),
+                        "voltage": _r(b.voltage, 3), "energy_wh": _r(b.energy_wh, 4)},
+            "home": {"lat": home_lat / 1e7, "lon": home_lon / 1e7, "alt": w.home.alt,
+                     "north": 0.0, "east": 0.0},
+            "takeoff": point(ap.takeoff_point),
+            "landing": point(ap.landing_point),
+            "track": {"max_altitude": _r(b.max_alt, 3), "distance": _r(b.distance, 3),
+                      "flight_time": _r(b.flight_time, 2), "takeoffs": ap.takeoffs,
+                      "landings": ap.landings},
+            "accident": None if w.accident is None else dataclasses.asdict(w.accident),
+            "victims": [{"north": v.north, "east": v.east} for v in w.victims],
+            "objects": [{"name": o.name, "color": list(o.color),
+                         "north": _r(o.position(t)[0], 3), "east": _r(o.position(t)[1], 3)}
+                        for o in w.objects],
+        }
+
+    def write_truth(self) -> None:
+        if not self.truth_path:
+            return
+        try:
+            write_atomic(self.truth_path, json.dumps(self.truth(), indent=2) + "\n")
+        except OSError as e:
+            if not self._truth_failed:  # say it once; the flight goes on
+                self._truth_failed = True
+                self.log(f"cannot write the truth file: {e}")
+
+
+def _r(x: float, digits: int) -> float:
+    """Rounded, and never -0.0 (JSON readers should not see a negative zero)."""
+    return round(x, digits) + 0.0
+
+
+def _seconds(text: str) -> float:
+    v = float(text)
+    if not math.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"expected seconds (>= 0), not {text!r}")
+    return v
+
+
+def _port(text: str) -> int:
+    v = int(text)
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a TCP port (0..65535), not {text!r}")
+    return v
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="hfsmc sim",
+        description="A simulated ArduPilot Copter (MAVLink over UDP) with a downward camera "
+                    "(MJPEG over HTTP) over a world.")
+    p.add_argument("--world", metavar="FILE", help="world file (YAML); default: an empty world")
+    p.add_argument("--seed", type=int, metavar="N", help="override the world's seed (noise, textures)")
+    p.add_argument("--mavlink", metavar="URL", default=DEFAULT_MAVLINK,
+                   help=f"udpout:HOST:PORT or udpin:HOST:PORT (default {DEFAULT_MAVLINK})")
+    p.add_argument("--boot-time", type=_seconds, default=3.0, metavar="S",
+                   help="seconds before GPS fix and EKF position (default 3; SITL takes ~40)")
+    p.add_argument("--truth", metavar="FILE",
+                   help="write the ground truth (JSON) every second and at exit")
+    p.add_argument("--duration", type=_seconds, metavar="S",
+                   help="exit after S simulated seconds (default: until SIGINT/SIGTERM)")
+    p.add_argument("--drop-link-after", type=_seconds, metavar="S",
+                   help="drop the MAVLink link S seconds after start")
+    p.add_argument("--drop-link-for", type=_seconds, metavar="S",
+                   help="for this long (default 5 s)")
+    p.add_argument("--camera-port", type=_port, default=8554, metavar="N",
+                   help="camera HTTP port on 127.0.0.1 (default 8554; 0: any free port)")
+    p.add_argument("--no-camera", action="store_true", help="run without the camera")
+    p.add_argument("--camera-only", action="store_true",
+                   help="only render the camera for another vehicle (with --follow)")
+    p.add_argument("--follow", metavar="URL",
+                   help="MAVLink URL of the vehicle whose camera to render")
+    return p
+
+
+def _fail(text: str) -> int:
+    print(f"hfsmc: error: {text}", file=sys.stderr)
+    return 2
+
+
+def _camera_module() -> tuple[Any, str]:
+    """hfsmc.sim.camera, or None and why not."""
+    try:
+        return importlib.import_module("hfsmc.sim.camera"), ""
+    except ImportError as e:
+        return None, str(e)
+
+
+def _run_follow() -> Any:
+    """The camera helper's ``run_follow`` (in hfsmc.sim.camera, or beside it in
+    hfsmc.sim.follow), or why it cannot be had."""
+    camera, why = _camera_module()
+    if camera is not None and hasattr(camera, "run_follow"):
+        return camera.run_follow
+    try:
+        return importlib.import_module("hfsmc.sim.follow").run_follow
+    except (ImportError, AttributeError) as e:
+        return why or str(e)
+
+
+def main(argv: list[str]) -> int:
+    """`hfsmc sim [ARGS...]`: 0 when stopped cleanly, 2 on a usage or world error."""
+    args = parser().parse_args(argv)
+    if args.drop_link_for is not None and args.drop_link_after is None:
+        return _fail("--drop-link-for needs --drop-link-after")
+    if bool(args.camera_only) != bool(args.follow):
+        return _fail("--camera-only and --follow URL go together")
+    try:
+        world = load_world(args.world)
+    except WorldError as e:
+        return _fail(str(e))
+    if args.seed is not None:
+        world = dataclasses.replace(world, seed=args.seed)
+    if args.camera_only:
+        follow = _run_follow()
+        if isinstance(follow, str):
+            return _fail(f"--camera-only: the camera is not available ({follow})")
+        return int(follow(world, args.follow, args.camera_port))
+    try:
+        link = Link(args.mavlink)
+    except (ValueError, OSError) as e:
+        return _fail(str(e))
+    sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
+                    drop_after=args.drop_link_after,
+                    drop_for=5.0 if args.drop_link_for is None else args.drop_link_for)
+    try:
+        with sim.signals():
+            where = _start_camera(sim, args)
+            if where is None:
+                return 2
+            print(f"sim: {link.describe()}, {where}", file=sys.stderr, flush=True)
+            try:
+                sim.run(args.duration)
+            finally:
+                sim.write_truth()
+    finally:
+        if sim.camera is not None:
+            sim.camera.stop()
+        link.close()
+    return 0
+
+
+def _start_camera(sim: Simulator, args: argparse.Namespace) -> str | None:
+    """Start the camera; what to print about it, or None after an error."""
+    if args.no_camera:
+        return "no camera (--no-camera)"
+    camera, why = _camera_module()
+    if camera is None:
+        return f"no camera (hfsmc.sim.camera is not available: {why})"
+    feed = camera.CameraFeed(sim.world, pose=lambda: sim.pose, host="127.0.0.1",
+                             port=args.camera_port)
+    try:
+        url = feed.start()
+    except OSError as e:
+        _fail(f"camera: cannot serve on 127.0.0.1:{args.camera_port}: {e}")
+        return None
+    sim.camera = feed
+    return f"camera {url}"

@@ -1,0 +1,197 @@
+"""The ``camera`` interface of Python components (SPEC 5.1): the latest frame
+of an OpenCV capture, without blocking the automaton.
+
+Copied beside a generated component that declares an interface of type
+``camera``; the runtime imports it and calls ``connect(name, url, options)``.
+OpenCV is imported with the module: without it the import fails and the
+runtime turns the interface into one that says "cannot be loaded" when used.
+
+The URL is anything ``cv2.VideoCapture`` opens: MJPEG over HTTP
+(``http://127.0.0.1:8554/bottom.mjpg``), a device number (``0``), a file
+(replayed at its frame rate, from the start again at its end). A daemon
+grabber reads frames as they come and keeps only the latest, as one
+immutable pair (frame, time) replaced whole, so ``frame()`` and ``age()``
+return at once. When the stream drops, the grabber says so once on stderr
+and reconnects with a growing pause (0.2 s, doubling up to 2 s); it says so
+again when frames are back.
+
+Options: ``size: WxH`` resizes every frame (``320x240``).
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import math
+import os
+import re
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import cv2
+
+DEFAULT_URL = "0"  # the first video device
+BACKOFF_MIN_S = 0.2
+BACKOFF_MAX_S = 2.0
+STALE_S = 1.0  # ok() is false when the latest frame is older than that
+OPEN_TIMEOUT_MS = 3000  # a network stream that does not answer: give up and retry
+READ_TIMEOUT_MS = 2000  # a network stream that stops sending: drop it and reconnect
+_SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+_quiet_lock = threading.Lock()  # OpenCV's log level is global: grabbers share the lowering
+_quiet_depth = 0
+_quiet_saved = 0
+
+
+def connect(name: str, url: str | None, options: dict[str, str]) -> Camera:
+    """Start grabbing frames from ``url``; returns at once."""
+    return Camera(name, url or DEFAULT_URL, options)
+
+
+class Camera:
+    """The latest frame of a video stream (BGR numpy arrays)."""
+
+    def __init__(self, name: str, url: str, options: dict[str, str]) -> None:
+        # FFmpeg's own messages (connection refused, ...) at every retry would
+        # drown ours; it reads this when first used, so before any capture opens.
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
+        self.name = name
+        self.url = url
+        self._cv2: Any = cv2
+        self._size: tuple[int, int] | None = None
+        for key in sorted(options):
+            if key == "size" and (m := _SIZE.match(str(options[key]))) and int(m[1]) and int(m[2]):
+                self._size = (int(m[1]), int(m[2]))
+            elif key == "size":
+                self._say(f"option size: `{options[key]}` is not WxH (320x240): frames kept as they come")
+            else:
+                self._say(f"unknown option `{key}` ignored (options: size)")
+        self._latest: tuple[Any, float] | None = None  # (frame, monotonic time), replaced whole
+        self._count = 0
+        self._down = False  # said on stderr that the stream is down
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"camera {name}", daemon=True)
+        self._thread.start()
+        atexit.register(self.close)
+
+    def __repr__(self) -> str:
+        return f"<camera {self.name} {self.url}>"
+
+    def frame(self) -> Any:
+        """The latest frame (an H x W x 3 BGR numpy array); None before the first.
+        The same array until a newer one comes: copy it before drawing on it for keeps."""
+        latest = self._latest
+        return None if latest is None else latest[0]
+
+    def age(self) -> float:
+        """Seconds since the latest frame arrived; inf before the first."""
+        latest = self._latest
+        return math.inf if latest is None else time.monotonic() - latest[1]
+
+    def ok(self) -> bool:
+        """Frames are coming: the latest is less than a second old."""
+        return self.age() < STALE_S
+
+    def count(self) -> int:
+        """Frames received so far (a new one since the last tick when it has grown)."""
+        return self._count
+
+    def close(self) -> None:
+        """Stop the grabber (also run at exit)."""
+        self._stop.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=1.0)
+
+    # -- the grabber thread ----------------------------------------------------
+    def _run(self) -> None:
+        pause = BACKOFF_MIN_S
+        while not self._stop.is_set():
+            cap = self._open()
+            try:
+                got = cap is not None and self._grab(cap)
+            finally:
+                if cap is not None:
+                    cap.release()
+            if self._stop.is_set():
+                return
+            if got:
+                pause = BACKOFF_MIN_S
+            if not self._down:
+                self._down = True
+                self._say(f"stream {'lost' if got or self._count else 'not available'} "
+                          f"at {self.url}: reconnecting")
+            self._stop.wait(pause)
+            pause = min(pause * 2, BACKOFF_MAX_S)
+
+    def _open(self) -> Any:
+        cv2 = self._cv2
+        with _quiet(cv2):  # a failed open warns each retry; the drop is said once by us
+            try:
+                if self.url.isdigit():
+                    cap = cv2.VideoCapture(int(self.url))
+                elif os.path.exists(self.url):
+                    cap = cv2.VideoCapture(self.url)
+                else:  # a network stream: bounded waits, so a dead server is noticed
+                    cap = cv2.VideoCapture(self.url, cv2.CAP_FFMPEG,
+                                           [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, OPEN_TIMEOUT_MS,
+                                            cv2.CAP_PROP_READ_TIMEOUT_MSEC, READ_TIMEOUT_MS])
+            except cv2.error:
+                return None
+        if not cap.isOpened():
+            cap.release()
+            return None
+        return cap
+
+    def _grab(self, cap: Any) -> bool:
+        """Read frames until the stream ends; whether any came."""
+        cv2 = self._cv2
+        fps = cap.get(cv2.CAP_PROP_FPS) if os.path.exists(self.url) else 0.0
+        step = 1.0 / fps if 0 < fps < 1000 else 0.0  # a file plays at its rate
+        got = False
+        while not self._stop.is_set():
+            try:
+                ok, img = cap.read()
+            except cv2.error:
+                ok, img = False, None
+            if not ok or img is None:
+                return got
+            if self._size is not None and (img.shape[1], img.shape[0]) != self._size:
+                img = cv2.resize(img, self._size, interpolation=cv2.INTER_AREA)
+            self._latest = (img, time.monotonic())
+            self._count += 1
+            if not got:
+                got = True
+                if self._down and not self._stop.is_set():
+                    self._down = False
+                    self._say(f"stream back at {self.url}")
+            if step:
+                self._stop.wait(step)
+        return got
+
+    def _say(self, text: str) -> None:
+        with contextlib.suppress(ValueError, OSError):  # stderr closed at exit: nothing to tell
+            sys.stderr.write(f"{self.name}: {text}\n")
+            sys.stderr.flush()
+
+
+@contextlib.contextmanager
+def _quiet(cv2: Any) -> Iterator[None]:
+    """OpenCV's warnings off while a capture opens (unless OPENCV_LOG_LEVEL is set)."""
+    global _quiet_depth, _quiet_saved
+    if "OPENCV_LOG_LEVEL" in os.environ:
+        yield
+        return
+    with _quiet_lock:
+        if _quiet_depth == 0:
+            _quiet_saved = cv2.utils.logging.getLogLevel()
+            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+        _quiet_depth += 1
+    try:
+        yield
+    finally:
+        with _quiet_lock:
+            _quiet_depth -= 1
+            if _quiet_depth == 0:
+                cv2.utils.logging.setLogLevel(_quiet_saved)

@@ -1,0 +1,445 @@
+"""The ``mavlink`` interface of Python components (SPEC 5.1): a vehicle flown
+the ArduPilot Copter way (GUIDED mode), over pymavlink.
+
+Copied beside a generated component that declares an interface of type
+``mavlink``; the runtime imports it and calls ``connect(name, url, options)``.
+pymavlink is imported with the module: without it the import fails and the
+runtime turns the interface into one that says "cannot be loaded" when used.
+
+One daemon thread owns the receiving side: it reads the socket, keeps the
+latest telemetry as immutable values (a float or a tuple, replaced whole, so
+that readers need no lock), watches the heartbeat, requests the message
+rates, matches COMMAND_ACKs to the commands waiting for them (resending once,
+as MAVProxy does with ``confirmation`` + 1) and logs each outcome once on
+stderr. The automaton's thread never waits on the network: queries return
+the state at hand, commands send one datagram on a non-blocking socket and
+return. One lock orders the pymavlink calls of the two threads (the parser
+can swap its protocol object when MAVLink 2 shows up); it is held for a
+send or for the parsing of datagrams already received, never while waiting.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import math
+import select
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from pymavlink import mavutil
+
+DEFAULT_URL = "udpin:127.0.0.1:14550"  # the vehicle sends there, as ArduPilot SITL does for a GCS
+LINK_TIMEOUT_S = 2.0  # no heartbeat for that long: the link is lost (SPEC 5.1)
+ACK_TIMEOUT_S = 3.0  # a command without COMMAND_ACK by then has failed; resent once halfway
+GCS_HEARTBEAT_S = 1.0  # our own heartbeat, so the vehicle sees a ground station
+POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
+FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
+SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
+
+# SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field"
+# (MAVLink POSITION_TARGET_TYPEMASK; bit 9, force, stays clear).
+IGNORE_POSITION = 0b0000_0000_0111  # x, y, z
+IGNORE_VELOCITY = 0b0000_0011_1000  # vx, vy, vz
+IGNORE_ACCELERATION = 0b0001_1100_0000  # afx, afy, afz
+IGNORE_YAW = 0b0100_0000_0000
+IGNORE_YAW_RATE = 0b1000_0000_0000
+VELOCITY_MASK = IGNORE_POSITION | IGNORE_ACCELERATION | IGNORE_YAW  # 0x05C7: vx vy vz yaw_rate
+POSITION_MASK = IGNORE_VELOCITY | IGNORE_ACCELERATION | IGNORE_YAW | IGNORE_YAW_RATE  # 0x0DF8
+
+MAV_FRAME_LOCAL_NED = 1
+MAV_FRAME_BODY_OFFSET_NED = 9  # velocities along the vehicle's heading: forward, right, down
+
+# ArduPilot's GUIDED needs an absolute horizontal position from the EKF; while
+# disarmed a predicted one will do, once armed not in constant-position mode
+# (Copter::ekf_has_absolute_position). EKF_STATUS_FLAGS bits:
+EKF_POS_HORIZ_ABS = 16
+EKF_CONST_POS_MODE = 128
+EKF_PRED_POS_HORIZ_ABS = 512
+GPS_FIX_3D = 3  # GPS_RAW_INT.fix_type
+MODE_FLAG_SAFETY_ARMED = 128  # HEARTBEAT.base_mode
+MODE_FLAG_CUSTOM_MODE_ENABLED = 1
+
+RESULTS = {0: "accepted", 1: "temporarily_rejected", 2: "denied", 3: "unsupported",
+           4: "failed", 5: "in_progress", 6: "cancelled"}  # MAV_RESULT
+IN_PROGRESS = 5
+
+
+def connect(name: str, url: str | None, options: dict[str, str]) -> Vehicle:
+    """Open the link to a vehicle and start its reader; returns at once."""
+    return Vehicle(name, url or DEFAULT_URL, options)
+
+
+@dataclass(slots=True)
+class _Pending:
+    """A command waiting for its COMMAND_ACK."""
+
+    name: str  # the key of last_ack(): arm, disarm, takeoff, land, rtl, set_mode, ...
+    label: str  # as logged: `set_mode GUIDED`
+    command: int
+    params: tuple[float, ...]  # the seven of COMMAND_LONG
+    deadline: float
+    resend_at: float | None  # None once resent (or in progress)
+    quiet: bool  # log only a failure (message rates)
+
+
+class Vehicle:
+    """A MAVLink vehicle with ArduPilot Copter conventions (SPEC 5.1)."""
+
+    def __init__(self, name: str, url: str, options: dict[str, str]) -> None:
+        self.name = name
+        self.url = url
+        self._mavutil: Any = mavutil
+        self._mav: Any = mavutil.mavlink
+        self._rate = _option(name, options, "rate", FAST_RATE_HZ)
+        self._ack_timeout = _option(name, options, "ack_timeout", ACK_TIMEOUT_S)
+        sysid = int(_option(name, options, "source_system", 255.0))
+        if sysid > 255:
+            self._say(f"option source_system: {sysid} is not 1..255, 255 used")
+            sysid = 255
+        for key in sorted(set(options) - {"rate", "ack_timeout", "source_system"}):
+            self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system)")
+        try:
+            self._conn: Any = mavutil.mavlink_connection(  # as a ground station: component 190
+                url, source_system=sysid, source_component=190)
+        except (OSError, ValueError) as e:
+            _close_half_open(e)
+            self._say(f"cannot open {url}: {e}")
+            raise SystemExit(1) from None
+        self._start = time.monotonic()
+        self._lock = threading.Lock()  # pymavlink calls and the pending commands
+        self._pending: list[_Pending] = []
+        self._acks: dict[str, str] = {}
+        # Latest telemetry, each replaced whole by the reader.
+        self._target: tuple[int, int] | None = None  # (system, component) of the autopilot
+        self._heartbeat_at: float | None = None
+        self._heartbeat: tuple[int, int, int, int] = (0, 0, 0, 0)  # type, autopilot, base_mode, custom_mode
+        self._lost = False
+        self._position = (math.nan, math.nan, math.nan)
+        self._velocity = (math.nan, math.nan, math.nan)
+        self._relative_alt: float | None = None
+        self._yaw = math.nan
+        self._battery = -1
+        self._gps_fix = 0
+        self._ekf_flags = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"mavlink {name}", daemon=True)
+        self._thread.start()
+        atexit.register(self.close)
+
+    def __repr__(self) -> str:
+        return f"<mavlink {self.name} {self.url}>"
+
+    # -- state (never waits) -------------------------------------------------
+    def connected(self) -> bool:
+        """A heartbeat from the vehicle within the last 2 s."""
+        return self.heartbeat_age() < LINK_TIMEOUT_S
+
+    def heartbeat_age(self) -> float:
+        """Seconds since the vehicle's last heartbeat; inf before the first."""
+        at = self._heartbeat_at
+        return math.inf if at is None else time.monotonic() - at
+
+    def ready(self) -> bool:
+        """The vehicle would accept GUIDED: connected, a 3D GPS fix, an absolute EKF position."""
+        flags = self._ekf_flags
+        if self.armed():
+            position = bool(flags & EKF_POS_HORIZ_ABS) and not flags & EKF_CONST_POS_MODE
+        else:
+            position = bool(flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS))
+        return self.connected() and self._gps_fix >= GPS_FIX_3D and position
+
+    def armed(self) -> bool:
+        """The vehicle's last heartbeat says its motors are armed."""
+        return bool(self._heartbeat[2] & MODE_FLAG_SAFETY_ARMED)
+
+    def mode(self) -> str:
+        """The flight mode's name (GUIDED, LAND, RTL, ...); "" before the first heartbeat."""
+        if self._heartbeat_at is None:
+            return ""
+        custom = self._heartbeat[3]
+        return self._modes().get(custom, f"MODE{custom}")
+
+    def position(self) -> tuple[float, float, float]:
+        """(north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any."""
+        return self._position
+
+    def altitude(self) -> float:
+        """m above home (GLOBAL_POSITION_INT.relative_alt, else -down); NaN before any."""
+        rel = self._relative_alt
+        return -self._position[2] if rel is None else rel
+
+    def velocity(self) -> tuple[float, float, float]:
+        """(vn, ve, vd) in m/s (LOCAL_POSITION_NED); NaN before any."""
+        return self._velocity
+
+    def yaw(self) -> float:
+        """Heading in rad (ATTITUDE), 0 north, positive clockwise; NaN before any."""
+        return self._yaw
+
+    def battery(self) -> int:
+        """Battery remaining in percent (SYS_STATUS); -1 when unknown."""
+        return self._battery
+
+    def last_ack(self, command: str) -> str:
+        """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
+        accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
+        pending, timeout, not_sent; "" when never sent."""
+        return self._acks.get(command, "")  # one dict read: atomic, no lock to wait for
+
+    # -- commands (send and return) --------------------------------------------
+    def set_mode(self, name: str) -> None:
+        """Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode)."""
+        wanted = name.strip().upper()
+        numbers = {v: k for k, v in self._modes().items()}
+        if wanted not in numbers:
+            raise ValueError(f"{self.name}: unknown mode `{name}` (modes: {', '.join(numbers)})")
+        self._command("set_mode", f"set_mode {wanted}", self._mav.MAV_CMD_DO_SET_MODE,
+                      MODE_FLAG_CUSTOM_MODE_ENABLED, numbers[wanted])
+
+    def arm(self) -> None:
+        """Arm the motors (MAV_CMD_COMPONENT_ARM_DISARM 1)."""
+        self._command("arm", "arm", self._mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+
+    def disarm(self) -> None:
+        """Disarm the motors (MAV_CMD_COMPONENT_ARM_DISARM 0; the vehicle refuses in flight)."""
+        self._command("disarm", "disarm", self._mav.MAV_CMD_COMPONENT_ARM_DISARM, 0)
+
+    def takeoff(self, alt: float) -> None:
+        """Climb to ``alt`` m above home (MAV_CMD_NAV_TAKEOFF; GUIDED and armed)."""
+        self._command("takeoff", "takeoff", self._mav.MAV_CMD_NAV_TAKEOFF,
+                      0, 0, 0, 0, 0, 0, float(alt))
+
+    def land(self) -> None:
+        """Land where the vehicle is (MAV_CMD_NAV_LAND: LAND mode)."""
+        self._command("land", "land", self._mav.MAV_CMD_NAV_LAND)
+
+    def rtl(self) -> None:
+        """Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode)."""
+        self._command("rtl", "rtl", self._mav.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+
+    def hold(self) -> None:
+        """Stop where the vehicle is: a zero velocity target (GUIDED)."""
+        self.set_velocity(0.0, 0.0, 0.0, 0.0)
+
+    def set_velocity(self, vx: float, vy: float, vz: float, yaw_rate: float) -> None:
+        """Velocity target in the body frame: m/s forward, right, down; rad/s clockwise.
+        ArduPilot stops the vehicle when no new target comes for 3 s."""
+        self._target_local(MAV_FRAME_BODY_OFFSET_NED, VELOCITY_MASK,
+                           (0.0, 0.0, 0.0), (vx, vy, vz), yaw_rate)
+
+    def goto(self, north: float, east: float, alt: float) -> None:
+        """Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt)."""
+        self._target_local(MAV_FRAME_LOCAL_NED, POSITION_MASK,
+                           (north, east, -alt), (0.0, 0.0, 0.0), 0.0)
+
+    def close(self) -> None:
+        """Stop the reader and close the socket (also run at exit)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=1.0)
+        with self._lock:
+            self._conn.close()
+
+    # -- sending ---------------------------------------------------------------
+    def _command(self, name: str, label: str, command: int, *params: float,
+                 quiet: bool = False) -> None:
+        p = tuple(float(x) for x in params) + (0.0,) * (7 - len(params))
+        target = self._target
+        with self._lock:
+            if target is not None:
+                self._conn.mav.command_long_send(target[0], target[1], command, 0, *p)
+                now = time.monotonic()
+                self._pending.append(_Pending(name, label, command, p, now + self._ack_timeout,
+                                              now + self._ack_timeout / 2, quiet))
+            if not quiet:
+                self._acks[name] = "pending" if target is not None else "not_sent"
+        if target is None:
+            self._say(f"{label}: not sent, no vehicle yet (no heartbeat)")
+
+    def _target_local(self, frame: int, mask: int, pos: tuple[float, float, float],
+                      vel: tuple[float, float, float], yaw_rate: float) -> None:
+        target = self._target
+        if target is None:
+            return  # a target is a stream, repeated each tick: nothing to say about one
+        boot_ms = int((time.monotonic() - self._start) * 1000) & 0xFFFFFFFF
+        with self._lock:
+            self._conn.mav.set_position_target_local_ned_send(
+                boot_ms, target[0], target[1], frame, mask,
+                float(pos[0]), float(pos[1]), float(pos[2]),
+                float(vel[0]), float(vel[1]), float(vel[2]),
+                0.0, 0.0, 0.0, 0.0, float(yaw_rate))
+
+    def _request_rates(self) -> None:
+        fast = 1e6 / max(self._rate, 0.1)
+        slow = 1e6 / SLOW_RATE_HZ
+        for message, interval in (("LOCAL_POSITION_NED", fast), ("GLOBAL_POSITION_INT", fast),
+                                  ("ATTITUDE", fast), ("SYS_STATUS", slow),
+                                  ("GPS_RAW_INT", slow), ("EKF_STATUS_REPORT", slow)):
+            self._command("set_message_interval", f"set_message_interval {message}",
+                          self._mav.MAV_CMD_SET_MESSAGE_INTERVAL,
+                          getattr(self._mav, f"MAVLINK_MSG_ID_{message}"), round(interval),
+                          quiet=True)
+
+    # -- the reader thread -------------------------------------------------------
+    def _run(self) -> None:
+        next_heartbeat = 0.0
+        while not self._stop.is_set():
+            fd = self._conn.fd
+            if fd is None:  # a link select cannot watch: poll it
+                self._stop.wait(POLL_S)
+                self._drain()
+            else:
+                try:
+                    readable, _, _ = select.select([fd], [], [], POLL_S)
+                except (OSError, ValueError):  # closed under us
+                    return
+                if readable:
+                    self._drain()
+            now = time.monotonic()
+            if now >= next_heartbeat:
+                next_heartbeat = now + GCS_HEARTBEAT_S
+                with self._lock:
+                    self._conn.mav.heartbeat_send(self._mav.MAV_TYPE_GCS,
+                                                  self._mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            self._expire(now)
+            self._watch_link()
+
+    def _drain(self) -> None:
+        """Handle every datagram waiting; a bad one is dropped, never raised."""
+        for _ in range(1000):  # bounded, so a flood cannot starve the deadlines
+            try:
+                with self._lock:
+                    msg = self._conn.recv_msg()
+            except Exception:  # garbage pymavlink could not digest
+                continue
+            if msg is None:
+                return
+            try:
+                self._handle(msg)
+            except (AttributeError, TypeError, ValueError):  # a malformed field
+                continue
+
+    def _handle(self, msg: Any) -> None:
+        kind = msg.get_type()
+        source = (msg.get_srcSystem(), msg.get_srcComponent())
+        if kind == "HEARTBEAT":
+            self._on_heartbeat(msg, source)
+            return
+        if self._target is None or source[0] != self._target[0]:
+            return
+        if kind == "LOCAL_POSITION_NED":
+            self._position = (float(msg.x), float(msg.y), float(msg.z))
+            self._velocity = (float(msg.vx), float(msg.vy), float(msg.vz))
+        elif kind == "GLOBAL_POSITION_INT":
+            self._relative_alt = msg.relative_alt / 1000.0
+        elif kind == "ATTITUDE":
+            self._yaw = float(msg.yaw)
+        elif kind == "SYS_STATUS":
+            self._battery = int(msg.battery_remaining)
+        elif kind == "GPS_RAW_INT":
+            self._gps_fix = int(msg.fix_type)
+        elif kind == "EKF_STATUS_REPORT":
+            self._ekf_flags = int(msg.flags)
+        elif kind == "COMMAND_ACK":
+            self._on_ack(msg)
+
+    def _on_heartbeat(self, msg: Any, source: tuple[int, int]) -> None:
+        if msg.autopilot == self._mav.MAV_AUTOPILOT_INVALID or msg.type == self._mav.MAV_TYPE_GCS:
+            return  # a ground station, a camera, a gimbal: not the vehicle
+        if self._target is not None and source != self._target:
+            return
+        first = self._target is None
+        self._target = source
+        self._heartbeat = (int(msg.type), int(msg.autopilot), int(msg.base_mode),
+                           int(msg.custom_mode))
+        self._heartbeat_at = time.monotonic()
+        if first:
+            self._say(f"vehicle {source[0]}/{source[1]} on {self.url}, mode {self.mode()}")
+            self._request_rates()
+        elif self._lost:
+            self._lost = False
+            self._say("link back")
+            self._request_rates()  # the vehicle may have restarted
+
+    def _on_ack(self, msg: Any) -> None:
+        """The oldest command of that id waiting gets the answer (acks come in order)."""
+        with self._lock:
+            p = next((p for p in self._pending if p.command == msg.command), None)
+            if p is None:
+                return
+            if msg.result == IN_PROGRESS:  # keep waiting for the final word, without resending
+                p.deadline = time.monotonic() + self._ack_timeout
+                p.resend_at = None
+                return
+            self._pending.remove(p)
+            result = RESULTS.get(int(msg.result), f"result_{msg.result}")
+            if not p.quiet:
+                self._acks[p.name] = result
+        if p.quiet and result == "accepted":
+            return
+        self._say(f"{p.label} {result if result == 'accepted' else result.upper()}")
+
+    def _expire(self, now: float) -> None:
+        """Resend a command once halfway to its deadline; give up at the deadline."""
+        expired: list[_Pending] = []
+        with self._lock:
+            target = self._target
+            for p in list(self._pending):
+                if now >= p.deadline:
+                    self._pending.remove(p)
+                    expired.append(p)
+                    if not p.quiet:
+                        self._acks[p.name] = "timeout"
+                elif p.resend_at is not None and now >= p.resend_at and target is not None:
+                    p.resend_at = None
+                    self._conn.mav.command_long_send(target[0], target[1], p.command, 1, *p.params)
+        for p in expired:
+            self._say(f"{p.label}: no acknowledgement in {self._ack_timeout:g} s")
+
+    def _watch_link(self) -> None:
+        if not self._lost and self._heartbeat_at is not None and not self.connected():
+            self._lost = True
+            self._say(f"link lost: no heartbeat for {LINK_TIMEOUT_S:g} s")
+
+    # -- helpers -------------------------------------------------------------------
+    def _modes(self) -> dict[int, str]:
+        modes = self._mavutil.mode_mapping_bynumber(self._heartbeat[0]) if self._heartbeat[0] else None
+        return dict(modes or self._mavutil.mode_mapping_acm)
+
+    def _say(self, text: str) -> None:
+        with contextlib.suppress(ValueError, OSError):  # stderr closed at exit: nothing to tell
+            sys.stderr.write(f"{self.name}: {text}\n")
+            sys.stderr.flush()
+
+
+def _option(name: str, options: dict[str, str], key: str, default: float) -> float:
+    """A positive number from the interface's options; a bad one is said and replaced."""
+    raw = options.get(key)
+    if raw is None:
+        return default
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        value = -1.0
+    if not value > 0 or math.isinf(value):
+        sys.stderr.write(f"{name}: option {key}: `{raw}` is not a positive number, "
+                         f"{default:g} used\n")
+        return default
+    return value
+
+
+def _close_half_open(error: BaseException) -> None:
+    """pymavlink keeps the socket it failed to bind (or connect) open: close it."""
+    tb = error.__traceback__
+    while tb is not None:
+        port = getattr(tb.tb_frame.f_locals.get("self"), "port", None)
+        if isinstance(port, socket.socket):
+            port.close()
+        tb = tb.tb_next

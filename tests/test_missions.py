@@ -1,0 +1,173 @@
+"""The paper's drone missions flown end to end: the component and `hfsmc sim` as real
+processes talking MAVLink over UDP and MJPEG over HTTP on 127.0.0.1 (SPEC 6, 7)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import ROOT
+
+HFSMC = [sys.executable, "-m", "hfsmc"]
+FOLLOW = ROOT / "examples/follow_colors"
+
+
+def free_port(kind: int) -> int:
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Flight:
+    folder: Path
+    component: subprocess.Popen[bytes]
+    sim: subprocess.Popen[bytes]
+    started: float  # monotonic time the simulator was started
+    component_started: float
+
+    @property
+    def trace(self) -> list[dict[str, object]]:
+        path = self.folder / "trace.jsonl"
+        lines = path.read_text().splitlines() if path.exists() else []
+        return [json.loads(line) for line in lines if line.endswith("}")]
+
+    def truth(self) -> dict[str, object]:
+        data: dict[str, object] = json.loads((self.folder / "truth.json").read_text())
+        return data
+
+    def wait_for(self, ev: str, key: str, value: str, timeout: float,
+                 **also: str) -> dict[str, object]:
+        """The first trace record with ev, key == value (and the other keys given)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for rec in self.trace:
+                if rec.get("ev") == ev and rec.get(key) == value and \
+                        all(rec.get(k) == v for k, v in also.items()):
+                    return rec
+            if self.component.poll() is not None:
+                break
+            time.sleep(0.2)
+        raise AssertionError(f"no {ev} {key}={value} within {timeout} s: "
+                             f"{(self.folder / 'component.log').read_text()[-2000:]}")
+
+    def stop_sim(self) -> None:
+        if self.sim.poll() is None:
+            self.sim.send_signal(signal.SIGINT)
+            self.sim.wait(timeout=20)
+
+
+@contextmanager
+def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors.yaml",
+           world: Path = FOLLOW / "world.yaml") -> Iterator[Flight]:
+    """Build the mission, start the simulator and the component on free ports."""
+    folder = tmp_path / "flight"
+    r = subprocess.run([*HFSMC, "build", str(model), "-o", str(folder / "component")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
+    name = model.stem
+    config = {"parameters": {"report": str(folder / "report.json")},
+              "interfaces": {"drone": {"type": "mavlink", "url": f"udpin:127.0.0.1:{udp}"},
+                             "camera": {"type": "camera",
+                                        "url": f"http://127.0.0.1:{http}/bottom.mjpg"}}}
+    (folder / "config.yaml").write_text(json.dumps(config))
+    sim_log = (folder / "sim.log").open("wb")
+    comp_log = (folder / "component.log").open("wb")
+    sim = subprocess.Popen([*HFSMC, "sim", "--world", str(world), "--mavlink",
+                            f"udpout:127.0.0.1:{udp}", "--camera-port", str(http),
+                            "--truth", str(folder / "truth.json"), *sim_args],
+                           stdout=sim_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    started = time.monotonic()
+    component = subprocess.Popen(
+        [sys.executable, str(folder / "component" / f"{name}.py"), "--config",
+         str(folder / "config.yaml"), "--trace", str(folder / "trace.jsonl"), "--until", "240s"],
+        stdout=comp_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    f = Flight(folder, component, sim, started, time.monotonic())
+    try:
+        yield f
+    finally:
+        for p in (component, sim):
+            if p.poll() is None:
+                p.kill()
+            p.wait(timeout=20)
+        sim_log.close()
+        comp_log.close()
+
+
+def fired_into(trace: list[dict[str, object]]) -> list[str]:
+    return [str(r["to"]) for r in trace if r["ev"] == "fire"]
+
+
+@pytest.mark.slow
+def test_follow_colors_flies_the_four_stages_and_lands_over_red(tmp_path: Path) -> None:
+    with flight(tmp_path) as f:
+        status = f.component.wait(timeout=240)
+        f.stop_sim()
+        log = (f.folder / "component.log").read_text()
+        assert status == 0, log[-3000:]
+        stages = [t for t in fired_into(f.trace) if t.startswith("Mission/")
+                  and t.count("/") == 1]
+        assert stages == ["Mission/FollowBlue", "Mission/FollowGreen2", "Mission/FollowRed",
+                          "Mission/OverRed"], fired_into(f.trace)
+        assert f.trace[-1] == {"t": f.trace[-1]["t"], "ev": "stop", "reason": "final"}
+        report = json.loads((f.folder / "report.json").read_text())
+        assert report["stages"] == ["green", "blue", "green", "red"]
+        truth = f.truth()
+        assert truth["armed"] is False and truth["landed"] is True
+        red = next(o for o in truth["objects"] if o["name"] == "red")  # type: ignore[attr-defined]
+        landing = truth["landing"]
+        assert isinstance(landing, dict)
+        assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
+        assert math.dist((report["landing"]["north"], report["landing"]["east"]),
+                         (landing["north"], landing["east"])) < 0.5
+
+
+@pytest.mark.slow
+def test_sigint_mid_flight_lands_and_disarms(tmp_path: Path) -> None:
+    with flight(tmp_path) as f:
+        f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=60)
+        time.sleep(2)
+        f.component.send_signal(signal.SIGINT)
+        status = f.component.wait(timeout=90)
+        time.sleep(1.5)  # one more truth write
+        truth = f.truth()
+        f.stop_sim()
+        assert status == 130, (f.folder / "component.log").read_text()[-3000:]
+        events = [(r["ev"], r.get("to") or r.get("state")) for r in f.trace]
+        assert ("interrupt", "Land") in events and ("enter", "Land") in events
+        assert f.trace[-1]["reason"] == "sigint"
+        assert truth["armed"] is False and truth["landed"] is True
+
+
+@pytest.mark.slow
+def test_link_loss_fires_the_failsafe_and_the_mission_resumes(tmp_path: Path) -> None:
+    drop_at = 64.0  # while following blue (the 2nd stage): history must bring it back
+    with flight(tmp_path, "--drop-link-after", str(drop_at), "--drop-link-for", "5") as f:
+        lost = f.wait_for("fire", "to", "LinkLost", timeout=100)
+        back = f.wait_for("fire", "to", "Mission", timeout=30, **{"from": "LinkLost"})
+        f.component.send_signal(signal.SIGINT)
+        status = f.component.wait(timeout=90)
+        f.stop_sim()
+        assert status == 130, (f.folder / "component.log").read_text()[-3000:]
+    # The drop in the component's time: the simulator started a little earlier.
+    drop_ms = (drop_at - (f.component_started - f.started)) * 1000
+    assert isinstance(lost["t"], int) and isinstance(back["t"], int)
+    assert 0 < lost["t"] - drop_ms <= 2500 + 500  # heartbeats stop; 2 s without one
+    assert back["t"] > lost["t"]
+    # History: the stage that was flying resumes (not a restart from FollowGreen's entry).
+    after = [r["state"] for r in f.trace if r["t"] >= back["t"] and r["ev"] == "enter"]
+    assert after[:2] == ["Mission", "Mission/FollowBlue"], after
+    assert os.path.exists(f.folder / "report.json")
