@@ -663,6 +663,9 @@ def test_takeoff_to_three_metres_and_land_in_the_simulator(tmp_path: Path,
     try:
         assert wait_until(drone.connected, 10)
         assert wait_until(drone.ready, 10)
+        drone.arm()  # in STABILIZE: refused, as the vehicle only arms in GUIDED
+        assert wait_until(lambda: drone.last_ack("arm") in ("failed", "denied"), 5)
+        assert not drone.armed()
         drone.set_mode("GUIDED")
         assert wait_until(lambda: drone.mode() == "GUIDED", 5)
         drone.arm()
@@ -688,6 +691,8 @@ def test_takeoff_to_three_metres_and_land_in_the_simulator(tmp_path: Path,
     for line in ("drone: set_mode GUIDED accepted", "drone: arm accepted",
                  "drone: takeoff accepted", "drone: land accepted"):
         assert line in said, said
+    assert any(line.startswith("drone: arm FAILED") or line.startswith("drone: arm DENIED")
+               for line in said), said
     final = json.loads(truth.read_text())
     assert final["armed"] is False and final["landed"] is True
     assert 2.7 < final["track"]["max_altitude"] < 3.4

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -133,6 +134,11 @@ def test_follow_colors_flies_the_four_stages_and_lands_over_red(tmp_path: Path) 
         assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
         assert math.dist((report["landing"]["north"], report["landing"]["east"]),
                          (landing["north"], landing["east"])) < 0.5
+        # The component held its 20 Hz period: fewer than 5 % of its deadlines missed.
+        summary = re.search(r"(\d+) ticks, (\d+) overruns", log)
+        assert summary is not None, log[-2000:]
+        ticks, overruns = int(summary[1]), int(summary[2])
+        assert ticks > 2000 and overruns < 0.05 * (ticks + overruns), summary[0]
 
 
 @pytest.mark.slow
@@ -171,3 +177,33 @@ def test_link_loss_fires_the_failsafe_and_the_mission_resumes(tmp_path: Path) ->
     after = [r["state"] for r in f.trace if r["t"] >= back["t"] and r["ev"] == "enter"]
     assert after[:2] == ["Mission", "Mission/FollowBlue"], after
     assert os.path.exists(f.folder / "report.json")
+
+
+@pytest.mark.slow
+def test_camera_drop_holds_then_recovers_without_missing_ticks(tmp_path: Path) -> None:
+    with flight(tmp_path) as f:
+        f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=60)
+        time.sleep(2)
+        f.sim.send_signal(signal.SIGUSR2)  # the simulator's camera stream drops
+        lost = f.wait_for("enter", "state", "Mission/FollowGreen/Lost", timeout=15)
+        time.sleep(3)
+        f.sim.send_signal(signal.SIGUSR2)  # and comes back
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not any(
+                r["ev"] == "enter" and r["state"] == "Mission/FollowGreen/Track"
+                and int(str(r["t"])) > int(str(lost["t"])) for r in f.trace):
+            time.sleep(0.2)
+        f.component.send_signal(signal.SIGINT)
+        status = f.component.wait(timeout=90)
+        f.stop_sim()
+        log = (f.folder / "component.log").read_text()
+        assert status == 130, log[-3000:]
+    tracked_again = [r for r in f.trace if r["ev"] == "enter"
+                     and r["state"] == "Mission/FollowGreen/Track"
+                     and int(str(r["t"])) > int(str(lost["t"]))]
+    assert tracked_again, log[-3000:]
+    assert "stream" in log  # the camera driver said the stream went and came back
+    summary = re.search(r"(\d+) ticks, (\d+) overruns", log)
+    assert summary is not None, log[-2000:]
+    ticks, overruns = int(summary[1]), int(summary[2])
+    assert overruns < 0.05 * (ticks + overruns), summary[0]
