@@ -57,6 +57,7 @@ bench: setup
 	$(BIN)/python -m pip install -q -e '.[bench]'
 	$(BIN)/python bench/frontend.py --json bench/results.json
 	$(BIN)/python bench/component.py --json bench/results.json
+	$(BIN)/python bench/vision.py --json bench/results.json
 
 golden: setup
 	$(BIN)/python tests/regen_golden.py
