@@ -11,7 +11,7 @@ DEB_PACKAGES := graphviz tmux
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=
 
-.PHONY: all setup deps test demo bench golden lint examples clean
+.PHONY: all setup deps test demo bench golden lint examples clean fuzz
 
 all: test
 
@@ -58,6 +58,12 @@ bench: setup
 	$(BIN)/python bench/frontend.py --json bench/results.json
 	$(BIN)/python bench/component.py --json bench/results.json
 	$(BIN)/python bench/vision.py --json bench/results.json
+
+# A longer run of the front end's fuzzer than `make test` does (crashes become
+# files in tests/invalid/): FUZZ_SECONDS=3600 make fuzz.
+FUZZ_SECONDS ?= 300
+fuzz: setup
+	$(BIN)/python bench/fuzz.py --seconds $(FUZZ_SECONDS)
 
 golden: setup
 	$(BIN)/python tests/regen_golden.py

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -53,6 +54,30 @@ def _exchange(a: Path, b: Path) -> bool:
     return bool(rc == 0)
 
 
+def _clean_stale_stages(target: Path) -> None:
+    """Remove staging folders left beside ``target`` by builds that were killed.
+
+    A stage is named ``.NAME.PID.XXXX.new`` after the process that made it; one
+    whose process is gone is removed. A live build's stage is left alone.
+    """
+    # mkdtemp's random part has no dot: `.v.2.PID.x.new` (a stage of `v.2`) is not one of `v`.
+    pattern = re.compile(rf"\.{re.escape(target.name)}\.(\d+)\.[a-z0-9_]+\.new")
+    try:
+        entries = list(target.parent.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        m = pattern.fullmatch(entry.name)
+        if m is None or int(m[1]) == os.getpid():
+            continue
+        try:
+            os.kill(int(m[1]), 0)
+        except ProcessLookupError:
+            shutil.rmtree(entry, ignore_errors=True)
+        except (PermissionError, OverflowError):
+            pass
+
+
 def _old_manifest(target: Path) -> list[str]:
     try:
         return (target / MANIFEST).read_text("utf-8").splitlines()
@@ -82,10 +107,12 @@ def write_tree(target: str | Path, files: dict[str, bytes], executable: frozense
             pass
         changed.append(rel)
     stale = sorted(old - set(files))
+    _clean_stale_stages(target)
     if target.is_dir() and not changed and not stale and (target / MANIFEST).is_file():
         return []
     target.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".new", dir=target.parent))
+    stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".new",
+                                  dir=target.parent))
     umask = os.umask(0)
     os.umask(umask)
     stage.chmod(0o777 & ~umask)  # mkdtemp's 0700 would become the component folder's mode

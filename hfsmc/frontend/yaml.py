@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import datetime
+import warnings
 from typing import Any, NoReturn
 
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
-from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.error import MarkedYAMLError, ReusedAnchorWarning, YAMLError
 from ruamel.yaml.scalarstring import (
     DoubleQuotedScalarString,
     FoldedScalarString,
@@ -35,7 +36,11 @@ def load_yaml(file: str, text: str, diags: Diagnostics) -> Document:
     lines = split_lines(text)
     doc = Document(file, "yaml", lines)
     try:
-        root = _yaml().load(text)
+        with warnings.catch_warnings():
+            # A redefined anchor is valid YAML (the latest definition wins): ruamel's
+            # warning about it would reach the user with positions in `<unicode string>`.
+            warnings.simplefilter("ignore", ReusedAnchorWarning)
+            root = _yaml().load(text)
     except MarkedYAMLError as e:
         _fail_marked(file, e)
     except YAMLError as e:  # reader errors (bad characters) and the like

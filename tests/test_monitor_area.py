@@ -1,0 +1,118 @@
+"""The paper's monitor-an-area mission flown end to end: the component and `hfsmc sim`
+as real processes on 127.0.0.1 (SPEC 6, 7), its report checked against the simulator's
+ground truth."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import pytest
+from ruamel.yaml import YAML
+
+from tests.conftest import ROOT
+from tests.test_missions import Flight, fired_into, flight
+
+MONITOR = ROOT / "examples/monitor_area"
+MODEL = MONITOR / "monitor_area.yaml"
+BAND = 1.0  # m: the altitude kept within this of the mission's altitude
+FLYING = ("Mission", "Correct", "LinkLost")  # between take-off and landing
+
+
+def flight_altitude() -> float:
+    model = YAML(typ="safe").load(MODEL.read_text())
+    return float(model["parameters"]["altitude"]["default"])
+
+
+def top_state(trace: list[dict[str, object]]) -> str:
+    """The top-level state active at the end of the trace ("" before the first)."""
+    for rec in reversed(trace):
+        if rec["ev"] == "enter" and "/" not in str(rec["state"]):
+            return str(rec["state"])
+    return ""
+
+
+def fly_and_sample(f: Flight, timeout: float) -> list[float]:
+    """Wait for the component to end; every 0.5 s meanwhile, from the end of the take-off
+    to the start of the landing (the top-level states Mission, Correct, LinkLost), the
+    true altitude from the simulator's truth file. That file is rewritten every second,
+    so it may be up to a second older than the trace: samples start 1.5 s after the
+    take-off ended (so none is from the take-off), and one read before the trace shows
+    the landing is from before the landing."""
+    altitudes: list[float] = []
+    flying_since: float | None = None
+    deadline = time.monotonic() + timeout
+    while f.component.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.5)
+        try:
+            truth = f.truth()
+            state = top_state(f.trace)
+        except (OSError, ValueError):  # a file being replaced: the next sample
+            continue
+        if state not in FLYING:
+            if flying_since is not None:
+                break  # landing: the component's end is waited for by the caller
+            continue
+        if flying_since is None:
+            flying_since = time.monotonic()
+        if time.monotonic() - flying_since >= 1.5 and isinstance(truth["altitude"], float | int):
+            altitudes.append(float(truth["altitude"]))
+    return altitudes
+
+
+@pytest.mark.slow
+def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path) -> None:
+    with flight(tmp_path, model=MODEL, world=MONITOR / "world.yaml") as f:
+        altitudes = fly_and_sample(f, timeout=200)
+        status = f.component.wait(timeout=60)
+        time.sleep(1.5)  # one more truth write after the disarm
+        truth = f.truth()
+        f.stop_sim()
+        log = (f.folder / "component.log").read_text()
+        assert status == 0, log[-3000:]
+        trace = f.trace
+    assert trace[-1] == {"t": trace[-1]["t"], "ev": "stop", "reason": "final"}
+    stages = [t for t in fired_into(trace) if t.startswith("Mission/") and t.count("/") == 1]
+    assert stages == ["Mission/MonitorArea", "Mission/BackToRoad", "Mission/TurnRound",
+                      "Mission/FollowRoadBack", "Mission/GoHome", "Mission/OverHome"], stages
+    report = json.loads((f.folder / "report.json").read_text())
+    assert report["stages"] == ["takeoff", "road", "accident", "back at the road",
+                                "road back", "home", "landing", "landed"]
+    assert report["time_s"] < 180
+
+    # At least 4 of the 5 victims, each recorded once, within 1.5 m of the truth.
+    victims = truth["victims"]
+    assert isinstance(victims, list) and len(victims) == 5
+    found = [(v["north"], v["east"]) for v in report["victims"]]
+    for v in victims:  # each recorded once
+        assert sum(math.dist((v["north"], v["east"]), p) <= 2.0 for p in found) <= 1, found
+    near = [v for v in victims
+            if any(math.dist((v["north"], v["east"]), p) <= 1.5 for p in found)]
+    assert len(near) >= 4, (found, victims)
+
+    # Landed and disarmed at the take-off point.
+    assert truth["armed"] is False and truth["landed"] is True
+    landing, takeoff = truth["landing"], truth["takeoff"]
+    assert isinstance(landing, dict) and isinstance(takeoff, dict)
+    assert math.dist((landing["north"], landing["east"]),
+                     (takeoff["north"], takeoff["east"])) < 2.0
+    assert math.dist((report["landing"]["north"], report["landing"]["east"]),
+                     (landing["north"], landing["east"])) < 0.5
+
+    # The altitude kept within its band between take-off and landing.
+    altitude = flight_altitude()
+    assert len(altitudes) > 100, len(altitudes)  # the mission flies a minute and more
+    worst = max(abs(a - altitude) for a in altitudes)
+    track = truth["track"]
+    assert isinstance(track, dict)  # the highest point of the whole flight, measured throughout
+    assert track["max_altitude"] <= altitude + BAND, track
+    corrections = fired_into(trace).count("Correct")
+    assert worst <= BAND, (worst, corrections, altitudes)
+    errors = [round(min(math.dist((v["north"], v["east"]), p) for p in found), 2)
+              for v in victims]
+    print(f"monitor_area: {report['time_s']} s, victims' errors {errors} m, landed "
+          f"{math.dist((landing['north'], landing['east']), (0, 0)):.2f} m from home, "
+          f"altitude within {worst:.2f} m of {altitude} m ({len(altitudes)} samples), "
+          f"{corrections} corrections")
