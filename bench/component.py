@@ -46,6 +46,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -174,21 +175,21 @@ class Run:
     cpu_ns: int
 
 
-class Contender:
+class Contender(ABC):
     """A way to take ``n`` transitions of one case; ``prepare`` is not timed, ``go`` is."""
 
     name = ""
     how = ""
 
-    def prepare(self, n: int) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def prepare(self, n: int) -> None: ...
 
-    def go(self) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def go(self) -> None: ...
 
+    @abstractmethod
     def check(self, n: int) -> None:
         """Raise when the run did not do the expected work (states, counters)."""
-        raise NotImplementedError
 
 
 class Hfsmc(Contender):
@@ -243,12 +244,12 @@ class EventLoop(Contender):
         self.n = 0
         self.start = (0, 0)
 
-    def make(self) -> Callable[[], object]:
-        raise NotImplementedError
+    @abstractmethod
+    def make(self) -> Callable[[], object]: ...
 
+    @abstractmethod
     def leaf(self) -> str:
         """The name of the innermost active state."""
-        raise NotImplementedError
 
     def counts(self) -> tuple[int, int]:
         """Entries and exits counted so far."""

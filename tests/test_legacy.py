@@ -572,7 +572,7 @@ def test_fuzzed_corpus_gives_only_diagnostics(text: str) -> None:
     for d in result.diagnostics:
         assert d.code in CODES, d
         assert d.span.file == "fuzz.xml"
-        assert 1 <= d.span.line <= lines + 1 and d.span.col >= 1, d
+        assert d.span.line >= 1 and d.span.line <= lines + 1 and d.span.col >= 1, d
     if result.ok:
         assert result.model is not None
         compile_file("again.yaml", to_yaml(result.model))

@@ -207,7 +207,7 @@ def test_heartbeat_and_telemetry_arrive(sims: Callable[..., Sim]) -> None:
     sim.recv("ATTITUDE")
     got = [m.get_type() for m in sim.collect(["ATTITUDE", "HEARTBEAT"], 1.5)]
     assert 10 <= got.count("ATTITUDE") <= 20  # 10 Hz by default
-    assert 1 <= got.count("HEARTBEAT") <= 2  # 1 Hz
+    assert got.count("HEARTBEAT") in (1, 2)  # 1 Hz
 
 
 def test_guided_refused_before_ready_then_accepted(sims: Callable[..., Sim]) -> None:
@@ -301,7 +301,7 @@ def test_land_touches_down_and_disarms(sims: Callable[..., Sim], fast_world: str
     truth = sim.truth()
     assert (truth["mode"], truth["armed"], truth["landed"]) == ("LAND", False, True)
     assert truth["position"]["down"] == 0.0 and truth["track"]["landings"] == 1
-    assert 1.4 < truth["track"]["max_altitude"] < 1.7
+    assert truth["track"]["max_altitude"] > 1.4 and truth["track"]["max_altitude"] < 1.7
 
 
 def test_set_message_interval_changes_a_rate(sims: Callable[..., Sim]) -> None:
@@ -389,7 +389,7 @@ def test_same_seed_same_flight(sims: Callable[..., Sim], fast_world: str) -> Non
     for key in ("north", "east", "down"):
         assert abs(ta["position"][key] - tb["position"][key]) < 0.02
     assert ta["position"] == {"north": 0.0, "east": 0.0, "down": 0.0}
-    assert 1.4 < ta["track"]["max_altitude"] <= 1.5
+    assert ta["track"]["max_altitude"] > 1.4 and ta["track"]["max_altitude"] <= 1.5
     for key in ("max_altitude", "distance"):
         assert abs(ta["track"][key] - tb["track"][key]) < 0.05, key
     assert abs(ta["battery"]["remaining_pct"] - tb["battery"]["remaining_pct"]) < 0.5
