@@ -11,7 +11,7 @@ DEB_PACKAGES := graphviz tmux
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=
 
-.PHONY: all setup deps test demo bench golden lint examples clean fuzz
+.PHONY: all setup deps test demo bench golden lint examples clean fuzz soak
 
 all: test
 
@@ -34,7 +34,7 @@ $(STAMP): pyproject.toml
 setup: deps $(STAMP)
 
 lint: setup
-	$(BIN)/ruff check hfsmc tests bench templates/python
+	$(BIN)/ruff check hfsmc tests bench templates/python scripts
 	$(BIN)/mypy
 	$(BIN)/mypy --strict $(wildcard templates/python/hfsmc_*.py)
 
@@ -64,6 +64,12 @@ bench: setup
 FUZZ_SECONDS ?= 300
 fuzz: setup
 	$(BIN)/python bench/fuzz.py --seconds $(FUZZ_SECONDS)
+
+# Fly follow_colors in a loop (not in CI): every mission must succeed, memory
+# grow < 5 %, overruns not grow. SOAK_MINUTES=30 make soak; results in build/soak.json.
+SOAK_MINUTES ?= 30
+soak: setup
+	$(BIN)/python scripts/soak.py --minutes $(SOAK_MINUTES) --json build/soak.json
 
 golden: setup
 	$(BIN)/python tests/regen_golden.py
