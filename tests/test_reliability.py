@@ -200,12 +200,17 @@ states:
 """
 
 
-def test_keyword_and_runtime_symbol_names_build_and_run(tmp_path: Path) -> None:
-    main = build(tmp_path, "names", NAMES_MODEL)
-    r = run_component(main, "--clock", "virtual", "--trace", "-")
+def run_virtual(tmp_path: Path, name: str, model: str) -> list[dict[str, Any]]:
+    """Build a model, run it to its end on the virtual clock: its well-nested trace."""
+    r = run_component(build(tmp_path, name, model), "--clock", "virtual", "--trace", "-")
     assert r.returncode == 0, r.stderr
     recs = records(r.stdout)
     check_nesting(recs)
+    return recs
+
+
+def test_keyword_and_runtime_symbol_names_build_and_run(tmp_path: Path) -> None:
+    recs = run_virtual(tmp_path, "names", NAMES_MODEL)
     entered = [x["state"] for x in recs if x["ev"] == "enter"]
     assert entered == ["class", "_hfsm_tick_0", "_hfsm_tick_0/def", "_hfsm_tick_0/lambda",
                        "None", "self", "__init__", "main", "log", "True", "import", "_hfsm",
@@ -264,11 +269,7 @@ DELIMITER_LOGS = [
 
 
 def test_snippets_with_template_delimiters_are_kept_verbatim(tmp_path: Path) -> None:
-    main = build(tmp_path, "delims", DELIMITERS_MODEL)
-    r = run_component(main, "--clock", "virtual", "--trace", "-")
-    assert r.returncode == 0, r.stderr
-    recs = records(r.stdout)
-    check_nesting(recs)
+    recs = run_virtual(tmp_path, "delims", DELIMITERS_MODEL)
     assert [x["msg"] for x in recs if x["ev"] == "log"] == DELIMITER_LOGS
 
 
