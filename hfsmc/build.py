@@ -28,7 +28,11 @@ def component_files(model: Model, target: str) -> tuple[dict[str, bytes], frozen
         from hfsmc.emit import python
 
         return python.component_files(model), frozenset({f"{model.name}.py"}), f"{model.name}.py"
-    raise UsageError("the C++ back end is not there yet: build with -t python")
+    if target == "cpp":
+        from hfsmc.emit import cpp
+
+        return cpp.component_files(model), frozenset(), f"build/{model.name}"
+    raise UsageError(f"unknown target `{target}`: python or cpp")
 
 
 def build(model: Model, target: str, folder: Path, depfile: Path | None = None) -> Built:

@@ -161,6 +161,16 @@ def build(model: str, target: str, output: str | None, compile_: bool, depfile: 
     what = f"{len(built.changed)} of {len(built.files)} file(s) written" if built.changed \
         else "up to date"
     click.echo(f"{built.folder}: {what}; run {built.main}", err=True)
+    if compile_ and target == "cpp":
+        from hfsmc.cppcompile import compile_component
+
+        diags = compile_component(folder, result.model.file)
+        _print(diags, {model: result.lines}, "text")
+        if any(d.severity == "error" for d in diags):
+            click.echo(f"{built.folder}: the C++ build failed; the previous executable, if any, "
+                       "is kept", err=True)
+            sys.exit(1)
+        click.echo(f"{built.main}: built", err=True)
 
 
 @main.command(context_settings={"ignore_unknown_options": True})

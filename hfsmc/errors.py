@@ -40,6 +40,7 @@ CODES: dict[str, str] = {
     "E121": "duplicate name",
     "E122": "name used for two kinds of things",
     "E123": "name reserved for generated code (starts with `_hfsm`)",
+    "E124": "variable, parameter or interface named with a reserved word of the snippet language",
     "E130": "sub-automaton without initial state",
     "E131": "initial state is not a child of this sub-automaton",
     "E132": "transition to an unknown state",
@@ -55,6 +56,7 @@ CODES: dict[str, str] = {
     "E141": "undefined name in a Python snippet",
     "E142": "assignment to a parameter",
     "E143": "malformed import",
+    "E144": "C++ compiler error in a snippet (build --compile)",
     # output
     "E150": "output cannot be written (a value the output format cannot hold, a failing tool)",
     # warnings
@@ -67,6 +69,7 @@ CODES: dict[str, str] = {
     "W206": "legacy name changed to make it a unique identifier (references follow)",
     "W207": "legacy content not carried over",
     "W208": "legacy file inconsistent or ambiguous: how hfsmc reads it is stated",
+    "W209": "C++ compiler warning in a snippet (build --compile)",
 }
 
 

@@ -7,6 +7,7 @@ pass; ``hfsmc check --dump-ir`` prints the result of the whole list.
 
 from __future__ import annotations
 
+import keyword
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -148,6 +149,22 @@ def _check_interrupt_ends(model: Model, diags: Diagnostics) -> None:
 
 
 RESERVED_PREFIX = "_hfsm"  # generated components name their own symbols with it
+# Words a variable, parameter or interface cannot be called in each snippet language.
+# C++: the keywords and alternative tokens of C++17/20, plus the namespaces that the
+# generated class names inside its own scope (a member `std` would hide `std::`).
+CPP_RESERVED = frozenset((
+    "alignas", "alignof", "and", "and_eq", "asm", "auto", "bitand", "bitor", "bool", "break",
+    "case", "catch", "char", "char8_t", "char16_t", "char32_t", "class", "compl", "concept",
+    "const", "consteval", "constexpr", "constinit", "const_cast", "continue", "co_await",
+    "co_return", "co_yield", "decltype", "default", "delete", "do", "double", "dynamic_cast",
+    "else", "enum", "explicit", "export", "extern", "false", "float", "for", "friend", "goto",
+    "if", "inline", "int", "long", "mutable", "namespace", "new", "noexcept", "not", "not_eq",
+    "nullptr", "operator", "or", "or_eq", "private", "protected", "public", "register",
+    "reinterpret_cast", "requires", "return", "short", "signed", "sizeof", "static",
+    "static_assert", "static_cast", "struct", "switch", "template", "this", "thread_local",
+    "throw", "true", "try", "typedef", "typeid", "typename", "union", "unsigned", "using",
+    "virtual", "void", "volatile", "wchar_t", "while", "xor", "xor_eq", "std", "hfsmc", "main"
+))
 
 
 def check_names(model: Model, diags: Diagnostics) -> Model:
@@ -158,6 +175,12 @@ def check_names(model: Model, diags: Diagnostics) -> Model:
         + [(p.span, "parameter", p.name) for p in model.parameters]
         + [(i.span, "interface", i.name) for i in model.interfaces])
     for span, kind, name in declared:  # in file order: the later declaration is the wrong one
+        if (model.language == "python" and keyword.iskeyword(name)) or \
+                (model.language == "cpp" and name in CPP_RESERVED):
+            language = "Python" if model.language == "python" else "C++"
+            diags.error("E124", f"{kind} `{name}`: `{name}` is a reserved word in {language} "
+                        "snippets; choose another name", span)
+            continue
         if name.startswith(RESERVED_PREFIX):
             diags.error("E123", f"{kind} `{name}`: names starting with `{RESERVED_PREFIX}` are "
                         "reserved for generated code", span)

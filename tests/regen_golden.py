@@ -3,6 +3,8 @@
 tests/golden/NAME.ir.txt  the lowered IR (``hfsmc check --dump-ir``)
 tests/golden/NAME.dot     the Graphviz source of ``hfsmc diagram``
 tests/golden/NAME.component.py.txt  the generated Python component (``hfsmc build -t python``)
+tests/golden/NAME.component.cpp.txt  the generated C++ source (``hfsmc build -t cpp``)
+tests/golden/NAME.cmake.txt  its CMakeLists.txt
 """
 
 from __future__ import annotations
@@ -18,21 +20,32 @@ sys.path.insert(0, str(ROOT))
 from hfsmc.compiler import compile_file  # noqa: E402
 from hfsmc.dump import dump  # noqa: E402
 from hfsmc.emit.dot import to_dot  # noqa: E402
-from hfsmc.emit.python import component_files  # noqa: E402
+from hfsmc.emit import cpp, python  # noqa: E402
 from hfsmc.ir import Model  # noqa: E402
+from tests.conftest import examples, model_language  # noqa: E402
 
 
 def python_component(model: Model) -> str:
-    return component_files(model)[f"{model.name}.py"].decode("utf-8")
+    return python.component_files(model)[f"{model.name}.py"].decode("utf-8")
+
+
+def cpp_component(model: Model) -> str:
+    return cpp.component_files(model)[f"src/{model.name}.cpp"].decode("utf-8")
+
+
+def cpp_cmake(model: Model) -> str:
+    return cpp.component_files(model)["CMakeLists.txt"].decode("utf-8")
 
 
 GENERATORS: dict[str, Callable[[Model], str]] = {
-    "ir.txt": dump, "dot": to_dot, "component.py.txt": python_component}
+    "ir.txt": dump, "dot": to_dot, "component.py.txt": python_component,
+    "component.cpp.txt": cpp_component, "cmake.txt": cpp_cmake}
+# Generators that only apply to models of one snippet language.
+LANGUAGE = {"component.py.txt": "python", "component.cpp.txt": "cpp", "cmake.txt": "cpp"}
 
 
-def examples() -> list[Path]:
-    """Example models: examples/NAME/NAME.yaml (worlds and other files beside them are not)."""
-    return sorted(p for p in (ROOT / "examples").glob("*/*.yaml") if p.stem == p.parent.name)
+def applies(example: Path, suffix: str) -> bool:
+    return LANGUAGE.get(suffix, model_language(example)) == model_language(example)
 
 
 def render(example: Path, suffix: str) -> str:
@@ -53,6 +66,8 @@ def main() -> None:
     GOLDEN.mkdir(exist_ok=True)
     for ex in examples():
         for suffix in GENERATORS:
+            if not applies(ex, suffix):
+                continue
             path = golden_path(ex, suffix)
             text = render(ex, suffix)
             old = path.read_text("utf-8") if path.exists() else None

@@ -35,7 +35,7 @@ def snapshot(folder: Path) -> dict[str, tuple[int, int]]:
             for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-@pytest.mark.parametrize("example", examples(), ids=lambda p: p.stem)
+@pytest.mark.parametrize("example", examples("python"), ids=lambda p: p.stem)
 def test_every_example_builds_lints_compiles_and_runs(example: Path, tmp_path: Path) -> None:
     out = tmp_path / "component"
     r = hfsmc("build", "-t", "python", str(example.relative_to(ROOT)), "-o", str(out))
@@ -142,10 +142,14 @@ def test_depfile_names_outputs_and_the_model(tmp_path: Path) -> None:
         f"{tmp_path}/my\\ out/blinker.py" in targets
 
 
-def test_cpp_target_is_a_clear_usage_error(tmp_path: Path) -> None:
-    r = hfsmc("build", "-t", "cpp", "examples/blinker/blinker.yaml", "-o", str(tmp_path / "c"))
-    assert r.returncode == 2
-    assert "C++" in r.stderr and "Traceback" not in r.stderr
+@pytest.mark.parametrize(("model", "target", "hint"), [
+    ("examples/blinker/blinker.yaml", "cpp", "-t python"),
+    ("examples/blinker_cpp/blinker_cpp.yaml", "python", "-t cpp")])
+def test_target_of_the_other_language_is_a_clear_error(tmp_path: Path, model: str, target: str,
+                                                        hint: str) -> None:
+    r = hfsmc("build", "-t", target, model, "-o", str(tmp_path / "c"))
+    assert r.returncode == 1
+    assert f"{model}:" in r.stderr and hint in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "c").exists()
 
 
@@ -202,9 +206,14 @@ def test_examples_makefile_builds_once_then_nothing(tmp_path: Path) -> None:
     assert (project / "build/blinker/blinker.py").exists()
     assert (project / "build/traffic_light/traffic_light.svg").exists()
     assert (project / "build/blinker/blinker.d").read_text().endswith(": blinker/blinker.yaml\n")
+    assert os.access(project / "build/blinker_cpp/build/blinker_cpp", os.X_OK)
     again = subprocess.run(make, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0 and "Nothing to be done" in again.stdout
     run = subprocess.run([*make, "run-traffic_light", "RUN_ARGS=--clock virtual --until 9s"],
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert "cars amber" in run.stderr
+    run = subprocess.run([*make, "run-blinker_cpp", "RUN_ARGS=--clock virtual --until 4s"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert "paused with the LED" in run.stderr

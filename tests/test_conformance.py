@@ -27,6 +27,8 @@ from typing import Any, Protocol
 import jsonschema
 import pytest
 
+from tests.cppbuild import CppBuildError, Superbuild
+
 ROOT = Path(__file__).resolve().parent.parent
 CONFORMANCE = ROOT / "tests" / "conformance"
 REAL = CONFORMANCE / "real"
@@ -90,8 +92,33 @@ class PythonBackend:
         return [sys.executable, str(out / f"{component_name(model)}.py")]
 
 
-# The back ends this suite runs; the C++ one joins this tuple (twins: NN_name.cpp.yaml).
-BACKENDS: tuple[Backend, ...] = (PythonBackend(),)
+class CppBackend:
+    """The C++ component: every twin (``NN_name.cpp.yaml``) generated and compiled in one
+    CMake project the first time one is asked for (warnings are errors), then reused."""
+
+    model_suffix = ".cpp.yaml"
+
+    def __init__(self, name: str, sanitize: bool) -> None:
+        self.name = name
+        self.sanitize = sanitize
+        self._projects: dict[Path, Superbuild] = {}
+
+    def build(self, model: Path, out: Path) -> list[str]:
+        base = out.parent
+        if base not in self._projects:
+            twins = sorted(CONFORMANCE.glob("*.cpp.yaml")) + sorted(REAL.glob("*.cpp.yaml"))
+            self._projects[base] = Superbuild(base, twins, sanitize=self.sanitize)
+        try:
+            return [str(self._projects[base].executable(model))]
+        except CppBuildError as e:
+            raise BuildError(str(e)) from None
+
+
+# The back ends this suite runs. The C++ component runs twice: as built, and with
+# AddressSanitizer + UndefinedBehaviorSanitizer (any report fails the case).
+BACKENDS: tuple[Backend, ...] = (PythonBackend(), CppBackend("cpp", sanitize=False),
+                                 CppBackend("cpp-asan", sanitize=True))
+SANITIZER_REPORT = re.compile(r"ERROR: (AddressSanitizer|LeakSanitizer)|runtime error: ")
 
 
 def component_name(model: Path) -> str:
@@ -181,6 +208,16 @@ def case_id(item: tuple[Backend, Case]) -> str:
     return f"{item[0].name}-{item[1].model.name.split('.')[0]}"
 
 
+# The first C++ case of a session compiles every twin: allow it the time that takes.
+BUILD_TIMEOUT_S = 1800
+
+
+def params(found: list[tuple[Backend, Case]]) -> list[Any]:
+    return [pytest.param(b, c, id=case_id((b, c)),
+                         marks=[pytest.mark.timeout(BUILD_TIMEOUT_S)] if isinstance(b, CppBackend) else [])
+            for b, c in found]
+
+
 VIRTUAL_CASES = cases(CONFORMANCE)
 REAL_CASES = cases(REAL)
 
@@ -202,11 +239,13 @@ def check_run(case: Case, trace: bytes, expected: bytes, returncode: int, stderr
         problems.append(f"exit status {returncode}, expected {case.exit}")
     text = stderr.decode("utf-8", "backslashreplace")
     problems += [f"stderr does not match /{rx}/" for rx in case.stderr if not re.search(rx, text)]
+    if SANITIZER_REPORT.search(text):
+        problems.append("a sanitizer reported a problem")
     if problems:
         pytest.fail("\n".join(problems) + f"\n--- stderr ---\n{text}", pytrace=False)
 
 
-@pytest.mark.parametrize(("backend", "case"), VIRTUAL_CASES, ids=[case_id(c) for c in VIRTUAL_CASES])
+@pytest.mark.parametrize(("backend", "case"), params(VIRTUAL_CASES))
 def test_conformance(backend: Backend, case: Case, components: Components) -> None:
     cmd = [*components.command(backend, case.model), "--clock", "virtual", "--trace", "-", *case.args]
     try:
@@ -259,7 +298,7 @@ def record_times(trace: bytes) -> list[int]:
     return [json.loads(line)["t"] for line in trace.splitlines() if line.startswith(b'{"t":')]
 
 
-@pytest.mark.parametrize(("backend", "case"), REAL_CASES, ids=[case_id(c) for c in REAL_CASES])
+@pytest.mark.parametrize(("backend", "case"), params(REAL_CASES))
 def test_real_clock_signal(backend: Backend, case: Case, components: Components) -> None:
     assert case.wait_for and case.signal_name, f"{case.model}: needs `# wait-for:` and `# signal:`"
     cmd = [*components.command(backend, case.model), "--clock", "real", "--trace", "-", *case.args]

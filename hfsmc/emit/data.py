@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from hfsmc.durations import format_us
@@ -90,3 +91,14 @@ def _transition(t: Transition) -> dict[str, Any]:
     if t.do is not None:
         d["do"] = t.do.text
     return d
+
+
+def component_config(model: Model) -> str:
+    """The body of a component's NAME.yaml: parameters and interfaces, JSON-syntax YAML."""
+    data = {
+        "parameters": {p.name: thaw(p.default) for p in model.parameters},
+        "interfaces": {i.name: {"type": i.type, "url": i.url, **({"options": dict(i.options)}
+                                                                 if i.options else {})}
+                       for i in model.interfaces},
+    }
+    return json.dumps(data, indent=2, ensure_ascii=True)

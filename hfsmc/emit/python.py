@@ -23,7 +23,7 @@ from pathlib import Path
 import jinja2
 
 from hfsmc.durations import format_us
-from hfsmc.emit.data import thaw
+from hfsmc.emit.data import component_config
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, DictValue, Model, State, Value
 from hfsmc.pycheck import import_statement
@@ -279,7 +279,7 @@ def component_files(model: Model) -> dict[str, bytes]:
     snippets = view["snippets"]
     assert isinstance(snippets, list)
     main = main[:table_at] + _line_table(main, snippets) + main[table_at + len("_hfsm_SNIPPETS = ()"):]
-    config = env.get_template("config.yaml.j2").render(**view, config=_config(model))
+    config = env.get_template("config.yaml.j2").render(**view, config=component_config(model))
     out = {f"{model.name}.py": main.encode("utf-8"), f"{model.name}.yaml": config.encode("utf-8")}
     runtime = files("hfsmc.templates").joinpath("python")
     needed = list(RUNTIME_FILES)
@@ -290,13 +290,3 @@ def component_files(model: Model) -> dict[str, bytes]:
         if res.is_file():
             out[name] = res.read_bytes()
     return out
-
-
-def _config(model: Model) -> str:
-    data = {
-        "parameters": {p.name: thaw(p.default) for p in model.parameters},
-        "interfaces": {i.name: {"type": i.type, "url": i.url, **({"options": dict(i.options)}
-                                                                 if i.options else {})}
-                       for i in model.interfaces},
-    }
-    return json.dumps(data, indent=2, ensure_ascii=True)

@@ -1,0 +1,346 @@
+// hfsmc: the `camera` interface of C++ components (SPEC 5.1): the latest
+// frame of an OpenCV capture, without blocking the automaton.
+//
+// The C++ twin of templates/python/hfsmc_camera.py: the same behaviour, the
+// same timeouts and the same lines on stderr. The URL is anything
+// cv::VideoCapture opens: MJPEG over HTTP (http://127.0.0.1:8554/bottom.mjpg),
+// a device number (0), a file (replayed at its frame rate, from the start
+// again at its end). A grabber thread reads frames as they come and keeps
+// only the latest, with its time, under a mutex held for a copy of a Mat
+// header: frame() and age() return at once. Each frame is decoded into a
+// fresh Mat, so one handed out is never written again. When the stream drops,
+// the grabber says so once on stderr and reconnects with a growing pause
+// (0.2 s, doubling up to 2 s); it says so again when frames are back.
+//
+// The grabber shares its state through a shared_ptr: when closing, the
+// destructor waits at most 1 s for it (as the Python driver's join does); a
+// grabber stuck in a network read (2 s at most) is then left to finish alone.
+//
+// Options: `size: WxH` resizes every frame (320x240).
+#pragma once
+
+#include <pthread.h>
+#include <signal.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+namespace hfsmc {
+
+class Camera {
+ public:
+  static constexpr const char* kDefaultUrl = "0";  // the first video device
+  static constexpr double kBackoffMinS = 0.2;
+  static constexpr double kBackoffMaxS = 2.0;
+  static constexpr double kStaleS = 1.0;           // ok() is false when the frame is older
+  static constexpr int kOpenTimeoutMs = 3000;      // a network stream that does not answer
+  static constexpr int kReadTimeoutMs = 2000;      // a network stream that stops sending
+  static constexpr double kCloseWaitS = 1.0;       // the destructor waits that long at most
+#ifdef __linux__
+  static constexpr int kDeviceApi = cv::CAP_V4L2;
+#else
+  static constexpr int kDeviceApi = cv::CAP_ANY;
+#endif
+
+  Camera(const std::string& name, const std::string& url,
+         const std::map<std::string, std::string>& options)
+      : g_(std::make_shared<Grabber>()) {
+    // FFmpeg's own messages (connection refused, ...) at every retry would drown
+    // ours; it reads this when first used, so before any capture opens.
+    ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);  // AV_LOG_QUIET, unless set
+    g_->name = name;
+    g_->url = url.empty() ? kDefaultUrl : url;
+    for (const auto& kv : options) {
+      int w = 0, h = 0;
+      if (kv.first == "size" && parse_size(kv.second, &w, &h)) {
+        g_->size = cv::Size(w, h);
+      } else if (kv.first == "size") {
+        g_->say("option size: `" + kv.second +
+                "` is not WxH (320x240): frames kept as they come");
+      } else {
+        g_->say("unknown option `" + kv.first + "` ignored (options: size)");
+      }
+    }
+    std::shared_ptr<Grabber> g = g_;
+    thread_ = start_thread([g] {
+      g->run();
+      std::lock_guard<std::mutex> lock(g->mutex);
+      g->finished = true;
+      g->wake.notify_all();
+    });
+  }
+
+  ~Camera() { close(); }
+  Camera(const Camera&) = delete;
+  Camera& operator=(const Camera&) = delete;
+
+  const std::string& name() const { return g_->name; }
+  const std::string& url() const { return g_->url; }
+
+  /// The latest frame (H x W, CV_8UC3, BGR); an empty Mat before the first. The
+  /// same pixels until a newer frame comes: clone it before drawing on it for keeps.
+  cv::Mat frame() const {
+    std::lock_guard<std::mutex> lock(g_->mutex);
+    return g_->latest;
+  }
+
+  /// Seconds since the latest frame arrived; +inf before the first.
+  double age() const {
+    std::lock_guard<std::mutex> lock(g_->mutex);
+    if (g_->count == 0) return std::numeric_limits<double>::infinity();
+    return std::chrono::duration<double>(Clock::now() - g_->at).count();
+  }
+
+  /// Frames are coming: the latest is less than a second old.
+  bool ok() const { return age() < kStaleS; }
+
+  /// Frames received so far (a new one since the last tick when it has grown).
+  long count() const {
+    std::lock_guard<std::mutex> lock(g_->mutex);
+    return g_->count;
+  }
+
+  /// Stop the grabber (also done by the destructor); waits 1 s at most.
+  void close() {
+    if (!thread_.joinable()) return;
+    std::unique_lock<std::mutex> lock(g_->mutex);
+    g_->stop = true;
+    g_->wake.notify_all();
+    bool done = g_->wake.wait_for(lock, std::chrono::duration<double>(kCloseWaitS),
+                                  [this] { return g_->finished; });
+    lock.unlock();
+    if (done) {
+      thread_.join();
+    } else {
+      thread_.detach();  // stuck in a read: it ends on its own, holding its state
+    }
+  }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+
+  struct Grabber {
+    std::string name, url;
+    cv::Size size;  // empty: frames kept as they come
+    std::mutex mutex;  // guards what follows
+    std::condition_variable wake;
+    cv::Mat latest;
+    Clock::time_point at{};
+    long count = 0;
+    bool stop = false;
+    bool finished = false;
+    bool down = false;  // said on stderr that the stream is down (grabber only)
+
+    bool stopping() {
+      std::lock_guard<std::mutex> lock(mutex);
+      return stop;
+    }
+
+    void pause(double s) {  // wait, or less when asked to stop
+      std::unique_lock<std::mutex> lock(mutex);
+      wake.wait_for(lock, std::chrono::duration<double>(s), [this] { return stop; });
+    }
+
+    void run() {
+      double pause_s = kBackoffMinS;
+      while (!stopping()) {
+        std::unique_ptr<cv::VideoCapture> cap = open();
+        bool got = cap && grab(*cap);
+        if (cap) cap->release();
+        if (stopping()) return;
+        if (got) pause_s = kBackoffMinS;
+        if (!down) {
+          down = true;
+          bool any;
+          {
+            std::lock_guard<std::mutex> lock(mutex);
+            any = count > 0;
+          }
+          say(std::string("stream ") + (got || any ? "lost" : "not available") + " at " + url +
+              ": reconnecting");
+        }
+        pause(pause_s);
+        pause_s = std::min(pause_s * 2, kBackoffMaxS);
+      }
+    }
+
+    std::unique_ptr<cv::VideoCapture> open() {
+      Quiet quiet;  // a failed open warns each retry; the drop is said once by us
+      std::unique_ptr<cv::VideoCapture> cap;
+      try {
+        if (is_number(url)) {  // a device: V4L2 (any backend would also probe USB and more)
+          cap = std::make_unique<cv::VideoCapture>(std::atoi(url.c_str()), kDeviceApi);
+        } else if (exists(url)) {
+          cap = std::make_unique<cv::VideoCapture>(url);
+        } else {  // a network stream: bounded waits, so a dead server is noticed
+          cap = std::make_unique<cv::VideoCapture>(
+              url, cv::CAP_FFMPEG,
+              std::vector<int>{cv::CAP_PROP_OPEN_TIMEOUT_MSEC, kOpenTimeoutMs,
+                               cv::CAP_PROP_READ_TIMEOUT_MSEC, kReadTimeoutMs});
+        }
+      } catch (const cv::Exception&) {
+        return nullptr;
+      }
+      if (!cap->isOpened()) return nullptr;
+      return cap;
+    }
+
+    /// Read frames until the stream ends; whether any came.
+    bool grab(cv::VideoCapture& cap) {
+      double fps = exists(url) ? cap.get(cv::CAP_PROP_FPS) : 0.0;
+      double step = fps > 0 && fps < 1000 ? 1.0 / fps : 0.0;  // a file plays at its rate
+      bool got = false;
+      while (!stopping()) {
+        cv::Mat img;  // a fresh one each time: a frame handed out is never overwritten
+        bool ok;
+        try {
+          ok = cap.read(img);
+        } catch (const cv::Exception&) {
+          ok = false;
+        }
+        if (!ok || img.empty()) return got;
+        if (!size.empty() && img.size() != size) {
+          cv::Mat small;
+          cv::resize(img, small, size, 0, 0, cv::INTER_AREA);
+          img = small;
+        }
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          latest = img;
+          at = Clock::now();
+          ++count;
+        }
+        if (!got) {
+          got = true;
+          if (down && !stopping()) {
+            down = false;
+            say("stream back at " + url);
+          }
+        }
+        if (step > 0) pause(step);
+      }
+      return got;
+    }
+
+    void say(const std::string& text) const {
+      std::string line = name + ": " + text + "\n";
+      std::fwrite(line.data(), 1, line.size(), stderr);  // one write: lines never interleave
+      std::fflush(stderr);
+    }
+  };
+
+  /// OpenCV's warnings off while a capture opens (unless OPENCV_LOG_LEVEL is set).
+  /// The log level is global: grabbers share the lowering.
+  class Quiet {
+   public:
+    Quiet() : active_(std::getenv("OPENCV_LOG_LEVEL") == nullptr) {
+      if (!active_) return;
+      std::lock_guard<std::mutex> lock(mutex());
+      if (depth()++ == 0) {
+        saved() = cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
+      }
+    }
+    ~Quiet() {
+      if (!active_) return;
+      std::lock_guard<std::mutex> lock(mutex());
+      if (--depth() == 0) cv::utils::logging::setLogLevel(saved());
+    }
+    Quiet(const Quiet&) = delete;
+    Quiet& operator=(const Quiet&) = delete;
+
+   private:
+    static std::mutex& mutex() {
+      static std::mutex m;
+      return m;
+    }
+    static int& depth() {
+      static int d = 0;
+      return d;
+    }
+    static cv::utils::logging::LogLevel& saved() {
+      static cv::utils::logging::LogLevel s = cv::utils::logging::LOG_LEVEL_WARNING;
+      return s;
+    }
+    bool active_;
+  };
+
+  static bool parse_size(const std::string& text, int* w, int* h) {
+    // ^\s*(\d+)\s*[xX]\s*(\d+)\s*$, both non-zero
+    size_t i = 0, n = text.size();
+    auto spaces = [&] {
+      while (i < n && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+    };
+    auto number = [&](int* out) {
+      size_t start = i;
+      long v = 0;
+      while (i < n && text[i] >= '0' && text[i] <= '9' && v <= 100000) v = v * 10 + (text[i++] - '0');
+      *out = static_cast<int>(v);
+      return i > start && (i == n || text[i] < '0' || text[i] > '9');
+    };
+    spaces();
+    if (!number(w)) return false;
+    spaces();
+    if (i >= n || (text[i] != 'x' && text[i] != 'X')) return false;
+    ++i;
+    spaces();
+    if (!number(h)) return false;
+    spaces();
+    return i == n && *w > 0 && *h > 0;
+  }
+
+  static bool is_number(const std::string& s) {
+    if (s.empty()) return false;
+    for (char c : s) {
+      if (c < '0' || c > '9') return false;
+    }
+    return true;
+  }
+
+  static bool exists(const std::string& path) {
+    struct stat st;
+    return ::stat(path.c_str(), &st) == 0;
+  }
+
+  template <class F>
+  static std::thread start_thread(F f) {
+    // Signals go to the automaton's thread only: block them while the thread is
+    // made (it inherits the mask), then restore ours.
+    sigset_t block, old;
+    sigemptyset(&block);
+    sigaddset(&block, SIGINT);
+    sigaddset(&block, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &block, &old);
+    try {
+      std::thread t(std::move(f));
+      pthread_sigmask(SIG_SETMASK, &old, nullptr);
+      return t;
+    } catch (...) {
+      pthread_sigmask(SIG_SETMASK, &old, nullptr);
+      throw;
+    }
+  }
+
+  std::shared_ptr<Grabber> g_;
+  std::thread thread_;
+};
+
+}  // namespace hfsmc

@@ -1,0 +1,798 @@
+// hfsmc: the `mavlink` interface of C++ components (SPEC 5.1): a vehicle flown
+// the ArduPilot Copter way (GUIDED mode), over UDP with mavgen's C headers.
+//
+// The C++ twin of templates/python/hfsmc_mavlink.py: the same queries and
+// commands, the same timeouts and the same lines on stderr. One reader thread
+// owns the receiving side: it polls the socket (50 ms at most, which bounds
+// the ack deadlines and the destructor), keeps the latest telemetry, watches
+// the heartbeat, requests the message rates, matches COMMAND_ACKs to the
+// commands waiting for them (resending once halfway, as MAVProxy does with
+// confirmation + 1) and logs each outcome once. The automaton's thread never
+// waits on the network: a query copies the state at hand, a command sends one
+// datagram on a non-blocking socket and returns.
+//
+// Two mutexes, never held together and never while waiting: `state_` guards
+// the telemetry, `link_` the MAVLink parser and sender state, the socket's
+// peer and the commands waiting for an answer. Each datagram is parsed from
+// a fresh parser state (a datagram is a whole number of frames), so a
+// truncated frame cannot eat the next datagram's message.
+//
+// URLs: udpin:HOST:PORT (or udp:, as mavutil: listen there and answer the
+// vehicle that writes to it) and udpout:HOST:PORT (send there and read the
+// replies). A URL that cannot be opened is said on stderr and the process
+// exits with status 1, as the Python driver's SystemExit(1) does.
+//
+// The mavgen headers are included with -Waddress-of-packed-member (they take
+// the address of packed fields everywhere) and -Wpedantic (anonymous structs)
+// off: g++ 12 gives them no other warning with -Wall -Wextra, so they build with
+// -Werror whether the include folder is given with -I or -isystem.
+#pragma once
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <initializer_list>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Waddress-of-packed-member"
+#pragma GCC diagnostic ignored "-Wpedantic"
+#include "mavlink/ardupilotmega/mavlink.h"
+#pragma GCC diagnostic pop
+
+namespace hfsmc {
+
+class Mavlink {
+ public:
+  static constexpr const char* kDefaultUrl = "udpin:127.0.0.1:14550";
+  static constexpr double kLinkTimeoutS = 2.0;   // no heartbeat for that long: link lost
+  static constexpr double kAckTimeoutS = 3.0;    // no COMMAND_ACK by then: failed (resent halfway)
+  static constexpr double kGcsHeartbeatS = 1.0;  // our own heartbeat, so the vehicle sees a GCS
+  static constexpr int kPollMs = 50;             // longest wait of the reader
+  static constexpr double kFastRateHz = 20.0;    // position, velocity, attitude (option `rate`)
+  static constexpr double kSlowRateHz = 2.0;     // battery, GPS, EKF status
+
+  Mavlink(const std::string& name, const std::string& url,
+          const std::map<std::string, std::string>& options)
+      : name_(name), url_(url.empty() ? kDefaultUrl : url), start_(Clock::now()) {
+    rate_ = option(options, "rate", kFastRateHz);
+    ack_timeout_ = option(options, "ack_timeout", kAckTimeoutS);
+    double sysid = std::trunc(option(options, "source_system", 255.0));
+    if (sysid < 1 || sysid > 255) {
+      say("option source_system: " + fmt(sysid) + " is not 1..255, 255 used");
+      sysid = 255;
+    }
+    sysid_ = static_cast<uint8_t>(sysid);
+    for (const auto& kv : options) {
+      if (kv.first != "rate" && kv.first != "ack_timeout" && kv.first != "source_system") {
+        say("unknown option `" + kv.first +
+            "` ignored (options: rate, ack_timeout, source_system)");
+      }
+    }
+    std::string why = open_socket();
+    if (!why.empty()) {
+      say("cannot open " + url_ + ": " + why);
+      std::exit(1);
+    }
+    reader_ = start_thread([this] { run(); });
+  }
+
+  ~Mavlink() { close(); }
+  Mavlink(const Mavlink&) = delete;
+  Mavlink& operator=(const Mavlink&) = delete;
+
+  const std::string& name() const { return name_; }
+  const std::string& url() const { return url_; }
+
+  // -- state (never waits on the network) -------------------------------------
+  /// A heartbeat from the vehicle within the last 2 s.
+  bool connected() const { return heartbeat_age() < kLinkTimeoutS; }
+
+  /// Seconds since the vehicle's last heartbeat; +inf before the first.
+  double heartbeat_age() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.heartbeat_seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
+  }
+
+  /// The vehicle would accept GUIDED: connected, a 3D GPS fix, an absolute EKF position
+  /// (while disarmed a predicted one will do; once armed not in constant-position mode).
+  bool ready() const {
+    uint16_t flags;
+    int fix;
+    bool is_armed;
+    {
+      std::lock_guard<std::mutex> lock(state_);
+      flags = s_.ekf_flags;
+      fix = s_.gps_fix;
+      is_armed = s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
+    }
+    bool position = is_armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
+                             : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
+    return connected() && fix >= GPS_FIX_TYPE_3D_FIX && position;
+  }
+
+  /// The vehicle's last heartbeat says its motors are armed.
+  bool armed() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
+  }
+
+  /// The flight mode's name (GUIDED, LAND, RTL, ...); "" before the first heartbeat.
+  std::string mode() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.heartbeat_seen ? mode_name(s_.type, s_.custom_mode) : std::string();
+  }
+
+  /// (north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any.
+  Eigen::Vector3d position() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.position;
+  }
+
+  /// m above home (GLOBAL_POSITION_INT.relative_alt, else -down); NaN before any.
+  double altitude() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.relative_alt_seen ? s_.relative_alt : -s_.position.z();
+  }
+
+  /// (vn, ve, vd) in m/s (LOCAL_POSITION_NED); NaN before any.
+  Eigen::Vector3d velocity() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.velocity;
+  }
+
+  /// Heading in rad (ATTITUDE), 0 north, positive clockwise; NaN before any.
+  double yaw() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.yaw;
+  }
+
+  /// Battery remaining in percent (SYS_STATUS); -1 when unknown.
+  int battery() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.battery;
+  }
+
+  /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
+  /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
+  /// pending, timeout, not_sent; "" when never sent.
+  std::string last_ack(const std::string& command) const {
+    std::lock_guard<std::mutex> lock(link_);
+    auto it = acks_.find(command);
+    return it == acks_.end() ? std::string() : it->second;
+  }
+
+  // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
+  /// Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode).
+  /// An unknown name throws std::invalid_argument (Python: ValueError).
+  bool set_mode(const std::string& name) {
+    std::string wanted = upper(strip(name));
+    const ModeTable table = modes(vehicle_type());
+    const Mode* found = nullptr;
+    std::string names;
+    for (const Mode* m = table.first; m != table.second; ++m) {
+      if (wanted == m->name) found = m;
+      names += (names.empty() ? "" : ", ") + std::string(m->name);
+    }
+    if (found == nullptr) {
+      throw std::invalid_argument(name_ + ": unknown mode `" + name + "` (modes: " + names + ")");
+    }
+    return command("set_mode", "set_mode " + wanted, MAV_CMD_DO_SET_MODE,
+                   {MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, static_cast<float>(found->number)});
+  }
+
+  /// Arm the motors (MAV_CMD_COMPONENT_ARM_DISARM 1).
+  bool arm() { return command("arm", "arm", MAV_CMD_COMPONENT_ARM_DISARM, {1}); }
+
+  /// Disarm the motors (MAV_CMD_COMPONENT_ARM_DISARM 0; the vehicle refuses in flight).
+  bool disarm() { return command("disarm", "disarm", MAV_CMD_COMPONENT_ARM_DISARM, {0}); }
+
+  /// Climb to `alt` m above home (MAV_CMD_NAV_TAKEOFF; GUIDED and armed).
+  bool takeoff(double alt) {
+    return command("takeoff", "takeoff", MAV_CMD_NAV_TAKEOFF,
+                   {0, 0, 0, 0, 0, 0, static_cast<float>(alt)});
+  }
+
+  /// Land where the vehicle is (MAV_CMD_NAV_LAND: LAND mode).
+  bool land() { return command("land", "land", MAV_CMD_NAV_LAND, {}); }
+
+  /// Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode).
+  bool rtl() { return command("rtl", "rtl", MAV_CMD_NAV_RETURN_TO_LAUNCH, {}); }
+
+  /// Stop where the vehicle is: a zero velocity target (GUIDED).
+  bool hold() { return set_velocity(0, 0, 0, 0); }
+
+  /// Velocity target in the body frame: m/s forward, right, down; rad/s clockwise.
+  /// ArduPilot stops the vehicle when no new target comes for 3 s.
+  bool set_velocity(double vx, double vy, double vz, double yaw_rate) {
+    return target_local(MAV_FRAME_BODY_OFFSET_NED, kVelocityMask, {0, 0, 0}, {vx, vy, vz},
+                        yaw_rate);
+  }
+
+  /// Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt).
+  /// `goto` in Python; a C++ keyword, hence the underscore.
+  bool go_to(double north, double east, double alt) {
+    return target_local(MAV_FRAME_LOCAL_NED, kPositionMask, {north, east, -alt}, {0, 0, 0}, 0);
+  }
+
+  /// Stop the reader and close the socket (also done by the destructor).
+  void close() {
+    if (stop_.exchange(true)) return;
+    if (reader_.joinable()) reader_.join();  // the reader wakes within kPollMs
+    std::lock_guard<std::mutex> lock(link_);
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  static constexpr double kInf = std::numeric_limits<double>::infinity();
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  // SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field".
+  static constexpr uint16_t kIgnorePosition = 0b0000'0000'0111;
+  static constexpr uint16_t kIgnoreVelocity = 0b0000'0011'1000;
+  static constexpr uint16_t kIgnoreAcceleration = 0b0001'1100'0000;
+  static constexpr uint16_t kIgnoreYaw = 0b0100'0000'0000;
+  static constexpr uint16_t kIgnoreYawRate = 0b1000'0000'0000;
+  static constexpr uint16_t kVelocityMask = kIgnorePosition | kIgnoreAcceleration | kIgnoreYaw;
+  static constexpr uint16_t kPositionMask =
+      kIgnoreVelocity | kIgnoreAcceleration | kIgnoreYaw | kIgnoreYawRate;
+  static constexpr uint8_t kGcsComponent = 190;  // MAV_COMP_ID_MISSIONPLANNER, as mavutil
+
+  struct Pending {  // a command waiting for its COMMAND_ACK
+    std::string name;   // the key of last_ack()
+    std::string label;  // as logged: `set_mode GUIDED`
+    uint16_t command;
+    float params[7];
+    Clock::time_point deadline;
+    Clock::time_point resend_at;
+    bool resend;  // false once resent (or in progress)
+    bool quiet;   // log only a failure (message rates)
+  };
+
+  struct State {  // the latest telemetry, under state_
+    bool target_seen = false;
+    uint8_t target_system = 0, target_component = 0;
+    bool heartbeat_seen = false;
+    Clock::time_point heartbeat_at{};
+    uint8_t type = 0, autopilot = 0, base_mode = 0;
+    uint32_t custom_mode = 0;
+    Eigen::Vector3d position{kNaN, kNaN, kNaN};
+    Eigen::Vector3d velocity{kNaN, kNaN, kNaN};
+    bool relative_alt_seen = false;
+    double relative_alt = kNaN;
+    double yaw = kNaN;
+    int battery = -1;
+    int gps_fix = 0;
+    uint16_t ekf_flags = 0;
+  };
+
+  struct Mode {
+    uint32_t number;
+    const char* name;
+  };
+  using ModeTable = std::pair<const Mode*, const Mode*>;
+
+  // -- sending ----------------------------------------------------------------------
+  bool target(uint8_t* system, uint8_t* component) const {
+    std::lock_guard<std::mutex> lock(state_);
+    *system = s_.target_system;
+    *component = s_.target_component;
+    return s_.target_seen;
+  }
+
+  uint8_t vehicle_type() const {
+    std::lock_guard<std::mutex> lock(state_);
+    return s_.type;
+  }
+
+  bool command(const std::string& name, const std::string& label, uint16_t cmd,
+               std::initializer_list<float> params, bool quiet = false) {
+    Pending p{name, label, cmd, {0, 0, 0, 0, 0, 0, 0}, {}, {}, true, quiet};
+    std::copy(params.begin(), params.end(), p.params);
+    uint8_t system, component;
+    bool known = target(&system, &component);
+    {
+      std::lock_guard<std::mutex> lock(link_);
+      if (known) {
+        send_command(system, component, p, 0);
+        Clock::time_point now = Clock::now();
+        p.deadline = now + duration(ack_timeout_);
+        p.resend_at = now + duration(ack_timeout_ / 2);
+        pending_.push_back(p);
+      }
+      if (!quiet) acks_[name] = known ? "pending" : "not_sent";
+    }
+    if (!known) say(label + ": not sent, no vehicle yet (no heartbeat)");
+    return known;
+  }
+
+  void send_command(uint8_t system, uint8_t component, const Pending& p, uint8_t confirmation) {
+    mavlink_message_t msg;
+    mavlink_msg_command_long_pack_status(sysid_, kGcsComponent, &tx_status_, &msg, system,
+                                         component, p.command, confirmation, p.params[0],
+                                         p.params[1], p.params[2], p.params[3], p.params[4],
+                                         p.params[5], p.params[6]);
+    send(msg);
+  }
+
+  bool target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Eigen::Vector3d vel,
+                    double yaw_rate) {
+    uint8_t system, component;
+    if (!target(&system, &component)) return false;  // a stream of targets: nothing to say
+    auto boot_ms = static_cast<uint32_t>(
+        std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - start_).count());
+    std::lock_guard<std::mutex> lock(link_);
+    mavlink_message_t msg;
+    mavlink_msg_set_position_target_local_ned_pack_status(
+        sysid_, kGcsComponent, &tx_status_, &msg, boot_ms, system, component, frame, mask,
+        static_cast<float>(pos.x()), static_cast<float>(pos.y()), static_cast<float>(pos.z()),
+        static_cast<float>(vel.x()), static_cast<float>(vel.y()), static_cast<float>(vel.z()),
+        0, 0, 0, 0, static_cast<float>(yaw_rate));
+    send(msg);
+    return true;
+  }
+
+  void send(const mavlink_message_t& msg) {  // under link_
+    if (fd_ < 0 || !peer_known_) return;  // udpin: nobody has written to us yet
+    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
+    uint16_t len = mavlink_msg_to_send_buffer(buf, &msg);
+    // A full buffer or an unreachable peer loses the datagram, as UDP does.
+    (void)::sendto(fd_, buf, len, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&peer_),
+                   sizeof peer_);
+  }
+
+  void request_rates() {
+    const double fast = 1e6 / std::max(rate_, 0.1);
+    const double slow = 1e6 / kSlowRateHz;
+    const std::pair<const char*, std::pair<uint32_t, double>> rates[] = {
+        {"LOCAL_POSITION_NED", {MAVLINK_MSG_ID_LOCAL_POSITION_NED, fast}},
+        {"GLOBAL_POSITION_INT", {MAVLINK_MSG_ID_GLOBAL_POSITION_INT, fast}},
+        {"ATTITUDE", {MAVLINK_MSG_ID_ATTITUDE, fast}},
+        {"SYS_STATUS", {MAVLINK_MSG_ID_SYS_STATUS, slow}},
+        {"GPS_RAW_INT", {MAVLINK_MSG_ID_GPS_RAW_INT, slow}},
+        {"EKF_STATUS_REPORT", {MAVLINK_MSG_ID_EKF_STATUS_REPORT, slow}},
+    };
+    for (const auto& r : rates) {
+      command("set_message_interval", std::string("set_message_interval ") + r.first,
+              MAV_CMD_SET_MESSAGE_INTERVAL,
+              {static_cast<float>(r.second.first),
+               static_cast<float>(std::nearbyint(r.second.second))},
+              true);
+    }
+  }
+
+  // -- the reader thread -------------------------------------------------------------
+  void run() {
+    Clock::time_point next_heartbeat{};
+    while (!stop_.load()) {
+      pollfd pfd{fd_, POLLIN, 0};
+      int n = ::poll(&pfd, 1, kPollMs);
+      if (n > 0 && (pfd.revents & POLLIN)) drain();
+      Clock::time_point now = Clock::now();
+      if (now >= next_heartbeat) {
+        next_heartbeat = now + duration(kGcsHeartbeatS);
+        std::lock_guard<std::mutex> lock(link_);
+        mavlink_message_t msg;
+        mavlink_msg_heartbeat_pack_status(sysid_, kGcsComponent, &tx_status_, &msg, MAV_TYPE_GCS,
+                                          MAV_AUTOPILOT_INVALID, 0, 0, 0);
+        send(msg);
+      }
+      expire(now);
+      watch_link();
+    }
+  }
+
+  /// Handle every datagram waiting (at most 1000, so a flood cannot starve the
+  /// deadlines); bytes that are no MAVLink frame are dropped, never raised.
+  void drain() {
+    std::vector<uint8_t>& buf = rx_buf_;
+    std::vector<mavlink_message_t> got;
+    for (int i = 0; i < 1000; ++i) {
+      sockaddr_in from{};
+      socklen_t from_len = sizeof from;
+      ssize_t n = ::recvfrom(fd_, buf.data(), buf.size(), MSG_DONTWAIT,
+                             reinterpret_cast<sockaddr*>(&from), &from_len);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
+      if (n < 0) continue;  // an ICMP error reported on the socket: try the next datagram
+      got.clear();
+      {
+        std::lock_guard<std::mutex> lock(link_);
+        rx_status_.parse_state = MAVLINK_PARSE_STATE_IDLE;  // each datagram from scratch
+        for (ssize_t k = 0; k < n; ++k) {
+          mavlink_message_t msg;
+          mavlink_status_t status;
+          if (mavlink_frame_char_buffer(&rx_msg_, &rx_status_, buf[k], &msg, &status) ==
+              MAVLINK_FRAMING_OK) {
+            got.push_back(msg);
+          }
+        }
+        if (!got.empty() && listening_ && from_len == sizeof from) {
+          peer_ = from;  // answer whoever speaks MAVLink to us, as mavutil's udpin does
+          peer_known_ = true;
+        }
+      }
+      for (const mavlink_message_t& msg : got) handle(msg);
+    }
+  }
+
+  void handle(const mavlink_message_t& msg) {
+    if (msg.msgid == MAVLINK_MSG_ID_HEARTBEAT) {
+      on_heartbeat(msg);
+      return;
+    }
+    if (msg.msgid == MAVLINK_MSG_ID_COMMAND_ACK) {
+      uint8_t system, component;
+      if (target(&system, &component) && msg.sysid == system) on_ack(msg);
+      return;
+    }
+    std::lock_guard<std::mutex> lock(state_);
+    if (!s_.target_seen || msg.sysid != s_.target_system) return;
+    switch (msg.msgid) {
+      case MAVLINK_MSG_ID_LOCAL_POSITION_NED: {
+        mavlink_local_position_ned_t m;
+        mavlink_msg_local_position_ned_decode(&msg, &m);
+        s_.position = Eigen::Vector3d(m.x, m.y, m.z);
+        s_.velocity = Eigen::Vector3d(m.vx, m.vy, m.vz);
+        break;
+      }
+      case MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+        s_.relative_alt = mavlink_msg_global_position_int_get_relative_alt(&msg) / 1000.0;
+        s_.relative_alt_seen = true;
+        break;
+      case MAVLINK_MSG_ID_ATTITUDE:
+        s_.yaw = mavlink_msg_attitude_get_yaw(&msg);
+        break;
+      case MAVLINK_MSG_ID_SYS_STATUS:
+        s_.battery = mavlink_msg_sys_status_get_battery_remaining(&msg);
+        break;
+      case MAVLINK_MSG_ID_GPS_RAW_INT:
+        s_.gps_fix = mavlink_msg_gps_raw_int_get_fix_type(&msg);
+        break;
+      case MAVLINK_MSG_ID_EKF_STATUS_REPORT:
+        s_.ekf_flags = mavlink_msg_ekf_status_report_get_flags(&msg);
+        break;
+      default:
+        break;
+    }
+  }
+
+  void on_heartbeat(const mavlink_message_t& msg) {
+    mavlink_heartbeat_t hb;
+    mavlink_msg_heartbeat_decode(&msg, &hb);
+    if (hb.autopilot == MAV_AUTOPILOT_INVALID || hb.type == MAV_TYPE_GCS) {
+      return;  // a ground station, a camera, a gimbal: not the vehicle
+    }
+    bool first, back = false;
+    std::string now_mode;
+    {
+      std::lock_guard<std::mutex> lock(state_);
+      if (s_.target_seen &&
+          (msg.sysid != s_.target_system || msg.compid != s_.target_component)) {
+        return;
+      }
+      first = !s_.target_seen;
+      s_.target_seen = true;
+      s_.target_system = msg.sysid;
+      s_.target_component = msg.compid;
+      s_.type = hb.type;
+      s_.autopilot = hb.autopilot;
+      s_.base_mode = hb.base_mode;
+      s_.custom_mode = hb.custom_mode;
+      s_.heartbeat_seen = true;
+      s_.heartbeat_at = Clock::now();
+      now_mode = mode_name(s_.type, s_.custom_mode);
+    }
+    if (first) {
+      say("vehicle " + std::to_string(msg.sysid) + "/" + std::to_string(msg.compid) + " on " +
+          url_ + ", mode " + now_mode);
+      request_rates();
+    } else if (lost_) {
+      lost_ = false;
+      back = true;
+    }
+    if (back) {
+      say("link back");
+      request_rates();  // the vehicle may have restarted
+    }
+  }
+
+  /// The oldest command of that id waiting gets the answer (acks come in order).
+  void on_ack(const mavlink_message_t& msg) {
+    mavlink_command_ack_t ack;
+    mavlink_msg_command_ack_decode(&msg, &ack);
+    std::string label, result;
+    bool quiet;
+    {
+      std::lock_guard<std::mutex> lock(link_);
+      auto it = std::find_if(pending_.begin(), pending_.end(),
+                             [&](const Pending& p) { return p.command == ack.command; });
+      if (it == pending_.end()) return;
+      if (ack.result == MAV_RESULT_IN_PROGRESS) {  // wait for the final word, no resend
+        it->deadline = Clock::now() + duration(ack_timeout_);
+        it->resend = false;
+        return;
+      }
+      result = result_name(ack.result);
+      label = it->label;
+      quiet = it->quiet;
+      if (!quiet) acks_[it->name] = result;
+      pending_.erase(it);
+    }
+    if (quiet && result == "accepted") return;
+    say(label + " " + (result == "accepted" ? result : upper(result)));
+  }
+
+  /// Resend a command once halfway to its deadline; give up at the deadline.
+  void expire(Clock::time_point now) {
+    uint8_t system, component;
+    bool known = target(&system, &component);
+    std::vector<std::string> expired;
+    {
+      std::lock_guard<std::mutex> lock(link_);
+      for (auto it = pending_.begin(); it != pending_.end();) {
+        if (now >= it->deadline) {
+          if (!it->quiet) acks_[it->name] = "timeout";
+          expired.push_back(it->label);
+          it = pending_.erase(it);
+          continue;
+        }
+        if (it->resend && now >= it->resend_at && known) {
+          it->resend = false;
+          send_command(system, component, *it, 1);
+        }
+        ++it;
+      }
+    }
+    for (const std::string& label : expired) {
+      say(label + ": no acknowledgement in " + fmt(ack_timeout_) + " s");
+    }
+  }
+
+  void watch_link() {
+    bool seen;
+    {
+      std::lock_guard<std::mutex> lock(state_);
+      seen = s_.heartbeat_seen;
+    }
+    if (!lost_ && seen && !connected()) {
+      lost_ = true;
+      say("link lost: no heartbeat for " + fmt(kLinkTimeoutS) + " s");
+    }
+  }
+
+  // -- opening -------------------------------------------------------------------------
+  /// Open the socket the URL names; "" or why not.
+  std::string open_socket() {
+    std::string kind, rest;
+    size_t colon = url_.find(':');
+    if (colon != std::string::npos) {
+      kind = url_.substr(0, colon);
+      rest = url_.substr(colon + 1);
+    }
+    if (kind == "udp") kind = "udpin";
+    size_t last = rest.rfind(':');
+    std::string host = last == std::string::npos ? "" : rest.substr(0, last);
+    std::string port = last == std::string::npos ? "" : rest.substr(last + 1);
+    bool digits = !port.empty() && port.size() <= 5 &&
+                  std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if ((kind != "udpin" && kind != "udpout") || host.empty() || !digits ||
+        std::stoi(port) > 65535 || (kind == "udpout" && std::stoi(port) == 0)) {
+      return "expected udpin:HOST:PORT, udpout:HOST:PORT or udp:HOST:PORT";
+    }
+    addrinfo hints{};
+    hints.ai_family = AF_INET;
+    hints.ai_socktype = SOCK_DGRAM;
+    addrinfo* found = nullptr;
+    int err = ::getaddrinfo(host.c_str(), port.c_str(), &hints, &found);
+    if (err != 0 || found == nullptr) return std::string("host ") + host + ": " + gai_strerror(err);
+    sockaddr_in addr{};
+    std::memcpy(&addr, found->ai_addr, sizeof addr);
+    ::freeaddrinfo(found);
+    fd_ = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    if (fd_ < 0) return std::strerror(errno);
+    listening_ = kind == "udpin";
+    if (listening_) {
+      if (::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+        std::string why = std::strerror(errno);
+        ::close(fd_);
+        fd_ = -1;
+        return why;
+      }
+    } else {
+      peer_ = addr;
+      peer_known_ = true;
+    }
+    return "";
+  }
+
+  template <class F>
+  static std::thread start_thread(F f) {
+    // Signals go to the automaton's thread only: block them while the thread is
+    // made (it inherits the mask), then restore ours.
+    sigset_t block, old;
+    sigemptyset(&block);
+    sigaddset(&block, SIGINT);
+    sigaddset(&block, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &block, &old);
+    try {
+      std::thread t(std::move(f));
+      pthread_sigmask(SIG_SETMASK, &old, nullptr);
+      return t;
+    } catch (...) {
+      pthread_sigmask(SIG_SETMASK, &old, nullptr);
+      throw;
+    }
+  }
+
+  // -- helpers -----------------------------------------------------------------------
+  double option(const std::map<std::string, std::string>& options, const std::string& key,
+                double fallback) const {
+    auto it = options.find(key);
+    if (it == options.end()) return fallback;
+    const std::string& raw = it->second;
+    std::string text = strip(raw);
+    char* end = nullptr;
+    errno = 0;
+    double value = text.empty() ? -1.0 : std::strtod(text.c_str(), &end);
+    if (!text.empty() && (end == nullptr || *end != '\0')) value = -1.0;
+    if (!(value > 0) || std::isinf(value)) {
+      say("option " + key + ": `" + raw + "` is not a positive number, " + fmt(fallback) +
+          " used");
+      return fallback;
+    }
+    return value;
+  }
+
+  static ModeTable modes(uint8_t type) {
+    // pymavlink's mode_mapping_bynumber (ArduPilot's numbers), Copter's by default.
+    static const Mode copter[] = {
+        {0, "STABILIZE"}, {1, "ACRO"},       {2, "ALT_HOLD"},   {3, "AUTO"},
+        {4, "GUIDED"},    {5, "LOITER"},     {6, "RTL"},        {7, "CIRCLE"},
+        {8, "POSITION"},  {9, "LAND"},       {10, "OF_LOITER"}, {11, "DRIFT"},
+        {13, "SPORT"},    {14, "FLIP"},      {15, "AUTOTUNE"},  {16, "POSHOLD"},
+        {17, "BRAKE"},    {18, "THROW"},     {19, "AVOID_ADSB"}, {20, "GUIDED_NOGPS"},
+        {21, "SMART_RTL"}, {22, "FLOWHOLD"}, {23, "FOLLOW"},    {24, "ZIGZAG"},
+        {25, "SYSTEMID"}, {26, "AUTOROTATE"}, {27, "AUTO_RTL"}, {28, "TURTLE"},
+        {29, "RATE_ACRO"}};
+    static const Mode plane[] = {
+        {0, "MANUAL"},  {1, "CIRCLE"},      {2, "STABILIZE"},   {3, "TRAINING"},
+        {4, "ACRO"},    {5, "FBWA"},        {6, "FBWB"},        {7, "CRUISE"},
+        {8, "AUTOTUNE"}, {10, "AUTO"},      {11, "RTL"},        {12, "LOITER"},
+        {13, "TAKEOFF"}, {14, "AVOID_ADSB"}, {15, "GUIDED"},    {16, "INITIALISING"},
+        {17, "QSTABILIZE"}, {18, "QHOVER"}, {19, "QLOITER"},    {20, "QLAND"},
+        {21, "QRTL"},   {22, "QAUTOTUNE"},  {23, "QACRO"},      {24, "THERMAL"},
+        {25, "LOITERALTQLAND"}, {26, "AUTOLAND"}};
+    static const Mode rover[] = {
+        {0, "MANUAL"}, {1, "ACRO"},  {2, "LEARNING"}, {3, "STEERING"}, {4, "HOLD"},
+        {5, "LOITER"}, {6, "FOLLOW"}, {7, "SIMPLE"},  {8, "DOCK"},     {9, "CIRCLE"},
+        {10, "AUTO"},  {11, "RTL"},  {12, "SMART_RTL"}, {15, "GUIDED"}, {16, "INITIALISING"}};
+    static const Mode tracker[] = {{0, "MANUAL"}, {1, "STOP"}, {2, "SCAN"},
+                                   {4, "GUIDED"}, {10, "AUTO"}, {16, "INITIALISING"}};
+    static const Mode sub[] = {{0, "STABILIZE"}, {1, "ACRO"},    {2, "ALT_HOLD"},
+                               {3, "AUTO"},      {4, "GUIDED"},  {7, "CIRCLE"},
+                               {9, "SURFACE"},   {16, "POSHOLD"}, {19, "MANUAL"}};
+    static const Mode blimp[] = {{0, "LAND"}, {1, "MANUAL"}, {2, "VELOCITY"}, {3, "LOITER"},
+                                 {4, "RTL"},  {5, "AUTO"},   {6, "HOLD"}};
+    switch (type) {
+      case MAV_TYPE_FIXED_WING:
+      case MAV_TYPE_VTOL_DUOROTOR:
+      case MAV_TYPE_VTOL_QUADROTOR:
+      case MAV_TYPE_VTOL_TILTROTOR:
+        return {std::begin(plane), std::end(plane)};
+      case MAV_TYPE_GROUND_ROVER:
+      case MAV_TYPE_SURFACE_BOAT:
+        return {std::begin(rover), std::end(rover)};
+      case MAV_TYPE_ANTENNA_TRACKER:
+        return {std::begin(tracker), std::end(tracker)};
+      case MAV_TYPE_SUBMARINE:
+        return {std::begin(sub), std::end(sub)};
+      case MAV_TYPE_AIRSHIP:
+        return {std::begin(blimp), std::end(blimp)};
+      default:
+        return {std::begin(copter), std::end(copter)};
+    }
+  }
+
+  static std::string mode_name(uint8_t type, uint32_t custom) {
+    ModeTable table = modes(type);
+    for (const Mode* m = table.first; m != table.second; ++m) {
+      if (m->number == custom) return m->name;
+    }
+    return "MODE" + std::to_string(custom);
+  }
+
+  static std::string result_name(uint8_t result) {
+    static const char* const names[] = {"accepted", "temporarily_rejected", "denied",
+                                        "unsupported", "failed", "in_progress", "cancelled"};
+    if (result < sizeof names / sizeof names[0]) return names[result];
+    return "result_" + std::to_string(result);
+  }
+
+  static std::string strip(const std::string& s) {
+    const char* space = " \t\n\r\f\v";
+    size_t a = s.find_first_not_of(space);
+    if (a == std::string::npos) return "";
+    return s.substr(a, s.find_last_not_of(space) - a + 1);
+  }
+
+  static std::string upper(std::string s) {
+    for (char& c : s) {
+      if (c >= 'a' && c <= 'z') c = static_cast<char>(c - 'a' + 'A');
+    }
+    return s;
+  }
+
+  static std::string fmt(double x) {  // Python's `{x:g}`
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return buf;
+  }
+
+  static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+  static Clock::duration duration(double s) {
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+  }
+
+  void say(const std::string& text) const {
+    std::string line = name_ + ": " + text + "\n";
+    std::fwrite(line.data(), 1, line.size(), stderr);  // one write: lines never interleave
+    std::fflush(stderr);
+  }
+
+  const std::string name_;
+  const std::string url_;
+  const Clock::time_point start_;
+  double rate_ = kFastRateHz;
+  double ack_timeout_ = kAckTimeoutS;
+  uint8_t sysid_ = 255;
+  int fd_ = -1;
+  bool listening_ = false;  // udpin: the peer is whoever speaks MAVLink to us
+
+  mutable std::mutex state_;
+  State s_;
+
+  mutable std::mutex link_;
+  sockaddr_in peer_{};
+  bool peer_known_ = false;
+  mavlink_message_t rx_msg_{};
+  mavlink_status_t rx_status_{};
+  mavlink_status_t tx_status_{};
+  std::vector<Pending> pending_;
+  std::map<std::string, std::string> acks_;
+
+  // The reader thread's own.
+  std::vector<uint8_t> rx_buf_ = std::vector<uint8_t>(65536);
+  bool lost_ = false;  // said on stderr that the link is lost
+  std::atomic<bool> stop_{false};
+  std::thread reader_;
+};
+
+}  // namespace hfsmc

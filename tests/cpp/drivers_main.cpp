@@ -1,0 +1,247 @@
+// The C++ drivers of the `mavlink` and `camera` interfaces (templates/cpp/hfsmc),
+// driven by tests/test_cpp_drivers.py: `drivers_main SCENARIO ARGS...` runs one
+// scenario, prints what it checked on stdout and exits 0, or prints `FAIL: ...`
+// and exits 1. Some scenarios wait for a line on stdin: the test acts on the
+// simulator (or sends junk) in between.
+#include <dirent.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+#include "hfsmc/camera.hpp"
+#include "hfsmc/mavlink.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Options = std::map<std::string, std::string>;
+
+[[noreturn]] void fail(const std::string& what) {
+  std::cout << "FAIL: " << what << std::endl;
+  std::exit(1);
+}
+
+void check(bool ok, const std::string& what) {
+  if (!ok) fail(what);
+  std::cout << "ok: " << what << std::endl;
+}
+
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+bool wait_until(const std::function<bool()>& what, double timeout, double step = 0.01) {
+  auto end = Clock::now() + std::chrono::duration<double>(timeout);
+  while (Clock::now() < end) {
+    if (what()) return true;
+    std::this_thread::sleep_for(std::chrono::duration<double>(step));
+  }
+  return what();
+}
+
+bool refused(const std::string& ack) { return ack == "failed" || ack == "denied"; }
+
+void sleep_s(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
+
+std::string udpin(const std::string& port) { return "udpin:127.0.0.1:" + port; }
+
+void wait_for_go(const std::string& prompt) {
+  std::cout << prompt << std::endl;
+  std::string line;
+  if (!std::getline(std::cin, line)) fail("stdin closed while waiting after " + prompt);
+}
+
+/// SigBlk of a thread of this process, from /proc.
+unsigned long long blocked_signals(const std::string& tid) {
+  std::ifstream status("/proc/self/task/" + tid + "/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("SigBlk:", 0) == 0) return std::stoull(line.substr(7), nullptr, 16);
+  }
+  fail("no SigBlk for thread " + tid);
+}
+
+/// Everything answers at once without a vehicle; options, threads' signal masks, close.
+int offline(const std::string& port) {
+  {
+    hfsmc::Mavlink drone("drone", udpin(port), Options{{"rate", "fast"}, {"colour", "red"}});
+    hfsmc::Camera camera("camera", "63", Options{{"size", "big"}});
+    check(!drone.connected() && !drone.ready() && !drone.armed(), "not connected, ready, armed");
+    check(std::isinf(drone.heartbeat_age()) && drone.heartbeat_age() > 0, "heartbeat_age inf");
+    check(drone.mode().empty(), "mode empty");
+    Eigen::Vector3d p = drone.position(), v = drone.velocity();
+    check(p.array().isNaN().all() && v.array().isNaN().all() && std::isnan(drone.altitude()) &&
+              std::isnan(drone.yaw()),
+          "position, velocity, altitude, yaw NaN");
+    check(drone.battery() == -1, "battery -1");
+    check(drone.last_ack("arm").empty(), "no ack yet");
+    check(!drone.arm(), "arm not sent");
+    check(!drone.set_velocity(1, 0, 0, 0) && !drone.go_to(1, 2, 3) && !drone.hold(),
+          "targets not sent");
+    check(drone.last_ack("arm") == "not_sent", "last_ack not_sent");
+    try {
+      drone.set_mode("HOVER");
+      fail("set_mode HOVER did not throw");
+    } catch (const std::invalid_argument& e) {
+      check(std::string(e.what()).rfind("drone: unknown mode `HOVER` (modes: STABILIZE, ACRO,", 0) == 0,
+            std::string("set_mode HOVER throws: ") + e.what());
+    }
+    sleep_s(0.3);
+    check(camera.frame().empty() && !camera.ok() && std::isinf(camera.age()) &&
+              camera.count() == 0,
+          "no frame from device 63");
+    // Signals reach only the automaton's thread (this one).
+    const unsigned long long wanted = (1ull << (SIGINT - 1)) | (1ull << (SIGTERM - 1));
+    const std::string self = std::to_string(::getpid());
+    check((blocked_signals(self) & wanted) == 0, "the main thread takes SIGINT and SIGTERM");
+    int others = 0;
+    DIR* dir = ::opendir("/proc/self/task");
+    while (dirent* e = ::readdir(dir)) {
+      std::string tid = e->d_name;
+      if (tid == "." || tid == ".." || tid == self) continue;
+      ++others;
+      check((blocked_signals(tid) & wanted) == wanted, "thread " + tid + " blocks SIGINT, SIGTERM");
+    }
+    ::closedir(dir);
+    check(others >= 2, "a reader and a grabber run");
+    auto t = Clock::now();
+    drone.close();
+    camera.close();
+    check(since(t) < 0.5, "close is prompt (" + std::to_string(since(t)) + " s)");
+  }
+  // The port is free again: a second driver binds it.
+  hfsmc::Mavlink again("drone", udpin(port), Options{});
+  return 0;
+}
+
+/// A taken port: said on stderr, exit status 1.
+int taken(const std::string& port) {
+  hfsmc::Mavlink drone("drone", udpin(port), Options{});
+  fail("opened a taken port");
+}
+
+/// The simulator's flight: arm refused outside GUIDED, take-off, goto, land, disarm.
+int flight(const std::string& port) {
+  hfsmc::Mavlink drone("drone", udpin(port), Options{});
+  check(wait_until([&] { return drone.connected(); }, 15), "connected");
+  check(wait_until([&] { return drone.ready(); }, 10), "ready");
+  check(drone.heartbeat_age() < 1.5, "heartbeat fresh");
+  check(wait_until([&] { return !std::isnan(drone.yaw()) && drone.battery() >= 0; }, 3),
+        "telemetry");
+  check(drone.mode() == "STABILIZE" && !drone.armed(), "STABILIZE, disarmed");
+  check(drone.arm(), "arm sent");
+  check(wait_until([&] { return refused(drone.last_ack("arm")); }, 5), "arm refused outside GUIDED");
+  check(!drone.armed(), "still disarmed");
+  check(drone.set_mode("guided"), "set_mode sent");
+  check(wait_until([&] { return drone.mode() == "GUIDED"; }, 5), "GUIDED");
+  check(drone.last_ack("set_mode") == "accepted", "set_mode accepted");
+  drone.arm();
+  check(wait_until([&] { return drone.armed(); }, 5), "armed");
+  drone.takeoff(3.0);
+  check(wait_until([&] { return drone.last_ack("takeoff") == "accepted"; }, 5), "takeoff accepted");
+  check(wait_until([&] { return drone.altitude() > 2.8; }, 15), "climbed past 2.8 m");
+  sleep_s(1.0);
+  double alt = drone.altitude();
+  check(alt > 2.7 && alt < 3.3 && std::abs(drone.position().z() + 3.0) < 0.4,
+        "holds 3 m: " + std::to_string(alt));
+  check(drone.go_to(4.0, 0.0, 3.0), "goto sent");
+  check(wait_until([&] { return std::abs(drone.position().x() - 4.0) < 0.5; }, 15),
+        "reached 4 m north");
+  check(drone.hold(), "hold sent");
+  check(drone.land(), "land sent");
+  check(wait_until([&] { return !drone.armed(); }, 25, 0.1), "landed and disarmed");
+  check(drone.mode() == "LAND" && drone.altitude() < 0.3, "LAND mode on the ground");
+  check(drone.connected(), "still connected");
+  return 0;
+}
+
+/// The simulator drops the link (--drop-link-after): seen, then back.
+int linkloss(const std::string& port) {
+  hfsmc::Mavlink drone("drone", udpin(port), Options{});
+  check(wait_until([&] { return drone.connected(); }, 15), "connected");
+  check(wait_until([&] { return !drone.connected(); }, 15), "link lost");
+  check(drone.heartbeat_age() >= 2.0 && drone.heartbeat_age() < 3.0,
+        "heartbeat_age " + std::to_string(drone.heartbeat_age()));
+  double age = drone.heartbeat_age();
+  sleep_s(0.5);
+  check(drone.heartbeat_age() >= age + 0.45, "heartbeat_age grows");
+  check(wait_until([&] { return drone.connected(); }, 15), "link back");
+  check(drone.heartbeat_age() < 1.5, "heartbeat fresh again");
+  return 0;
+}
+
+/// Junk datagrams (sent by the test) do not break the reader.
+int garbage(const std::string& port) {
+  hfsmc::Mavlink drone("drone", udpin(port), Options{});
+  check(wait_until([&] { return drone.connected() && !std::isnan(drone.yaw()); }, 15),
+        "connected, telemetry");
+  wait_for_go("send junk");
+  sleep_s(1.5);
+  check(drone.connected() && drone.heartbeat_age() < 1.5, "heartbeats still read");
+  check(drone.mode() == "STABILIZE", "mode unchanged");
+  drone.arm();  // STABILIZE: refused, but answered
+  check(wait_until([&] { return refused(drone.last_ack("arm")); }, 5), "commands still answered");
+  return 0;
+}
+
+/// Frames from the simulator's MJPEG stream; a camera drop (SIGUSR2, by the test) and back.
+int camera(const std::string& url) {
+  hfsmc::Camera camera("camera", url, Options{});
+  hfsmc::Camera small("small", url, Options{{"size", "160x120"}});
+  check(wait_until([&] { return !camera.frame().empty() && !small.frame().empty(); }, 15),
+        "frames arrive");
+  cv::Mat f = camera.frame();
+  check(f.type() == CV_8UC3 && f.cols >= 160 && f.rows >= 120,
+        "BGR frame " + std::to_string(f.cols) + "x" + std::to_string(f.rows));
+  check(small.frame().cols == 160 && small.frame().rows == 120, "resized to 160x120");
+  check(camera.age() >= 0 && camera.age() < 0.5 && camera.ok(),
+        "fresh frame: age " + std::to_string(camera.age()));
+  long seen = camera.count();
+  check(wait_until([&] { return camera.count() >= seen + 5; }, 3), "frames keep coming");
+  small.close();
+  wait_for_go("pause the camera");
+  check(wait_until([&] { return !camera.ok(); }, 5), "stale once the stream drops");
+  cv::Mat last = camera.frame();
+  double worst = 0;
+  for (int i = 0; i < 200; ++i) {
+    auto t = Clock::now();
+    (void)camera.frame();
+    (void)camera.age();
+    (void)camera.ok();
+    worst = std::max(worst, since(t));
+  }
+  check(worst < 0.05, "no wait while down");
+  check(camera.frame().data == last.data && camera.age() >= 1.0, "the last frame kept");
+  wait_for_go("resume the camera");
+  seen = camera.count();
+  check(wait_until([&] { return camera.count() > seen && camera.ok(); }, 8), "frames back");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 3) {
+    std::cerr << "usage: drivers_main offline|taken|flight|linkloss|garbage PORT\n"
+                 "       drivers_main camera URL\n";
+    return 2;
+  }
+  const std::string scenario = argv[1], arg = argv[2];
+  if (scenario == "offline") return offline(arg);
+  if (scenario == "taken") return taken(arg);
+  if (scenario == "flight") return flight(arg);
+  if (scenario == "linkloss") return linkloss(arg);
+  if (scenario == "garbage") return garbage(arg);
+  if (scenario == "camera") return camera(arg);
+  std::cerr << "unknown scenario " << scenario << "\n";
+  return 2;
+}
