@@ -178,14 +178,27 @@ def build(model: str, target: str, output: str | None, compile_: bool, depfile: 
 @click.argument("args", nargs=-1, type=click.UNPROCESSED)
 @_guard
 def run(model: str, args: tuple[str, ...]) -> None:
-    """Build MODEL's Python component into a cache and run it with ARGS (after --)."""
+    """Build MODEL's component into a cache and run it with ARGS (after --).
+
+    A `language: cpp` model is compiled with CMake first (incrementally)."""
     import os
 
     from hfsmc import build as builder
 
     result = _compile_or_exit(model)
     assert result.model is not None
-    built = builder.build(result.model, "python", builder.cache_folder(model, result.model.name))
+    target = "cpp" if result.model.language == "cpp" else "python"
+    folder = builder.cache_folder(model, result.model.name + ("-cpp" if target == "cpp" else ""))
+    built = builder.build(result.model, target, folder)
+    if target == "cpp":
+        from hfsmc.cppcompile import compile_component
+
+        diags = compile_component(folder, result.model.file)
+        _print(diags, {model: result.lines}, "text")
+        if any(d.severity == "error" for d in diags):
+            sys.exit(1)
+        sys.stderr.flush()
+        os.execv(built.main, [str(built.main), *args])
     sys.stderr.flush()
     os.execv(sys.executable, [sys.executable, str(built.main), *args])
 

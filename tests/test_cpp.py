@@ -309,3 +309,13 @@ def test_hfsmc_view_watches_a_cpp_component(project: Superbuild) -> None:
     assert view.returncode == 0, view.stderr
     assert "in Blinking/" in view.stdout
     assert "hfsmc view: component stopped (until)" in view.stdout + view.stderr
+
+
+def test_hfsmc_run_compiles_a_cpp_model_into_the_cache_and_runs_it(tmp_path: Path) -> None:
+    need_toolchain()
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache")}
+    r = run([sys.executable, "-m", "hfsmc", "run", "examples/blinker_cpp/blinker_cpp.yaml", "--",
+             "--clock", "virtual", "--until", "3s", "--trace", "-"], cwd=ROOT, env=env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines()[-1] == '{"t":3000,"ev":"stop","reason":"until"}'
+    assert list((tmp_path / "cache/hfsmc/run").glob("blinker_cpp-cpp-*/build/blinker_cpp"))

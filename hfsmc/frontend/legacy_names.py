@@ -238,7 +238,9 @@ class Names:
             self.r.warn("W205", f"{itf.what} kept as {named} of type {itf.type}: "
                         "hfsmc components cannot drive it", itf.span,
                         "the component starts, and fails with a clear message when a snippet "
-                        "uses it")
+                        "uses it" if self.language != "cpp" else
+                        "it has no operations in C++: a snippet that uses it does not compile "
+                        "(build --compile shows where)")
 
     # -- names -----------------------------------------------------------------
     def _implicit_members(self) -> None:

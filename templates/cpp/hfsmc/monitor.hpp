@@ -152,11 +152,11 @@ public:
     }
 
     void record(const Record& record) override {
-        push(Item{Item::RECORD, record, 0, {}, 0});
+        if (thread_.joinable()) push(Item{Item::RECORD, record, 0, {}, 0});
     }
 
     void sample(long long t_ms, const std::vector<std::string>& values, long long overruns) override {
-        push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns});
+        if (thread_.joinable()) push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns});
     }
 
     void close() override {

@@ -15,7 +15,9 @@
 #include <termios.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
@@ -256,10 +258,12 @@ public:
         std::atexit(view_detail::give_keys_back);  // should the component exit without close()
     }
 
-    void record(const Record& record) override { w_->push(Item{Item::RECORD, record, 0, {}, 0}); }
+    void record(const Record& record) override {
+        if (thread_.joinable()) w_->push(Item{Item::RECORD, record, 0, {}, 0});
+    }
 
     void sample(long long t_ms, const std::vector<std::string>& values, long long overruns) override {
-        w_->push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns});
+        if (thread_.joinable()) w_->push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns});
     }
 
     // Shows the last of it and puts the terminal back; returns within about a second.
@@ -453,7 +457,9 @@ private:
                     while (::read(wake_r, buf, sizeof buf) > 0) {
                     }
                 }
-                if (fds[2].revents & POLLIN) {
+                if ((fds[2].revents & POLLIN) && ::tcgetpgrp(0) != ::getpgrp()) {
+                    keys = false;  // sent to the background: reading would stop the process
+                } else if (fds[2].revents & POLLIN) {
                     char buf[64];
                     ssize_t n = ::read(0, buf, sizeof buf);
                     for (ssize_t i = 0; i < n; ++i) {

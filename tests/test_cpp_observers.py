@@ -1,0 +1,532 @@
+"""The C++ component's observers (templates/cpp/hfsmc/monitor.hpp, view.hpp): the monitor
+speaks the Python monitor's protocol, so `hfsmc view` watches a C++ component, and the
+display prints what the Python display prints.
+
+tests/cpp/observers_main.cpp plays a fixed run of the blinker of tests/test_view.py
+through the observers, as the runtime calls them; it is compiled once per session
+(plain and with ASan/UBSan). Everything on 127.0.0.1 with port 0, bounded in time."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import importlib
+import io
+import json
+import os
+import pty
+import re
+import select
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import termios
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+import pytest
+from referencing import Registry, Resource
+
+from tests.conftest import ROOT
+
+hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
+hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
+
+pytestmark = pytest.mark.timeout(180)
+
+# The blinker's structure, as tests/cpp/observers_main.cpp gives it (tests/test_view.py's).
+STRUCTURE: dict[str, Any] = {
+    "name": "blinker",
+    "automata": [{"owner": "", "period_ms": 100, "initial": "Blinking", "history": False},
+                 {"owner": "Blinking", "period_ms": 50, "initial": "Lit", "history": True}],
+    "states": [{"path": "Blinking", "final": False, "composite": True},
+               {"path": "Blinking/Lit", "final": False, "composite": False},
+               {"path": "Blinking/Dark", "final": False, "composite": False},
+               {"path": "Paused", "final": False, "composite": False},
+               {"path": "Done", "final": True, "composite": False}],
+    "transitions": [{"from": "Blinking", "to": "Done", "index": 0, "name": "enough"},
+                    {"from": "Blinking", "to": "Paused", "index": 1, "name": "pause"},
+                    {"from": "Blinking/Lit", "to": "Blinking/Dark", "index": 0, "name": None},
+                    {"from": "Blinking/Dark", "to": "Blinking/Lit", "index": 0, "name": None},
+                    {"from": "Paused", "to": "Blinking", "index": 0, "name": "resume"}],
+    "variables": ["led", "count", "pauses"],
+    "parameters": {"blinks": "10"},
+}
+
+
+def _validator() -> Any:
+    schemas = {name: json.loads((ROOT / "schemas" / name).read_text())
+               for name in ("monitor.schema.json", "trace.schema.json")}
+    registry: Registry[Any] = Registry().with_resources(
+        (s["$id"], Resource.from_contents(s)) for s in schemas.values())
+    cls = jsonschema.validators.validator_for(schemas["monitor.schema.json"])
+    return cls(schemas["monitor.schema.json"], registry=registry)
+
+
+VALIDATOR = _validator()
+
+FLAGS = ["-std=c++17", "-Wall", "-Wextra", "-Werror", "-Wpedantic", "-pthread"]
+SANITIZERS = ["-fsanitize=address,undefined", "-fno-omit-frame-pointer", "-fno-sanitize-recover=all", "-g"]
+SANITIZER_ENV = {"ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0:exitcode=99",
+                 "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1:exitcode=99"}
+SANITIZER_ERRORS = re.compile(r"AddressSanitizer|ThreadSanitizer|LeakSanitizer|runtime error:|UndefinedBehaviorSanitizer")
+
+
+def _compile(out: Path, extra: list[str]) -> Path:
+    gxx = shutil.which("g++")
+    assert gxx is not None, "g++ is needed to test the C++ observers"
+    cmd = [gxx, *FLAGS, *extra, "-I", str(ROOT / "templates" / "cpp"),
+           str(ROOT / "tests" / "cpp" / "observers_main.cpp"), "-o", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=240, check=False)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+@pytest.fixture(scope="session")
+def program(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _compile(tmp_path_factory.mktemp("observers") / "observers_main", ["-O1"])
+
+
+@pytest.fixture(scope="session")
+def asan_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _compile(tmp_path_factory.mktemp("observers_asan") / "observers_main", SANITIZERS)
+
+
+@pytest.fixture(params=["plain", "asan"])
+def build(request: pytest.FixtureRequest) -> tuple[Path, dict[str, str]]:
+    """The program and its environment, in both builds."""
+    if request.param == "plain":
+        return request.getfixturevalue("program"), {}
+    return request.getfixturevalue("asan_program"), SANITIZER_ENV
+
+
+class Run:
+    """observers_main running with a gate: the first calls of the run are made at once,
+    the others once ``release`` is called."""
+
+    def __init__(self, exe: Path, tmp: Path, *args: str, env: dict[str, str] | None = None,
+                 prefix: tuple[str, ...] = (), **popen: Any) -> None:
+        tmp.mkdir(parents=True, exist_ok=True)
+        self.gate, self.calls = tmp / "gate", tmp / "calls.jsonl"
+        cmd = [*prefix, str(exe), "--gate", str(self.gate), "--calls", str(self.calls), *args]
+        popen.setdefault("stdout", subprocess.PIPE)
+        popen.setdefault("stderr", subprocess.PIPE)
+        self.proc = subprocess.Popen(cmd, env={**os.environ, **(env or {})}, **popen)
+        self.port = 0
+        if "--monitor" in args and self.proc.stderr is not None:
+            line = self.proc.stderr.readline().decode()
+            m = re.fullmatch(r"monitor: listening on 127\.0\.0\.1:(\d+)\n", line)
+            assert m, f"no announcement: {line!r}"
+            self.port = int(m[1])
+
+    def at_gate(self) -> None:
+        """Wait until the program has made its first calls (and the monitor taken them)."""
+        assert self.proc.stderr is not None
+        while (line := self.proc.stderr.readline()) != b"component: at the gate\n":
+            assert line, "the program ended before the gate"
+        time.sleep(0.3)
+
+    def release(self, gate: int = 0) -> None:
+        (self.gate.with_suffix(f".{gate}") if gate else self.gate).touch()
+
+    def finish(self, timeout: float = 60) -> tuple[bytes, str]:
+        """(stdout, stderr) once the program has exited 0 and said nothing of sanitizers."""
+        for gate in range(4):
+            self.release(gate)
+        out, err = self.proc.communicate(timeout=timeout)
+        text = (err or b"").decode(errors="replace")
+        assert not SANITIZER_ERRORS.search(text), text
+        assert self.proc.returncode == 0, text
+        return out or b"", text
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.communicate()
+
+
+@pytest.fixture
+def run(tmp_path: Path) -> Iterator[Callable[..., Run]]:
+    made: list[Run] = []
+
+    def start(exe: Path, *args: str, **kw: Any) -> Run:
+        made.append(Run(exe, tmp_path / str(len(made)), *args, **kw))
+        return made[-1]
+
+    yield start
+    for r in made:
+        r.kill()
+
+
+def calls_of(r: Run) -> list[tuple[str, Any]]:
+    """The observer calls the program made, as (kind, payload) items of the Python view."""
+    out: list[tuple[str, Any]] = []
+    for line in r.calls.read_text().splitlines():
+        call = json.loads(line)
+        if "record" in call:
+            out.append(("record", call["record"]))
+        else:
+            s = call["sample"]
+            out.append(("sample", (s["t"], s["variables"], s["overruns"])))
+    return out
+
+
+def record_lines(r: Run, first: int = 0) -> list[bytes]:
+    """The records from call ``first`` on, exactly as the trace writes them."""
+    return [line[len('{"record":'):-1].encode() for line in r.calls.read_text().splitlines()[first:]
+            if line.startswith('{"record":')]
+
+
+class Client:
+    """A raw monitor client: JSON lines, each checked against the schema."""
+
+    def __init__(self, port: int, rcvbuf: int | None = None) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        if rcvbuf is not None:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        self.sock.settimeout(20)
+        self.sock.connect(("127.0.0.1", port))
+        self.stream = self.sock.makefile("rb")
+        self.lines: list[bytes] = []
+        self._reader: threading.Thread | None = None
+
+    def message(self) -> dict[str, Any] | None:
+        line = self.stream.readline()
+        if not line:
+            return None
+        return self._parse(line)
+
+    def _parse(self, line: bytes, validate: bool = True) -> dict[str, Any]:
+        self.lines.append(line)
+        msg = json.loads(line)
+        if validate:
+            VALIDATOR.validate(msg)
+        assert isinstance(msg, dict)
+        return msg
+
+    def until_bye(self) -> list[dict[str, Any]]:
+        """The messages until ``bye``, after which the connection must close."""
+        out: list[dict[str, Any]] = []
+        while (msg := self.message()) is not None:
+            out.append(msg)
+            if msg["type"] == "bye":
+                assert self.stream.readline() == b"", "the connection closes after bye"
+                return out
+        raise AssertionError(f"connection closed without bye after {self.lines[-2:]}")
+
+    def read_fast(self) -> None:
+        """Read everything as fast as it comes, on a thread (checked by ``collected``)."""
+        self._data = b""
+
+        def pump() -> None:
+            with contextlib.suppress(OSError):
+                while chunk := self.stream.read1(1 << 20):
+                    self._data += chunk
+
+        self._reader = threading.Thread(target=pump, daemon=True)
+        self._reader.start()
+
+    def received(self, timeout: float = 30) -> bytes:
+        """What ``read_fast`` read until the connection ended (or ``timeout``)."""
+        assert self._reader is not None
+        self._reader.join(timeout)
+        return self._data
+
+    def collected(self) -> list[dict[str, Any]]:
+        self.received()
+        assert self._data.endswith(b'{"type":"bye","reason":"error"}\n'), self._data[-200:]
+        # Checking all of a burst against the schema would take long: one in a hundred will do.
+        return [self._parse(line, validate=k % 100 == 0 or b"burst " not in line)
+                for k, line in enumerate(self._data.splitlines(keepends=True))]
+
+    def close(self) -> None:
+        self.stream.close()
+        self.sock.close()
+
+
+@pytest.fixture
+def clients() -> Iterator[Callable[..., Client]]:
+    made: list[Client] = []
+
+    def connect(port: int, **kw: Any) -> Client:
+        made.append(Client(port, **kw))
+        return made[-1]
+
+    yield connect
+    for c in made:
+        c.close()
+
+
+# -- addresses ---------------------------------------------------------------------------
+@pytest.mark.parametrize("text", ["8765", "0", ":8765", "0.0.0.0:8765", "localhost:1", "[::1]:65535",
+                                  " 80 ", "", "abc", "65536", "-1", "1:2:3", "[::1]8765", "host:",
+                                  "\uff18\uff17", "[::1", "a'b", "x\ty"])
+def test_addresses_are_read_as_the_python_monitor_reads_them(program: Path, text: str) -> None:
+    done = subprocess.run([str(program), "--parse", text], capture_output=True, text=True, timeout=10,
+                          check=False)
+    try:
+        host, port = hfsmc_monitor.parse_address(text)
+    except ValueError as e:
+        assert (done.returncode, done.stderr) == (2, f"error: {e}\n")
+    else:
+        assert (done.returncode, done.stdout) == (0, f"{host} {port}\n")
+
+
+def test_an_address_in_use_is_a_clear_error(program: Path) -> None:
+    with socket.create_server(("127.0.0.1", 0)) as busy:
+        port = busy.getsockname()[1]
+        done = subprocess.run([str(program), "--monitor", str(port)], capture_output=True, text=True,
+                              timeout=10, check=False)
+    assert done.returncode == 2
+    assert done.stderr == "error: [Errno 98] Address already in use\n"
+
+
+# -- the monitor -------------------------------------------------------------------------
+def test_python_viewer_attaches_late_and_sees_the_current_state(program: Path, run: Any) -> None:
+    r = run(program, "--monitor", "0", "--pause-ms", "20")
+    viewer = subprocess.Popen([str(ROOT / ".venv" / "bin" / "python"), "-m", "hfsmc", "view",
+                               f"127.0.0.1:{r.port}"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True)
+    try:
+        assert viewer.stdout is not None
+        first = viewer.stdout.readline()  # the snapshot: the viewer is attached
+        r.release()
+        rest, err = viewer.communicate(timeout=30)
+    finally:
+        if viewer.poll() is None:
+            viewer.kill()
+            viewer.communicate()
+    r.finish()
+    assert (first + rest).splitlines() == [
+        "  0.600  in Blinking/Dark",
+        "  1.000  Blinking/Dark -> Blinking/Lit",
+        "  3.000  Blinking -> Paused  (pause)",
+        "  3.100  interrupt (error) -> Done",
+        "  3.100  stop (error)",
+    ]
+    assert viewer.returncode == 0
+    assert err.splitlines()[-1] == "hfsmc view: component stopped (error)"
+
+
+def _message_of(item: tuple[str, Any]) -> dict[str, Any]:
+    kind, payload = item
+    msg = hfsmc_monitor.message(kind, payload)
+    assert isinstance(msg, dict)
+    return msg
+
+
+# The run is gated in Blinking/Dark (9 calls), in Paused (19) and after the stop (26).
+@pytest.mark.parametrize("gate_at", [9, 19, 26])
+def test_raw_client_gets_the_protocol_of_the_python_monitor(build: tuple[Path, dict[str, str]],
+                                                            run: Callable[..., Run], clients: Callable[..., Client],
+                                                            gate_at: int) -> None:
+    exe, env = build
+    r = run(exe, "--monitor", "0", "--gate-at", str(gate_at), env=env)
+    r.at_gate()
+    c = clients(r.port)
+    hello, snapshot = c.message(), c.message()
+    r.release()
+    rest = c.until_bye()
+    r.finish()
+    assert hello == {"type": "hello", "protocol": 1, "structure": STRUCTURE}
+    assert snapshot is not None and snapshot["type"] == "snapshot"
+    assert rest[-1] == {"type": "bye", "reason": "error"}
+    # What followed the snapshot is the tail of the run, and the snapshot is the Python
+    # view of everything before it: together, the whole run, nothing missed or repeated.
+    calls = calls_of(r)
+    k = len(calls) - len(rest) + 1
+    assert [_message_of(it) for it in calls[k:]] == rest[:-1]
+    assert k == gate_at
+    view = hfsmc_view.ViewState(STRUCTURE)
+    for it in calls[:k]:
+        view.apply(*it)
+    assert snapshot == json.loads(json.dumps(view.snapshot()))
+    # Records are the trace's lines, byte for byte; every line is ASCII.
+    sent = [line for line in c.lines if line.startswith(b'{"type":"record"')]
+    assert sent == [b'{"type":"record","record":' + rec + b"}\n" for rec in record_lines(r, k)]
+    assert all(line.isascii() for line in c.lines)
+
+
+def test_strings_are_escaped_as_json_dumps_does(program: Path, run: Callable[..., Run],
+                                                clients: Callable[..., Client]) -> None:
+    r = run(program, "--monitor", "0", "--gate-at", "26")
+    r.at_gate()
+    c = clients(r.port)
+    snapshot = c.message() and c.message()
+    r.release()
+    c.until_bye()
+    r.finish()
+    msg = "dark \"now\" \\ caf\u00e9 \u2713 \U0001f681 \x1b[2J\ttab"
+    assert json.dumps(msg).encode() in c.lines[1]
+    assert snapshot is not None
+    assert {"t": 500, "state": "Blinking/Dark", "msg": msg} in snapshot["logs"]
+    assert {"t": 3100, "state": "Paused", "error": "during"} in snapshot["logs"]
+    assert snapshot["stop"]["states"] == [{"state": "Done", "since": 3100}]
+
+
+def _drain(c: Client) -> bytes:
+    c.sock.settimeout(10)
+    data = b""
+    with contextlib.suppress(OSError):
+        while chunk := c.sock.recv(1 << 20):
+            data += chunk
+    return data
+
+
+def test_misbehaving_clients_change_nothing(build: tuple[Path, dict[str, str]], run: Callable[..., Run],
+                                            clients: Callable[..., Client]) -> None:
+    exe, env = build
+    burst = 30000  # log records of about 130 bytes: 4 MB at once
+    r = run(exe, "--monitor", "0", "--burst", str(burst), "--gate-at", "9", "--gate-at", str(9 + burst),
+            env=env)
+    r.at_gate()
+    good, halfclosed, chatty = clients(r.port), clients(r.port), clients(r.port)
+    halfclosed.sock.shutdown(socket.SHUT_WR)  # as nc does at the end of its input
+    chatty.sock.sendall(b"\x00\xff{not json\n[1,2" * 1000)  # read and thrown away
+    stuck = clients(r.port, rcvbuf=4096)  # does not read during the burst
+    killed = clients(r.port)
+    killed.message()
+    killed.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    killed.close()  # reset mid-stream
+    flood = clients(r.port)
+    flood.read_fast()
+    with contextlib.suppress(OSError):
+        for _ in range(64):  # 2 MiB: more than a client may send
+            flood.sock.sendall(os.urandom(1 << 15))
+    for c in (good, halfclosed, chatty):
+        c.read_fast()
+    t0 = time.monotonic()
+    r.release()
+    r.at_gate()  # the burst is made; the component still runs
+    stuck.read_fast()
+    # The flooder and the stuck client were dropped: their streams have ended, without a bye.
+    for c in (flood, stuck):
+        data = c.received(10)
+        assert c._reader is not None and not c._reader.is_alive(), "still connected"
+        assert b'"type":"bye"' not in data
+    r.finish()
+    assert time.monotonic() - t0 < 30
+    for c in (good, halfclosed, chatty):
+        msgs = c.collected()
+        logs = [m for m in msgs if m["type"] == "record" and m["record"].get("msg", "").startswith("burst ")]
+        assert len(logs) == burst
+
+
+def test_too_many_clients_are_turned_away(program: Path, run: Callable[..., Run],
+                                          clients: Callable[..., Client]) -> None:
+    r = run(program, "--monitor", "0")
+    served = [clients(r.port) for _ in range(16)]
+    for c in served:
+        assert c.message() is not None
+    extra = clients(r.port)
+    assert _drain(extra) == b"", "the 17th connection is closed at once"
+    r.release()
+    for c in served:
+        assert c.until_bye()[-1]["type"] == "bye"
+    r.finish()
+
+
+def test_close_is_quick_with_a_stuck_client(program: Path, run: Callable[..., Run],
+                                            clients: Callable[..., Client]) -> None:
+    r = run(program, "--monitor", "0", "--burst", "3000")
+    clients(r.port, rcvbuf=4096)
+    _, err = r.finish()
+    ms = int(re.findall(r"closed in (\d+) ms", err)[0])
+    assert ms < 900
+
+
+def test_threads_block_sigint_and_sigterm(program: Path, run: Callable[..., Run]) -> None:
+    r = run(program, "--monitor", "0", "--display", "--masks")
+    out, _ = r.finish()
+    text = out.decode()
+    main = int(re.findall(r"^main (\d+)$", text, re.M)[0])
+    masks = {int(tid): int(mask, 16)
+             for tid, mask in re.findall(r"^task (\d+) SigBlk:\s*([0-9a-f]+)$", text, re.M)}
+    assert len(masks) == 3, masks  # the automaton's, the monitor's, the display's
+    bits = 1 << (signal.SIGINT - 1) | 1 << (signal.SIGTERM - 1)
+    for tid, mask in masks.items():
+        assert (mask & bits) == (0 if tid == main else bits), (tid, hex(mask))
+
+
+# -- the display -------------------------------------------------------------------------
+@pytest.mark.parametrize("focus", [None, "Blinking", "/Blinking/", "Paused"])
+def test_display_plain_lines_are_the_python_ones(build: tuple[Path, dict[str, str]], run: Callable[..., Run],
+                                                 focus: str | None) -> None:
+    exe, env = build
+    r = run(exe, "--display", *(["--focus", focus] if focus else []), env=env)
+    out, _ = r.finish()
+    expected = io.StringIO()
+    d = hfsmc_view.Display(focus=focus, stream=expected)
+    d.start(STRUCTURE)
+    for kind, payload in calls_of(r):
+        if kind == "record":
+            d.record(payload)
+        else:
+            d.sample(*payload)
+    d.close()
+    assert out.decode() == expected.getvalue()
+    assert out.decode().startswith("  0.000  start blinker in Blinking/Lit\n")
+
+
+def test_display_plain_lines_reach_a_closed_pipe_without_harm(program: Path, run: Callable[..., Run]) -> None:
+    r = run(program, "--display", "--burst", "3000")
+    assert r.proc.stdout is not None
+    r.proc.stdout.close()
+    r.finish()
+
+
+class Terminal:
+    """A pseudo-terminal that the program gets as its controlling terminal (setsid --ctty)."""
+
+    def __init__(self) -> None:
+        self.master, self.slave = pty.openpty()
+        fcntl.ioctl(self.slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
+        self.out = b""
+
+    def read_until(self, pattern: bytes, timeout: float = 15) -> None:
+        deadline = time.monotonic() + timeout
+        while pattern not in self.out and time.monotonic() < deadline:
+            ready, _, _ = select.select([self.master], [], [], 0.1)
+            if ready:
+                with contextlib.suppress(OSError):
+                    self.out += os.read(self.master, 65536)
+        assert pattern in self.out, self.out[-3000:]
+
+    def close(self) -> None:
+        os.close(self.master)
+        os.close(self.slave)
+
+
+def test_display_on_a_terminal(build: tuple[Path, dict[str, str]], run: Callable[..., Run]) -> None:
+    exe, env = build
+    setsid = shutil.which("setsid")
+    assert setsid is not None, "setsid (util-linux) is needed to give the program a terminal"
+    tty = Terminal()
+    try:
+        before = termios.tcgetattr(tty.slave)
+        r = run(exe, "--display", "--pause-ms", "150", prefix=(setsid, "--ctty"), env=env,
+                stdin=tty.slave, stdout=tty.slave, stderr=tty.slave)
+        tty.read_until(b"\x1b[1;32m\xe2\x97\x8f Dark")  # active states are green
+        assert termios.tcgetattr(tty.slave)[3] & termios.ECHO == 0, "keys are read one by one"
+        os.write(tty.master, b"a")
+        tty.read_until(b"off (a: on)")
+        r.release()
+        tty.read_until(b"closed in")
+        assert r.proc.wait(timeout=15) == 0
+        after = termios.tcgetattr(tty.slave)
+        assert after[3] & (termios.ECHO | termios.ICANON) == before[3] & (termios.ECHO | termios.ICANON)
+        last = tty.out.rpartition(b"\x1b[J")[2]
+        assert b"stopped (error)" in last
+        assert b"\x1b[1;33m\xe2\x96\xa0 Done" in last, "the states the stop left are yellow"
+        assert b"\xe2\x96\xb8 2 states" not in last, "autofocus is off: Blinking is expanded"
+        assert tty.out.count(b"component: past the gate") == 1
+        # printed above the frame: right after it is erased, before it is drawn again
+        assert re.search(rb"\x1b\[J(component: [a-z ]+\r\n)*component: past the gate\r\n", tty.out)
+    finally:
+        tty.close()
