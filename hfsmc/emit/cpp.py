@@ -24,6 +24,7 @@ from pathlib import Path
 import jinja2
 
 from hfsmc.durations import format_us
+from hfsmc.emit.comments import comment_text
 from hfsmc.emit.data import component_config
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, State, Value
@@ -125,12 +126,6 @@ def cpp_literal(value: Value, kind: str) -> str:
     fail(EmitError, "E150", f"a C++ component cannot hold the value {value!r}", Span("<emit>", 1, 1))
 
 
-def comment(text: str) -> str:
-    """Text safe inside a ``//`` comment: one line, never ending in a backslash (which
-    would splice the next line of code into the comment)."""
-    return text.replace("\r", " ").replace("\n", " ").rstrip().rstrip("\\").rstrip()
-
-
 def _line(file: str, line: int) -> str:
     return f"#line {max(line, 1)} {cpp_string(file)}"
 
@@ -178,7 +173,7 @@ class _Builder:
         body, line, col = self.lines(code)
         path = self.states[owner].path if owner < self.root else ""
         where = f"{self.base}:{code.span.line} {kind}" + (f" of {path}" if path else "") + what
-        view = SnippetView(len(self.snippets), kind, owner, comment(where), body, line, col)
+        view = SnippetView(len(self.snippets), kind, owner, comment_text(where), body, line, col)
         self.snippets.append(view)
         return view
 
@@ -226,7 +221,7 @@ class _Builder:
             "model": m,
             "base": self.base,
             "source": cpp_string(f"src/{m.name}.cpp"),
-            "description": [comment(ln) for ln in (m.description or "").strip().splitlines()],
+            "description": [comment_text(ln) for ln in (m.description or "").strip().splitlines()],
             "includes": [(_include(i.text), _line(self.file, i.span.line)) for i in m.imports],
             "drivers": [f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds) if k in INTERFACE_FILES],
             "parameters": params,
@@ -257,7 +252,7 @@ class _Builder:
         return StateView(i, s.path, container, child, child_initial, history, s.final,
                          self.snippet("entry", i, s.entry), self.snippet("during", i, s.during),
                          self.snippet("exit", i, s.exit), (),
-                         comment(f"{self.base}:{s.span.line} {s.path}"))
+                         comment_text(f"{self.base}:{s.span.line} {s.path}"))
 
     def with_transitions(self, v: StateView) -> StateView:
         s = self.states[v.index]
@@ -272,7 +267,7 @@ class _Builder:
             cond = (f" after {after}" if after else "") + (" when ..." if when else "")
             text = f"{self.base}:{t.span.line}{label} {s.path} -> {self.states[target].path}{cond}"
             out.append(TransitionView(t.index, target, t.after_us, when, do,
-                                      self._during_of(target), comment(text)))
+                                      self._during_of(target), comment_text(text)))
         return StateView(v.index, v.path, v.container, v.child, v.child_initial, v.child_history,
                          v.final, v.entry, v.during, v.exit, tuple(out), v.comment)
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import jinja2
 
 from hfsmc.durations import format_us
+from hfsmc.emit.comments import comment_text
 from hfsmc.emit.data import component_config
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, DictValue, Model, State, Value
@@ -149,7 +150,7 @@ class _Builder:
             out.append(" " * pad + line if line.strip() or k in strings else "")
         path = self.states[owner].path if owner < self.root else ""
         where = f"{self.base}:{code.span.line} {kind}" + (f" of {path}" if path else "") + what
-        view = SnippetView(len(self.snippets), kind, owner, where.replace("\n", " "),
+        view = SnippetView(len(self.snippets), kind, owner, comment_text(where),
                            _assigned(code, mode, self.variables), "\n".join(out),
                            tuple(rows), code)
         self.snippets.append(view)
@@ -204,7 +205,7 @@ class _Builder:
         return StateView(i, s.path, container, child, child_initial, history, s.final,
                          self.snippet("entry", i, s.entry), self.snippet("during", i, s.during),
                          self.snippet("exit", i, s.exit), (),
-                         f"{self.base}:{s.span.line} {s.path}")
+                         comment_text(f"{self.base}:{s.span.line} {s.path}"))
 
     def with_transitions(self, v: StateView) -> StateView:
         s = self.states[v.index]
@@ -220,7 +221,8 @@ class _Builder:
             out.append(TransitionView(
                 t.index, target, t.after_us, after, when, do,
                 self._during_of(target),
-                f"{self.base}:{t.span.line}{label} {s.path} -> {self.states[target].path}{cond}"))
+                comment_text(f"{self.base}:{t.span.line}{label} {s.path} -> "
+                             f"{self.states[target].path}{cond}")))
         return StateView(v.index, v.path, v.container, v.child, v.child_initial, v.child_history,
                          v.final, v.entry, v.during, v.exit, tuple(out), v.comment)
 

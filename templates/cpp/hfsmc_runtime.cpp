@@ -12,7 +12,6 @@
 #include <cstring>
 #include <map>
 #include <memory>
-#include <regex>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -27,21 +26,66 @@ namespace hfsmc {
 
 // `250ms`, `2s`, `1.5s`, `2m`, or a bare integer of milliseconds; microseconds.
 long long parse_duration_us(const std::string& text) {
-    static const std::regex form(R"(^\s*([0-9]+)(?:\.([0-9]+))?\s*(ms|s|m)?\s*$)");
-    std::smatch m;
-    if (!std::regex_match(text, m, form) || m[1].length() > 12 || m[2].length() > 12)
-        throw UsageError("`" + text + "` is not a duration: write 250ms, 2s, 1.5s or 2m");
-    const std::string unit_text = m[3];
+    const auto bad = [&]() {
+        return UsageError("`" + text + "` is not a duration: write 250ms, 2s, 1.5s or 2m");
+    };
+    std::size_t k = 0;
+    const auto digits = [&]() {
+        const std::size_t from = k;
+        while (k < text.size() && std::isdigit(static_cast<unsigned char>(text[k]))) ++k;
+        return text.substr(from, k - from);
+    };
+    while (k < text.size() && std::isspace(static_cast<unsigned char>(text[k]))) ++k;
+    const std::string whole = digits();
+    std::string frac;
+    if (k < text.size() && text[k] == '.') {
+        ++k;
+        frac = digits();
+        if (frac.empty()) throw bad();
+    }
+    while (k < text.size() && std::isspace(static_cast<unsigned char>(text[k]))) ++k;
+    std::string unit_text;
+    while (k < text.size() && std::isalpha(static_cast<unsigned char>(text[k]))) unit_text += text[k++];
+    while (k < text.size() && std::isspace(static_cast<unsigned char>(text[k]))) ++k;
+    if (whole.empty() || k != text.size() || whole.size() > 12 || frac.size() > 12 ||
+        (unit_text != "" && unit_text != "ms" && unit_text != "s" && unit_text != "m"))
+        throw bad();
     const long long unit = unit_text == "s" ? 1000000LL : unit_text == "m" ? 60000000LL : 1000LL;
-    long long us = std::stoll(m[1]) * unit;
-    const std::string frac = m[2];
+    long long us = std::stoll(whole) * unit;
     if (!frac.empty()) {
         long long scale = 1;
-        for (std::size_t k = 0; k < frac.size(); ++k) scale *= 10;
+        for (std::size_t n = 0; n < frac.size(); ++n) scale *= 10;
         us += std::stoll(frac) * unit / scale;
     }
     return us;
 }
+
+namespace {
+
+// JSON's number grammar (what Python's json.loads accepts for --param), integers only or not.
+bool json_number(const std::string& t, bool integer) {
+    std::size_t k = 0;
+    const auto digit = [&](std::size_t n) { return n < t.size() && std::isdigit(static_cast<unsigned char>(t[n])); };
+    if (k < t.size() && t[k] == '-') ++k;
+    if (!digit(k)) return false;
+    if (t[k] == '0') ++k;
+    else while (digit(k)) ++k;
+    if (integer) return k == t.size();
+    if (k < t.size() && t[k] == '.') {
+        ++k;
+        if (!digit(k)) return false;
+        while (digit(k)) ++k;
+    }
+    if (k < t.size() && (t[k] == 'e' || t[k] == 'E')) {
+        ++k;
+        if (k < t.size() && (t[k] == '+' || t[k] == '-')) ++k;
+        if (!digit(k)) return false;
+        while (digit(k)) ++k;
+    }
+    return k == t.size();
+}
+
+}  // namespace
 
 class YamlConfig final : public Config {
 public:
@@ -181,16 +225,14 @@ private:
             if (low == "false" || low == "no" || low == "off" || low == "0") return false;
             throw bad();
         } else if constexpr (std::is_integral_v<T>) {
-            static const std::regex form(R"(^-?(0|[1-9][0-9]*)$)");
-            if (!std::regex_match(text, form)) throw bad();
+            if (!json_number(text, true)) throw bad();
             try {
                 return static_cast<T>(std::stoll(text));
             } catch (const std::exception&) {
                 throw bad();
             }
         } else if constexpr (std::is_floating_point_v<T>) {
-            static const std::regex form(R"(^-?(0|[1-9][0-9]*)(\.[0-9]+)?([eE][-+]?[0-9]+)?$)");
-            if (!std::regex_match(text, form)) throw bad();
+            if (!json_number(text, false)) throw bad();
             return static_cast<T>(std::stod(text));
         } else {
             return T(raw);

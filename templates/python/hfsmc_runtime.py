@@ -133,6 +133,8 @@ class Engine:
         self.interrupting: str | None = None  # the interrupt's reason while one runs
         self.stopping = False
         self.stop_failed = False
+        self.finished = False
+        self.status = 0
         self.overruns = 0
         self.ticks = 0  # ticks run on the real clock (for the summary at stop)
         self.real = False
@@ -374,8 +376,8 @@ class Engine:
         self.EXIT[self.cur[0]]()
         self.owner = self.root
         self.m["on_shutdown"]()
-        self.finish(reason)
         self.status = 1 if self.stop_failed else EXIT_STATUS[reason]
+        self.finish(reason)
         if self.real:  # the virtual clock never overruns: nothing to tell
             share = 100 * self.overruns / max(self.ticks + self.overruns, 1)
             sys.stderr.write(f"{self.name}: stopped ({reason}) at {self.t // 1000 / 1000:.3f} s; "
@@ -386,6 +388,7 @@ class Engine:
             self.emit({"t": self.t // 1000, "ev": "stop", "reason": reason})
         if self.trace is not None:
             self.trace.close()
+        self.finished = True  # from now on a signal only ends the process, with self.status
         for o in self.observers:
             try:
                 o.close()
@@ -423,6 +426,9 @@ class Engine:
 
     def on_signal(self, signum: int, frame: object) -> None:
         reason = _SIGNAL_REASON[signum]
+        if self.finished:  # stopped already: the status is decided, nothing to add
+            sys.stderr.flush()
+            os._exit(self.status)
         if self.interrupting is not None or self.stopping or self.signal_reason is not None:
             # A second signal, or one during an interrupt or a stop: end at once.
             self.t = max(self.t, (time.monotonic_ns() - self.clock_start) // 1000) \

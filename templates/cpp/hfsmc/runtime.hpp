@@ -196,6 +196,8 @@ namespace signals {
 inline volatile std::sig_atomic_t pending = 0;  // SIGINT / SIGTERM not yet acted on
 inline volatile std::sig_atomic_t hard = 0;  // an interrupt or a stop runs: end at once
 inline volatile std::sig_atomic_t real = 0;
+inline volatile std::sig_atomic_t finished = 0;  // the stop record is out: exit with `status`
+inline volatile std::sig_atomic_t status = 0;
 inline volatile long long t_us = 0;  // the logical time, for the emergency stop record
 inline long long start_ns = 0;  // CLOCK_MONOTONIC at the start
 inline int wake_r = -1, wake_w = -1;
@@ -210,6 +212,7 @@ inline long long monotonic_ns() {
 // Async-signal-safe: integers and write(2) only.
 inline void on_signal(int signum) {
     const int saved = errno;
+    if (finished != 0) _exit(status);  // stopped already: the status is decided, nothing to add
     const bool again = hard != 0 || pending != 0;
     if (!again) {
         pending = signum;
@@ -311,32 +314,34 @@ public:
     Engine& operator=(const Engine&) = delete;
 
     // --- called by generated code ---------------------------------------------------
-    void enter(int i) {
-        const int a = tb_.states[i].container;
+    // Enter state i of sub-automaton a (both known when the code was generated).
+    void enter(int i, int a) {
         cur[static_cast<std::size_t>(a)] = last[static_cast<std::size_t>(a)] = i;
         entered[static_cast<std::size_t>(i)] = t;
         is_active[static_cast<std::size_t>(i)] = 1;
         owner = i;
-        if (a == 0 && tb_.states[i].final && request_.empty()) request_ = "final";
-        if (recording_) {
-            Record r = base("enter");
-            r.state = tb_.states[i].path;
-            r.json = head(r) + ",\"state\":" + json_string(r.state) + "}";
-            emit(r);
-        }
+        if (recording_) record_state("enter", i);
     }
     void exit(int i) {
         owner = i;
-        if (recording_) {
-            Record r = base("exit");
-            r.state = tb_.states[i].path;
-            r.json = head(r) + ",\"state\":" + json_string(r.state) + "}";
-            emit(r);
-        }
+        if (recording_) record_state("exit", i);
+    }
+    [[gnu::cold, gnu::noinline]] void record_state(const char* ev, int i) {
+        Record r = base(ev);
+        r.state = tb_.states[i].path;
+        r.json = head(r) + ",\"state\":" + json_string(r.state) + "}";
+        emit(r);
     }
     void left(int i) { is_active[static_cast<std::size_t>(i)] = 0; }
+    // The root sub-automaton entered a final state: stop at the end of the tick.
+    void root_final() {
+        if (request_ == nullptr) request_ = "final";
+    }
     void fire(int i, int j, int k) {
-        if (recording_) {
+        if (recording_) record_fire(i, j, k);
+    }
+    [[gnu::cold, gnu::noinline]] void record_fire(int i, int j, int k) {
+        {
             Record r = base("fire");
             r.from = tb_.states[i].path;
             r.to = tb_.states[j].path;
@@ -410,7 +415,7 @@ public:
         throw std::invalid_argument("active(" + string_repr(path) + "): no such state in " + tb_.name);
     }
     void shutdown() {
-        if (interrupting_.empty() && !stopping_ && request_.empty()) request_ = "shutdown";
+        if (interrupting_.empty() && !stopping_ && request_ == nullptr) request_ = "shutdown";
     }
 
     // --- set up by hfsmc::main ---------------------------------------------------------
@@ -490,7 +495,7 @@ private:
                         ++ticks_;
                         skip_missed(a);
                     }
-                    if (!request_.empty() || signals::pending != 0) return;
+                    if (request_ != nullptr || signals::pending != 0) return;
                 }
             }
             if (!observers_.empty()) sample();
@@ -546,8 +551,8 @@ private:
 
     // Act on stop requests between ticks. True when something was done.
     bool boundary() {
-        const std::string reason = request_;
-        request_.clear();
+        const std::string reason = request_ != nullptr ? request_ : "";
+        request_ = nullptr;
         const int sig = signals::pending;
         signals::pending = 0;
         const std::string sig_reason = sig == SIGINT ? "sigint" : sig == SIGTERM ? "sigterm" : "";
@@ -593,12 +598,12 @@ private:
     void stop(const std::string& reason) {
         stopping_ = true;
         signals::hard = 1;
-        request_.clear();
+        request_ = nullptr;
         m_._hfsm_exit(cur[0]);
         owner = root_;
         m_._hfsm_on_shutdown();
-        finish(reason);
         status_ = stop_failed_ ? 1 : exit_status(reason);
+        finish(reason);
         if (real_) {  // the virtual clock never overruns: nothing to tell
             const double share = 100.0 * static_cast<double>(overruns_) /
                                  static_cast<double>(std::max(ticks_ + overruns_, 1LL));
@@ -617,6 +622,8 @@ private:
         }
         signals::trace = nullptr;
         if (trace_) trace_->close();
+        signals::status = status_;
+        signals::finished = 1;
         for (auto& o : observers_) {
             try {
                 o->close();
@@ -665,7 +672,7 @@ private:
     bool real_ = false;
     bool stopping_ = false;
     bool stop_failed_ = false;
-    std::string request_;  // shutdown / error / final, acted on at the boundary
+    const char* request_ = nullptr;  // shutdown / error / final, acted on at the boundary
     std::string interrupting_;  // the interrupt's reason while one runs
     long long until_us_ = -1, timeout_at_ = -1, limit_us_ = -1;
     std::string limit_why_ = "until";
