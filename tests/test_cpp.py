@@ -190,7 +190,7 @@ def test_compile_reports_snippet_errors_at_model_positions(tmp_path: Path) -> No
     model = tmp_path / "typo.yaml"
     model.write_text(SNIPPET_ERRORS, "utf-8")
     out = tmp_path / "typo"
-    r = run([sys.executable, "-m", "hfsmc", "build", "-t", "cpp", str(model), "-o", str(out),
+    r = run([sys.executable, "-m", "hfsmc", "build", "-t", "cpp", model.name, "-o", str(out),
              "--compile"], cwd=tmp_path)
     assert r.returncode == 1
     assert "Traceback" not in r.stderr
