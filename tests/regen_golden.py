@@ -19,8 +19,8 @@ sys.path.insert(0, str(ROOT))
 
 from hfsmc.compiler import compile_file  # noqa: E402
 from hfsmc.dump import dump  # noqa: E402
-from hfsmc.emit.dot import to_dot  # noqa: E402
 from hfsmc.emit import cpp, python  # noqa: E402
+from hfsmc.emit.dot import to_dot  # noqa: E402
 from hfsmc.ir import Model  # noqa: E402
 from tests.conftest import examples, model_language  # noqa: E402
 

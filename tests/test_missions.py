@@ -1,5 +1,8 @@
 """The paper's drone missions flown end to end: the component and `hfsmc sim` as real
-processes talking MAVLink over UDP and MJPEG over HTTP on 127.0.0.1 (SPEC 6, 7)."""
+processes talking MAVLink over UDP and MJPEG over HTTP on 127.0.0.1 (SPEC 6, 7).
+
+follow_colors flies in Python and in C++ (examples/follow_colors_cpp, the same mission
+in the same world): the C++ component is compiled once per session."""
 
 from __future__ import annotations
 
@@ -20,9 +23,14 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import ROOT
+from tests.cppbuild import need_toolchain
 
 HFSMC = [sys.executable, "-m", "hfsmc"]
 FOLLOW = ROOT / "examples/follow_colors"
+FOLLOW_CPP = ROOT / "examples/follow_colors_cpp"
+CPP_BUILD_TIMEOUT = 900  # s: CMake and g++ on a loaded 2-core machine take 1-2 min, at times far more
+# The tests flown by both components; the first C++ one also waits for the compiler.
+LANGUAGES = ["python", pytest.param("cpp", marks=pytest.mark.timeout(CPP_BUILD_TIMEOUT + 300))]
 
 
 def free_port(kind: int) -> int:
@@ -70,16 +78,41 @@ class Flight:
             self.sim.wait(timeout=20)
 
 
+@pytest.fixture(scope="session")
+def cpp_follow_colors(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    """examples/follow_colors_cpp compiled (`hfsmc build -t cpp --compile`): its command."""
+    need_toolchain()
+    out = tmp_path_factory.mktemp("follow_colors_cpp") / "component"
+    r = subprocess.run([*HFSMC, "build", "-t", "cpp", str(FOLLOW_CPP / "follow_colors_cpp.yaml"),
+                        "-o", str(out), "--compile"],
+                       capture_output=True, text=True, timeout=CPP_BUILD_TIMEOUT)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return [str(out / "build" / "follow_colors_cpp")]
+
+
+@pytest.fixture
+def mission(request: pytest.FixtureRequest) -> list[str] | None:
+    """The follow_colors component to fly, by language (None: flight() builds the Python one)."""
+    if request.param == "python":
+        return None
+    command: list[str] = request.getfixturevalue("cpp_follow_colors")
+    return command
+
+
 @contextmanager
 def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors.yaml",
-           world: Path = FOLLOW / "world.yaml") -> Iterator[Flight]:
-    """Build the mission, start the simulator and the component on free ports."""
+           world: Path = FOLLOW / "world.yaml",
+           command: list[str] | None = None) -> Iterator[Flight]:
+    """Start the simulator and the component on free ports: `command` (a built component's
+    command line), or else the Python component of `model`, built here."""
     folder = tmp_path / "flight"
-    r = subprocess.run([*HFSMC, "build", str(model), "-o", str(folder / "component")],
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
+    if command is None:
+        r = subprocess.run([*HFSMC, "build", str(model), "-o", str(folder / "component")],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        command = [sys.executable, str(folder / "component" / f"{model.stem}.py")]
+    folder.mkdir(parents=True, exist_ok=True)
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
-    name = model.stem
     config = {"parameters": {"report": str(folder / "report.json")},
               "interfaces": {"drone": {"type": "mavlink", "url": f"udpin:127.0.0.1:{udp}"},
                              "camera": {"type": "camera",
@@ -93,8 +126,8 @@ def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors
                            stdout=sim_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     started = time.monotonic()
     component = subprocess.Popen(
-        [sys.executable, str(folder / "component" / f"{name}.py"), "--config",
-         str(folder / "config.yaml"), "--trace", str(folder / "trace.jsonl"), "--until", "240s"],
+        [*command, "--config", str(folder / "config.yaml"), "--trace", str(folder / "trace.jsonl"),
+         "--until", "240s"],
         stdout=comp_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     f = Flight(folder, component, sim, started, time.monotonic())
     try:
@@ -113,8 +146,10 @@ def fired_into(trace: list[dict[str, object]]) -> list[str]:
 
 
 @pytest.mark.slow
-def test_follow_colors_flies_the_four_stages_and_lands_over_red(tmp_path: Path) -> None:
-    with flight(tmp_path) as f:
+@pytest.mark.parametrize("mission", LANGUAGES, indirect=True)
+def test_follow_colors_flies_the_four_stages_and_lands_over_red(
+        tmp_path: Path, mission: list[str] | None) -> None:
+    with flight(tmp_path, command=mission) as f:
         status = f.component.wait(timeout=240)
         f.stop_sim()
         log = (f.folder / "component.log").read_text()
@@ -142,8 +177,9 @@ def test_follow_colors_flies_the_four_stages_and_lands_over_red(tmp_path: Path) 
 
 
 @pytest.mark.slow
-def test_sigint_mid_flight_lands_and_disarms(tmp_path: Path) -> None:
-    with flight(tmp_path) as f:
+@pytest.mark.parametrize("mission", LANGUAGES, indirect=True)
+def test_sigint_mid_flight_lands_and_disarms(tmp_path: Path, mission: list[str] | None) -> None:
+    with flight(tmp_path, command=mission) as f:
         f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=60)
         time.sleep(2)
         f.component.send_signal(signal.SIGINT)
@@ -174,7 +210,7 @@ def test_link_loss_fires_the_failsafe_and_the_mission_resumes(tmp_path: Path) ->
     assert 0 < lost["t"] - drop_ms <= 2500 + 500  # heartbeats stop; 2 s without one
     assert back["t"] > lost["t"]
     # History: the stage that was flying resumes (not a restart from FollowGreen's entry).
-    after = [r["state"] for r in f.trace if r["t"] >= back["t"] and r["ev"] == "enter"]
+    after = [r["state"] for r in f.trace if int(str(r["t"])) >= back["t"] and r["ev"] == "enter"]
     assert after[:2] == ["Mission", "Mission/FollowBlue"], after
     assert os.path.exists(f.folder / "report.json")
 
