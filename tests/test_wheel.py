@@ -28,7 +28,10 @@ def test_wheel_contents(wheel: Path) -> None:
     for required in ("hfsmc/cli.py", "hfsmc/schemas/hfsm.schema.json", "hfsmc/schemas/hfsm.xsd",
                      "hfsmc/templates/README.md", "hfsmc/frontend/yaml.py", "hfsmc/emit/dot.py",
                      "hfsmc/templates/python/hfsmc_runtime.py",
-                     "hfsmc/templates/python/component.py.j2", "hfsmc/schemas/trace.schema.json"):
+                     "hfsmc/templates/python/component.py.j2", "hfsmc/schemas/trace.schema.json",
+                     "hfsmc/emit/cpp.py", "hfsmc/templates/cpp/component.cpp.j2",
+                     "hfsmc/templates/cpp/CMakeLists.txt.j2", "hfsmc/templates/cpp/hfsmc_runtime.cpp",
+                     "hfsmc/templates/cpp/hfsmc/runtime.hpp", "hfsmc/templates/cpp/hfsmc/mavlink.hpp"):
         assert required in names, f"{required} missing from {wheel.name}"
     entry = next(n for n in names if n.endswith("entry_points.txt"))
     assert "hfsmc = hfsmc.cli:main" in zipfile.ZipFile(wheel).read(entry).decode()
