@@ -168,10 +168,39 @@ std::string str(const T& v) {
     }
 }
 
-// repr(x) for the live view and the monitor: strings quoted, the rest as str().
+// repr(x) for the live view and the monitor: strings quoted, sequences and maps as
+// Python writes lists and dicts, the rest as str().
 inline std::string repr(const std::string& v) { return string_repr(v); }
 inline std::string repr(const char* v) { return string_repr(v); }
 template <typename T>
-std::string repr(const T& v) { return str(v); }
+std::string repr(const T& v);
+
+namespace detail {
+template <typename T, typename = void>
+struct is_map : std::false_type {};
+template <typename T>
+struct is_map<T, std::void_t<typename T::key_type, typename T::mapped_type>> : std::true_type {};
+template <typename T, typename = void>
+struct is_sequence : std::false_type {};
+template <typename T>
+struct is_sequence<T, std::void_t<decltype(std::declval<const T&>().begin()),
+                                  decltype(std::declval<const T&>().end()), typename T::value_type>>
+    : std::true_type {};
+}  // namespace detail
+
+template <typename T>
+std::string repr(const T& v) {
+    if constexpr (detail::is_map<T>::value) {
+        std::string out = "{";
+        for (const auto& [k, x] : v) out += (out.size() > 1 ? ", " : "") + repr(k) + ": " + repr(x);
+        return out + "}";
+    } else if constexpr (detail::is_sequence<T>::value && !detail::streamable<T>::value) {
+        std::string out = "[";
+        for (const auto& x : v) out += (out.size() > 1 ? ", " : "") + repr(x);
+        return out + "]";
+    } else {
+        return str(v);
+    }
+}
 
 }  // namespace hfsmc
