@@ -21,6 +21,7 @@ send or for the parsing of datagrams already received, never while waiting.
 from __future__ import annotations
 
 import atexit
+import collections
 import contextlib
 import math
 import select
@@ -40,6 +41,8 @@ GCS_HEARTBEAT_S = 1.0  # our own heartbeat, so the vehicle sees a ground station
 POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
 FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
 SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
+DUPLICATE_WINDOW = 255  # frames remembered per source: a copy of one of them is dropped
+SILENCE_S = 0.5  # a source silent that long (a reboot) is remembered afresh
 
 # SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field"
 # (MAVLink POSITION_TARGET_TYPEMASK; bit 9, force, stays clear).
@@ -126,6 +129,9 @@ class Vehicle:
         self._battery = -1
         self._gps_fix = 0
         self._ekf_flags = 0
+        # Per source (system, component): its last frames (bytes), how many of each, when.
+        self._recent: dict[tuple[int, int], tuple[collections.deque[bytes], collections.Counter[bytes]]] = {}
+        self._recent_at: dict[tuple[int, int], float] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"mavlink {name}", daemon=True)
         self._thread.start()
@@ -329,6 +335,8 @@ class Vehicle:
     def _handle(self, msg: Any) -> None:
         kind = msg.get_type()
         source = (msg.get_srcSystem(), msg.get_srcComponent())
+        if self._duplicate(source, bytes(msg.get_msgbuf())):
+            return
         if kind == "HEARTBEAT":
             self._on_heartbeat(msg, source)
             return
@@ -349,6 +357,26 @@ class Vehicle:
             self._ekf_flags = int(msg.flags)
         elif kind == "COMMAND_ACK":
             self._on_ack(msg)
+
+    def _duplicate(self, source: tuple[int, int], frame: bytes) -> bool:
+        """A copy of one of the last DUPLICATE_WINDOW frames of that source (same
+        seq, same bytes): a network duplicate, however late. A new frame can only
+        be byte for byte an old one 256 frames later (seq is 8 bits)."""
+        now = time.monotonic()
+        if now - self._recent_at.get(source, -math.inf) > SILENCE_S:
+            self._recent[source] = (collections.deque(), collections.Counter())
+        self._recent_at[source] = now
+        order, count = self._recent[source]
+        if count[frame]:
+            return True
+        order.append(frame)
+        count[frame] += 1
+        if len(order) > DUPLICATE_WINDOW:
+            old = order.popleft()
+            count[old] -= 1
+            if not count[old]:
+                del count[old]
+        return False
 
     def _on_heartbeat(self, msg: Any, source: tuple[int, int]) -> None:
         if msg.autopilot == self._mav.MAV_AUTOPILOT_INVALID or msg.type == self._mav.MAV_TYPE_GCS:
@@ -406,6 +434,8 @@ class Vehicle:
     def _watch_link(self) -> None:
         if not self._lost and self._heartbeat_at is not None and not self.connected():
             self._lost = True
+            self._gps_fix = 0  # whatever answers next says afresh whether it is ready
+            self._ekf_flags = 0
             self._say(f"link lost: no heartbeat for {LINK_TIMEOUT_S:g} s")
 
     # -- helpers -------------------------------------------------------------------

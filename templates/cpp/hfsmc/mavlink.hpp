@@ -47,6 +47,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <deque>
 #include <initializer_list>
 #include <limits>
 #include <map>
@@ -76,6 +77,8 @@ class Mavlink {
   static constexpr int kPollMs = 50;             // longest wait of the reader
   static constexpr double kFastRateHz = 20.0;    // position, velocity, attitude (option `rate`)
   static constexpr double kSlowRateHz = 2.0;     // battery, GPS, EKF status
+  static constexpr size_t kDuplicateWindow = 255;  // frames remembered per source
+  static constexpr double kSilenceS = 0.5;       // a source silent that long is a new one
 
   Mavlink(const std::string& name, const std::string& url,
           const std::map<std::string, std::string>& options)
@@ -442,7 +445,29 @@ class Mavlink {
     }
   }
 
+  /// A copy of one of the last kDuplicateWindow frames of that source (same seq,
+  /// message and checksum): a network duplicate, however late. Reader thread only.
+  bool duplicate(const mavlink_message_t& msg) {
+    const Clock::time_point now = Clock::now();
+    Recent& r = recent_[static_cast<uint16_t>(msg.sysid << 8 | msg.compid)];
+    if (!r.any || seconds(now - r.at) > kSilenceS) r = Recent{};  // first word, or a reboot
+    r.any = true;
+    r.at = now;
+    const uint64_t key = static_cast<uint64_t>(msg.seq) << 40 |
+                         static_cast<uint64_t>(msg.msgid) << 16 | msg.checksum;
+    if (r.count.count(key) != 0) return true;
+    r.order.push_back(key);
+    ++r.count[key];
+    if (r.order.size() > kDuplicateWindow) {
+      auto it = r.count.find(r.order.front());
+      if (--it->second == 0) r.count.erase(it);
+      r.order.pop_front();
+    }
+    return false;
+  }
+
   void handle(const mavlink_message_t& msg) {
+    if (duplicate(msg)) return;
     if (msg.msgid == MAVLINK_MSG_ID_HEARTBEAT) {
       on_heartbeat(msg);
       return;
@@ -583,6 +608,11 @@ class Mavlink {
     }
     if (!lost_ && seen && !connected()) {
       lost_ = true;
+      {
+        std::lock_guard<std::mutex> lock(state_);
+        s_.gps_fix = 0;  // whatever answers next says afresh whether it is ready
+        s_.ekf_flags = 0;
+      }
       say("link lost: no heartbeat for " + fmt(kLinkTimeoutS) + " s");
     }
   }
@@ -791,6 +821,13 @@ class Mavlink {
   // The reader thread's own.
   std::vector<uint8_t> rx_buf_ = std::vector<uint8_t>(65536);
   bool lost_ = false;  // said on stderr that the link is lost
+  struct Recent {  // the last frames of one source, as (seq, msgid, checksum)
+    bool any = false;
+    Clock::time_point at{};
+    std::deque<uint64_t> order;
+    std::map<uint64_t, int> count;
+  };
+  std::map<uint16_t, Recent> recent_;
   std::atomic<bool> stop_{false};
   std::thread reader_;
 };
