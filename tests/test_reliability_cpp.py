@@ -224,7 +224,7 @@ class PairGen:
                     if r.random() < 0.5:
                         p["do"], c["do"] = self.snippet("do")
                     if r.random() < 0.4:
-                        p["name"] = c["name"] = hostile(r, nul=True, newline=True)
+                        p["name"] = c["name"] = hostile(r, nul=True)
                     pt.append(p)
                     ct.append(c)
                 if pt:
