@@ -19,15 +19,14 @@ import math
 import re
 from dataclasses import dataclass
 from importlib.resources import files
-from pathlib import Path
 
 import jinja2
 
-from hfsmc.durations import format_us
 from hfsmc.emit.comments import comment_text
 from hfsmc.emit.data import component_config
+from hfsmc.emit.walk import Walk
 from hfsmc.errors import EmitError, Span, fail
-from hfsmc.ir import Code, Model, State, Value
+from hfsmc.ir import Code, Model, Value
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "view.hpp", "viewstate.hpp",
                  "monitor.hpp")
@@ -47,33 +46,6 @@ class SnippetView:
     body: str  # the code with its #line directives
     line: int  # model line and column of its first line
     col: int
-
-
-@dataclass(frozen=True, slots=True)
-class TransitionView:
-    index: int
-    target: int
-    after_us: int | None
-    when: SnippetView | None
-    do: SnippetView | None
-    target_during: SnippetView | None
-    comment: str
-
-
-@dataclass(frozen=True, slots=True)
-class StateView:
-    index: int
-    path: str
-    container: int
-    child: int
-    child_initial: int
-    child_history: bool
-    final: bool
-    entry: SnippetView | None
-    during: SnippetView | None
-    exit: SnippetView | None
-    transitions: tuple[TransitionView, ...]
-    comment: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,19 +107,12 @@ def _include(text: str) -> str:
     return t if t.startswith(("<", '"')) else f"<{t}>"
 
 
-class _Builder:
+class _Builder(Walk[SnippetView]):
     """Walks the IR once and makes the view model of the template."""
 
     def __init__(self, model: Model) -> None:
-        self.model = model
+        super().__init__(model)
         self.file = model.file
-        self.base = Path(model.file).name
-        self.states: list[State] = list(model.states())
-        self.index = {s.path: i for i, s in enumerate(self.states)}
-        self.root = len(self.states)
-        self.snippets: list[SnippetView] = []
-        self.automata: list[tuple[int, int, int, bool]] = []  # owner, period, initial, history
-        self.auto_of: dict[str, int] = {}
 
     def lines(self, code: Code) -> tuple[str, int, int]:
         """The snippet's text, each line after a #line directive and padded to its column."""
@@ -167,15 +132,9 @@ class _Builder:
             continued = row.endswith("\\")
         return "\n".join(out), first.line, first.col
 
-    def snippet(self, kind: str, owner: int, code: Code | None, what: str = "") -> SnippetView | None:
-        if code is None:
-            return None
+    def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> SnippetView:
         body, line, col = self.lines(code)
-        path = self.states[owner].path if owner < self.root else ""
-        where = f"{self.base}:{code.span.line} {kind}" + (f" of {path}" if path else "") + what
-        view = SnippetView(len(self.snippets), kind, owner, comment_text(where), body, line, col)
-        self.snippets.append(view)
-        return view
+        return SnippetView(sid, kind, owner, where, body, line, col)
 
     def members(self) -> tuple[list[MemberView], list[MemberView], list[InterfaceView]]:
         m = self.model
@@ -207,13 +166,7 @@ class _Builder:
     def build(self) -> dict[str, object]:
         m = self.model
         functions = self.snippet("functions", self.root, m.functions)
-        for auto in m.automata():
-            self.auto_of[auto.owner] = len(self.automata)
-            owner = self.index[auto.owner] if auto.owner else -1
-            initial = self.index[f"{auto.owner}/{auto.initial}" if auto.owner else auto.initial]
-            self.automata.append((owner, auto.period_ms, initial, auto.history))
-        views = [self.state_view(i, s) for i, s in enumerate(self.states)]
-        views = [self.with_transitions(v) for v in views]
+        views = self.state_views()
         on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
         params, variables, interfaces = self.members()
         kinds = {i.type for i in m.interfaces}
@@ -235,47 +188,11 @@ class _Builder:
             "on_interrupt": self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
             "interrupt_timeout_us": m.interrupt_timeout_us if m.interrupt_timeout_us is not None else -1,
             "root": self.root,
-            "transitions": [(self.index[s.path],
-                             self.index[f"{s.path.rpartition('/')[0]}/{t.target}".lstrip("/")],
-                             t.index, cpp_string(t.name or "")) for s in self.states for t in s.transitions],
+            "transitions": [(self.index[s.path], self.target(s, t.target), t.index,
+                             cpp_string(t.name or "")) for s in self.states for t in s.transitions],
             "file": cpp_string(m.file),
             "name": cpp_string(m.name),
         }
-
-    def state_view(self, i: int, s: State) -> StateView:
-        container = self.auto_of[s.path.rpartition("/")[0]]
-        child, child_initial, history = -1, -1, False
-        if s.automaton is not None:
-            child = self.auto_of[s.path]
-            child_initial = self.automata[child][2]
-            history = s.automaton.history
-        return StateView(i, s.path, container, child, child_initial, history, s.final,
-                         self.snippet("entry", i, s.entry), self.snippet("during", i, s.during),
-                         self.snippet("exit", i, s.exit), (),
-                         comment_text(f"{self.base}:{s.span.line} {s.path}"))
-
-    def with_transitions(self, v: StateView) -> StateView:
-        s = self.states[v.index]
-        parent = s.path.rpartition("/")[0]
-        out: list[TransitionView] = []
-        for t in s.transitions:
-            target = self.index[f"{parent}/{t.target}" if parent else t.target]
-            label = f" {t.name}:" if t.name else ""
-            after = format_us(t.after_us) if t.after_us is not None else ""
-            when = self.snippet("when", v.index, t.when, f" (transition {t.index})")
-            do = self.snippet("do", v.index, t.do, f" (transition {t.index})")
-            cond = (f" after {after}" if after else "") + (" when ..." if when else "")
-            text = f"{self.base}:{t.span.line}{label} {s.path} -> {self.states[target].path}{cond}"
-            out.append(TransitionView(t.index, target, t.after_us, when, do,
-                                      self._during_of(target), comment_text(text)))
-        return StateView(v.index, v.path, v.container, v.child, v.child_initial, v.child_history,
-                         v.final, v.entry, v.during, v.exit, tuple(out), v.comment)
-
-    def _during_of(self, target: int) -> SnippetView | None:
-        for sn in self.snippets:
-            if sn.kind == "during" and sn.owner == target:
-                return sn
-        return None
 
 
 def _environment() -> jinja2.Environment:

@@ -18,15 +18,13 @@ import re
 import tokenize
 from dataclasses import dataclass
 from importlib.resources import files
-from pathlib import Path
 
 import jinja2
 
-from hfsmc.durations import format_us
-from hfsmc.emit.comments import comment_text
 from hfsmc.emit.data import component_config
+from hfsmc.emit.walk import Walk
 from hfsmc.errors import EmitError, Span, fail
-from hfsmc.ir import Code, DictValue, Model, State, Value
+from hfsmc.ir import Code, DictValue, Model, Value
 from hfsmc.pycheck import import_statement
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_viewstate.py", "hfsmc_view.py", "hfsmc_monitor.py")
@@ -46,34 +44,6 @@ class SnippetView:
     body: str  # the code, indented for its place in the template
     rows: tuple[tuple[int, int, int], ...]  # per line: model line, model col, generated indent
     code: Code
-
-
-@dataclass(frozen=True, slots=True)
-class TransitionView:
-    index: int
-    target: int
-    after_us: int | None
-    after_text: str
-    when: SnippetView | None
-    do: SnippetView | None
-    target_during: SnippetView | None
-    comment: str
-
-
-@dataclass(frozen=True, slots=True)
-class StateView:
-    index: int
-    path: str
-    container: int  # index of the sub-automaton holding it
-    child: int  # its own sub-automaton, or -1
-    child_initial: int  # index of that sub-automaton's initial state
-    child_history: bool
-    final: bool
-    entry: SnippetView | None
-    during: SnippetView | None
-    exit: SnippetView | None
-    transitions: tuple[TransitionView, ...]
-    comment: str
 
 
 def _py_literal(value: Value) -> str:
@@ -117,23 +87,14 @@ def _assigned(code: Code, mode: str, variables: frozenset[str]) -> tuple[str, ..
     return tuple(sorted(names & variables))
 
 
-class _Builder:
+class _Builder(Walk[SnippetView]):
     """Walks the IR once and makes the view model of the template."""
 
     def __init__(self, model: Model) -> None:
-        self.model = model
-        self.base = Path(model.file).name
+        super().__init__(model)
         self.variables = frozenset(v.name for v in model.variables)
-        self.states: list[State] = list(model.states())
-        self.index = {s.path: i for i, s in enumerate(self.states)}
-        self.root = len(self.states)
-        self.snippets: list[SnippetView] = []
-        self.automata: list[tuple[int, int, int, bool]] = []  # owner, period, initial, history
-        self.auto_of: dict[str, int] = {}
 
-    def snippet(self, kind: str, owner: int, code: Code | None, what: str = "") -> SnippetView | None:
-        if code is None:
-            return None
+    def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> SnippetView:
         mode = "eval" if kind == "when" else "exec"
         indent = _EXPRESSION_INDENT if kind == "when" else _STATEMENT_INDENT
         if kind == "functions":
@@ -148,26 +109,13 @@ class _Builder:
             pos: Span = code.position(k + 1, 1)
             rows.append((pos.line, pos.col, pad))
             out.append(" " * pad + line if line.strip() or k in strings else "")
-        path = self.states[owner].path if owner < self.root else ""
-        where = f"{self.base}:{code.span.line} {kind}" + (f" of {path}" if path else "") + what
-        view = SnippetView(len(self.snippets), kind, owner, comment_text(where),
-                           _assigned(code, mode, self.variables), "\n".join(out),
-                           tuple(rows), code)
-        self.snippets.append(view)
-        return view
+        return SnippetView(sid, kind, owner, where, _assigned(code, mode, self.variables),
+                           "\n".join(out), tuple(rows), code)
 
     def build(self) -> dict[str, object]:
         m = self.model
         functions = self.snippet("functions", self.root, m.functions)
-        # Number the sub-automata parents first, as the scheduler walks them.
-        for auto in m.automata():
-            self.auto_of[auto.owner] = len(self.automata)
-            owner = self.index[auto.owner] if auto.owner else -1
-            initial = self.index[f"{auto.owner}/{auto.initial}" if auto.owner else auto.initial]
-            self.automata.append((owner, auto.period_ms, initial, auto.history))
-        views = [self.state_view(i, s) for i, s in enumerate(self.states)]
-        # Transition views need the target's `during`, made with the states above.
-        views = [self.with_transitions(v) for v in views]
+        views = self.state_views()
         on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
         on_interrupt = -1
         if m.on_interrupt is not None:
@@ -194,43 +142,6 @@ class _Builder:
             "transitions": [(s.path, f"{s.path.rpartition('/')[0]}/{t.target}".lstrip("/"),
                              t.index, t.name) for s in self.states for t in s.transitions],
         }
-
-    def state_view(self, i: int, s: State) -> StateView:
-        container = self.auto_of[s.path.rpartition("/")[0]]
-        child, child_initial, history = -1, -1, False
-        if s.automaton is not None:
-            child = self.auto_of[s.path]
-            child_initial = self.automata[child][2]
-            history = s.automaton.history
-        return StateView(i, s.path, container, child, child_initial, history, s.final,
-                         self.snippet("entry", i, s.entry), self.snippet("during", i, s.during),
-                         self.snippet("exit", i, s.exit), (),
-                         comment_text(f"{self.base}:{s.span.line} {s.path}"))
-
-    def with_transitions(self, v: StateView) -> StateView:
-        s = self.states[v.index]
-        parent = s.path.rpartition("/")[0]
-        out: list[TransitionView] = []
-        for t in s.transitions:
-            target = self.index[f"{parent}/{t.target}" if parent else t.target]
-            label = f" {t.name}:" if t.name else ""
-            after = format_us(t.after_us) if t.after_us is not None else ""
-            when = self.snippet("when", v.index, t.when, f" (transition {t.index})")
-            do = self.snippet("do", v.index, t.do, f" (transition {t.index})")
-            cond = (f" after {after}" if after else "") + (" when ..." if when else "")
-            out.append(TransitionView(
-                t.index, target, t.after_us, after, when, do,
-                self._during_of(target),
-                comment_text(f"{self.base}:{t.span.line}{label} {s.path} -> "
-                             f"{self.states[target].path}{cond}")))
-        return StateView(v.index, v.path, v.container, v.child, v.child_initial, v.child_history,
-                         v.final, v.entry, v.during, v.exit, tuple(out), v.comment)
-
-    def _during_of(self, target: int) -> SnippetView | None:
-        for sn in self.snippets:
-            if sn.kind == "during" and sn.owner == target:
-                return sn
-        return None
 
 
 def _environment() -> jinja2.Environment:

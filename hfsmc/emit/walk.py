@@ -1,0 +1,121 @@
+"""The structure both back ends print, computed once: states and sub-automata numbered
+as the schedulers walk them, and per state its snippets and transitions.
+
+A back end subclasses ``Walk`` and says how one snippet becomes text in its language
+(``make_snippet``); everything else (numbering, owners, comments, the target's
+``during`` that runs after a transition) is the same for Python and C++.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Generic, TypeVar
+
+from hfsmc.durations import format_us
+from hfsmc.emit.comments import comment_text
+from hfsmc.ir import Code, Model, State
+
+S = TypeVar("S")  # a back end's snippet view
+
+
+@dataclass(frozen=True, slots=True)
+class TransitionView(Generic[S]):
+    index: int
+    target: int
+    after_us: int | None
+    when: S | None
+    do: S | None
+    target_during: S | None  # runs after entering the target, in the same tick
+    comment: str
+
+
+@dataclass(frozen=True, slots=True)
+class StateView(Generic[S]):
+    index: int
+    path: str
+    container: int  # index of the sub-automaton holding it
+    child: int  # its own sub-automaton, or -1
+    child_initial: int  # index of that sub-automaton's initial state
+    child_history: bool
+    final: bool
+    entry: S | None
+    during: S | None
+    exit: S | None
+    transitions: tuple[TransitionView[S], ...]
+    comment: str
+
+
+class Walk(ABC, Generic[S]):
+    """One pass over the IR. Snippets are numbered in the order they are made:
+    ``functions``, then entry/during/exit of every state, then the transitions'
+    when/do, then ``on_shutdown`` (the order of the generated code)."""
+
+    def __init__(self, model: Model) -> None:
+        self.model = model
+        self.base = Path(model.file).name
+        self.states: list[State] = list(model.states())
+        self.index = {s.path: i for i, s in enumerate(self.states)}
+        self.root = len(self.states)  # the owner of the root's snippets
+        self.snippets: list[S] = []
+        # Sub-automata numbered parents first, as the scheduler walks them.
+        self.automata: list[tuple[int, int, int, bool]] = []  # owner, period, initial, history
+        self.auto_of: dict[str, int] = {}
+        for auto in model.automata():
+            self.auto_of[auto.owner] = len(self.automata)
+            owner = self.index[auto.owner] if auto.owner else -1
+            initial = self.index[f"{auto.owner}/{auto.initial}" if auto.owner else auto.initial]
+            self.automata.append((owner, auto.period_ms, initial, auto.history))
+
+    @abstractmethod
+    def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> S:
+        """The back end's view of one snippet; ``where`` is its comment text."""
+
+    def snippet(self, kind: str, owner: int, code: Code | None, what: str = "") -> S | None:
+        if code is None:
+            return None
+        path = self.states[owner].path if owner < self.root else ""
+        where = f"{self.base}:{code.span.line} {kind}" + (f" of {path}" if path else "") + what
+        view = self.make_snippet(len(self.snippets), kind, owner, code, comment_text(where))
+        self.snippets.append(view)
+        return view
+
+    def target(self, s: State, name: str) -> int:
+        """Index of the sibling ``name`` of state ``s``."""
+        parent = s.path.rpartition("/")[0]
+        return self.index[f"{parent}/{name}" if parent else name]
+
+    def state_views(self) -> list[StateView[S]]:
+        """Every state with its snippets and transitions, in state order."""
+        own = [self._own_snippets(i, s) for i, s in enumerate(self.states)]
+        return [StateView(i, s.path, self.auto_of[s.path.rpartition("/")[0]], child, initial,
+                          history, s.final, entry, during, exit_, self._transitions(i, s, own),
+                          comment_text(f"{self.base}:{s.span.line} {s.path}"))
+                for (i, s), (child, initial, history, entry, during, exit_)
+                in zip(enumerate(self.states), own, strict=True)]
+
+    def _own_snippets(self, i: int, s: State) -> tuple[int, int, bool, S | None, S | None, S | None]:
+        child, initial, history = -1, -1, False
+        if s.automaton is not None:
+            child = self.auto_of[s.path]
+            initial = self.automata[child][2]
+            history = s.automaton.history
+        return (child, initial, history, self.snippet("entry", i, s.entry),
+                self.snippet("during", i, s.during), self.snippet("exit", i, s.exit))
+
+    def _transitions(self, i: int, s: State, own: list[tuple[int, int, bool, S | None, S | None,
+                                                             S | None]]) -> tuple[TransitionView[S], ...]:
+        out: list[TransitionView[S]] = []
+        for t in s.transitions:
+            target = self.target(s, t.target)
+            label = f" {t.name}:" if t.name else ""
+            after = format_us(t.after_us) if t.after_us is not None else ""
+            when = self.snippet("when", i, t.when, f" (transition {t.index})")
+            do = self.snippet("do", i, t.do, f" (transition {t.index})")
+            cond = (f" after {after}" if after else "") + (" when ..." if when else "")
+            out.append(TransitionView(
+                t.index, target, t.after_us, when, do, own[target][4],
+                comment_text(f"{self.base}:{t.span.line}{label} {s.path} -> "
+                             f"{self.states[target].path}{cond}")))
+        return tuple(out)
