@@ -44,6 +44,8 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "thread.hpp"
+
 namespace hfsmc {
 
 class Camera {
@@ -81,7 +83,7 @@ class Camera {
       }
     }
     std::shared_ptr<Grabber> g = g_;
-    thread_ = start_thread([g] {
+    thread_ = quiet_thread([g] {
       g->run();
       std::lock_guard<std::mutex> lock(g->mutex);
       g->finished = true;
@@ -318,25 +320,6 @@ class Camera {
   static bool exists(const std::string& path) {
     struct stat st;
     return ::stat(path.c_str(), &st) == 0;
-  }
-
-  template <class F>
-  static std::thread start_thread(F f) {
-    // Signals go to the automaton's thread only: block them while the thread is
-    // made (it inherits the mask), then restore ours.
-    sigset_t block, old;
-    sigemptyset(&block);
-    sigaddset(&block, SIGINT);
-    sigaddset(&block, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &block, &old);
-    try {
-      std::thread t(std::move(f));
-      pthread_sigmask(SIG_SETMASK, &old, nullptr);
-      return t;
-    } catch (...) {
-      pthread_sigmask(SIG_SETMASK, &old, nullptr);
-      throw;
-    }
   }
 
   std::shared_ptr<Grabber> g_;

@@ -66,6 +66,8 @@
 #include "mavlink/ardupilotmega/mavlink.h"
 #pragma GCC diagnostic pop
 
+#include "thread.hpp"
+
 namespace hfsmc {
 
 class Mavlink {
@@ -102,7 +104,7 @@ class Mavlink {
       say("cannot open " + url_ + ": " + why);
       std::exit(1);
     }
-    reader_ = start_thread([this] { run(); });
+    reader_ = quiet_thread([this] { run(); });
   }
 
   ~Mavlink() { close(); }
@@ -660,25 +662,6 @@ class Mavlink {
       peer_known_ = true;
     }
     return "";
-  }
-
-  template <class F>
-  static std::thread start_thread(F f) {
-    // Signals go to the automaton's thread only: block them while the thread is
-    // made (it inherits the mask), then restore ours.
-    sigset_t block, old;
-    sigemptyset(&block);
-    sigaddset(&block, SIGINT);
-    sigaddset(&block, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &block, &old);
-    try {
-      std::thread t(std::move(f));
-      pthread_sigmask(SIG_SETMASK, &old, nullptr);
-      return t;
-    } catch (...) {
-      pthread_sigmask(SIG_SETMASK, &old, nullptr);
-      throw;
-    }
   }
 
   // -- helpers -----------------------------------------------------------------------

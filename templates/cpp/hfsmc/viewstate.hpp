@@ -17,29 +17,9 @@
 
 #include "json.hpp"
 #include "observer.hpp"
+#include "thread.hpp"
 
 namespace hfsmc {
-
-// A thread of the monitor or the display: SIGINT and SIGTERM stay with the automaton's
-// thread, and a closed pipe or socket gives it EPIPE rather than SIGPIPE.
-template <class F>
-std::thread quiet_thread(F&& f) {
-    sigset_t block, old;
-    sigemptyset(&block);
-    sigaddset(&block, SIGINT);
-    sigaddset(&block, SIGTERM);
-    sigaddset(&block, SIGPIPE);
-    pthread_sigmask(SIG_BLOCK, &block, &old);
-    std::thread t;
-    try {
-        t = std::thread(std::forward<F>(f));
-    } catch (...) {
-        pthread_sigmask(SIG_SETMASK, &old, nullptr);
-        throw;
-    }
-    pthread_sigmask(SIG_SETMASK, &old, nullptr);
-    return t;
-}
 
 // `text` safe to print on a terminal: control characters as "?" (UTF-8 never
 // uses bytes below 0x80 inside a multibyte character, so bytes will do).
