@@ -54,11 +54,12 @@ from types import ModuleType
 from typing import Any
 
 from report import (  # bench/report.py, beside this script
+    finish_targets,
     hfsmc_revision,
     loadavg,
     machine,
-    merge_json,
     table,
+    verdict,
 )
 
 HERE = Path(__file__).resolve().parent
@@ -849,10 +850,6 @@ def libraries() -> dict[str, str | None]:
     return out
 
 
-def _verdict(ok: bool) -> str:
-    return "met" if ok else "MISSED"
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description="Time the generated Python component: per-transition cost against "
@@ -919,19 +916,19 @@ def main(argv: list[str] | None = None) -> int:
                         continue
                     ratio = r.ns_cpu / base.ns_cpu
                     ratio_wall = r.ns_wall / base.ns_wall
-                    verdict = ""
+                    judged = ""
                     if name != "hfsmc":
                         entry[name]["times_hfsmc_cpu"] = round(ratio, 2)
                         entry[name]["times_hfsmc_wall"] = round(ratio_wall, 2)
                         want = TARGET_SPEEDUP[(case, name)]
                         ok = ratio >= want
-                        verdict = f">= {want:g}x: {_verdict(ok)}"
+                        judged = f">= {want:g}x: {verdict(ok)}"
                         targets.append({"target": f"{case} ({variant}): hfsmc >= {want:g}x "
                                                   f"faster than {name}",
                                         "value": round(ratio, 2), "met": ok})
                     rows.append([case, variant, name, f"{r.ns_cpu:,.0f}", f"{r.ns_wall:,.0f}",
                                  f"{r.ns_cpu_median:,.0f}",
-                                 "1" if name == "hfsmc" else f"{ratio:.1f}x", verdict])
+                                 "1" if name == "hfsmc" else f"{ratio:.1f}x", judged])
                 speed_json[f"{case}_{variant}"] = entry
         log("")
         for line in table(rows, ["case", "actions", "contender", "ns cpu", "ns wall",
@@ -976,8 +973,8 @@ def main(argv: list[str] | None = None) -> int:
                         "value": round(drift_ms, 4), "met": ok_drift})
         targets.append({"target": f"p99 tick lateness at 100 Hz <= {TARGET_P99_MS:g} ms",
                         "value": lm["p99"], "met": ok_late})
-        log(f"  drift {drift_ms:.3f} ms (< {TARGET_DRIFT_MS:g}): {_verdict(ok_drift)}; "
-            f"p99 {lm['p99']:.3f} ms (<= {TARGET_P99_MS:g}): {_verdict(ok_late)}")
+        log(f"  drift {drift_ms:.3f} ms (< {TARGET_DRIFT_MS:g}): {verdict(ok_drift)}; "
+            f"p99 {lm['p99']:.3f} ms (<= {TARGET_P99_MS:g}): {verdict(ok_late)}")
         figures["drift_100ms"] = drift
         figures["lateness_100hz"] = late
 
@@ -1008,22 +1005,10 @@ def main(argv: list[str] | None = None) -> int:
                                   f"{TARGET_CPU_PERCENT:g} % of a core (whole process, "
                                   f"{mode.cpu_s} s)",
                         "value": cpu["cpu_percent_whole_process"], "met": ok_cpu})
-        log(f"  {_verdict(ok_cpu)}\n")
+        log(f"  {verdict(ok_cpu)}\n")
         figures["cpu_chain20"] = cpu
 
-    load_after = loadavg()
-    ok = all(t["met"] for t in targets)
-    figures["targets"] = targets
-    figures["targets_met"] = ok
-    figures["load_average"] = {"before": load_before, "after": load_after}
-    log("== targets ==")
-    for t in targets:
-        log(f"  {_verdict(t['met']):6}  {t['target']}: {t['value']}")
-    if ns.json:
-        merge_json(ns.json, KEY, figures)
-        log(f"\nwrote {ns.json} (key \"{KEY}\")")
-    log(f"\ntargets {'met' if ok else 'NOT all met'} (load average before {load_before}, "
-        f"after {load_after})")
+    finish_targets(figures, targets, load_before, ns.json, KEY, log)
     return 0
 
 

@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import Any
 
 from component import hfsmc_command, lateness_figures  # bench/component.py, beside this script
-from report import hfsmc_revision, loadavg, machine, merge_json, table
+from report import finish_targets, hfsmc_revision, loadavg, machine, table, verdict
 
 HERE = Path(__file__).resolve().parent
 MODELS = HERE / "models"
@@ -446,10 +446,6 @@ def build_time(mode: Mode, log: Callable[[str], None]) -> dict[str, Any]:
 # Report
 # ---------------------------------------------------------------------------
 
-def _verdict(ok: bool) -> str:
-    return "met" if ok else "MISSED"
-
-
 def speed_report(results: dict[tuple[str, str], dict[str, Program]], in_process: dict[str, float],
                  targets: list[dict[str, Any]], log: Callable[[str], None]) -> dict[str, Any]:
     """Two tables: wall time (the targets' figure), then CPU time and instruction counts."""
@@ -475,8 +471,8 @@ def speed_report(results: dict[tuple[str, str], dict[str, Program]], in_process:
                       if inproc else None})
         out[key] = entry
         rows.append([case, variant, f"{base.ns_wall():,.2f}", f"{cpp.ns_wall():,.2f}",
-                     f"{py.ns_wall():,.1f}", f"{vs_base:.2f}x {_verdict(ok_base)}",
-                     f"{vs_py:,.0f}x {_verdict(ok_py)}"])
+                     f"{py.ns_wall():,.1f}", f"{vs_base:.2f}x {verdict(ok_base)}",
+                     f"{vs_py:,.0f}x {verdict(ok_py)}"])
         rows_cpu.append([case, variant, f"{base.ns_cpu():,.2f}", f"{cpp.ns_cpu():,.2f}",
                          f"{py.ns_cpu():,.1f}", f"{cpp.ns_cpu() / base.ns_cpu():.2f}x",
                          f"{py.ns_cpu() / cpp.ns_cpu():,.0f}x",
@@ -557,8 +553,8 @@ def main(argv: list[str] | None = None) -> int:
         late = realtime(mode, exe, bin_dir, log)
         p99, drift = late["late_ms"]["p99"], late["drift_ms"]
         ok_p99, ok_drift = p99 <= TARGET_P99_MS, drift < TARGET_DRIFT_MS
-        log(f"  p99 {p99:.3f} ms (<= {TARGET_P99_MS:g}): {_verdict(ok_p99)}; drift {drift:.3f} "
-            f"ms over {late['run_s']:g} s (< {TARGET_DRIFT_MS:g}): {_verdict(ok_drift)}")
+        log(f"  p99 {p99:.3f} ms (<= {TARGET_P99_MS:g}): {verdict(ok_p99)}; drift {drift:.3f} "
+            f"ms over {late['run_s']:g} s (< {TARGET_DRIFT_MS:g}): {verdict(ok_drift)}")
         targets.append({"target": f"p99 tick lateness at 100 Hz <= {TARGET_P99_MS:g} ms",
                         "value": p99, "met": ok_p99})
         targets.append({"target": f"drift over {mode.realtime_s} s < {TARGET_DRIFT_MS:g} ms "
@@ -570,18 +566,7 @@ def main(argv: list[str] | None = None) -> int:
         log("\n== build time from a clean folder (wall) ==")
         figures["build"] = build_time(mode, log)
 
-    load_after = loadavg()
-    ok = all(t["met"] for t in targets)
-    figures.update({"targets": targets, "targets_met": ok,
-                    "load_average": {"before": load_before, "after": load_after}})
-    log("\n== targets ==")
-    for t in targets:
-        log(f"  {_verdict(t['met']):6}  {t['target']}: {t['value']}")
-    if ns.json:
-        merge_json(ns.json, KEY, figures)
-        log(f"\nwrote {ns.json} (key \"{KEY}\")")
-    log(f"\ntargets {'met' if ok else 'NOT all met'} (load average before {load_before}, "
-        f"after {load_after})")
+    finish_targets(figures, targets, load_before, ns.json, KEY, log)
     return 0
 
 

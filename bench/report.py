@@ -7,7 +7,7 @@ import os
 import platform
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -85,3 +85,26 @@ def hfsmc_revision() -> dict[str, Any]:
     except (OSError, subprocess.CalledProcessError):
         pass
     return out
+
+
+def verdict(ok: bool) -> str:
+    return "met" if ok else "MISSED"
+
+
+def finish_targets(figures: dict[str, Any], targets: list[dict[str, Any]],
+                   load_before: list[float], json_out: Path | None, key: str,
+                   log: Callable[[str], None]) -> None:
+    """Record the targets and the load in ``figures``, print the verdicts, merge the
+    figures into ``json_out`` under ``key`` when given, and say whether all were met."""
+    load_after = loadavg()
+    ok = all(t["met"] for t in targets)
+    figures.update({"targets": targets, "targets_met": ok,
+                    "load_average": {"before": load_before, "after": load_after}})
+    log("\n== targets ==")
+    for t in targets:
+        log(f"  {verdict(t['met']):6}  {t['target']}: {t['value']}")
+    if json_out:
+        merge_json(json_out, key, figures)
+        log(f"\nwrote {json_out} (key \"{key}\")")
+    log(f"\ntargets {'met' if ok else 'NOT all met'} (load average before {load_before}, "
+        f"after {load_after})")
