@@ -77,4 +77,4 @@ def messages(output: str, model_file: str) -> list[Diagnostic]:
 
 
 def _tail(text: str, n: int = 20) -> list[str]:
-    return [ln for ln in text.strip().splitlines()[-n:]]
+    return text.strip().splitlines()[-n:]

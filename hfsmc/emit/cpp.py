@@ -16,7 +16,6 @@ their real line numbers.
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 from importlib.resources import files
 
@@ -215,15 +214,11 @@ def _fill_back_lines(text: str) -> str:
     return "\n".join(lines)
 
 
-_CLASS_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-
-
 def component_files(model: Model) -> dict[str, bytes]:
     """Every file of the C++ component folder, by relative path."""
     if model.language != "cpp":
         fail(EmitError, "E150", f"`{model.name}` is a {model.language} model: build it "
              "with -t python", model.span)
-    assert _CLASS_NAME.match(model.name)
     view = _Builder(model).build()
     env = _environment()
     main = _fill_back_lines(env.get_template("component.cpp.j2").render(**view, back=_BACK))

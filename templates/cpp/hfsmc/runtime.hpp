@@ -309,6 +309,7 @@ public:
         chain_.reserve(a);
         root_ = tb.n_states;
         owner = root_;
+        for (int i = 0; i < tb.n_states; ++i) by_path_.emplace(tb.states[i].path, i);
     }
     Engine(const Engine&) = delete;
     Engine& operator=(const Engine&) = delete;
@@ -409,9 +410,8 @@ public:
     bool active(std::string_view path) const {
         while (!path.empty() && path.front() == '/') path.remove_prefix(1);
         while (!path.empty() && path.back() == '/') path.remove_suffix(1);
-        for (int i = 0; i < tb_.n_states; ++i) {
-            if (path == tb_.states[i].path) return is_active[static_cast<std::size_t>(i)] != 0;
-        }
+        const auto found = by_path_.find(path);
+        if (found != by_path_.end()) return is_active[static_cast<std::size_t>(found->second)] != 0;
         throw std::invalid_argument("active(" + string_repr(path) + "): no such state in " + tb_.name);
     }
     void shutdown() {
@@ -666,6 +666,7 @@ private:
     M& m_;
     const Tables& tb_;
     int root_;
+    std::map<std::string_view, int> by_path_;  // for active("A/B"): the paths live in the tables
     std::vector<long long> deadline_, period_us_;
     std::vector<int> chain_;
     bool recording_ = false;
