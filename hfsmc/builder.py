@@ -119,7 +119,8 @@ class _Builder:
         for name, spec in (self.data.get("parameters") or {}).items():
             path: PathKey = ("parameters", name)
             default = self.coerce(spec["default"], spec["type"], (*path, "default"))
-            out.append(Parameter(name, spec["type"], default, self.doc.key_span(path)))
+            out.append(Parameter(name, spec["type"], default, self.doc.key_span(path),
+                                 spec.get("description")))
         return tuple(out)
 
     def variables(self, language: str) -> tuple[Variable, ...]:

@@ -127,6 +127,7 @@ class Parameter:
     type: ValueType
     default: Value
     span: Span = field(compare=False)
+    description: str | None = None  # shown by the component's --help
 
 
 @dataclass(frozen=True, slots=True)

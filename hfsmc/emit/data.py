@@ -35,7 +35,10 @@ def model_to_data(model: Model) -> dict[str, Any]:
             for i in model.interfaces
         }
     if model.parameters:
-        d["parameters"] = {p.name: {"type": p.type, "default": thaw(p.default)} for p in model.parameters}
+        d["parameters"] = {p.name: {"type": p.type, "default": thaw(p.default),
+                                    **({"description": p.description} if p.description is not None
+                                       else {})}
+                           for p in model.parameters}
     if model.variables:
         d["variables"] = {
             v.name: {"type": v.type, "init": thaw(v.init)} if v.typed or v.type == "dict" else thaw(v.init)

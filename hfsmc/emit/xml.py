@@ -48,7 +48,8 @@ def to_xml(model: Model) -> str:
         w.close(1, "interface")
     for p in model.parameters:
         w.empty(1, "parameter", [("name", p.name), ("type", p.type),
-                                 ("default", _literal(p.default))], p.span)
+                                 ("default", _literal(p.default)),
+                                 ("description", p.description)], p.span)
     for v in model.variables:
         w.empty(1, "variable", [("name", v.name), ("type", v.type), ("init", _literal(v.init))],
                 v.span)
