@@ -32,6 +32,9 @@ CODES: dict[str, str] = {
     "E102": "missing required key",
     "E103": "invalid value",
     "E104": "unsupported format version",
+    "E105": "YAML tag, anchor or alias at the start of a code snippet (quote the snippet)",
+    "E106": "YAML tag that hfsmc does not define",
+    "E107": "a state named like a state key (`transitions`, `entry`...): the key is indented wrongly",
     # durations and periods
     "E110": "malformed duration",
     "E111": "period not a whole number of milliseconds, or below 1 ms",
@@ -70,6 +73,10 @@ CODES: dict[str, str] = {
     "W207": "legacy content not carried over",
     "W208": "legacy file inconsistent or ambiguous: how hfsmc reads it is stated",
     "W209": "C++ compiler warning in a snippet (build --compile)",
+    "W210": "yes/no/on/off/y/n read as a string (YAML 1.2), not as a boolean",
+    "W211": "integer with a leading zero read as decimal (YAML 1.2), not octal",
+    "W212": "duration written without a unit: a bare number means milliseconds",
+    "W213": "a state named like a state key (`final`, `history`...): maybe a key indented wrongly",
 }
 
 
