@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +64,28 @@ def _merge(old: Any, new: Any) -> Any:
         return old
     if not isinstance(new, (dict, list)) and _same(old, new):
         return old
+    if _same_variable(old, new) or _same_variable(new, old):
+        return old
+    if _bare_type(old) is not None and _typed(new) and _bare_type(old) == new["type"] \
+            == _bare_type(new["init"]):
+        return _styled(new["init"])  # `v: 0.0` edited to 0.5 stays in the short form
     return _styled(new)
+
+
+def _bare_type(value: Any) -> str | None:
+    """The type a variable written as this bare literal has (the builder's inference)."""
+    kind = {bool: "bool", int: "int", float: "float", str: "str", list: "list"}
+    return next((k for t, k in kind.items() if isinstance(value, t)), None)
+
+
+def _typed(value: Any) -> bool:
+    return isinstance(value, dict) and set(value) == {"type", "init"}
+
+
+def _same_variable(bare: Any, typed: Any) -> bool:
+    """Whether a variable written bare (`v: 0.0`) means the ``{type, init}`` form written
+    for it (an XML variable always names its type): the user's short form is kept."""
+    return _typed(typed) and _bare_type(bare) == typed["type"] and bool(bare == typed["init"])
 
 
 def _same(old: Any, new: Any) -> bool:
@@ -95,6 +117,8 @@ def to_yaml(model: Model, existing: str | None = None, out: Path | None = None) 
             doc = None
     buf = io.StringIO()
     if isinstance(doc, CommentedMap):
+        if "language" not in doc and data["language"] == "python":
+            del data["language"]  # the default, which the user left out
         y.dump(_merge(doc, data), buf)
         return buf.getvalue()
     y.dump(_styled(data), buf)
@@ -118,7 +142,9 @@ def convert_model(result: Result, out: Path) -> list[str]:
     elif suffix == ".xml":
         from hfsmc.emit.xml import to_xml
 
-        text = to_xml(model)
+        doc = result.document
+        text = to_xml(model, yaml_comments(result.lines) if doc is not None and
+                      doc.format == "yaml" else ())
         how = "wrote"
     else:
         raise UsageError(f"{out}: the output's name must end in .yaml, .yml or .xml")
@@ -126,6 +152,49 @@ def convert_model(result: Result, out: Path) -> list[str]:
     n_states = sum(1 for _ in model.states())
     n_trans = sum(len(s.transitions) for s in model.states())
     return [*legacy_report(result), f"{how} {out}: {n_states} states, {n_trans} transitions"]
+
+
+_BLOCK_START = re.compile(r"(?:^|[:-][ \t])[ \t]*[|>][0-9+-]*[ \t]*$")
+
+
+def yaml_comments(lines: list[str]) -> list[tuple[int, str]]:
+    """(line, text) of each comment of a YAML file, for the XML writer.
+
+    Lines inside block scalars (`|`, `>`) are code or text, not comments; the
+    editor hint on the first line is left out (the XML names its own schema).
+    """
+    out: list[tuple[int, str]] = []
+    block: int | None = None  # indentation of the key that opened a block scalar
+    for n, line in enumerate(lines, 1):
+        body = line.rstrip("\r\n")
+        stripped = body.lstrip(" ")
+        indent = len(body) - len(stripped)
+        if block is not None:
+            if not stripped.strip() or indent > block:
+                continue
+            block = None
+        cut = 0 if stripped.startswith("#") else _comment_start(body)
+        if cut is not None:
+            text = body[indent + 1 if cut == 0 else cut + 1:].strip()
+            if text and not (n == 1 and text.startswith("yaml-language-server:")):
+                out.append((n, text))
+        if _BLOCK_START.search(body if cut is None else body[:indent if cut == 0 else cut]):
+            block = indent
+    return out
+
+
+def _comment_start(line: str) -> int | None:
+    """Index of the `#` that starts a comment after some YAML on ``line``, if any."""
+    quote = ""
+    for k, ch in enumerate(line):
+        if quote:
+            if ch == quote and (quote == "'" or line[k - 1] != "\\"):
+                quote = ""
+        elif ch in "'\"" and (k == 0 or line[k - 1] in " \t:[{,-"):
+            quote = ch
+        elif ch == "#" and k > 0 and line[k - 1] in " \t":
+            return k
+    return None
 
 
 def legacy_report(result: Result) -> list[str]:

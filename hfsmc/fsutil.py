@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import stat
 import tempfile
 from pathlib import Path
 
@@ -14,6 +15,8 @@ def write_atomic(path: str | Path, data: bytes | str) -> bool:
 
     Returns False (and leaves the file alone, keeping its mtime) when the
     content is already the same, so make and CMake do not rebuild needlessly.
+    A file that exists keeps its mode; a new one gets the user's umask, as
+    ``open()`` would give it (mkstemp alone would leave it ``-rw-------``).
     """
     p = Path(path)
     raw = data.encode("utf-8") if isinstance(data, str) else data
@@ -22,9 +25,14 @@ def write_atomic(path: str | Path, data: bytes | str) -> bool:
             return False
     except OSError:
         pass
+    try:
+        mode = stat.S_IMODE(p.stat().st_mode)
+    except OSError:
+        mode = 0o666 & ~current_umask()
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as f:
             f.write(raw)
             f.flush()
@@ -34,6 +42,20 @@ def write_atomic(path: str | Path, data: bytes | str) -> bool:
         Path(tmp).unlink(missing_ok=True)
         raise
     return True
+
+
+def current_umask() -> int:
+    """The process's umask (read from /proc where it can be, without changing it)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    umask = os.umask(0o022)  # no /proc: set and restore (not thread-safe, but only then)
+    os.umask(umask)
+    return umask
 
 
 MANIFEST = ".hfsmc-manifest"
@@ -113,9 +135,7 @@ def write_tree(target: str | Path, files: dict[str, bytes], executable: frozense
     target.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.{os.getpid()}.", suffix=".new",
                                   dir=target.parent))
-    umask = os.umask(0)
-    os.umask(umask)
-    stage.chmod(0o777 & ~umask)  # mkdtemp's 0700 would become the component folder's mode
+    stage.chmod(0o777 & ~current_umask())  # mkdtemp's 0700 would become the component folder's mode
     try:
         for rel, data in files.items():
             dest = stage / rel

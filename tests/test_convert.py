@@ -1,0 +1,124 @@
+"""hfsmc convert and diagram: file modes, in-place edits that keep the user's text, comments."""
+
+from __future__ import annotations
+
+import os
+import stat
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from hfsmc import cli
+from hfsmc.convert import yaml_comments
+from hfsmc.fsutil import write_atomic
+
+MODEL = """\
+# yaml-language-server: $schema=../../schemas/hfsm.schema.json
+hfsm: 1
+name: m
+description: |
+  # a heading, not a comment
+parameters:
+  gain: {type: float, default: 2.0, description: how hard to steer}  # tune me
+variables:
+  v: 0.0   # speed
+  w: 1.50
+  n: 0x10
+  s: 'a # b'
+  xs: [1, 2]
+period: 100ms
+initial: A
+states:
+  # the first -- state
+  A:
+    entry: |
+      x = 1  # code, kept as code
+    transitions:
+      - {to: B, after: 1s}  # one second
+  B: {final: true}
+"""
+
+
+def run(*args: str) -> tuple[int, str]:
+    r = CliRunner().invoke(cli.main, list(args))
+    return r.exit_code, r.stderr
+
+
+@pytest.fixture
+def umask_027() -> Iterator[None]:
+    old = os.umask(0o027)
+    yield
+    os.umask(old)
+
+
+def mode(p: Path) -> int:
+    return stat.S_IMODE(p.stat().st_mode)
+
+
+def test_write_atomic_new_file_takes_umask_existing_keeps_mode(tmp_path: Path,
+                                                                umask_027: None) -> None:
+    new = tmp_path / "new.txt"
+    assert write_atomic(new, "a")
+    assert mode(new) == 0o640
+    old = tmp_path / "old.txt"
+    old.write_text("a")
+    old.chmod(0o604)
+    assert write_atomic(old, "b")
+    assert mode(old) == 0o604 and old.read_text() == "b"
+
+
+def test_convert_and_diagram_files_have_the_users_mode(tmp_path: Path, umask_027: None) -> None:
+    src = tmp_path / "m.yaml"
+    src.write_text(MODEL)
+    src.chmod(0o664)
+    assert run("convert", str(src), "-o", str(tmp_path / "m.xml"))[0] == 0
+    assert run("diagram", str(src), "-o", str(tmp_path / "m.dot"))[0] == 0
+    assert mode(tmp_path / "m.xml") == 0o640
+    assert mode(tmp_path / "m.dot") == 0o640
+    assert run("convert", str(src), "-o", str(src))[0] == 0
+    assert mode(src) == 0o664  # an in-place edit keeps the file's mode
+
+
+def test_xml_back_onto_the_yaml_changes_nothing(tmp_path: Path) -> None:
+    """XML names every variable's type; the YAML's bare `v: 0.0` stays as written,
+    and `language`, which the YAML left to its default, is not added."""
+    src = tmp_path / "m.yaml"
+    src.write_text(MODEL)
+    assert run("convert", str(src), "-o", str(tmp_path / "m.xml"))[0] == 0
+    assert run("convert", str(tmp_path / "m.xml"), "-o", str(src))[0] == 0
+    assert src.read_text() == MODEL
+
+
+def test_xml_changes_reach_the_yaml_and_only_them(tmp_path: Path) -> None:
+    src = tmp_path / "m.yaml"
+    src.write_text(MODEL)
+    xml = tmp_path / "m.xml"
+    assert run("convert", str(src), "-o", str(xml))[0] == 0
+    xml.write_text(xml.read_text().replace('init="0.0"', 'init="0.5"'))
+    assert run("convert", str(xml), "-o", str(src))[0] == 0
+    assert src.read_text() == MODEL.replace("v: 0.0   # speed", "v: 0.5   # speed")
+
+
+def test_yaml_comments_become_xml_comments(tmp_path: Path) -> None:
+    src = tmp_path / "m.yaml"
+    src.write_text(MODEL)
+    xml = tmp_path / "m.xml"
+    assert run("convert", str(src), "-o", str(xml))[0] == 0
+    lines = [line.strip() for line in xml.read_text().splitlines()]
+    assert lines[lines.index("<!-- tune me -->") + 1].startswith('<parameter name="gain"')
+    assert 'description="how hard to steer"' in lines[lines.index("<!-- tune me -->") + 1]
+    assert lines[lines.index("<!-- speed -->") + 1].startswith('<variable name="v"')
+    assert lines[lines.index("<!-- the first - - state -->") + 1] == '<state name="A">'
+    assert lines[lines.index("<!-- one second -->") + 1].startswith('<transition to="B"')
+    assert "x = 1  # code, kept as code" in lines
+    assert not any("yaml-language-server" in line or ("heading" in line and "<!--" in line)
+                   for line in lines)
+    # The XML with its comments reads back as the same model.
+    assert run("check", str(xml))[0] == 0
+
+
+def test_yaml_comments_skip_block_scalars_and_quoted_hashes() -> None:
+    got = yaml_comments(MODEL.splitlines(keepends=True))
+    assert got == [(7, "tune me"), (9, "speed"), (17, "the first -- state"), (22, "one second")]
