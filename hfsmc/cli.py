@@ -17,6 +17,7 @@ from typing import Any, TypeVar
 import click
 
 from hfsmc import __version__
+from hfsmc import completion as complete
 from hfsmc.compiler import Result, compile_file
 from hfsmc.errors import Diagnostic, HfsmcError, UsageError, render_json, render_text
 
@@ -106,7 +107,8 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool) -> Non
 @click.argument("model", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="OUT.svg, OUT.png or OUT.dot (default: MODEL's name with .svg).")
-@click.option("--state", "state_path", metavar="PATH", help="Draw only this state's sub-automaton.")
+@click.option("--state", "state_path", metavar="PATH", help="Draw only this state's sub-automaton.",
+              shell_complete=complete.complete_state)
 @_guard
 def diagram(model: str, output: str | None, state_path: str | None) -> None:
     """Draw MODEL with Graphviz: sub-automata as nested clusters."""
@@ -175,7 +177,7 @@ def build(model: str, target: str, output: str | None, compile_: bool, depfile: 
 
 @main.command(context_settings={"ignore_unknown_options": True})
 @click.argument("model", type=click.Path(dir_okay=False))
-@click.argument("args", nargs=-1, type=click.UNPROCESSED)
+@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=complete.complete_run_args)
 @_guard
 def run(model: str, args: tuple[str, ...]) -> None:
     """Build MODEL's component into a cache and run it with ARGS (after --).
@@ -211,7 +213,8 @@ def run(model: str, args: tuple[str, ...]) -> None:
               help="With --replay: take the whole tree from the model, not only the states seen.")
 @click.option("--speed", type=float, default=1.0, show_default=True,
               help="With --replay: times real time; 0 shows the end at once.")
-@click.option("--focus", metavar="PATH", help="Show only this state's sub-automaton.")
+@click.option("--focus", metavar="PATH", help="Show only this state's sub-automaton.",
+              shell_complete=complete.complete_focus)
 @click.option("--no-autofocus", is_flag=True, help="Show every branch, not only the active ones.")
 @_guard
 def view(target: str | None, replay: str | None, model: str | None, speed: float,
@@ -223,8 +226,9 @@ def view(target: str | None, replay: str | None, model: str | None, speed: float
                       model=model))
 
 
-@main.command(context_settings={"ignore_unknown_options": True, "help_option_names": []})
-@click.argument("args", nargs=-1, type=click.UNPROCESSED)
+@main.command(cls=complete.SimCommand,
+              context_settings={"ignore_unknown_options": True, "help_option_names": []})
+@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=complete.complete_sim_args)
 @_guard
 def sim(args: tuple[str, ...]) -> None:
     """Simulated multicopter (MAVLink over UDP) and its camera (MJPEG over HTTP).
