@@ -35,7 +35,11 @@ NEEDS_POSITION = frozenset({GUIDED, LOITER, RTL, BRAKE})
 NAVIGATING = NEEDS_POSITION  # the modes ArduPilot flags MAV_MODE_FLAG_GUIDED_ENABLED
 
 GUIDED_TIMEOUT = 3.0  # s: a velocity target without a successor expires (then hold)
-LAND_DETECT = 1.0  # s on the ground before LAND and RTL disarm
+# After touchdown, LAND and RTL disarm once the land detector has decided: the throttle
+# winds down to its lower limit (LAND_SETTLE), the detector holds that for its trigger
+# time (1 s in Copter), then the motors spool down to ground idle (MOT_SPOOL_TIME).
+LAND_SETTLE = 1.0  # s
+LAND_DETECTOR_TRIGGER = 1.0  # s
 FORCE_DISARM = 21196.0  # param2 that disarms in the air (ArduPilot's magic number)
 FAR, FAST = 1e5, 1e3  # m, m/s: targets beyond these are ignored
 SET_MODE_ACK = mavlink.MAVLINK_MSG_ID_SET_MODE  # ArduPilot acks SET_MODE as "command 11"
@@ -107,20 +111,14 @@ class Autopilot:
         self.mav = mavlink.MAVLink(_Out(out), SYSID, COMPID)
         self.mode = STABILIZE
         self.ready = False
-        cfg = world.vehicle
-        self.params: dict[str, float] = {
-            "SYSID_THISMAV": 1, "FRAME_CLASS": 1, "FRAME_TYPE": 1,
-            "WPNAV_SPEED": cfg.max_speed * 100, "WPNAV_SPEED_UP": cfg.max_climb * 100,
-            "WPNAV_SPEED_DN": min(1.5, cfg.max_climb) * 100, "WPNAV_ACCEL": cfg.max_accel * 100,
-            "LAND_SPEED": min(0.7, cfg.max_climb) * 100, "RTL_ALT": 1500, "RTL_LOIT_TIME": 5000,
-            "DISARM_DELAY": 10, "WP_YAW_BEHAVIOR": 2, "ARMING_CHECK": 1,
-        }
+        self.params = self.default_params(world)
         self.rtl_stage = ""
         self.rtl_alt = 0.0
         self.rtl_since = 0.0
         self.vel_time = -math.inf
         self.landed_since = 0.0
         self.climbing_to: float | None = None  # a take-off in progress, to this altitude
+        self.spooled_at = 0.0  # a take-off leaves the ground at this time (motors spooled up)
         self.takeoff_point: tuple[float, float] | None = None
         self.landing_point: tuple[float, float] | None = None
         self.takeoffs = self.landings = 0
@@ -152,6 +150,20 @@ class Autopilot:
         self.telemetry = Telemetry(self)
         self._apply_params()
 
+    @staticmethod
+    def default_params(world: World) -> dict[str, float]:
+        """Copter's defaults (docs/worlds.md); the world's ``vehicle`` limits cap them."""
+        cfg = world.vehicle
+        return {
+            "SYSID_THISMAV": 1, "FRAME_CLASS": 1, "FRAME_TYPE": 1,
+            "WPNAV_SPEED": cfg.max_speed * 100, "WPNAV_SPEED_UP": 250, "WPNAV_SPEED_DN": 150,
+            "WPNAV_ACCEL": cfg.max_accel * 100, "WPNAV_ACCEL_Z": 100,
+            "LAND_SPEED": 50, "LAND_SPEED_HIGH": 0, "LAND_ALT_LOW": 1000,
+            "MOT_SPOOL_TIME": 0.5, "TKOFF_SLEW_TIME": 2.0,
+            "RTL_ALT": 1500, "RTL_LOIT_TIME": 5000,
+            "DISARM_DELAY": 10, "WP_YAW_BEHAVIOR": 2, "ARMING_CHECK": 1,
+        }
+
     # -- the loop's two entry points -----------------------------------------------
 
     def receive(self, datagram: bytes) -> None:
@@ -177,7 +189,7 @@ class Autopilot:
         self._update()
         for event in b.step():
             self._on_event(event)
-        if self.climbing_to is not None and b.arrived(0.1):
+        if self.climbing_to is not None and b.nav == "goto" and b.goal[2] < 0 and b.arrived(0.1):
             self.log(f"take-off complete ({self.climbing_to:.1f} m)")
             self.climbing_to = None
 
@@ -222,15 +234,23 @@ class Autopilot:
             b.hold()
         if self.mode == RTL:
             self._rtl_update()
+        if self.climbing_to is not None and b.landed and b.goal[2] == 0.0 \
+                and t >= self.spooled_at - 1e-9:
+            b.goto(b.north, b.east, -self.climbing_to)  # spooled up: climb
         if b.armed and b.landed:
             idle = t - self.landed_since
-            if self.mode in (LAND, RTL) and idle >= LAND_DETECT:
+            if self.mode in (LAND, RTL) and idle >= self.land_detect_time - 1e-9:
                 self._disarm("landed")
             elif idle >= self.params["DISARM_DELAY"] > 0:
                 self._disarm(f"auto-disarm after {idle:.0f} s on the ground")
         if b.armed and not b.landed and b.energy_wh <= 0 and self.mode != LAND:
             self._text(M.MAV_SEVERITY_CRITICAL, "Battery empty: LAND")
             self.set_mode(LAND)
+
+    @property
+    def land_detect_time(self) -> float:
+        """Seconds from touchdown to disarming in LAND and RTL."""
+        return LAND_SETTLE + LAND_DETECTOR_TRIGGER + max(0.0, self.params["MOT_SPOOL_TIME"])
 
     def _rtl_start(self) -> None:
         b = self.body
@@ -354,9 +374,13 @@ class Autopilot:
         b, alt = self.body, p[6]
         if self.mode != GUIDED or not b.armed or not b.landed or not _sane(FAR, alt) or alt <= 0:
             return FAILED
-        b.goto(b.north, b.east, -alt)
+        # Copter spools the motors up, slews the throttle to hover (TKOFF_SLEW_TIME), then
+        # climbs at WPNAV_SPEED_UP within WPNAV_ACCEL_Z; the climb starts in _update.
+        b.goto(b.north, b.east, 0.0)
         b.hold_heading()
         self.climbing_to = alt
+        spool, slew = self.params["MOT_SPOOL_TIME"], self.params["TKOFF_SLEW_TIME"]
+        self.spooled_at = b.t + max(0.0, spool) + max(0.0, slew)
         self.log(f"take-off to {alt:.1f} m")
         return ACCEPTED
 
@@ -474,13 +498,25 @@ class Autopilot:
             self.telemetry.request_data_stream(m.req_stream_id, m.req_message_rate,
                                                bool(m.start_stop))
 
+    def set_params(self, values: dict[str, float]) -> None:
+        """Set parameters by name (``hfsmc sim --param``); KeyError names an unknown one."""
+        for name, value in values.items():
+            if name not in self.params:
+                raise KeyError(name)
+            self.params[name] = value
+        self._apply_params()
+
     def _apply_params(self) -> None:
         b, cfg, p = self.body, self.world.vehicle, self.params
         b.speed_xy = max(0.1, min(p["WPNAV_SPEED"] / 100, cfg.max_speed))
         b.speed_up = max(0.1, min(p["WPNAV_SPEED_UP"] / 100, cfg.max_climb))
         b.speed_down = max(0.1, min(p["WPNAV_SPEED_DN"] / 100, cfg.max_climb))
         b.land_speed = max(0.1, min(p["LAND_SPEED"] / 100, b.speed_down))
+        high = p["LAND_SPEED_HIGH"] / 100 or b.speed_down  # 0: WPNAV_SPEED_DN
+        b.land_speed_high = max(b.land_speed, min(high, cfg.max_climb))
+        b.land_alt_low = max(0.0, p["LAND_ALT_LOW"] / 100)
         b.accel = max(0.1, min(p["WPNAV_ACCEL"] / 100, cfg.max_accel))
+        b.accel_z = max(0.1, min(p["WPNAV_ACCEL_Z"] / 100, cfg.max_accel))
 
     def _send_param(self, name: str) -> None:
         names = list(self.params)

@@ -103,13 +103,14 @@ class Simulator:
 
     def __init__(self, world: World, link: Link, *, boot_time: float = 3.0,
                  truth: str | None = None, drop_after: float | None = None,
-                 drop_for: float = 5.0) -> None:
+                 drop_for: float = 5.0, params: dict[str, float] | None = None) -> None:
         self.world = world
         self.link = link
         self.truth_path = truth
         self.drop = None if drop_after is None else (drop_after, drop_after + drop_for)
         self.body = Body(world.vehicle, world.seed)
         self.ap = Autopilot(world, self.body, link.send, boot_time=boot_time, log=self.log)
+        self.ap.set_params(params or {})
         self.pose = self.body.pose
         self.camera: Any = None
         self.stopping = False
@@ -247,6 +248,17 @@ def _seconds(text: str) -> float:
     return v
 
 
+def _param(text: str) -> tuple[str, float]:
+    name, eq, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not eq or not name or not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"expected NAME=NUMBER (LAND_SPEED=50), not {text!r}")
+    return name.strip().upper(), number
+
+
 def _port(text: str) -> int:
     v = int(text)
     if not 0 <= v <= 65535:
@@ -264,7 +276,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--mavlink", metavar="URL", default=DEFAULT_MAVLINK,
                    help=f"udpout:HOST:PORT or udpin:HOST:PORT (default {DEFAULT_MAVLINK})")
     p.add_argument("--boot-time", type=_seconds, default=3.0, metavar="S",
-                   help="seconds before GPS fix and EKF position (default 3; SITL takes ~40)")
+                   help="seconds before GPS fix and EKF position, when GUIDED and arming are "
+                        "accepted (default 3, short for tests; ArduPilot SITL takes ~40)")
+    p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+                   help="set an autopilot parameter at start, in ArduPilot's units (repeatable): "
+                        "LAND_SPEED, LAND_SPEED_HIGH, LAND_ALT_LOW, WPNAV_SPEED_UP, "
+                        "WPNAV_ACCEL_Z, MOT_SPOOL_TIME, TKOFF_SLEW_TIME... (docs/worlds.md)")
     p.add_argument("--truth", metavar="FILE",
                    help="write the ground truth (JSON) every second and at exit")
     p.add_argument("--duration", type=_seconds, metavar="S",
@@ -326,13 +343,19 @@ def main(argv: list[str]) -> int:
         if isinstance(follow, str):
             return _fail(f"--camera-only: the camera is not available ({follow})")
         return int(follow(world, args.follow, args.camera_port))
+    params = dict(args.param)
+    unknown = sorted(set(params) - set(Autopilot.default_params(world)))
+    if unknown:
+        return _fail(f"--param {unknown[0]}: no such parameter "
+                     f"(known: {', '.join(sorted(Autopilot.default_params(world)))})")
     try:
         link = Link(args.mavlink)
     except (ValueError, OSError) as e:
         return _fail(str(e))
     sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
                     drop_after=args.drop_link_after,
-                    drop_for=5.0 if args.drop_link_for is None else args.drop_link_for)
+                    drop_for=5.0 if args.drop_link_for is None else args.drop_link_for,
+                    params=params)
     try:
         with sim.signals():
             where = _start_camera(sim, args)

@@ -19,9 +19,9 @@ GRAVITY = 9.80665
 DT = 0.02  # the physics step: 50 Hz
 
 KP_POS = 2.5  # 1/s: how hard the position controller pulls in the last metre
+KP_POS_Z = 1.0  # 1/s: the same for height (ArduPilot's PSC_POSZ_P default)
 BRAKE_SHARE = 0.5  # the share of max_accel planned for braking, the rest corrects
 ARRIVED = 0.005  # m: closer than this, at low speed, the vehicle is on its target
-LAND_ALT_LOW = 10.0  # m: below this, LAND and RTL descend at the landing speed
 YAW_SLEW = math.radians(60.0)  # rad/s: turning towards a heading (ATC_SLEW_YAW)
 YAW_RATE_MAX = math.radians(180.0)  # rad/s: the fastest commanded turn
 FACE_TRAVEL = 0.05  # share of max_speed above which "face the way you go" turns
@@ -65,10 +65,14 @@ class Body:
         self.power_w = 0.0
         # Limits the autopilot's parameters may lower (WPNAV_SPEED and friends).
         self.speed_xy = cfg.max_speed
-        self.speed_up = cfg.max_climb
-        self.speed_down = min(1.5, cfg.max_climb)
-        self.land_speed = min(0.7, cfg.max_climb)
+        # ArduPilot's defaults (docs/worlds.md, "The flight profile"), within the frame's.
+        self.speed_up = min(2.5, cfg.max_climb)  # WPNAV_SPEED_UP
+        self.speed_down = min(1.5, cfg.max_climb)  # WPNAV_SPEED_DN
+        self.land_speed = min(0.5, cfg.max_climb)  # LAND_SPEED
+        self.land_speed_high = self.speed_down  # LAND_SPEED_HIGH (0: WPNAV_SPEED_DN)
+        self.land_alt_low = 10.0  # LAND_ALT_LOW: below this, descend at LAND_SPEED
         self.accel = cfg.max_accel
+        self.accel_z = min(1.0, cfg.max_accel)  # WPNAV_ACCEL_Z
         # What the controllers are asked for.
         self.nav = "goto"  # goto | velocity | land
         self.goal = (0.0, 0.0, 0.0)
@@ -106,9 +110,10 @@ class Body:
     def stopping_point(self, boost: float = 1.0) -> tuple[float, float, float]:
         """Where the vehicle would stop if it braked now: ArduPilot holds there."""
         a = BRAKE_SHARE * self.accel * boost
+        az = BRAKE_SHARE * self.accel_z * boost
         sh = math.hypot(self.vn, self.ve) / (2 * a)
         return (self.north + self.vn * sh, self.east + self.ve * sh,
-                min(0.0, self.down + self.vd * abs(self.vd) / (2 * a)))
+                min(0.0, self.down + self.vd * abs(self.vd) / (2 * az)))
 
     def hold(self, boost: float = 1.0) -> None:
         """Stop (braking ``boost`` times harder, for BRAKE) and hold that point."""
@@ -129,7 +134,7 @@ class Body:
         self.vel_cmd = (vn, ve, vd)
 
     def land(self) -> None:
-        """Descend where the vehicle stops, slowing to the landing speed below 10 m."""
+        """Descend where the vehicle stops, slowing to the landing speed below LAND_ALT_LOW."""
         n, e, _ = self.stopping_point()
         self.nav = "land"
         self.goal = (n, e, 0.0)
@@ -203,9 +208,9 @@ class Body:
             return (vn, ve, vd)
         if self.nav == "land":
             vn, ve, _ = self._towards((self.goal[0], self.goal[1], self.down))
-            above = max(-self.down - LAND_ALT_LOW, 0.0)
-            fast = min(self.speed_down, math.sqrt(2 * BRAKE_SHARE * self.accel * above),
-                       KP_POS * above)
+            above = max(-self.down - self.land_alt_low, 0.0)
+            fast = min(self.land_speed_high, math.sqrt(2 * BRAKE_SHARE * self.accel_z * above),
+                       KP_POS_Z * above)
             return (vn, ve, max(self.land_speed, fast))
         return self._towards(self.goal)
 
@@ -215,23 +220,28 @@ class Body:
         dist = math.sqrt(en * en + ee * ee + ed * ed)
         if dist < 1e-9:
             return (0.0, 0.0, 0.0)
-        top = math.inf  # the fastest speed along the line that keeps each limit
+        top = accel = math.inf  # the fastest speed (and braking) along the line within each limit
         h = math.hypot(en, ee)
         if h > 0:
             top = self.speed_xy * dist / h
+            accel = self.accel * dist / h
         if ed < 0:
             top = min(top, self.speed_up * dist / -ed)
         elif ed > 0:
             top = min(top, self.speed_down * dist / ed)
-        a = BRAKE_SHARE * self.accel * self.brake_boost
-        s = min(top, math.sqrt(2 * a * dist), KP_POS * self.brake_boost * dist)
+        if ed != 0:
+            accel = min(accel, self.accel_z * dist / abs(ed))
+        a = BRAKE_SHARE * accel * self.brake_boost
+        kp = (KP_POS * h + KP_POS_Z * abs(ed)) / (h + abs(ed))  # height is pulled more gently
+        s = min(top, math.sqrt(2 * a * dist), kp * self.brake_boost * dist)
         return (en / dist * s, ee / dist * s, ed / dist * s)
 
     def _track(self, want: tuple[float, float, float], dt: float) -> None:
         """Accelerate towards the wanted velocity within max_accel, then move."""
         a = self.accel * self.brake_boost
+        az = self.accel_z * self.brake_boost
         dn, de = _limit(want[0] - self.vn, want[1] - self.ve, a * dt)
-        dd = max(-a * dt, min(a * dt, want[2] - self.vd))
+        dd = max(-az * dt, min(az * dt, want[2] - self.vd))
         self.an, self.ae = dn / dt, de / dt
         self.vn += dn
         self.ve += de
