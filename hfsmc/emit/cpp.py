@@ -177,6 +177,9 @@ class _Builder(Walk[SnippetView]):
             "includes": [(_include(i.text), _line(self.file, i.span.line)) for i in m.imports],
             "drivers": [f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds) if k in INTERFACE_FILES],
             "parameters": params,
+            # For the component's --help: name, type, default (as Python writes it), description.
+            "parameter_help": [(cpp_string(p.name), cpp_string(p.type), cpp_string(repr(p.default)),
+                                cpp_string(p.description or "")) for p in m.parameters],
             "variables": variables,
             "interfaces": interfaces,
             "functions": functions,
