@@ -291,7 +291,7 @@ def test_config_file_beside_the_component_and_bad_config(project: Superbuild,
     r = run([str(exe), "--config", str(bad)])
     assert r.returncode == 2 and f"{bad}:" in r.stderr, r.stderr
     r = run([str(exe), "--param", "blinks=many"])
-    assert r.returncode == 2 and "parameter `blinks` is a int" in r.stderr
+    assert r.returncode == 2 and "parameter `blinks` is an int" in r.stderr
     r = run([str(exe), "--until", "soon"])
     assert r.returncode == 2 and "not a duration" in r.stderr
 

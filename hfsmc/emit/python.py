@@ -129,6 +129,8 @@ class _Builder(Walk[SnippetView]):
             "docstring": _docstring(m.name, (m.description or "").strip()),
             "imports": [(import_statement(i.text), i.text, i.span.line) for i in m.imports],
             "parameters": [(p.name, _py_literal(p.default), p.type) for p in m.parameters],
+            # For the component's --help.
+            "descriptions": {p.name: p.description for p in m.parameters if p.description},
             "variables": [(v.name, _py_literal(v.init)) for v in m.variables],
             "interfaces": [(i.name, i.type, i.url, dict(i.options)) for i in m.interfaces],
             "functions": functions,

@@ -6,6 +6,7 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstdio>
@@ -85,6 +86,44 @@ bool json_number(const std::string& t, bool integer) {
     return k == t.size();
 }
 
+// `a float`, `an int`.
+std::string a_kind(const char* kind) {
+    return std::strchr("aeiou", kind[0]) != nullptr ? std::string("an ") + kind : std::string("a ") + kind;
+}
+
+// Levenshtein distance, ASCII case folded.
+std::size_t edits(const std::string& a, const std::string& b) {
+    std::vector<std::size_t> row(b.size() + 1);
+    for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+    for (std::size_t i = 1; i <= a.size(); ++i) {
+        std::size_t prev = row[0];
+        row[0] = i;
+        for (std::size_t j = 1; j <= b.size(); ++j) {
+            const bool same = std::tolower(static_cast<unsigned char>(a[i - 1])) ==
+                              std::tolower(static_cast<unsigned char>(b[j - 1]));
+            const std::size_t next = std::min({row[j] + 1, row[j - 1] + 1, prev + (same ? 0 : 1)});
+            prev = row[j];
+            row[j] = next;
+        }
+    }
+    return row[b.size()];
+}
+
+// `; did you mean `X`?` for the nearest known name within a third of the word's length
+// in edits (as the Python runtime picks it), else "".
+std::string did_you_mean(const std::string& word, const std::vector<std::string>& known) {
+    std::string best;
+    std::size_t best_d = std::max<std::size_t>(1, word.size() / 3) + 1;
+    for (const std::string& k : known) {
+        const std::size_t d = edits(word, k);
+        if (d < best_d) {
+            best = k;
+            best_d = d;
+        }
+    }
+    return best.empty() ? "" : "; did you mean `" + best + "`?";
+}
+
 }  // namespace
 
 class YamlConfig final : public Config {
@@ -114,7 +153,9 @@ public:
             if (known.count(g) == 0) {
                 std::string list;
                 for (int k = 0; k < n; ++k) list += (k ? ", " : "") + std::string(names[k]);
-                throw UsageError("unknown parameter `" + g + "` (parameters: " + (n ? list : "none") + ")");
+                throw UsageError("unknown parameter `" + g + "`" +
+                                 did_you_mean(g, std::vector<std::string>(names, names + n)) +
+                                 " (parameters: " + (n ? list : "none") + ")");
             }
         }
     }
@@ -144,7 +185,7 @@ private:
                 if (!v.IsScalar()) throw YAML::Exception(YAML::Mark::null_mark(), "not a scalar");
                 return v.as<T>();
             } catch (const YAML::Exception&) {
-                throw UsageError(path_ + ": parameter `" + name + "` is a " + kind + ", not `" +
+                throw UsageError(path_ + ": parameter `" + name + "` is " + a_kind(kind) + ", not `" +
                                  YAML::Dump(v) + "`");
             }
         }
@@ -192,9 +233,16 @@ private:
     void read() {
         std::FILE* f = std::fopen(path_.c_str(), "rb");
         if (!f) throw UsageError(path_ + ": cannot read the configuration: " + std::strerror(errno));
+        std::string text;
+        char buf[65536];
+        std::size_t got;
+        while ((got = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, got);
+        const int failed = std::ferror(f) ? errno : 0;  // a directory: EISDIR
         std::fclose(f);
+        if (failed) throw UsageError(path_ + ": cannot read the configuration: " + std::strerror(failed));
+        check_utf8(text);
         try {
-            root_ = YAML::LoadFile(path_);
+            root_ = YAML::Load(text);
         } catch (const YAML::ParserException& e) {
             throw UsageError(path_ + ":" + std::to_string(e.mark.line + 1) + ":" +
                              std::to_string(e.mark.column + 1) + ": " + e.msg);
@@ -203,6 +251,56 @@ private:
         }
         if (root_.IsNull()) root_ = YAML::Node(YAML::NodeType::Map);
         if (!root_.IsMap()) throw UsageError(path_ + ": the configuration must be a mapping");
+        mapping(root_["parameters"], "`parameters`");
+        const YAML::Node all = mapping(root_["interfaces"], "`interfaces`");
+        if (all.IsMap())
+            for (const auto& kv : all) {
+                const std::string iface = kv.first.IsScalar() ? kv.first.Scalar() : "?";
+                mapping(kv.second, "interface `" + iface + "`");
+                mapping(kv.second["options"], "the options of interface `" + iface + "`");
+            }
+    }
+
+    // A node that must be a mapping when present (as the Python runtime checks it).
+    YAML::Node mapping(const YAML::Node& node, const std::string& what) const {
+        if (node && !node.IsNull() && !node.IsMap()) {
+            std::string dump = YAML::Dump(node);
+            for (char& ch : dump) if (ch == '\n') ch = ' ';
+            throw UsageError(path_ + ": " + what + " must be a mapping, not `" + dump + "`");
+        }
+        return node;
+    }
+
+    // The same message as the Python runtime for bytes that are not UTF-8.
+    void check_utf8(const std::string& t) const {
+        std::size_t k = 0, line = 1, line_start = 0;
+        while (k < t.size()) {
+            const unsigned char c = static_cast<unsigned char>(t[k]);
+            std::size_t n = c < 0x80 ? 1 : (c >> 5) == 6 && c >= 0xc2 ? 2 : (c >> 4) == 14 ? 3
+                            : (c >> 3) == 30 && c <= 0xf4 ? 4 : 0;
+            bool ok = n > 0 && k + n <= t.size();
+            for (std::size_t j = 1; ok && j < n; ++j)
+                ok = (static_cast<unsigned char>(t[k + j]) >> 6) == 2;
+            if (ok && n == 3) {  // no overlong forms, no surrogates
+                const unsigned char c1 = static_cast<unsigned char>(t[k + 1]);
+                ok = !(c == 0xe0 && c1 < 0xa0) && !(c == 0xed && c1 >= 0xa0);
+            }
+            if (ok && n == 4) {
+                const unsigned char c1 = static_cast<unsigned char>(t[k + 1]);
+                ok = !(c == 0xf0 && c1 < 0x90) && !(c == 0xf4 && c1 >= 0x90);
+            }
+            if (!ok) {
+                char hex[8];
+                std::snprintf(hex, sizeof hex, "0x%02x", c);
+                throw UsageError(path_ + ":" + std::to_string(line) + ":" + std::to_string(k - line_start + 1) +
+                                 ": the configuration is not UTF-8 text (byte " + hex + "); save it as UTF-8");
+            }
+            if (c == '\n') {
+                ++line;
+                line_start = k + 1;
+            }
+            k += n;
+        }
     }
 
     YAML::Node interface(const char* iface) const {
@@ -215,7 +313,7 @@ private:
     T from_text(const char* name, const char* kind, const std::string& raw, const char* source) const {
         const std::string text = trim(raw);
         const auto bad = [&]() {
-            return UsageError(std::string(source) + ": parameter `" + name + "` is a " + kind +
+            return UsageError(std::string(source) + ": parameter `" + name + "` is " + a_kind(kind) +
                               ", not `" + raw + "`");
         };
         if constexpr (std::is_same_v<T, bool>) {
@@ -298,7 +396,8 @@ Options parse_options(int argc, char** argv, bool& help) {
     return o;
 }
 
-void print_help(const char* name) {
+void print_help(const Tables& tb) {
+    const char* name = tb.name;
     std::printf(
         "usage: %s [--config FILE] [--param NAME=VALUE] [--display] [--displaygui {true,false}]\n"
         "          [--focus PATH] [--no-autofocus] [--monitor [HOST:]PORT] [--trace FILE]\n"
@@ -313,8 +412,39 @@ void print_help(const char* name) {
         "  --monitor [HOST:]PORT  serve the live state to `hfsmc view` (loopback unless a host is named)\n"
         "  --trace FILE           write the trace (JSON lines); - for stdout\n"
         "  --clock real|virtual   the clock (default real)\n"
-        "  --until DURATION       stop after that much time (e.g. 10s)\n",
+        "  --until DURATION       stop after that much time (e.g. 10s)\n\n",
         name, name, name);
+    if (tb.n_parameters == 0 || tb.parameter_info == nullptr) {
+        std::printf("parameters: none\n");
+        return;
+    }
+    std::printf("parameters (set with --param NAME=VALUE or in the configuration):\n");
+    for (int k = 0; k < tb.n_parameters; ++k) {
+        const ParameterInfo& p = tb.parameter_info[k];
+        std::printf("  %s (%s, default %s)\n", p.name, p.type, p.default_text);
+        if (p.description[0] != '\0') std::printf("      %s\n", p.description);
+    }
+}
+
+// --focus names a state that holds a sub-automaton (or the root: `/`).
+void check_focus(const Tables& tb, const std::string& focus) {
+    std::size_t a = 0, b = focus.size();
+    while (a < b && focus[a] == '/') ++a;
+    while (b > a && focus[b - 1] == '/') --b;
+    const std::string path = focus.substr(a, b - a);
+    if (path.empty()) return;
+    std::vector<std::string> all, composite;
+    for (int k = 0; k < tb.n_states; ++k) {
+        if (path == tb.states[k].path) {
+            if (tb.states[k].child < 0)
+                throw UsageError("--focus " + focus + ": state `" + path + "` has no sub-automaton to show");
+            return;
+        }
+        all.emplace_back(tb.states[k].path);
+        if (tb.states[k].child >= 0) composite.emplace_back(tb.states[k].path);
+    }
+    throw UsageError("--focus " + focus + ": no state `" + path + "` in " + tb.name +
+                     did_you_mean(path, composite.empty() ? all : composite));
 }
 
 }  // namespace
@@ -322,10 +452,11 @@ void print_help(const char* name) {
 std::unique_ptr<Config> configure(const Tables& tb, int argc, char** argv, Options& o, bool& help) {
     o = parse_options(argc, argv, help);
     if (help) {
-        print_help(tb.name);
+        print_help(tb);
         return nullptr;
     }
     if (!o.until.empty()) parse_duration_us(o.until);
+    if (!o.focus.empty()) check_focus(tb, o.focus);
     auto config = std::make_unique<YamlConfig>(tb.name, o.config, argc > 0 ? argv[0] : "", o.params);
     config->check_known(tb.parameters, tb.n_parameters);
     return config;

@@ -80,6 +80,12 @@ struct SnippetInfo {
     int owner;  // state index; the number of states for the root's snippets
     int line, col;  // of its first line in the model
 };
+struct ParameterInfo {  // for --help
+    const char* name;
+    const char* type;  // bool int float str
+    const char* default_text;  // as Python's repr writes it
+    const char* description;  // "" when none
+};
 struct Tables {
     const char* name;
     const char* file;  // the model file, as hfsmc was given it
@@ -96,6 +102,7 @@ struct Tables {
     int n_parameters;
     int on_interrupt;  // state index, or -1
     long long interrupt_timeout_us;  // -1 when none
+    const ParameterInfo* parameter_info;  // n_parameters of them, or nullptr
 };
 
 // An interface this component cannot drive (ROS topics and ICE from legacy models):
