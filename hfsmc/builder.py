@@ -9,11 +9,12 @@ the whole tree (targets, initial states, periods) is done by the passes in
 from __future__ import annotations
 
 import ast
+import re
 from typing import Any
 
-from hfsmc.durations import parse_us
+from hfsmc.durations import has_unit, parse_us
 from hfsmc.errors import Diagnostics
-from hfsmc.frontend.source import Document, PathKey
+from hfsmc.frontend.source import YAML11_BOOLS, Document, PathKey
 from hfsmc.ir import (
     Automaton,
     Code,
@@ -68,6 +69,13 @@ class _Builder:
         if us is None:
             self.diags.error("E110", f"`{node[key]}` is not a duration: write 250ms, 2s, 1.5s or 2m "
                              "(at most a year, whole microseconds)", self.doc.span((*path, key)))
+        elif us and self.doc.format in ("yaml", "xml") and not has_unit(node[key]):
+            # still milliseconds (docs: durations); legacy imports keep their bare numbers quietly
+            n = str(node[key]).strip()
+            shown = f'{key}="{node[key]}"' if self.doc.format == "xml" else f"{key}: {node[key]}"
+            self.diags.warning("W212", f"`{shown}` has no unit: a bare number means "
+                               "milliseconds", self.doc.span((*path, key)),
+                               f"write `{n}ms`, or `{n}s` if you meant seconds")
         return us
 
     def period(self, node: dict[str, Any], path: PathKey) -> int | None:
@@ -119,6 +127,7 @@ class _Builder:
         for name, spec in (self.data.get("parameters") or {}).items():
             path: PathKey = ("parameters", name)
             default = self.coerce(spec["default"], spec["type"], (*path, "default"))
+            literal_traps(self.doc, (*path, "default"), spec["type"], self.diags)
             out.append(Parameter(name, spec["type"], default, self.doc.key_span(path),
                                  spec.get("description")))
         return tuple(out)
@@ -132,6 +141,7 @@ class _Builder:
                 vtype, init = spec["type"], spec["init"]
                 if vtype in _PY_TYPES:
                     init = self.coerce(init, vtype, (*path, "init"))
+                    literal_traps(self.doc, (*path, "init"), vtype, self.diags)
                 elif language == "python":
                     self.diags.error("E103", f"variable type `{vtype}` is not one of "
                                      f"{', '.join(_PY_TYPES)} (a cpp model may name any C++ type)",
@@ -141,6 +151,7 @@ class _Builder:
                 out.append(Variable(name, vtype, _freeze(init), True, span))
             else:
                 vtype = _LITERAL_TYPES[type(spec)]
+                literal_traps(self.doc, path, None, self.diags)
                 out.append(Variable(name, vtype, _freeze(spec), False, span))
         return tuple(out)
 
@@ -158,7 +169,13 @@ class _Builder:
             converted = _from_text(value, vtype)
             if converted is not None:
                 return converted
-        self.diags.error("E101", f"`{path[-1]}` must be a {vtype}, not {value!r}", self.doc.span(path))
+        notes: tuple[str, ...] = ()
+        if vtype == "bool" and isinstance(value, str) and value.strip().lower() in YAML11_BOOLS:
+            word = "true" if YAML11_BOOLS[value.strip().lower()] else "false"
+            how = " (YAML 1.2 reads it as a string)" if self.doc.format == "yaml" else ""
+            notes = (f"`{value.strip()}` is not a boolean{how}: write `{word}`",)
+        self.diags.error("E101", f"`{path[-1]}` must be a {vtype}, not {value!r}", self.doc.span(path),
+                         *notes)
         return _freeze(value)
 
     # -- states ------------------------------------------------------------
@@ -212,6 +229,66 @@ class _Builder:
                              self.doc.span(path))
         return Transition(index, node["to"], when, after, self.code(node, path, "do"),
                           node.get("name"), self.doc.span(path), self.doc.span((*path, "to")))
+
+
+_XML_LEADING_ZERO = re.compile(r"\s*[-+]?0[0-9]+\s*$")
+
+
+def literal_traps(doc: Document, path: PathKey, declared: str | None, diags: Diagnostics) -> None:
+    """Warn about a literal value (at ``path`` or inside it) that a YAML 1.1 reader, and
+    many people, read differently from hfsmc: ``no`` is a string here (true in a
+    condition), ``010`` is ten, not eight.  ``declared`` is the value's declared type,
+    if any.  Used for variables and parameters' defaults; for any value bound from a
+    model (a `with` binding) too.  docs/quoting.md explains.
+    """
+    if doc.format == "xml":
+        text = doc_value(doc, path)
+        if declared in ("int", "float") and isinstance(text, str) and _XML_LEADING_ZERO.match(text):
+            _leading_zero(doc, path, text.strip(), diags)
+        return
+    if not doc.yaml11:
+        return
+    n = len(path)
+    for p, raw in doc.yaml11.items():
+        if p[:n] != path:
+            continue
+        if raw in YAML11_BOOLS:
+            if declared is not None:
+                continue  # a declared string is one; any other type is already an error
+            word = "true" if YAML11_BOOLS[raw] else "false"
+            diags.warning("W210", f"`{raw}` is the string '{raw}' here, not the boolean {word} "
+                          "(hfsmc reads YAML 1.2): a non-empty string is true in a condition",
+                          doc.span(p), f"write `{word}` for a boolean, or '{raw}' in quotes "
+                          "to keep the string")
+        else:
+            _leading_zero(doc, p, raw, diags)
+
+
+def _leading_zero(doc: Document, path: PathKey, raw: str, diags: Diagnostics) -> None:
+    digits = raw.lstrip("+-")
+    sign = "-" if raw.startswith("-") else ""
+    decimal = f"{sign}{int(digits, 10)}"
+    if set(digits) <= set("01234567"):
+        octal = f"{sign}{int(digits, 8)}"
+        diags.warning("W211", f"`{raw}` is {decimal} here, not octal {octal} as YAML 1.1 and C "
+                      "read it", doc.span(path), f"write `{decimal}`, or `{sign}0o{digits.lstrip('0')}`"
+                      f" for octal {octal}")
+    else:
+        diags.warning("W211", f"`{raw}` has a leading zero: it is {decimal}", doc.span(path),
+                      f"write `{decimal}`")
+
+
+def doc_value(doc: Document, path: PathKey) -> Any:
+    """The document's value at ``path`` (None when absent)."""
+    node: Any = doc.data
+    for k in path:
+        if isinstance(node, dict) and isinstance(k, str):
+            node = node.get(k)
+        elif isinstance(node, list) and isinstance(k, int) and 0 <= k < len(node):
+            node = node[k]
+        else:
+            return None
+    return node
 
 
 def _from_text(text: str, vtype: str) -> Value:

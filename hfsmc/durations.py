@@ -29,6 +29,14 @@ def parse_us(value: object) -> int | None:
     return int(us) if us.denominator == 1 and us <= MAX_US else None
 
 
+def has_unit(value: object) -> bool:
+    """Does a duration as written name its unit (``5ms``, not ``5``)?"""
+    if not isinstance(value, str):
+        return False
+    m = _RE.match(value)
+    return m is not None and m.group(2) is not None
+
+
 def format_us(us: int) -> str:
     """The shortest exact spelling of a duration: ``100ms``, ``2s``, ``1.5s``, ``2m``."""
     if us >= 60_000_000 and us % 60_000_000 == 0:

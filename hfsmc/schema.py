@@ -8,12 +8,14 @@ errors into positioned diagnostics (key position for unknown keys, with a
 from __future__ import annotations
 
 from collections.abc import Iterable
+from fractions import Fraction
 from functools import cache
 from typing import Any
 
 from jsonschema import Draft202012Validator
 from jsonschema.exceptions import ValidationError, best_match
 
+from hfsmc.durations import MAX_US, format_us
 from hfsmc.errors import Diagnostics, did_you_mean
 from hfsmc.frontend.source import Document, PathKey
 from hfsmc.resources import json_schema
@@ -39,7 +41,10 @@ def _validator() -> Draft202012Validator:
 def validate(doc: Document, diags: Diagnostics) -> None:
     """Add a diagnostic for every schema violation of ``doc``."""
     found = Diagnostics()
+    misplaced = _keys_named_as_states(doc, found)
     for err in _validator().iter_errors(doc.data):
+        if misplaced and any(tuple(err.absolute_path)[:len(p)] == p for p in misplaced):
+            continue  # E107 said why: a key indented as a state
         _report(doc, err, found)
     # jsonschema raises one `required` error per missing key; each report names all of them.
     seen: set[tuple[str, str, object]] = set()
@@ -112,15 +117,23 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
     if v == "required":
         for key in err.validator_value:  # type: ignore[union-attr]
             if key not in instance:
-                span = doc.key_span(path) if path else doc.span(())
-                diags.error("E102", f"missing required key `{key}` in {_field(path)}", span)
+                _missing(doc, path, key, instance, diags)
         return
     if v == "type":
         code = "E101"
         if path == ("hfsm",):
             code = "E104"
-        diags.error(code, f"{_field(path)} must be {_expected(err.validator_value)}, "  # type: ignore[arg-type]
-                    f"not {_describe(err.instance)}", doc.span(path))
+        expected = _expected(err.validator_value)  # type: ignore[arg-type]
+        if instance is None and path and isinstance(path[-1], str):
+            # `when:` with nothing after it: the value's position would be the next line
+            diags.error(code, f"`{path[-1]}` is empty: it must be {expected}", doc.key_span(path))
+            return
+        if schema.get("x-code") == "E110" and isinstance(instance, float):
+            diags.error("E110", f"`{instance}` is not a duration: a number with a fraction has no "
+                        "unit", doc.span(path), *_seconds_hint(instance))
+            return
+        diags.error(code, f"{_field(path)} must be {expected}, not {_describe(err.instance)}",
+                    doc.span(path))
         return
     if v == "enum":
         allowed = [str(x) for x in err.validator_value]  # type: ignore[union-attr]
@@ -136,3 +149,76 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
         diags.error("E103", f"{_field(path)} must not be empty", doc.span(path))
         return
     diags.error("E103", f"{_field(path)}: {err.message}", doc.span(path))
+
+
+def _missing(doc: Document, path: PathKey, key: str, instance: Any, diags: Diagnostics) -> None:
+    """A missing required key, at the key that names the mapping; for the root, at its
+    first key (line 1 may be a comment), with the states to choose from for `initial`."""
+    span = doc.key_span(path) if path else doc.span(())
+    notes: tuple[str, ...] = ()
+    if not path and isinstance(instance, dict) and instance:
+        span = doc.key_span(("states",)) if doc.format == "xml" else doc.key_span((next(iter(instance)),))
+        states = instance.get("states")
+        if key == "initial" and isinstance(states, dict) and states:
+            notes = (f"its states: {', '.join(str(s) for s in states)}",)
+    diags.error("E102", f"missing required key `{key}` in {_field(path)}", span, *notes)
+
+
+def _seconds_hint(value: float) -> tuple[str, ...]:
+    """`period: 0.1` probably means 0.1 seconds: suggest `100ms`."""
+    try:
+        us = Fraction(str(value)) * 1_000_000
+    except (ValueError, OverflowError):
+        return ("write 250ms, 2s, 1.5s or 2m",)
+    if us.denominator != 1 or not 0 < us <= MAX_US:
+        return ("write 250ms, 2s, 1.5s or 2m",)
+    return (f"if it means seconds, write `{format_us(int(us))}`",)
+
+
+# The keys of a state (schemas/hfsm.schema.json); a state named like one is a key indented wrongly.
+STATE_KEYS = ("transitions", "entry", "during", "exit", "initial", "period", "states", "history",
+              "final")
+
+
+def _keys_named_as_states(doc: Document, diags: Diagnostics) -> list[PathKey]:
+    """E107 for a state named like a state key whose value is no state (W213 when it
+    is one); the paths of the E107 ones, whose schema errors would only confuse."""
+    out: list[PathKey] = []
+    data = doc.data
+    todo: list[tuple[PathKey, Any]] = [(("states",), data.get("states") if isinstance(data, dict) else None)]
+    while todo:
+        path, states = todo.pop()
+        if not isinstance(states, dict):
+            continue
+        names = list(states)
+        for i, name in enumerate(names):
+            value = states[name]
+            sp = (*path, name)
+            if isinstance(value, dict):
+                todo.append(((*sp, "states"), value.get("states")))
+            if name not in STATE_KEYS:
+                continue
+            owner = "/".join(str(p) for p in path[1::2]) or "the root"
+            where = f"`{owner}`" if path[1:] else owner
+            note = _indent_note(doc, path, states, names[i - 1] if i else None, name)
+            if value is None or (isinstance(value, dict) and set(value) <= set(STATE_KEYS) | {"description"}):
+                diags.warning("W213", f"a state named `{name}`, like the state key: is it a key "
+                              "indented too little?", doc.key_span(sp), note)
+                continue
+            out.append(sp)
+            diags.error("E107", f"`{name}` is read as the name of a state of {where}, so the key "
+                        f"`{name}` is probably indented too little", doc.key_span(sp), note)
+    return out
+
+
+def _indent_note(doc: Document, path: PathKey, states: dict[str, Any], previous: str | None,
+                 name: str) -> str:
+    """Where the key would belong: under the keys of the state written before it."""
+    if previous is None:
+        return "a state's keys are indented under the state's name"
+    value = states[previous]
+    first = next(iter(value), None) if isinstance(value, dict) else None
+    if first is not None:
+        col = doc.key_span((*path, previous, first)).col
+        return f"to make it a key of `{previous}`, start `{name}` at column {col}, under `{first}`"
+    return f"to make it a key of `{previous}`, indent it under `{previous}`"

@@ -24,6 +24,10 @@ MAX_FILE_BYTES = 50 * 1024 * 1024
 MAX_DEPTH = 400  # nesting of YAML/XML containers (about 130 levels of states)
 MAX_NODES = 5_000_000  # values after alias expansion
 
+# Spellings YAML 1.1 reads as booleans and YAML 1.2 (what hfsmc reads) as strings.
+YAML11_BOOLS: dict[str, bool] = {
+    w: b in ("yes", "on", "y")
+    for b in ("yes", "no", "on", "off", "y", "n") for w in (b, b.capitalize(), b.upper())}
 
 _BREAK = re.compile(r"\r\n|\r|\n")
 
@@ -52,6 +56,8 @@ class Document:
     segments: dict[PathKey, tuple[tuple[int, int, int], ...]] = field(default_factory=dict)
     # What a legacy import mapped and how (`hfsmc convert` prints it as its report).
     notes: list[tuple[Span, str]] = field(default_factory=list)
+    # Plain YAML scalars that a YAML 1.1 reader reads differently (`no`, `010`): their text.
+    yaml11: dict[PathKey, str] = field(default_factory=dict)
 
     def span(self, path: PathKey) -> Span:
         """Position of the value at ``path``, or of its nearest ancestor."""

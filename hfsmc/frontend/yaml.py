@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import datetime
+import re
 import warnings
 from typing import Any, NoReturn
 
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
 from ruamel.yaml.error import MarkedYAMLError, ReusedAnchorWarning, YAMLError
+from ruamel.yaml.scalarint import ScalarInt
 from ruamel.yaml.scalarstring import (
     DoubleQuotedScalarString,
     FoldedScalarString,
@@ -17,7 +19,8 @@ from ruamel.yaml.scalarstring import (
 )
 
 from hfsmc.errors import Diagnostics, ParseError, Span, fail
-from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, Document, PathKey, split_lines
+from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, YAML11_BOOLS, Document, PathKey, split_lines
+from hfsmc.frontend.yaml_traps import explain, may_have_properties, scan_properties
 
 
 def _yaml() -> YAML:
@@ -40,13 +43,20 @@ def load_yaml(file: str, text: str, diags: Diagnostics) -> Document:
             # A redefined anchor is valid YAML (the latest definition wins): ruamel's
             # warning about it would reach the user with positions in `<unicode string>`.
             warnings.simplefilter("ignore", ReusedAnchorWarning)
+            if may_have_properties(text):
+                # tags, anchors and aliases that would eat a snippet's `!`, `&&` or `*`
+                found = scan_properties(file, text, lines)
+                if found:
+                    raise ParseError(found)
             root = _yaml().load(text)
     except MarkedYAMLError as e:
-        _fail_marked(file, e)
+        _fail_marked(file, lines, e)
     except YAMLError as e:  # reader errors (bad characters) and the like
         pos = getattr(e, "position", None)
         span = _offset_span(file, text, pos) if isinstance(pos, int) else Span(file, 1, 1)
         fail(ParseError, "E002", _first_line(str(e)), span)
+    except ParseError:
+        raise
     except RecursionError:
         fail(ParseError, "E006", f"the document nests deeper than {MAX_DEPTH} levels", Span(file, 1, 1))
     except Exception as e:  # an explicit tag whose value cannot be built (`!!int abc`)
@@ -91,10 +101,14 @@ def _check_expansion(file: str, root: Any) -> None:
         stack.extend((c, False) for c in children)
 
 
-def _fail_marked(file: str, e: MarkedYAMLError) -> NoReturn:
+def _fail_marked(file: str, lines: list[str], e: MarkedYAMLError) -> NoReturn:
     mark = e.problem_mark or e.context_mark
     span = Span(file, mark.line + 1, mark.column + 1) if mark else Span(file, 1, 1)
     code = "E003" if type(e).__name__ == "DuplicateKeyError" else "E002"
+    if code == "E002" and type(e).__name__ in ("ScannerError", "ParserError"):
+        explained = explain(file, lines, e)
+        if explained is not None:
+            raise ParseError([explained])
     problem = (e.problem or e.context or "malformed YAML").strip()
     notes: tuple[str, ...] = ()
     if code == "E003":
@@ -223,6 +237,12 @@ class _Walker:
     def _record_value(self, path: PathKey, value: Any, line: int, col: int) -> None:
         """Position of the first character of a value's content."""
         lines = self.doc.lines
+        if type(value) is str and value in YAML11_BOOLS:
+            self.doc.yaml11[path] = value
+        elif type(value) is ScalarInt and line < len(lines):
+            m = _LEADING_ZERO.match(lines[line], col)
+            if m is not None:
+                self.doc.yaml11[path] = m.group(0)
         if (type(value) is str and line < len(lines)
                 and lines[line][col:col + len(value)] != value):
             # a plain scalar folded over several lines
@@ -243,6 +263,9 @@ class _Walker:
         if isinstance(value, (DoubleQuotedScalarString, SingleQuotedScalarString)):
             col += 1
         self.doc.spans[path] = self._span(line, col)
+
+
+_LEADING_ZERO = re.compile(r"[-+]?0[0-9]+(?![0-9.eE_:])")
 
 
 def _segments(lines: list[str], text: str, line: int, col: int) -> tuple[tuple[int, int, int], ...]:

@@ -1,0 +1,451 @@
+"""What YAML does that a robotics engineer does not expect, said in words.
+
+Two jobs, both for :mod:`hfsmc.frontend.yaml`:
+
+* :func:`scan_properties` walks the parser's events (before anything is built)
+  and refuses YAML tags, anchors and aliases at the start of a code snippet
+  (``when: !drone.armed() && ...`` is a tag, an anchor and a condition that
+  lost both), and any tag hfsmc does not define.  docs/quoting.md explains.
+* :func:`explain` turns a ruamel.yaml syntax error into a message about the
+  line where the indentation or the quoting went wrong, keeping ruamel's own
+  text as a note.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from ruamel.yaml import YAML
+from ruamel.yaml.error import MarkedYAMLError
+from ruamel.yaml.events import (
+    AliasEvent,
+    CollectionEndEvent,
+    MappingStartEvent,
+    NodeEvent,
+    ScalarEvent,
+    SequenceStartEvent,
+)
+
+from hfsmc.errors import Diagnostic, Span
+from hfsmc.frontend.source import PathKey
+
+# Keys whose value is code in the model's language (docs/quoting.md).
+STATE_SNIPPETS = frozenset({"entry", "during", "exit"})
+TRANSITION_SNIPPETS = frozenset({"when", "do"})
+ROOT_SNIPPETS = frozenset({"functions", "on_shutdown"})
+SNIPPET_KEYS = STATE_SNIPPETS | TRANSITION_SNIPPETS | ROOT_SNIPPETS | {"init"}
+
+# Tags of YAML's core schema: they only say what a plain value already is.
+_CORE = "tag:yaml.org,2002:"
+ALLOWED_TAGS = frozenset({"!", *(_CORE + t for t in ("str", "int", "float", "bool", "null", "seq", "map"))})
+
+# A tag, an anchor or an alias can start a value only after a space or a flow indicator.
+_PROPERTY = re.compile(r"(?:^|[\s\[\]{},])[!&*]", re.MULTILINE)
+
+
+def may_have_properties(text: str) -> bool:
+    """Cheap test: could the document hold a tag, an anchor or an alias at all?"""
+    return _PROPERTY.search(text) is not None
+
+
+def snippet_kind(path: PathKey) -> str | None:
+    """The snippet key ``path`` ends in, when the value there is code; else None.
+
+    ``init`` counts (it is code only in a C++ model: the caller decides).
+    """
+    if not path or not isinstance(path[-1], str):
+        return None
+    key = path[-1]
+    if len(path) == 1:
+        return key if key in ROOT_SNIPPETS else None
+    if len(path) >= 3 and path[-3] == "states" and key in STATE_SNIPPETS:
+        return key
+    if len(path) >= 4 and path[-3] == "transitions" and isinstance(path[-2], int) \
+            and key in TRANSITION_SNIPPETS:
+        return key
+    if len(path) == 3 and path[0] == "variables" and key == "init":
+        return key
+    return None
+
+
+@dataclass
+class _Frame:
+    path: PathKey
+    is_map: bool
+    flow: bool
+    key: str | int = "?"
+    expect_key: bool = True
+    index: int = 0
+
+
+@dataclass
+class _Scan:
+    file: str
+    lines: list[str]
+    found: list[Diagnostic] = field(default_factory=list)
+    cpp_inits: list[Diagnostic] = field(default_factory=list)
+    language: str | None = None
+
+
+def scan_properties(file: str, text: str, lines: list[str]) -> list[Diagnostic]:
+    """E105 for a tag, anchor or alias on a snippet; E106 for a tag hfsmc does not define.
+
+    Raises ruamel's :class:`MarkedYAMLError` for a syntax error (the caller explains it).
+    """
+    scan = _Scan(file, lines)
+    stack: list[_Frame] = []
+    for ev in YAML(typ="rt").parse(text):
+        if isinstance(ev, CollectionEndEvent):
+            stack.pop()
+            _advance(stack)
+            continue
+        if not isinstance(ev, NodeEvent):
+            continue
+        path = _node_path(stack)
+        _check_node(scan, ev, path, stack[-1].flow if stack else False)
+        if isinstance(ev, (MappingStartEvent, SequenceStartEvent)):
+            here = path if path is not None else (*stack[-1].path, "?")
+            if path is None:  # a mapping or list used as a key
+                stack[-1].key = "?"
+            stack.append(_Frame(here, isinstance(ev, MappingStartEvent), bool(ev.flow_style)))
+            continue
+        if path is None and isinstance(ev, ScalarEvent):
+            stack[-1].key = ev.value
+        elif path == ("language",) and isinstance(ev, ScalarEvent):
+            scan.language = ev.value
+        _advance(stack)
+    if scan.language == "cpp":
+        scan.found.extend(scan.cpp_inits)
+    return scan.found
+
+
+def _node_path(stack: list[_Frame]) -> PathKey | None:
+    """Path of the node an event starts; None for a mapping key."""
+    if not stack:
+        return ()
+    top = stack[-1]
+    if top.is_map:
+        return None if top.expect_key else (*top.path, top.key)
+    return (*top.path, top.index)
+
+
+def _advance(stack: list[_Frame]) -> None:
+    """A node of the innermost collection is complete."""
+    if not stack:
+        return
+    top = stack[-1]
+    if top.is_map:
+        top.expect_key = not top.expect_key
+    else:
+        top.index += 1
+
+
+def _check_node(scan: _Scan, ev: NodeEvent, path: PathKey | None, flow: bool) -> None:
+    tag = getattr(ev, "tag", None)
+    tag = str(tag) if tag is not None else None
+    anchor = ev.anchor
+    mark = ev.start_mark
+    col = mark.column
+    if tag is not None and anchor is not None:  # the mark is on the anchor; the tag may come first
+        written = "!!" + tag[len(_CORE):] if tag.startswith(_CORE) else tag
+        at = scan.lines[mark.line].rfind(written, 0, col) if mark.line < len(scan.lines) else -1
+        col = at if at >= 0 else col
+    span = Span(scan.file, mark.line + 1, col + 1)
+    kind = snippet_kind(path) if path is not None else None
+    if kind is not None and (tag is not None or anchor is not None):
+        d = _snippet_diagnostic(scan, ev, kind, span, flow)
+        (scan.cpp_inits if kind == "init" else scan.found).append(d)
+        if kind != "init":
+            return
+    if tag is not None and tag not in ALLOWED_TAGS:
+        shown = "!!" + tag[len(_CORE):] if tag.startswith(_CORE) else tag
+        scan.found.append(Diagnostic(
+            "E106", f"YAML tag `{shown}`: hfsmc defines no tags", span, "error",
+            ("remove the tag, or quote the value if the `!` belongs to it (docs/quoting.md)",)))
+
+
+def _snippet_diagnostic(scan: _Scan, ev: NodeEvent, kind: str, span: Span, flow: bool) -> Diagnostic:
+    tag = getattr(ev, "tag", None)
+    parts: list[str] = []
+    if tag is not None:
+        parts.append(f"`{_source_word(scan.lines, span)}` as a tag")
+    if isinstance(ev, AliasEvent):
+        parts.append(f"`*{ev.anchor}` as an alias of an anchor")
+    elif ev.anchor is not None:
+        parts.append(f"`&{ev.anchor}` as an anchor")
+    what = " and ".join(parts)
+    if isinstance(ev, ScalarEvent) and ev.style:  # quoted or a block: the code is intact
+        return Diagnostic("E105", f"YAML reads {what}: hfsmc takes no tags, anchors or aliases "
+                          f"on code snippets; remove it from this `{kind}`", span, "error",
+                          ("docs/quoting.md says which snippets need quotes",))
+    message = f"YAML reads {what}, not as code: quote the whole `{kind}` value"
+    notes: list[str] = []
+    if isinstance(ev, ScalarEvent):
+        left = f"as `{ev.value}`" if ev.value.strip() else "empty"
+        notes.append(f"the snippet would be left {left}")
+    raw = _rest_of_line(scan.lines, span)
+    if raw and not flow:
+        notes.append(f"write: {kind}: '{raw.replace(chr(39), chr(39) * 2)}'   (docs/quoting.md)")
+    else:
+        notes.append("docs/quoting.md says which snippets need quotes")
+    return Diagnostic("E105", message, span, "error", tuple(notes))
+
+
+def _source_word(lines: list[str], span: Span) -> str:
+    """The tag as written (`!drone.armed()`), from the source line."""
+    rest = _rest_of_line(lines, span)
+    return rest.split()[0] if rest else "!"
+
+
+def _rest_of_line(lines: list[str], span: Span) -> str:
+    if not 1 <= span.line <= len(lines):
+        return ""
+    return lines[span.line - 1][span.col - 1:].rstrip()
+
+
+# ---------------------------------------------------------------------------
+# syntax errors in words
+
+
+_SNIPPET_START = re.compile(
+    r"(?:^\s*(?:-\s+)?|[{,]\s*)(?P<key>" + "|".join(sorted(SNIPPET_KEYS)) + r")\s*:\s+(?P<c>[!&*])")
+_NO_SPACE = re.compile(r"^(?P<lead>\s*(?:-\s+)?)(?P<key>[A-Za-z_][A-Za-z0-9_]*):(?P<rest>[^\s:/\\])")
+_KEY_AT = re.compile(r"(?P<key>[^\s#'\"{}\[\],:][^#:]*?)\s*:(?:\s|$)")
+_PLAIN_VALUE = re.compile(r"^\s*(?:-\s+)?(?P<key>[^\s#'\"{}\[\],:-][^#:]*?)\s*:\s+(?P<v>[^\s#'\"|>{\[&*!].*)$")
+_QUOTE_OPEN = re.compile(r"(?:^\s*(?:-\s+)?[^\s#'\"{\[][^#]*?:\s+|^\s*-\s+)(?P<q>['\"])")
+
+
+def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | None:
+    """A message about the real mistake behind a ruamel syntax error, or None.
+
+    Cases: a tag/anchor/alias starting a snippet, a tab, a quote never closed,
+    a missing space after `:`, a value's line indented too far (read as more
+    of the value above), `: ` inside an unquoted value, a key indented to no
+    level above it.
+    """
+    mark = e.problem_mark or e.context_mark
+    if mark is None:
+        return None
+    problem = (e.problem or e.context or "").strip()
+    ctx = (e.context or "").strip()
+    raw = f"the YAML parser says: {problem}" + (f" ({ctx})" if ctx and ctx != problem else "")
+    line, col = mark.line, mark.column  # 0-based
+    cmark = e.context_mark
+    first = min(line, cmark.line) if cmark is not None else line
+    for ln in _content_lines_back(lines, line, first):
+        found = _snippet_property(file, lines, ln, raw)
+        if found is not None:
+            return found
+    if "'\\t'" in problem or "tab" in problem:
+        return _tab(file, lines, line, col, raw)
+    if ctx.startswith("while scanning a quoted scalar") and cmark is not None:
+        q = _at(lines, cmark.line, cmark.column) or "quote"
+        return Diagnostic("E002", f"this `{q}` is never closed: the quoted value runs on to the end "
+                          "of the file", Span(file, cmark.line + 1, cmark.column + 1), "error",
+                          (f"close it with a `{q}` on the same line", raw))
+    open_quote = _open_quote_before(file, lines, line, raw)
+    if open_quote is not None:
+        return open_quote
+    for ln in _content_lines_back(lines, line, first, extra=1):
+        found = _missing_space(file, lines, ln, raw)
+        if found is not None:
+            return found
+    if problem.startswith("mapping values are not allowed"):
+        return _colon_in_value(file, lines, line, col, raw)
+    if problem.startswith("expected <block end>") or problem.startswith("did not find expected"):
+        return _misaligned(file, lines, line, col, raw)
+    return None
+
+
+def _at(lines: list[str], line: int, col: int) -> str:
+    return lines[line][col] if 0 <= line < len(lines) and 0 <= col < len(lines[line]) else ""
+
+
+def _is_content(text: str) -> bool:
+    s = text.strip()
+    return bool(s) and not s.startswith("#")
+
+
+def _content_lines_back(lines: list[str], line: int, first: int, extra: int = 0) -> list[int]:
+    """Line ``line`` and the content lines before it down to ``first``, plus ``extra`` more
+    (at most four lines)."""
+    out: list[int] = []
+    ln = min(line, len(lines) - 1)
+    while ln >= 0 and len(out) < 4:
+        if _is_content(lines[ln]):
+            if ln < first:
+                if extra <= 0:
+                    break
+                extra -= 1
+            out.append(ln)
+        ln -= 1
+    return out
+
+
+def _snippet_property(file: str, lines: list[str], ln: int, raw: str) -> Diagnostic | None:
+    m = _SNIPPET_START.search(lines[ln]) if 0 <= ln < len(lines) else None
+    if m is None:
+        return None
+    c = m["c"]
+    what = {"!": "a tag", "&": "an anchor", "*": "an alias"}[c]
+    value = lines[ln][m.start("c"):].rstrip()
+    flow = m.group(0).lstrip()[:1] in ("{", ",")
+    hint = ("in a `{...}` mapping, put the value in quotes (docs/quoting.md)" if flow else
+            f"write: {m['key']}: '{value.replace(chr(39), chr(39) * 2)}'   (docs/quoting.md)")
+    return Diagnostic("E105", f"YAML reads `{c}` at the start of a value as {what}, not as code: "
+                      f"quote the whole `{m['key']}` value", Span(file, ln + 1, m.start("c") + 1),
+                      "error", (hint, raw))
+
+
+def _tab(file: str, lines: list[str], line: int, col: int, raw: str) -> Diagnostic:
+    text = lines[line] if 0 <= line < len(lines) else ""
+    tab = text.find("\t")
+    leading = tab >= 0 and not text[:tab].strip()
+    where = Span(file, line + 1, (tab if tab >= 0 else col) + 1)
+    if leading:
+        return Diagnostic("E002", "a tab in the indentation: YAML indents with spaces only",
+                          where, "error", ("replace the tab with spaces (set your editor to "
+                                           "insert spaces for YAML)", raw))
+    return Diagnostic("E002", "a tab where YAML expects a value or a key: use spaces",
+                      where, "error", (raw,))
+
+
+def _open_quote_before(file: str, lines: list[str], line: int, raw: str) -> Diagnostic | None:
+    """A quoted value a few lines up whose quote closes only at the error's line."""
+    for ln in range(line - 1, max(-1, line - 6), -1):
+        text = lines[ln] if ln < len(lines) else ""
+        m = _QUOTE_OPEN.match(text)
+        if m is None:
+            continue
+        q = m["q"]
+        if _closes(text[m.end("q"):], q):
+            return None  # the nearest quoted value is closed: not this mistake
+        closing = next((k for k in range(ln + 1, min(line + 1, len(lines)))
+                        if _closes(lines[k], q)), None)
+        if closing is None or closing < line:
+            return None
+        return Diagnostic("E002", f"this `{q}` is not closed on its line: YAML reads on to the "
+                          f"`{q}` on line {closing + 1}", Span(file, ln + 1, m.start("q") + 1),
+                          "error", (f"close the value with a `{q}` on line {ln + 1}", raw))
+    return None
+
+
+def _closes(text: str, q: str) -> bool:
+    """Does ``text`` (after an opening quote) contain the closing quote?"""
+    i = 0
+    while i < len(text):
+        ch = text[i]
+        if q == '"' and ch == "\\":
+            i += 2
+            continue
+        if ch == q:
+            if q == "'" and text[i + 1:i + 2] == "'":
+                i += 2
+                continue
+            return True
+        i += 1
+    return False
+
+
+def _missing_space(file: str, lines: list[str], ln: int, raw: str) -> Diagnostic | None:
+    text = lines[ln] if 0 <= ln < len(lines) else ""
+    m = _NO_SPACE.match(text)
+    if m is None:
+        return None
+    word = text[m.start("key"):].split()[0]
+    fixed = f"{m['key']}: {text[m.end('key') + 1:].strip()}"
+    return Diagnostic("E002", f"no space after the `:` of `{m['key']}`: YAML reads `{word}` as one "
+                      "word, not as a key and its value", Span(file, ln + 1, m.end("key") + 1),
+                      "error", (f"write: {fixed}", raw))
+
+
+def _indent(text: str) -> int:
+    return len(text) - len(text.lstrip(" "))
+
+
+def _key_start(text: str) -> int:
+    """Column (0-based) of a line's first key or value, after any `- `."""
+    i = _indent(text)
+    while text[i:i + 2] in ("- ", "-\t"):
+        i += 2
+        while i < len(text) and text[i] == " ":
+            i += 1
+    return i
+
+
+def _previous_content(lines: list[str], line: int) -> int | None:
+    ln = line - 1
+    while ln >= 0 and not _is_content(lines[ln]):
+        ln -= 1
+    return ln if ln >= 0 else None
+
+
+def _colon_in_value(file: str, lines: list[str], line: int, col: int, raw: str) -> Diagnostic | None:
+    if not 0 <= line < len(lines):
+        return None
+    text = lines[line]
+    start = _key_start(text)
+    km = _KEY_AT.match(text, start)
+    if km is not None and km.end("key") <= col <= km.end():
+        # `key:` starts this line: the line above's value swallowed it
+        prev = _previous_content(lines, line)
+        pm = _PLAIN_VALUE.match(lines[prev]) if prev is not None else None
+        if pm is not None and prev is not None:
+            above = pm.start("key")
+            return Diagnostic(
+                "E002", f"`{km['key']}` is indented more than `{pm['key']}` on line {prev + 1}, so "
+                f"YAML reads it as more of the value of `{pm['key']}`", Span(file, line + 1, start + 1),
+                "error", (f"start `{km['key']}` at column {above + 1}, under `{pm['key']}`", raw))
+        return None
+    vm = _PLAIN_VALUE.match(text)
+    notes = [raw]
+    if vm is not None and vm.start("v") <= col:
+        value = vm["v"].rstrip()
+        notes.insert(0, f"write: {vm['key']}: '{value.replace(chr(39), chr(39) * 2)}'")
+    return Diagnostic("E002", "`: ` inside a value that is not quoted: YAML reads it as a key "
+                      "and a value; quote the whole value (docs/quoting.md)",
+                      Span(file, line + 1, col + 1), "error", tuple(notes))
+
+
+def _misaligned(file: str, lines: list[str], line: int, col: int, raw: str) -> Diagnostic | None:
+    if not 0 <= line < len(lines):
+        return None
+    text = lines[line]
+    start = _key_start(text)
+    if col != start and col != _indent(text):
+        return None  # not about where the line starts
+    levels = _levels_above(lines, line)
+    here = _indent(text)
+    if any(level == here for level, _, _ in levels):
+        return None
+    near = [lv for lv in levels if lv[0] > here][-1:] + [lv for lv in levels if lv[0] < here][:1]
+    word = _first_word(text[start:])
+    shown = ", ".join(f"column {c + 1} (`{w}`, line {n + 1})" for c, n, w in near)
+    notes = (f"the blocks above start at {shown}: line it up with one of them",) if near else ()
+    return Diagnostic("E002", f"`{word}` at column {here + 1} lines up with no key or list item "
+                      "above it: its indentation is wrong", Span(file, line + 1, here + 1), "error",
+                      (*notes, raw))
+
+
+def _first_word(text: str) -> str:
+    m = re.match(r"-|[^\s:]+", text)
+    return m.group(0) if m else text.strip()[:20]
+
+
+def _levels_above(lines: list[str], line: int) -> list[tuple[int, int, str]]:
+    """(indentation, line, first word) of the blocks that enclose ``line``, innermost first."""
+    out: list[tuple[int, int, str]] = []
+    limit: int | None = None
+    for ln in range(line - 1, -1, -1):
+        text = lines[ln]
+        if not _is_content(text):
+            continue
+        i = _indent(text)
+        if limit is None or i < limit:
+            out.append((i, ln, _first_word(text[i:])))
+            limit = i
+            if i == 0:
+                break
+    return out
+
