@@ -47,8 +47,9 @@ RECORD_KEYS: dict[str, tuple[str, ...]] = {
     "stop": ("t", "ev", "reason"),
 }
 SNIPPETS = {"entry", "during", "exit", "when", "do", "on_shutdown"}
-STOP_REASONS = {"final", "until", "shutdown", "sigint", "sigterm", "error", "timeout"}
-INTERRUPT_REASONS = {"shutdown", "sigint", "sigterm", "error"}
+STOP_REASONS = {"final", "until", "shutdown", "sigint", "sigterm", "error", "timeout",
+                "time_limit"}
+INTERRUPT_REASONS = {"shutdown", "sigint", "sigterm", "error", "time_limit"}
 META = re.compile(r"# (args|exit|stderr|wait-for|signal): (.*)")
 
 

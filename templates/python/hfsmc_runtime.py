@@ -26,7 +26,7 @@ from typing import IO, Any, NoReturn
 
 PROTOCOL = 1
 EXIT_STATUS = {"final": 0, "until": 0, "shutdown": 0, "sigint": 130, "sigterm": 143,
-               "error": 1, "timeout": 1}
+               "error": 1, "timeout": 1, "time_limit": 124}
 _SIGNAL_REASON: dict[int, str] = {signal.SIGINT.value: "sigint", signal.SIGTERM.value: "sigterm"}
 _DURATION = re.compile(r"^\s*([0-9]+(?:\.[0-9]+)?)\s*(ms|s|m)?\s*$")
 _US = {"ms": 1000, "s": 1_000_000, "m": 60_000_000}
@@ -259,9 +259,10 @@ class Engine:
             o.record(rec)
 
     # --- running ---------------------------------------------------------------------------
-    def run(self, clock: str, until_us: int | None) -> int:
+    def run(self, clock: str, until_us: int | None, time_limit_us: int | None = None) -> int:
         self.real = clock == "real"
         self.until_us = until_us
+        self.time_limit_us = time_limit_us  # --time-limit: a stop through on_interrupt
         self.timeout_at: int | None = None
         self.next_sample = 0.0
         self.clock_start = time.monotonic_ns()
@@ -292,7 +293,12 @@ class Engine:
             if limit is not None and t > limit:
                 if not real or self.wait(limit):
                     self.t = limit
-                    self.stop(self.limit_why)
+                    if self.limit_why == "time_limit":  # stopped as by a signal, at the boundary
+                        self.time_limit_us = None
+                        self.set_limit()
+                        self.request = self.request or "time_limit"
+                    else:
+                        self.stop(self.limit_why)
                 return
             if real and not self.wait(t):
                 return
@@ -313,10 +319,14 @@ class Engine:
                 self.sample()
 
     def set_limit(self) -> None:
-        """The earliest of --until and the interrupt's timeout: the stop due then."""
+        """The earliest of --until, --time-limit and the interrupt's timeout: the stop due
+        then (--until first on a tie, the interrupt's timeout before either)."""
         self.limit_us, self.limit_why = self.until_us, "until"
-        if self.timeout_at is not None and (self.until_us is None or
-                                            self.timeout_at <= self.until_us):
+        if self.time_limit_us is not None and (self.limit_us is None or
+                                               self.time_limit_us < self.limit_us):
+            self.limit_us, self.limit_why = self.time_limit_us, "time_limit"
+        if self.timeout_at is not None and (self.limit_us is None or
+                                            self.timeout_at <= self.limit_us):
             self.limit_us, self.limit_why = self.timeout_at, "timeout"
 
     def wait(self, t_us: int) -> bool:
@@ -356,13 +366,13 @@ class Engine:
         reason, self.request = self.request, None
         sig, self.signal_reason = self.signal_reason, None
         # Several requests at one boundary: an error first, then the root's final
-        # state, then a signal, then shutdown().
+        # state, then a signal, then shutdown() or the time limit.
         if reason == "error" and self.interrupting is not None:
             self.stop("error")
         elif reason == "final":
             self.stop(self.interrupting or "final")
-        elif reason == "error" or sig is not None or reason == "shutdown":
-            why = "error" if reason == "error" else sig or "shutdown"
+        elif reason == "error" or sig is not None or reason in ("shutdown", "time_limit"):
+            why = "error" if reason == "error" else sig or str(reason)
             if self.m["on_interrupt"] >= 0:
                 self.interrupt(why)
             else:
@@ -374,9 +384,10 @@ class Engine:
     def interrupt(self, reason: str) -> None:
         target = self.m["on_interrupt"]
         self.interrupting = reason
+        self.time_limit_us = None  # stopping already: the time limit has nothing left to do
         if self.m["interrupt_timeout_us"] is not None:
             self.timeout_at = self.t + self.m["interrupt_timeout_us"]
-            self.set_limit()
+        self.set_limit()
         if self.recording:
             self.emit({"t": self.t // 1000, "ev": "interrupt", "reason": reason,
                        "to": self.paths[target]})
@@ -585,6 +596,9 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
     p.add_argument("--trace", metavar="FILE", help="write the trace (JSON lines); - for stdout")
     p.add_argument("--clock", choices=["real", "virtual"], default="real")
     p.add_argument("--until", metavar="DURATION", help="stop after that much time (e.g. 10s)")
+    p.add_argument("--time-limit", metavar="DURATION",
+                   help="after that much time, stop as on SIGINT: through on_interrupt "
+                        "(a drone lands), exit status 124")
     return p.parse_args(list(argv))
 
 
@@ -715,6 +729,7 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
     try:
         args = _arguments(engine.name, argv, engine.m)
         until = parse_duration_us(args.until) if args.until else None
+        time_limit = parse_duration_us(args.time_limit) if args.time_limit else None
         _check_focus(engine, args.focus)
         _configure(engine, args, here)
         if args.trace:
@@ -730,7 +745,7 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
         sys.stderr.write(f"{engine.name}: error: cannot start: {e}\n")
         return 1
     engine.install_signals()
-    return engine.run(args.clock, until)
+    return engine.run(args.clock, until, time_limit)
 
 
 def _check_focus(engine: Engine, focus: str | None) -> None:

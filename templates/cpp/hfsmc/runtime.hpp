@@ -115,6 +115,7 @@ inline int exit_status(std::string_view reason) {
     if (reason == "sigint") return 130;
     if (reason == "sigterm") return 143;
     if (reason == "error" || reason == "timeout") return 1;
+    if (reason == "time_limit") return 124;
     return 0;  // final, until, shutdown
 }
 
@@ -430,9 +431,10 @@ public:
     void add_observer(std::unique_ptr<Observer> o) { observers_.push_back(std::move(o)); }
 
     // --- running -----------------------------------------------------------------------
-    int run(bool real, long long until_us) {
+    int run(bool real, long long until_us, long long time_limit_us = -1) {
         real_ = real;
         until_us_ = until_us;
+        time_limit_us_ = time_limit_us;  // --time-limit: a stop through on_interrupt
         signals::real = real ? 1 : 0;
         signals::trace = trace_.get();
         signals::start_ns = start_ns_ = signals::monotonic_ns();
@@ -487,7 +489,13 @@ private:
             if (limit_us_ >= 0 && due > limit_us_) {
                 if (!real_ || wait(limit_us_)) {
                     set_time(limit_us_);
-                    stop(limit_why_);
+                    if (limit_why_ == "time_limit") {  // stopped as by a signal, at the boundary
+                        time_limit_us_ = -1;
+                        set_limit();
+                        if (request_ == nullptr) request_ = "time_limit";
+                    } else {
+                        stop(limit_why_);
+                    }
                 }
                 return;
             }
@@ -516,10 +524,16 @@ private:
 
     long long real_us() const { return (signals::monotonic_ns() - start_ns_) / 1000; }
 
+    // The earliest of --until, --time-limit and the interrupt's timeout: the stop due then
+    // (--until first on a tie, the interrupt's timeout before either).
     void set_limit() {
         limit_us_ = until_us_;
         limit_why_ = "until";
-        if (timeout_at_ >= 0 && (until_us_ < 0 || timeout_at_ <= until_us_)) {
+        if (time_limit_us_ >= 0 && (limit_us_ < 0 || time_limit_us_ < limit_us_)) {
+            limit_us_ = time_limit_us_;
+            limit_why_ = "time_limit";
+        }
+        if (timeout_at_ >= 0 && (limit_us_ < 0 || timeout_at_ <= limit_us_)) {
             limit_us_ = timeout_at_;
             limit_why_ = "timeout";
         }
@@ -564,13 +578,13 @@ private:
         signals::pending = 0;
         const std::string sig_reason = sig == SIGINT ? "sigint" : sig == SIGTERM ? "sigterm" : "";
         // Several requests at one boundary: an error first, then the root's final
-        // state, then a signal, then shutdown().
+        // state, then a signal, then shutdown() or the time limit.
         if (reason == "error" && !interrupting_.empty()) {
             stop("error");
         } else if (reason == "final") {
             stop(interrupting_.empty() ? "final" : interrupting_);
-        } else if (reason == "error" || !sig_reason.empty() || reason == "shutdown") {
-            const std::string why = reason == "error" ? "error" : !sig_reason.empty() ? sig_reason : "shutdown";
+        } else if (reason == "error" || !sig_reason.empty() || reason == "shutdown" || reason == "time_limit") {
+            const std::string why = reason == "error" ? "error" : !sig_reason.empty() ? sig_reason : reason;
             if (tb_.on_interrupt >= 0) interrupt(why);
             else stop(why);
         } else {
@@ -583,10 +597,9 @@ private:
         const int target = tb_.on_interrupt;
         interrupting_ = reason;
         signals::hard = 1;
-        if (tb_.interrupt_timeout_us >= 0) {
-            timeout_at_ = t + tb_.interrupt_timeout_us;
-            set_limit();
-        }
+        time_limit_us_ = -1;  // stopping already: the time limit has nothing left to do
+        if (tb_.interrupt_timeout_us >= 0) timeout_at_ = t + tb_.interrupt_timeout_us;
+        set_limit();
         if (recording_) {
             Record r = base("interrupt");
             r.reason = reason;
@@ -680,9 +693,9 @@ private:
     bool real_ = false;
     bool stopping_ = false;
     bool stop_failed_ = false;
-    const char* request_ = nullptr;  // shutdown / error / final, acted on at the boundary
+    const char* request_ = nullptr;  // shutdown / error / final / time_limit, acted on at the boundary
     std::string interrupting_;  // the interrupt's reason while one runs
-    long long until_us_ = -1, timeout_at_ = -1, limit_us_ = -1;
+    long long until_us_ = -1, time_limit_us_ = -1, timeout_at_ = -1, limit_us_ = -1;
     std::string limit_why_ = "until";
     long long ticks_ = 0, overruns_ = 0;
     long long start_ns_ = 0, next_sample_ns_ = 0;
@@ -693,7 +706,7 @@ private:
 
 // --- start-up (hfsmc_runtime.cpp) ---------------------------------------------------------
 struct Options {
-    std::string config, focus, monitor, trace, clock = "real", until;
+    std::string config, focus, monitor, trace, clock = "real", until, time_limit;
     std::vector<std::string> params;
     bool display = false, autofocus = true;
 };
@@ -715,12 +728,13 @@ int main(const Tables& tb, int argc, char** argv) {
     std::signal(SIGTERM, [](int) { _exit(143); });
     std::unique_ptr<M> m;
     Options o;
-    long long until = -1;
+    long long until = -1, time_limit = -1;
     try {
         bool help = false;
         const std::unique_ptr<Config> config = configure(tb, argc, argv, o, help);
         if (help) return 0;
         if (!o.until.empty()) until = parse_duration_us(o.until);
+        if (!o.time_limit.empty()) time_limit = parse_duration_us(o.time_limit);
         m = std::make_unique<M>(*config);
         if (!o.trace.empty()) m->_hfsm.set_trace(open_trace(o));
         for (auto& observer : open_observers(o)) m->_hfsm.add_observer(std::move(observer));
@@ -732,7 +746,7 @@ int main(const Tables& tb, int argc, char** argv) {
         return 1;
     }
     signals::install();
-    return m->_hfsm.run(o.clock == "real", until);
+    return m->_hfsm.run(o.clock == "real", until, time_limit);
 }
 
 }  // namespace hfsmc
