@@ -253,8 +253,8 @@ def literal_traps(doc: Document, path: PathKey, declared: str | None, diags: Dia
         if p[:n] != path:
             continue
         if raw in YAML11_BOOLS:
-            if declared is not None:
-                continue  # a declared string is one; any other type is already an error
+            if declared in ("str", "bool", "int", "float"):
+                continue  # a declared string is one; any other scalar type is already an error
             word = "true" if YAML11_BOOLS[raw] else "false"
             diags.warning("W210", f"`{raw}` is the string '{raw}' here, not the boolean {word} "
                           "(hfsmc reads YAML 1.2): a non-empty string is true in a condition",
@@ -269,6 +269,8 @@ def _leading_zero(doc: Document, path: PathKey, raw: str, diags: Diagnostics) ->
     sign = "-" if raw.startswith("-") else ""
     decimal = f"{sign}{int(digits, 10)}"
     if set(digits) <= set("01234567"):
+        if int(digits, 8) == int(digits, 10):
+            return  # `07`: seven either way
         octal = f"{sign}{int(digits, 8)}"
         diags.warning("W211", f"`{raw}` is {decimal} here, not octal {octal} as YAML 1.1 and C "
                       "read it", doc.span(path), f"write `{decimal}`, or `{sign}0o{digits.lstrip('0')}`"

@@ -18,6 +18,7 @@ from jsonschema.exceptions import ValidationError, best_match
 from hfsmc.durations import MAX_US, format_us
 from hfsmc.errors import Diagnostics, did_you_mean
 from hfsmc.frontend.source import Document, PathKey
+from hfsmc.frontend.yaml_traps import snippet_kind
 from hfsmc.resources import json_schema
 
 _TYPE_NAMES = {
@@ -132,8 +133,13 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
             diags.error("E110", f"`{instance}` is not a duration: a number with a fraction has no "
                         "unit", doc.span(path), *_seconds_hint(instance))
             return
+        notes: tuple[str, ...] = ()
+        if isinstance(instance, (dict, list)) and snippet_kind(path) is not None:
+            opener = "{" if isinstance(instance, dict) else "["
+            notes = (f"code starting with `{opener}` is read as a YAML {_describe(instance)[2:]}: quote it "
+                     "or write it as a block (`|`), see docs/quoting.md",)
         diags.error(code, f"{_field(path)} must be {expected}, not {_describe(err.instance)}",
-                    doc.span(path))
+                    doc.span(path), *notes)
         return
     if v == "enum":
         allowed = [str(x) for x in err.validator_value]  # type: ignore[union-attr]

@@ -186,7 +186,7 @@ def _snippet_diagnostic(scan: _Scan, ev: NodeEvent, kind: str, span: Span, flow:
         notes.append(f"the snippet would be left {left}")
     raw = _rest_of_line(scan.lines, span)
     if raw and not flow:
-        notes.append(f"write: {kind}: '{raw.replace(chr(39), chr(39) * 2)}'   (docs/quoting.md)")
+        notes.append(f"write: {kind}: {quoted(raw)}   (docs/quoting.md)")
     else:
         notes.append("docs/quoting.md says which snippets need quotes")
     return Diagnostic("E105", message, span, "error", tuple(notes))
@@ -196,6 +196,13 @@ def _source_word(lines: list[str], span: Span) -> str:
     """The tag as written (`!drone.armed()`), from the source line."""
     rest = _rest_of_line(lines, span)
     return rest.split()[0] if rest else "!"
+
+
+def quoted(value: str) -> str:
+    """``value`` as a YAML quoted scalar that reads back as itself."""
+    if "'" not in value or ('"' in value or "\\" in value):
+        return "'" + value.replace("'", "''") + "'"
+    return '"' + value + '"'
 
 
 def _rest_of_line(lines: list[str], span: Span) -> str:
@@ -239,6 +246,10 @@ def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | Non
             return found
     if "'\\t'" in problem or "tab" in problem:
         return _tab(file, lines, line, col, raw)
+    if problem.startswith("found character") and "cannot start any token" in problem:
+        c = _at(lines, line, col)
+        return Diagnostic("E002", f"`{c}` cannot start a value or a key in YAML: quote the whole "
+                          "value (docs/quoting.md)", Span(file, line + 1, col + 1), "error", (raw,))
     if ctx.startswith("while scanning a quoted scalar") and cmark is not None:
         q = _at(lines, cmark.line, cmark.column) or "quote"
         return Diagnostic("E002", f"this `{q}` is never closed: the quoted value runs on to the end "
@@ -254,7 +265,7 @@ def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | Non
     if problem.startswith("mapping values are not allowed"):
         return _colon_in_value(file, lines, line, col, raw)
     if problem.startswith("expected <block end>") or problem.startswith("did not find expected"):
-        return _misaligned(file, lines, line, col, raw)
+        return _after_quote(file, lines, line, col, raw) or _misaligned(file, lines, line, col, raw)
     return None
 
 
@@ -292,7 +303,7 @@ def _snippet_property(file: str, lines: list[str], ln: int, raw: str) -> Diagnos
     value = lines[ln][m.start("c"):].rstrip()
     flow = m.group(0).lstrip()[:1] in ("{", ",")
     hint = ("in a `{...}` mapping, put the value in quotes (docs/quoting.md)" if flow else
-            f"write: {m['key']}: '{value.replace(chr(39), chr(39) * 2)}'   (docs/quoting.md)")
+            f"write: {m['key']}: {quoted(value)}   (docs/quoting.md)")
     return Diagnostic("E105", f"YAML reads `{c}` at the start of a value as {what}, not as code: "
                       f"quote the whole `{m['key']}` value", Span(file, ln + 1, m.start("c") + 1),
                       "error", (hint, raw))
@@ -402,10 +413,25 @@ def _colon_in_value(file: str, lines: list[str], line: int, col: int, raw: str) 
     notes = [raw]
     if vm is not None and vm.start("v") <= col:
         value = vm["v"].rstrip()
-        notes.insert(0, f"write: {vm['key']}: '{value.replace(chr(39), chr(39) * 2)}'")
+        notes.insert(0, f"write: {vm['key']}: {quoted(value)}")
     return Diagnostic("E002", "`: ` inside a value that is not quoted: YAML reads it as a key "
                       "and a value; quote the whole value (docs/quoting.md)",
                       Span(file, line + 1, col + 1), "error", tuple(notes))
+
+
+_QUOTED_START = re.compile(r"^\s*(?:-\s+)?(?P<key>[^\s#'\"{}\[\],:-][^#:]*?)\s*:\s+(?P<v>(['\"]).*)$")
+
+
+def _after_quote(file: str, lines: list[str], line: int, col: int, raw: str) -> Diagnostic | None:
+    """`when: 'x' in names`: a value that starts with a quote ends at the closing quote."""
+    m = _QUOTED_START.match(lines[line]) if 0 <= line < len(lines) else None
+    if m is None or col <= m.start("v"):
+        return None
+    value = m["v"].rstrip()
+    return Diagnostic("E002", f"the value of `{m['key']}` starts with a quote, so YAML ends it at the "
+                      "closing quote and cannot read the rest: quote the whole value",
+                      Span(file, line + 1, m.start("v") + 1), "error",
+                      (f"write: {m['key']}: {quoted(value)}   (docs/quoting.md)", raw))
 
 
 def _misaligned(file: str, lines: list[str], line: int, col: int, raw: str) -> Diagnostic | None:
