@@ -133,13 +133,13 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
             diags.error("E110", f"`{instance}` is not a duration: a number with a fraction has no "
                         "unit", doc.span(path), *_seconds_hint(instance))
             return
-        notes: tuple[str, ...] = ()
+        hint: tuple[str, ...] = ()
         if isinstance(instance, (dict, list)) and snippet_kind(path) is not None:
             opener = "{" if isinstance(instance, dict) else "["
-            notes = (f"code starting with `{opener}` is read as a YAML {_describe(instance)[2:]}: quote it "
-                     "or write it as a block (`|`), see docs/quoting.md",)
+            hint = (f"code starting with `{opener}` is read as a YAML {_describe(instance)[2:]}: "
+                    "quote it or write it as a block (`|`), see docs/quoting.md",)
         diags.error(code, f"{_field(path)} must be {expected}, not {_describe(err.instance)}",
-                    doc.span(path), *notes)
+                    doc.span(path), *hint)
         return
     if v == "enum":
         allowed = [str(x) for x in err.validator_value]  # type: ignore[union-attr]
