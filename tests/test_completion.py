@@ -88,3 +88,15 @@ def test_a_model_that_cannot_be_read_completes_nothing(line: str) -> None:
 def test_commands_and_click_options_still_complete() -> None:
     assert complete("hfsmc di") == ["plain,diagram"]
     assert "plain,--strict" in complete("hfsmc check --s")
+
+
+def test_bash_runs_the_script_hfsmc_prints_for_it() -> None:
+    """The README's `eval "$(_HFSMC_COMPLETE=bash_source hfsmc)"`, then a Tab, in real bash."""
+    script = ('eval "$(_HFSMC_COMPLETE=bash_source hfsmc)"; '
+              f'COMP_WORDS=(hfsmc diagram {BLINKER} --state ""); COMP_CWORD=4; '
+              '_hfsmc_completion hfsmc; printf "<%s>\\n" "${COMPREPLY[@]}"')
+    env = {**os.environ, "PATH": f"{HFSMC.parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+    proc = subprocess.run(["bash", "--norc", "--noprofile", "-c", script], env=env, cwd=ROOT,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == "<Blinking>\n"
