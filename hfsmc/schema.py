@@ -104,7 +104,11 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
             if key in allowed:
                 continue
             note = did_you_mean(key, allowed)
-            notes = (note,) if note else (f"allowed here: {', '.join(allowed)}",)
+            notes: tuple[str, ...] = (note,) if note else (f"allowed here: {', '.join(allowed)}",)
+            if not str(key).isidentifier() and doc.format == "yaml":
+                # `{to: B, when: max(a, b) > 1}`: the comma ended the value
+                notes = (*notes, "code cut here? inside `{...}` a `,` ends a value: quote code "
+                         "that holds a comma (docs/quoting.md)")
             diags.error("E100", f"unknown key `{key}`", doc.key_span((*path, key)), *notes)
         return
     if v == "propertyNames":

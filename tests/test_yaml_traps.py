@@ -305,6 +305,29 @@ def test_colon_inside_a_value_suggests_the_quoted_value() -> None:
     assert notes[0] == "write: description: 'mode: homing'"
 
 
+@pytest.mark.parametrize(("value", "what"), [
+    ("- x", "a list entry"), ("? x", "a complex mapping key"), ("> 3", "a folded block"),
+    ("| x", "a literal block"), ("`x`", None), ("%x", None), ("ready ? a : b", None),
+])
+def test_indicators_at_the_start_of_a_snippet(value: str, what: str | None) -> None:
+    code, line, col, message, _ = syntax(HEAD + transition(f"when: {value}"))
+    if value.startswith("ready"):
+        assert (code, line, col) == ("E002", 8, 25)
+        assert message.startswith("`: ` inside a value that is not quoted")
+        return
+    assert (code, line, col) == ("E002", 8, 15)
+    assert message.startswith(f"`{value[0]}` ")
+    if what is not None:
+        assert what in message
+
+
+def test_comma_in_flow_mapping_code_says_why() -> None:
+    r = comp("variables: {a: 1, b: 2}\ninitial: A\nstates:\n  A: {transitions: [{to: A, when: max(a, b) > 1}]}\n")
+    [d] = r.diagnostics
+    assert (d.code, d.span.line, d.span.col) == ("E100", 6, 42)
+    assert "a `,` ends a value" in d.notes[-1]
+
+
 def test_unclosed_flow_list_is_reported_at_its_bracket() -> None:
     code, line, col, message, _ = syntax(
         "hfsm: 1\nname: m\ninitial: A\nstates:\n  A: {transitions: [{to: A, after: 1s}\n  B: {}\n")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from typing import Any
 
 from ruamel.yaml import YAML
 from ruamel.yaml.error import MarkedYAMLError
@@ -250,6 +251,9 @@ def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | Non
         c = _at(lines, line, col)
         return Diagnostic("E002", f"`{c}` cannot start a value or a key in YAML: quote the whole "
                           "value (docs/quoting.md)", Span(file, line + 1, col + 1), "error", (raw,))
+    indicator = _indicator_at_start(file, lines, problem, ctx, mark, cmark, raw)
+    if indicator is not None:
+        return indicator
     if ctx.startswith("while scanning a quoted scalar") and cmark is not None:
         q = _at(lines, cmark.line, cmark.column) or "quote"
         return Diagnostic("E002", f"this `{q}` is never closed: the quoted value runs on to the end "
@@ -267,6 +271,27 @@ def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | Non
     if problem.startswith("expected <block end>") or problem.startswith("did not find expected"):
         return _after_quote(file, lines, line, col, raw) or _misaligned(file, lines, line, col, raw)
     return None
+
+
+_INDICATORS = {"-": "a list entry", "?": "a complex mapping key", "|": "a literal block",
+               ">": "a folded block"}
+
+
+def _indicator_at_start(file: str, lines: list[str], problem: str, ctx: str, mark: Any,
+                        cmark: Any, raw: str) -> Diagnostic | None:
+    """`when: - x`, `when: ? x`, `when: > 3`: an indicator YAML reads before the code."""
+    if problem in ("sequence entries are not allowed here", "mapping keys are not allowed here"):
+        at = mark
+    elif ctx.startswith("while scanning a block scalar") and cmark is not None:
+        at = cmark
+    else:
+        return None
+    c = _at(lines, at.line, at.column)
+    if c not in _INDICATORS:
+        return None
+    return Diagnostic("E002", f"`{c}` at the start of a value begins {_INDICATORS[c]} in YAML, not "
+                      "code: quote the whole value (docs/quoting.md)",
+                      Span(file, at.line + 1, at.column + 1), "error", (raw,))
 
 
 def _at(lines: list[str], line: int, col: int) -> str:
