@@ -106,6 +106,18 @@ def test_quoted_snippets_are_untouched() -> None:
     assert not codes(r, "E1"), r.diagnostics
 
 
+def test_the_quoted_forms_of_docs_quoting_read_back_as_the_code() -> None:
+    text = (CPP + "initial: A\nstates:\n  A:\n    entry: |\n      *target = 1;\n      if (!a && b) c();\n"
+            "    transitions:\n      - to: A\n        when: '!drone.armed() && drone.altitude() < 0.3'\n"
+            "        do: 'log(''landing: '' + x)'\n")
+    doc = load("m.yaml", Diagnostics(), text)
+    a = doc.data["states"]["A"]
+    assert a["entry"] == "*target = 1;\nif (!a && b) c();\n"
+    assert a["transitions"][0]["when"] == "!drone.armed() && drone.altitude() < 0.3"
+    assert a["transitions"][0]["do"] == "log('landing: ' + x)"
+    assert doc.span(("states", "A", "transitions", 0, "when")).col == 16  # inside the quote
+
+
 # ---------------------------------------------------------------------------
 # E106: tags hfsmc does not define
 
