@@ -82,12 +82,19 @@ def main(verbose: bool) -> None:
               help="Diagnostics as compiler text (stderr) or JSON (stdout).")
 @click.option("--strict", is_flag=True, help="Warnings fail the check too.")
 @click.option("--dump-ir", is_flag=True, help="Print the lowered IR of each clean model.")
+@click.option("--no-cxx", is_flag=True, help="Do not compile the snippets of C++ models with g++.")
 @_guard
-def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool) -> None:
-    """Parse, validate and check MODELS; print every problem of every model."""
+def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx: bool) -> None:
+    """Parse, validate and check MODELS; print every problem of every model.
+
+    The snippets of a `language: cpp` model are compiled too (g++ -fsyntax-only
+    over the generated code; a cache in $HFSMC_CACHE_DIR or ~/.cache/hfsmc/cxx
+    keeps that short), unless --no-cxx."""
     from hfsmc.dump import dump
 
-    results = [compile_file(m) for m in models]
+    results = [compile_file(m, cxx=not no_cxx) for m in models]
+    for note in dict.fromkeys(n for r in results for n in r.notes):
+        click.echo(f"hfsmc: note: {note}", err=True)
     all_diags = [d for r in results for d in r.diagnostics]
     _print(all_diags, {r.path: r.lines for r in results}, fmt)
     if dump_ir:

@@ -25,6 +25,7 @@ class Result:
     diagnostics: list[Diagnostic]
     lines: list[str] = field(default_factory=list)
     document: Document | None = None
+    notes: list[str] = field(default_factory=list)  # said once, not problems of the model
 
     @property
     def ok(self) -> bool:
@@ -49,10 +50,26 @@ def _no_cyclic_gc() -> Iterator[None]:
             gc.enable()
 
 
-def compile_file(path: str, text: str | None = None) -> Result:
-    """Every diagnostic of one model file; the model when it has no errors."""
+def compile_file(path: str, text: str | None = None, cxx: bool = False) -> Result:
+    """Every diagnostic of one model file; the model when it has no errors.
+
+    With ``cxx``, a C++ model without other errors is also compiled by g++
+    (``-fsyntax-only``, see hfsmc/cxxcheck.py), as ``hfsmc check`` does."""
     with _no_cyclic_gc():
-        return _compile(path, text)
+        result = _compile(path, text)
+    if cxx and result.ok and result.model is not None and result.model.language == "cpp":
+        from hfsmc.cxxcheck import check_cpp
+
+        found = check_cpp(result.model)
+        if found.diagnostics:
+            diags = Diagnostics(list(result.diagnostics))
+            diags.extend(found.diagnostics)
+            result.diagnostics = diags.sorted()
+            if diags.has_errors:
+                result.model = None
+        if found.note:
+            result.notes.append(f"{path}: {found.note}")
+    return result
 
 
 def _compile(path: str, text: str | None) -> Result:

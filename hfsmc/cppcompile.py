@@ -3,9 +3,12 @@
 The generated code puts a ``#line`` directive before every snippet line and
 pads the line to its model column, so g++ already names the model file, line
 and column of a mistake in a snippet; this module turns those messages into
-hfsmc diagnostics (E144 errors, W209 warnings).  Anything the compiler says
-about other files is a failure of the generated code or of the machine's
-set-up, reported as E150 with the compiler's own words.
+hfsmc diagnostics (E144 errors, W209 warnings).  What it says about the
+generated lines around a snippet, or inside a header a snippet's line
+instantiated, is placed at that snippet too (``messages``).  Anything else is
+a failure of the generated code or of the machine's set-up, reported as E150
+with the compiler's own words.  ``hfsmc check`` reads g++'s messages with the
+same function (``hfsmc.cxxcheck``).
 """
 
 from __future__ import annotations
@@ -16,10 +19,16 @@ import shutil
 import subprocess
 from pathlib import Path
 
+from hfsmc.emit.cpp import RUNTIME_SOURCE
 from hfsmc.errors import Diagnostic, Span
 
-_MESSAGE = re.compile(r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<col>\d+): "
-                      r"(?P<sev>error|fatal error|warning): (?P<msg>.*)$", re.M)
+# g++'s messages, and the "required from here" line that precedes an error inside a
+# template a snippet instantiated (sev is None for it).
+_MESSAGE = re.compile(r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<col>\d+):"
+                      r"(?: (?P<sev>error|fatal error|warning): (?P<msg>.*)|\s+required from here)$",
+                      re.M)
+_LINE_DIRECTIVE = re.compile(r'^#line (?P<line>\d+) (?P<file>HFSMC_SOURCE|"(?:[^"\\]|\\.)*")\s*$')
+_DEFAULT_SOURCE = re.compile(r'^#define HFSMC_SOURCE "((?:[^"\\]|\\.)*)"')
 _TIMEOUT_S = 1800
 
 
@@ -48,32 +57,171 @@ def compile_component(folder: Path, model_file: str, build_type: str = "RelWithD
             return [Diagnostic("E150", "CMake could not configure the component", where,
                                notes=tuple(_tail(out)))]
     code, out = _run(["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)])
-    diags = messages(out, model_file)
+    diags = messages(out, model_file, _generated_source(folder))
     if code != 0 and not any(d.severity == "error" for d in diags):
         diags.append(Diagnostic("E150", "the C++ build failed", where, notes=tuple(_tail(out))))
     return diags
 
 
-def messages(output: str, model_file: str) -> list[Diagnostic]:
-    """g++'s errors and warnings: those in the model as its positions, the rest as E150."""
+def messages(output: str, model_file: str, source: str | None = None) -> list[Diagnostic]:
+    """g++'s errors and warnings: those in the model as its positions, the rest as E150.
+
+    ``source`` is the generated translation unit: with it, a message on one of its
+    lines next to a snippet (the brace closing the snippet's function, the line
+    after it, a `when`'s wrapper) is placed at that snippet (``GeneratedLines``),
+    and an error inside a header that a snippet's line instantiated ("required
+    from here") at that line.  Once a message is placed in the model, errors
+    outside it are taken for its consequences and left out.
+    """
+    lines = GeneratedLines(source or "")
+    models = {os.path.normpath(model_file): model_file}
+    models.update((os.path.normpath(f), f) for f in lines.files)
     out: list[Diagnostic] = []
+    outside: list[Diagnostic] = []
     seen: set[tuple[str, int, int, str]] = set()
-    model = os.path.normpath(model_file)
+    placed: set[tuple[Span, str]] = set()
+    here: Span | None = None  # the model line of the last "required from here"
     for m in _MESSAGE.finditer(output):
-        file, line, col = m["file"], int(m["line"]), int(m["col"])
+        file, line, col = m["file"], int(m["line"]), max(int(m["col"]), 1)
+        path = os.path.normpath(file)
+        if m["sev"] is None:  # "required from here"
+            if path in models:
+                here = Span(models[path], line, col)
+            continue
         error = m["sev"] != "warning"
         key = (file, line, col, m["msg"])
         if key in seen:
             continue
         seen.add(key)
-        if os.path.normpath(file) == model:
-            out.append(Diagnostic("E144" if error else "W209", m["msg"],
-                                  Span(model_file, line, max(col, 1)),
-                                  "error" if error else "warning"))
+        span: Span | None = None
+        notes: tuple[str, ...] = ()
+        if path in models:
+            span = Span(models[path], line, col)
+        elif lines.generated(file):
+            span = lines.position(line)
+            notes = ("g++ met it in the code generated around the snippet",)
+        elif here is not None:
+            span = here
+            notes = (f"in {file}:{line}, instantiated from this line",)
+        here = None
+        if span is not None and (span, m["msg"]) not in placed:
+            placed.add((span, m["msg"]))
+            out.append(Diagnostic("E144" if error else "W209", m["msg"], span,
+                                  "error" if error else "warning", notes))
         elif error:
-            out.append(Diagnostic("E150", f"the generated C++ does not compile: {m.group(0)}",
-                                  Span(model_file, 1, 1)))
+            outside.append(Diagnostic("E150", "the generated C++ does not compile: "
+                                      f"{m.group(0).strip()}", Span(model_file, 1, 1)))
+    if not any(d.severity == "error" for d in out):
+        out.extend(outside)
     return out
+
+
+class GeneratedLines:
+    """The model positions of the generated lines around each snippet.
+
+    The generated code gives every snippet line a ``#line`` directive into the
+    model and returns to the generated file after the snippet, so g++ places
+    most mistakes in the model by itself.  A mistake it can only see at the next
+    token (a missing ``;`` before the ``}`` that closes the snippet's function,
+    a `when` cut short before the wrapper's ``)``) is reported on the first
+    generated line of code after the snippet: that line stands for the end of
+    the snippet's last line.  The generated line just before a snippet, when it
+    opens a parenthesis (a `when`'s ``static_cast<bool>(``), stands for the
+    snippet's start.
+    """
+
+    def __init__(self, source: str) -> None:
+        self.name = ""  # HFSMC_SOURCE's default: "src/NAME.cpp"
+        self.files: set[str] = set()  # the model files the #line directives name
+        self._at: dict[int, Span] = {}
+        file: str | None = None  # the model file of the current line, None: generated
+        base = 0  # generated line number of the current model #line directive
+        first = 0  # model line of the directive
+        last: Span | None = None  # the end of the last non-blank snippet line so far
+        after: Span | None = None  # the position the next generated code line stands for
+        shift = 0  # g++'s line number of a generated line minus its line in ``source``
+        code_before, code_text = 0, ""  # the last generated line of code (not blank, no comment)
+        opener = 0  # a generated line that opens a `(` the snippet starting now continues
+        for g, text in enumerate(source.split("\n"), 1):
+            d = _LINE_DIRECTIVE.match(text)
+            if d is not None:
+                target = d["file"]
+                if target == "HFSMC_SOURCE":
+                    after, file, last = last, None, None
+                    shift = int(d["line"]) - g - 1  # g++ numbers the next line d["line"]
+                    continue
+                name = _c_string(target[1:-1])
+                if file is None:
+                    opener = code_before if code_text.endswith("(") else 0
+                file, base, first = name, g, int(d["line"])
+                self.files.add(name)
+                continue
+            if file is not None:
+                body = _code_part(text)
+                if body.strip():
+                    last = Span(file, first + g - base - 1, len(body.rstrip()) + 1)
+                    if opener:
+                        self._at[opener] = Span(file, last.line, len(body) - len(body.lstrip()) + 1)
+                        opener = 0
+                continue
+            stripped = text.strip()
+            if not self.name:
+                found = _DEFAULT_SOURCE.match(text)
+                if found:
+                    self.name = _c_string(found[1])
+            if stripped and not stripped.startswith("//"):
+                if after is not None:
+                    self._at[g + shift] = after
+                    after = None
+                code_before, code_text = g + shift, text.rstrip()
+
+    def generated(self, file: str) -> bool:
+        """Whether g++ names the generated translation unit with ``file``."""
+        if file == "<stdin>":
+            return True
+        if not self.name:
+            return False
+        path, name = os.path.normpath(file), os.path.normpath(self.name)
+        return path == name or path.endswith(os.sep + name)
+
+    def position(self, line: int) -> Span | None:
+        """The model position a generated line stands for, if it is next to a snippet."""
+        return self._at.get(line)
+
+
+def _c_string(body: str) -> str:
+    """The text of a C string literal's body as ``cpp_string`` writes it (octal escapes)."""
+    raw = re.sub(rb"\\([0-7]{1,3}|.)", lambda m: bytes([int(m[1], 8)]) if m[1][:1].isdigit()
+                 else m[1], body.encode("utf-8", "surrogateescape"))
+    return raw.decode("utf-8", "replace")
+
+
+def _code_part(line: str) -> str:
+    """``line`` without a trailing ``//`` comment (one outside string and char literals)."""
+    quote = ""
+    k = 0
+    while k < len(line):
+        ch = line[k]
+        if quote:
+            if ch == "\\":
+                k += 1
+            elif ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif line.startswith("//", k):
+            return line[:k]
+        k += 1
+    return line
+
+
+def _generated_source(folder: Path) -> str | None:
+    """The text of the component's generated translation unit (src/NAME.cpp)."""
+    found = [p for p in (folder / "src").glob("*.cpp") if p.name != RUNTIME_SOURCE]
+    try:
+        return found[0].read_text("utf-8", errors="replace") if len(found) == 1 else None
+    except OSError:
+        return None
 
 
 def _tail(text: str, n: int = 20) -> list[str]:

@@ -59,7 +59,9 @@ CODES: dict[str, str] = {
     "E141": "undefined name in a Python snippet",
     "E142": "assignment to a parameter",
     "E143": "malformed import",
-    "E144": "C++ compiler error in a snippet (build --compile)",
+    "E144": "C++ compiler error in a snippet (hfsmc check, build --compile)",
+    "E145": "`goto` called as a method in a C++ snippet: the method is `go_to`",
+    "E146": "active() with a literal path that names no state",
     # output
     "E150": "output cannot be written (a value the output format cannot hold, a failing tool)",
     # warnings
@@ -72,11 +74,12 @@ CODES: dict[str, str] = {
     "W206": "legacy name changed to make it a unique identifier (references follow)",
     "W207": "legacy content not carried over",
     "W208": "legacy file inconsistent or ambiguous: how hfsmc reads it is stated",
-    "W209": "C++ compiler warning in a snippet (build --compile)",
+    "W209": "C++ compiler warning in a snippet (hfsmc check, build --compile)",
     "W210": "yes/no/on/off/y/n read as a string (YAML 1.2), not as a boolean",
     "W211": "integer with a leading zero read as decimal (YAML 1.2), not octal",
     "W212": "duration written without a unit: a bare number means milliseconds",
     "W213": "a state named like a state key (`final`, `history`...): maybe a key indented wrongly",
+    "W215": "done() in a state without a sub-automaton: always false",
 }
 
 

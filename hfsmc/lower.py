@@ -11,6 +11,7 @@ import keyword
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
+from hfsmc.cppsnippets import check_cpp_snippets
 from hfsmc.errors import Diagnostics, Span, did_you_mean
 from hfsmc.ir import Automaton, Model, State, Transition
 from hfsmc.pycheck import HELPERS, check_python_snippets
@@ -85,6 +86,8 @@ def resolve_interrupt(model: Model, diags: Diagnostics) -> Model:
 def check_snippets(model: Model, diags: Diagnostics) -> Model:
     if model.language == "python":
         check_python_snippets(model, diags)
+    else:
+        check_cpp_snippets(model, diags)
     return model
 
 

@@ -1,4 +1,5 @@
-"""Checks of Python snippets: syntax, undefined names, assignments to parameters.
+"""Checks of Python snippets: syntax, undefined names, assignments to parameters,
+and the helpers' arguments (a literal ``active()`` path, ``done()``) of both languages.
 
 Every snippet is parsed on its own with :mod:`ast` (exact syntax error
 positions).  For undefined names, all snippets are then joined into one
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import ast
 import builtins
+import json
 import re
 import textwrap
 from bisect import bisect_right
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 from pyflakes import messages as pyflakes_messages
 from pyflakes.checker import Checker
 
-from hfsmc.errors import Diagnostics, did_you_mean
+from hfsmc.errors import Diagnostics, Span, did_you_mean
 from hfsmc.ir import Code, Model
 
 HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
@@ -132,6 +134,8 @@ def check_python_snippets(model: Model, diags: Diagnostics) -> None:
         if sn.kind == "functions":
             known |= _module_names(tree)
         _check_param_writes(sn, tree, params, diags)
+        if "active" in sn.code.text or "done" in sn.code.text:
+            _check_helper_calls(model, sn, tree, diags)
     _check_undefined(model.file, parsed, variables, params, known, diags)
 
 
@@ -233,3 +237,58 @@ def _check_param_writes(sn: Snippet, tree: ast.AST, params: set[str], diags: Dia
             visit(list(ast.iter_child_nodes(node)), globals_, top)
 
     visit(list(ast.iter_child_nodes(tree)), set(), True)
+
+
+# ---------------------------------------------------------------------------
+# helper calls (both languages: hfsmc/cppsnippets.py finds them in C++)
+
+
+def check_active_path(model: Model, sn: Snippet, path: str, where: Span,
+                      diags: Diagnostics) -> None:
+    """E146 when ``active(path)``'s literal names no state (the component would fail
+    at run time); ``where`` is the string literal's position."""
+    wanted = path.strip("/")  # as the runtimes read it
+    if wanted and model.find(wanted) is not None:
+        return
+    paths = [s.path for s in model.states()]
+    last = wanted.rpartition("/")[2]
+    note = did_you_mean(wanted, paths)
+    elsewhere = [p for p in paths if last and p.rpartition("/")[2] == last]
+    if note is None and elsewhere:
+        note = f"`{last}` is at {', '.join(f'`{p}`' for p in elsewhere[:5])}"
+    if note is None:
+        example = max(paths, key=lambda p: p.count("/"), default="A/B")
+        note = f"a path names states from the root down, joined by `/`: `{example}`"
+    diags.error("E146", f"active({json.dumps(path, ensure_ascii=False)}): no state has this path",
+                where, note)
+
+
+def check_done(model: Model, sn: Snippet, where: Span, diags: Diagnostics) -> None:
+    """W215 for ``done()`` in the snippets of a state without a sub-automaton."""
+    if not sn.where:
+        return  # functions and on_shutdown: the caller's state decides
+    state = model.find(sn.where)
+    if state is not None and state.automaton is None:
+        diags.warning("W215", f"done() in {sn.kind} of `{sn.where}` is always false: the state "
+                      "has no sub-automaton", where,
+                      "done() says whether the owning state's sub-automaton is in a final state")
+
+
+def _check_helper_calls(model: Model, sn: Snippet, tree: ast.AST, diags: Diagnostics) -> None:
+    rows = sn.code.text.split("\n")
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)):
+            continue
+        if node.func.id == "active" and len(node.args) == 1 and not node.keywords:
+            arg = node.args[0]
+            if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+                check_active_path(model, sn, arg.value, _where(sn, rows, arg), diags)
+        elif node.func.id == "done" and not node.args and not node.keywords:
+            check_done(model, sn, _where(sn, rows, node), diags)
+
+
+def _where(sn: Snippet, rows: list[str], node: ast.expr) -> Span:
+    """The model position of a node (ast's columns count UTF-8 bytes, ours characters)."""
+    row = rows[node.lineno - 1] if 0 < node.lineno <= len(rows) else ""
+    col = len(row.encode("utf-8")[:node.col_offset].decode("utf-8", "replace")) + 1
+    return sn.code.position(node.lineno, col)

@@ -108,7 +108,7 @@ def test_dump_ir() -> None:
 
 
 def test_internal_error_shows_no_traceback(monkeypatch: pytest.MonkeyPatch) -> None:
-    def boom(path: str, text: str | None = None) -> None:
+    def boom(path: str, text: str | None = None, cxx: bool = False) -> None:
         raise RuntimeError("kaboom")
 
     monkeypatch.setattr(cli, "compile_file", boom)

@@ -217,6 +217,16 @@ def _fill_back_lines(text: str) -> str:
     return "\n".join(lines)
 
 
+def _render_source(env: jinja2.Environment, view: dict[str, object]) -> str:
+    return _fill_back_lines(env.get_template("component.cpp.j2").render(**view, back=_BACK))
+
+
+def source_file(model: Model) -> str:
+    """The component's translation unit (``src/NAME.cpp``) alone: what ``hfsmc check``
+    hands to g++, without the MAVLink headers and the rest of the folder."""
+    return _render_source(_environment(), _Builder(model).build())
+
+
 def component_files(model: Model) -> dict[str, bytes]:
     """Every file of the C++ component folder, by relative path."""
     if model.language != "cpp":
@@ -224,7 +234,7 @@ def component_files(model: Model) -> dict[str, bytes]:
              "with -t python", model.span)
     view = _Builder(model).build()
     env = _environment()
-    main = _fill_back_lines(env.get_template("component.cpp.j2").render(**view, back=_BACK))
+    main = _render_source(env, view)
     cmake = env.get_template("CMakeLists.txt.j2").render(**view)
     config = env.get_template("config.yaml.j2").render(**view, config=component_config(model))
     out = {f"src/{model.name}.cpp": main.encode("utf-8"),

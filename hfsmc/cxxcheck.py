@@ -1,0 +1,306 @@
+"""`hfsmc check` of a C++ model: g++ ``-fsyntax-only`` over the generated translation unit.
+
+The translation unit is the one ``hfsmc build -t cpp`` writes (``#line``
+directives into the model included), so g++'s messages are read by the same
+function as those of ``build --compile`` (``hfsmc.cppcompile.messages``) and
+point into the model: E144 errors, W209 warnings.  It is compiled against the
+real headers: the runtime and drivers of ``templates/cpp/hfsmc``, the MAVLink
+headers of ``hfsmc.emit.mavgen`` for a ``mavlink`` interface, Eigen and OpenCV.
+
+Two caches under ``$HFSMC_CACHE_DIR`` (default ``$XDG_CACHE_HOME/hfsmc/cxx``,
+that is ``~/.cache/hfsmc/cxx``) keep a warm check short:
+
+- ``pch/KEY/``: the runtime and driver headers a model includes, copied, and
+  precompiled (``pch.hpp.gch``); KEY hashes the compiler's identity, the flags,
+  the list of headers and their content (the pymavlink version stands for the
+  MAVLink headers, which mavgen makes the same for the same version).  All
+  models with the same interface types share one; the few newest are kept.
+- ``out/KEY``: g++'s output for one translation unit (KEY adds the unit's text
+  to the header key), so an unchanged model is not compiled again.
+
+Both are written under a temporary name and renamed into place, so that
+concurrent checks never see half a file; a lock keeps two of them from
+precompiling the same headers at once.  Changes to system headers (a new
+OpenCV) are not part of the keys: deleting the folder resets both caches.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import importlib.metadata
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass, field
+from functools import cache
+from importlib.resources import files
+from pathlib import Path
+
+from hfsmc.cppcompile import messages
+from hfsmc.errors import Diagnostic, EmitError, Span
+from hfsmc.ir import Model
+
+CACHE_ENV = "HFSMC_CACHE_DIR"
+FLAGS = ("-std=c++17", "-Wall", "-Wextra")  # the warnings of the generated CMakeLists.txt
+_SYSTEM_DIRS = ("/usr/include/eigen3", "/usr/include/opencv4")  # without pkg-config
+_RUNTIME_INCLUDE = re.compile(r'^#include "(hfsmc/[A-Za-z0-9_]+\.hpp)"$', re.M)
+_KEEP_PCH = 4  # precompiled header sets kept (each 50-200 MB)
+_KEEP_OUTPUTS = 256
+_PCH_GRACE_S = 600  # never delete a header set used this recently (a check may be reading it)
+_TIMEOUT_S = 600
+
+
+@dataclass
+class CxxCheck:
+    """What g++ said about the model, or why it was not asked."""
+
+    diagnostics: list[Diagnostic] = field(default_factory=list)
+    note: str | None = None  # the C++ was not checked, and why (not an error of the model)
+
+
+def cache_dir() -> Path:
+    """Where the precompiled headers and g++'s outputs are kept."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "hfsmc" / "cxx"
+
+
+def check_cpp(model: Model) -> CxxCheck:
+    """Compile the model's translation unit with ``-fsyntax-only``; its diagnostics."""
+    compiler = shutil.which(os.environ.get("CXX") or "g++")
+    if compiler is None:
+        return CxxCheck(note="g++ is not installed: C++ snippets are compiled only by "
+                        "`hfsmc build --compile` (`make deps` installs g++)")
+    from hfsmc.emit import cpp
+
+    try:
+        source = cpp.source_file(model)
+    except EmitError as e:
+        return CxxCheck(list(e.diagnostics))
+    toolchain = _toolchain(compiler)
+    headers = _runtime_headers(source)
+    pch_key = _digest(toolchain, *headers, _mavlink_stamp(headers), _runtime_digest())
+    key = _digest(pch_key, source)
+    root = cache_dir()
+    output = _cached(root / "out" / key)
+    if output is None:
+        try:
+            with _header_set(root / "pch", pch_key, headers, compiler) as folder:
+                code, text = _run([compiler, *toolchain.flags, "-fsyntax-only",
+                                   "-I", str(folder / "include"), "-include", str(folder / "pch.hpp"),
+                                   "-x", "c++", "-"], source)
+        except OSError as e:
+            return CxxCheck(note=f"C++ snippets not checked: the cache {root} cannot be written: {e}")
+        output = f"{code}\n{text}"
+        if "fatal error" not in text and code != 124:  # a missing header may be installed later
+            _store(root / "out", key, output)
+    code_text, _, text = output.partition("\n")
+    return _result(model, source, int(code_text or 1), text)
+
+
+def _result(model: Model, source: str, code: int, text: str) -> CxxCheck:
+    diags = messages(text, model.file, source)
+    missing = re.search(r"^(\S+?):\d+:\d+: fatal error: (\S+): No such file or directory$",
+                        text, re.M)
+    if missing and not any(d.code == "E144" for d in diags):
+        # Eigen or OpenCV not installed: the machine's set-up, not the model's mistake
+        return CxxCheck(note=f"C++ snippets not checked: {missing[2]} is missing "
+                        "(`make deps` installs g++, Eigen, OpenCV and yaml-cpp)")
+    if code != 0 and not any(d.severity == "error" for d in diags):
+        tail = tuple(text.strip().splitlines()[-20:])
+        diags.append(Diagnostic("E150", "g++ -fsyntax-only failed on the generated C++",
+                                Span(model.file, 1, 1), notes=tail))
+    return CxxCheck(diags)
+
+
+@dataclass(frozen=True)
+class _Toolchain:
+    identity: str  # the compiler's path, its version text and the binary's mtime
+    flags: tuple[str, ...]
+
+    def __str__(self) -> str:
+        return f"{self.identity}\n{' '.join(self.flags)}"
+
+
+@cache
+def _toolchain(compiler: str) -> _Toolchain:
+    _code, version = _run([compiler, "--version"], "")
+    try:
+        stamp = str(os.stat(compiler).st_mtime_ns)
+    except OSError:
+        stamp = ""
+    return _Toolchain(f"{os.path.realpath(compiler)} {stamp}\n{version.strip()}",
+                      (*FLAGS, *_system_includes()))
+
+
+def _system_includes() -> tuple[str, ...]:
+    """Eigen's and OpenCV's include flags (as CMake's find_package finds them on Debian)."""
+    if shutil.which("pkg-config"):
+        code, out = _run(["pkg-config", "--cflags-only-I", "eigen3", "opencv4"], "")
+        if code == 0:
+            return tuple(out.split())
+    return tuple(f"-I{d}" for d in _SYSTEM_DIRS if os.path.isdir(d))
+
+
+def _runtime_headers(source: str) -> tuple[str, ...]:
+    """The runtime and driver headers the unit includes, in its order (user imports aside:
+    a header set is then shared by every model with the same interface types)."""
+    return tuple(_RUNTIME_INCLUDE.findall(source))
+
+
+def _mavlink_stamp(headers: tuple[str, ...]) -> str:
+    if "hfsmc/mavlink.hpp" not in headers:
+        return ""
+    try:
+        return f"pymavlink {importlib.metadata.version('pymavlink')}"
+    except importlib.metadata.PackageNotFoundError:
+        return "no pymavlink"
+
+
+def _runtime_files() -> dict[str, bytes]:
+    """Every header of templates/cpp/hfsmc (what a component's include/hfsmc holds)."""
+    folder = files("hfsmc.templates").joinpath("cpp").joinpath("hfsmc")
+    return {f"hfsmc/{f.name}": f.read_bytes() for f in folder.iterdir()
+            if f.name.endswith(".hpp")}
+
+
+def _runtime_digest() -> str:
+    return _digest(*(f"{name}\0{data.hex()}" for name, data in sorted(_runtime_files().items())))
+
+
+def _digest(*parts: object) -> str:
+    h = hashlib.sha256()
+    for part in parts:
+        h.update(str(part).encode("utf-8", "surrogateescape") + b"\0")
+    return h.hexdigest()[:32]
+
+
+def _cached(path: Path) -> str | None:
+    try:
+        text = path.read_text("utf-8", errors="replace")
+    except OSError:
+        return None
+    _touch(path)
+    return text
+
+
+def _store(folder: Path, key: str, text: str) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{key}.", dir=folder)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, folder / key)
+    except OSError:
+        return  # a cache that cannot be written only costs time
+    _prune(folder, _KEEP_OUTPUTS, 0.0, lambda p: p.unlink(missing_ok=True))
+
+
+@contextmanager
+def _header_set(folder: Path, key: str, headers: tuple[str, ...], compiler: str) -> Iterator[Path]:
+    """The folder of a header set: include/ (runtime, MAVLink), pch.hpp and pch.hpp.gch.
+
+    Made once, under a lock, and renamed into place.  When g++ cannot precompile
+    the headers (Eigen or OpenCV missing), the folder serves this check only,
+    without the .gch, and is made again by the next one."""
+    done = folder / key
+    if (done / "pch.hpp.gch").is_file():
+        _touch(done)
+        yield done
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    with _locked(folder / f".{key}.lock"):
+        if (done / "pch.hpp.gch").is_file():
+            yield done
+            return
+        tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=folder))
+        try:
+            if not _fill(tmp, headers, compiler):
+                yield tmp
+                return
+            try:
+                os.rename(tmp, done)
+            except OSError:  # made by a process that took no lock
+                shutil.rmtree(tmp, ignore_errors=True)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    _prune(folder, _KEEP_PCH, _PCH_GRACE_S, lambda p: shutil.rmtree(p, ignore_errors=True))
+    yield done
+
+
+def _fill(tmp: Path, headers: tuple[str, ...], compiler: str) -> bool:
+    """Copy the headers into ``tmp`` and precompile them; whether that worked."""
+    include = tmp / "include"
+    for name, data in _runtime_files().items():
+        (include / name).parent.mkdir(parents=True, exist_ok=True)
+        (include / name).write_bytes(data)
+    if "hfsmc/mavlink.hpp" in headers:
+        from hfsmc.emit.mavgen import MavgenError, mavlink_headers
+
+        try:
+            generated = mavlink_headers()
+        except MavgenError:
+            generated = {}  # g++ then says which header is missing
+        for path, data in generated.items():
+            target = tmp / path  # "include/mavlink/..."
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(data)
+    (tmp / "pch.hpp").write_text("".join(f'#include "{h}"\n' for h in headers), "utf-8")
+    flags = _toolchain(compiler).flags
+    code, _out = _run([compiler, *flags, "-I", str(include), "-x", "c++-header",
+                       str(tmp / "pch.hpp"), "-o", str(tmp / "pch.hpp.gch")], "")
+    if code != 0:  # this check still works, only slower: g++ reads pch.hpp as text
+        (tmp / "pch.hpp.gch").unlink(missing_ok=True)
+    return code == 0
+
+
+@contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    with open(path, "a+b") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def _touch(path: Path) -> None:
+    with suppress(OSError):
+        os.utime(path)
+
+
+def _prune(folder: Path, keep: int, grace_s: float, remove: Callable[[Path], object]) -> None:
+    """Remove all but the ``keep`` most recently used entries (none used within grace_s)."""
+    try:
+        entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
+        if len(entries) <= keep:
+            return
+        entries.sort(key=lambda p: p.stat().st_mtime, reverse=True)
+    except OSError:
+        return
+    now = time.time()
+    for p in entries[keep:]:
+        try:
+            if now - p.stat().st_mtime >= grace_s:
+                remove(p)
+        except OSError:
+            continue
+
+
+def _run(cmd: list[str], stdin: str) -> tuple[int, str]:
+    try:
+        proc = subprocess.run(cmd, input=stdin, capture_output=True, text=True, errors="replace",
+                              timeout=_TIMEOUT_S, check=False,
+                              env={**os.environ, "LC_ALL": "C"})  # plain quotes in messages
+    except subprocess.TimeoutExpired:
+        return 124, f"{cmd[0]} took longer than {_TIMEOUT_S} s"
+    except OSError as e:
+        return 127, f"{cmd[0]}: {e}"
+    return proc.returncode, proc.stdout + proc.stderr
