@@ -116,15 +116,23 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx
               help="OUT.svg, OUT.png or OUT.dot (default: MODEL's name with .svg).")
 @click.option("--state", "state_path", metavar="PATH", help="Draw only this state's sub-automaton.",
               shell_complete=complete.complete_state)
+@click.option("--rankdir", type=click.Choice(["auto", "LR", "TB"], case_sensitive=False),
+              default="auto", show_default=True,
+              help="Arrows left to right (LR) or top to bottom (TB); auto: LR when that fits "
+                   "a 1920x1080 screen, else the direction that overflows it less.")
+@click.option("--depth", type=click.IntRange(min=0), metavar="N",
+              help="Draw composite states more than N levels down as one node "
+                   "(0: only the top level's states).")
 @_guard
-def diagram(model: str, output: str | None, state_path: str | None) -> None:
-    """Draw MODEL with Graphviz: sub-automata as nested clusters."""
+def diagram(model: str, output: str | None, state_path: str | None, rankdir: str,
+            depth: int | None) -> None:
+    """Draw MODEL with Graphviz: sub-automata as nested clusters (docs/diagrams.md)."""
     from hfsmc.emit.dot import write_diagram
 
     result = _compile_or_exit(model)
     assert result.model is not None
     out = Path(output) if output else Path(model).with_suffix(".svg")
-    write_diagram(result.model, out, state_path)
+    write_diagram(result.model, out, state_path, rankdir=rankdir, depth=depth)
     click.echo(f"wrote {out}", err=True)
 
 

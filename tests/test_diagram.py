@@ -3,14 +3,19 @@
 The DOT source is read back with Graphviz itself (`dot -Tjson0`) and compared
 with the model: one cluster per composite state, double circles for initial
 states, one labelled edge per transition.  SVG output is parsed as XML and its
-text compared with the model's names and conditions.
+text compared with the model's names and conditions.  Drawings laid out by
+`dot` are measured: every example must read on a 1920x1080 screen, labels
+sit by their arrows and inside their sub-automaton's cluster.
 """
 
 from __future__ import annotations
 
 import html
 import json
+import math
 import os
+import re
+import struct
 import subprocess
 import sys
 from collections import Counter
@@ -25,7 +30,7 @@ from lxml import etree
 from hfsmc.cli import main
 from hfsmc.compiler import compile_file
 from hfsmc.durations import format_us
-from hfsmc.emit import dot
+from hfsmc.emit import dot, dot_layout
 from hfsmc.errors import UsageError
 from hfsmc.ir import Automaton, Model, State
 from tests.conftest import examples
@@ -168,53 +173,54 @@ def svg_texts(data: bytes) -> list[str]:
     return ["".join(str(s) for s in t.itertext()) for t in root.iter(SVG_TEXT)]
 
 
-def line_matches(shown: str, full: str) -> bool:
-    """``shown`` is ``full``, or ``full`` shortened with an ellipsis."""
-    if shown == full:
-        return True
-    if full.startswith("[") and shown.startswith("[") and shown.endswith("]"):
-        shown, full = shown[1:-1], full[1:-1]
-    return (shown.endswith("…") and len(shown) <= dot.LABEL_LIMIT
-            and full.startswith(shown[:-1].rstrip()) and len(shown) < len(full))
-
-
-def leaves(auto: Automaton) -> list[tuple[State, bool]]:
-    """Every simple state under ``auto`` with whether it is initial in its parent."""
+def leaves(auto: Automaton, depth: int | None = None) -> list[tuple[State, bool]]:
+    """Every state drawn as a node under ``auto`` (simple states, and composite
+    ones more than ``depth`` levels down) with whether it is initial in its parent."""
     out: list[tuple[State, bool]] = []
     for s in auto.states:
-        if s.automaton is None:
+        if s.automaton is None or depth == 0:
             out.append((s, s.name == auto.initial))
         else:
-            out.extend(leaves(s.automaton))
+            out.extend(leaves(s.automaton, None if depth is None else depth - 1))
     return out
 
 
-def composites(auto: Automaton) -> list[State]:
+def composites(auto: Automaton, depth: int | None = None) -> list[State]:
+    """The composite states under ``auto`` drawn as clusters."""
     out: list[State] = []
     for s in auto.states:
-        if s.automaton is not None:
+        if s.automaton is not None and depth != 0:
             out.append(s)
-            out.extend(composites(s.automaton))
+            out.extend(composites(s.automaton, None if depth is None else depth - 1))
     return out
 
 
-def expected_transitions(auto: Automaton) -> list[tuple[str, str, list[str]]]:
-    """(source path, target path, full label lines) of every transition under ``auto``."""
-    out: list[tuple[str, str, list[str]]] = []
+def label_text(lines: list[str]) -> str:
+    """A wrapped label's lines as one line (continuation lines are indented)."""
+    return " ".join(line.strip() for line in lines)
+
+
+def expected_transitions(auto: Automaton, depth: int | None = None
+                         ) -> list[tuple[str, str, str]]:
+    """(source path, target path, full label on one line) of every transition
+    drawn under ``auto``; ``N. `` first when the state has several."""
+    out: list[tuple[str, str, str]] = []
     for s in auto.states:
         parent = s.path.rpartition("/")[0]
         for t in s.transitions:
-            lines = []
+            parts = []
             if t.name:
-                lines.append(t.name)
+                parts.append(t.name)
             if t.when is not None:
-                lines.append("[" + " ".join(ln.strip() for ln in t.when.text.splitlines()
+                parts.append("[" + " ".join(ln.strip() for ln in t.when.text.splitlines()
                                             if ln.strip()) + "]")
             if t.after_us is not None:
-                lines.append(f"after {format_us(t.after_us)}")
-            out.append((s.path, f"{parent}/{t.target}" if parent else t.target, lines))
-        if s.automaton is not None:
-            out.extend(expected_transitions(s.automaton))
+                parts.append(f"after {format_us(t.after_us)}")
+            number = f"{t.index + 1}. " if len(s.transitions) > 1 else ""
+            out.append((s.path, f"{parent}/{t.target}" if parent else t.target,
+                        number + " ".join(parts)))
+        if s.automaton is not None and depth != 0:
+            out.extend(expected_transitions(s.automaton, None if depth is None else depth - 1))
     return out
 
 
@@ -245,20 +251,24 @@ def drawn_transitions(graph: dict[str, Any]) -> list[tuple[str, str, list[str]]]
     return out
 
 
-def check_structure(model: Model, source: str, auto: Automaton | None = None) -> dict[str, Any]:
+def check_structure(model: Model, source: str, auto: Automaton | None = None,
+                    depth: int | None = None) -> dict[str, Any]:
     """The DOT of ``model`` (or of the sub-automaton ``auto``) against the model."""
     auto = auto or model.root
     graph = read_dot(source)
     assert graph["compound"] == "true"
-    assert graph["rankdir"] == "LR"
+    assert graph["rankdir"] in ("LR", "TB")
     assert graph["newrank"] == "true"
     objects = graph.get("objects", [])
-    clusters = {o["name"]: o for o in objects if "nodes" in o}
+    clusters = {o["name"]: o for o in objects if "nodes" in o and o["name"].startswith("cluster_")}
     nodes = {o["name"]: o for o in objects if "nodes" not in o and not o["name"].startswith("#")}
+    # the only other subgraphs: rows, pairs of states on one rank (top to bottom)
+    for row in (o for o in objects if "nodes" in o and o["name"] not in clusters):
+        assert graph["rankdir"] == "TB" and row["rank"] == "same" and len(row["nodes"]) <= 2
 
     # one cluster per composite state, labelled with its name and period
-    assert set(clusters) == {f"cluster_{s.path}" for s in composites(auto)}
-    for s in composites(auto):
+    assert set(clusters) == {f"cluster_{s.path}" for s in composites(auto, depth)}
+    for s in composites(auto, depth):
         assert s.automaton is not None
         lines = esc_lines(clusters[f"cluster_{s.path}"]["label"])
         assert lines[0] == s.name
@@ -266,17 +276,25 @@ def check_structure(model: Model, source: str, auto: Automaton | None = None) ->
         assert ("history" in lines[1]) == s.automaton.history
         members = set(clusters[f"cluster_{s.path}"].get("nodes", []))
         member_names = {o["name"] for o in objects if o["_gvid"] in members}
+        level = s.path.count("/") - auto.owner.count("/") + (0 if auto.owner else 1)
+        inner = None if depth is None else depth - level
         assert {n for n in member_names if not n.startswith("#")} == {
-            leaf.path for leaf, _ in leaves(s.automaton)}
+            leaf.path for leaf, _ in leaves(s.automaton, inner)}
 
-    # simple states: a circle, a double circle when initial, grey when final
-    expected = leaves(auto)
+    # simple states: a circle, a double circle when initial, grey when final;
+    # a composite state below the depth drawn: a circle saying how many states it holds
+    expected = leaves(auto, depth)
     assert set(nodes) == {s.path for s, _ in expected}
     for s, initial in expected:
         node = nodes[s.path]
-        assert esc_lines(node["label"]) == [s.name]
         assert node["shape"] == ("doublecircle" if initial else "circle"), s.path
         assert (node["fillcolor"] == dot.FINAL_FILL) == s.final, s.path
+        if s.automaton is None:
+            assert esc_lines(node["label"]) == [s.name]
+        else:
+            count = len(s.automaton.states)
+            assert esc_lines(node["label"]) == [s.name, f"({count} states)"], s.path
+            assert node["fillcolor"] in dot.CLUSTER_FILLS
 
     # a transition's label node sits in the cluster of its own sub-automaton
     # (else dot routes the arrow out of that cluster and back)
@@ -291,15 +309,137 @@ def check_structure(model: Model, source: str, auto: Automaton | None = None) ->
         innermost = max((c["name"] for c in holders), key=len, default=None)
         assert innermost == (f"cluster_{parent}" if parent != auto.owner else None), src
 
-    # one arrow per transition, between the right states, with its label
+    # one arrow per transition, between the right states, with its whole label,
+    # wrapped in lines of at most dot.WRAP characters
     drawn = drawn_transitions(graph)
-    want = expected_transitions(auto)
+    want = expected_transitions(auto, depth)
     assert Counter((s, d) for s, d, _ in drawn) == Counter((s, d) for s, d, _ in want)
-    for src, dst, lines in want:
+    for src, dst, text in want:
         candidates = [shown for s, d, shown in drawn if (s, d) == (src, dst)]
-        assert any(len(shown) == len(lines) and all(map(line_matches, shown, lines))
-                   for shown in candidates), (src, dst, lines, candidates)
+        assert any(label_text(shown) == text for shown in candidates), (src, dst, text, candidates)
+    for _, _, shown in drawn:
+        unnumbered = [re.sub(r"^\d+\. ", "", shown[0]), *shown[1:]]
+        assert all(len(line) <= dot.WRAP for line in unnumbered), shown
     return graph
+
+
+def check_screen(width: float, height: float) -> None:
+    """A drawing of ``width`` x ``height`` pixels reads on a 1920x1080 screen
+    at 100 %: it fits in one direction, and the other is not absurd."""
+    assert width <= 1920 or height <= 1080, (width, height)
+    assert width <= 3 * 1920 and height <= 3 * 1080, (width, height)
+    assert max(width / height, height / width) <= 4, (width, height)
+
+
+def layout(source: str) -> dict[str, Any]:
+    """The drawing as laid out by dot (``-Tjson``: positions, splines, text)."""
+    proc = subprocess.run(["dot", "-Tjson"], input=source.encode(), capture_output=True,
+                          check=False, timeout=60)
+    assert proc.returncode == 0, proc.stderr.decode()
+    data: dict[str, Any] = json.loads(proc.stdout)
+    return data
+
+
+Box = tuple[float, float, float, float]
+
+
+def text_box(ops: list[dict[str, Any]]) -> Box:
+    """The box around the text drawn by xdot operations (y grows upwards)."""
+    boxes = []
+    size = 10.0
+    for op in ops:
+        if op["op"] == "F":
+            size = op["size"]
+        elif op["op"] == "T":
+            (x, y), w = op["pt"], op["width"]
+            x0 = {"l": x, "c": x - w / 2, "r": x - w}[op["align"]]
+            boxes.append((x0, y - 0.25 * size, x0 + w, y + 0.8 * size))
+    assert boxes
+    return (min(b[0] for b in boxes), min(b[1] for b in boxes),
+            max(b[2] for b in boxes), max(b[3] for b in boxes))
+
+
+def spline_points(edge: dict[str, Any]) -> list[tuple[float, float]]:
+    """Points along an edge's B-spline (xdot ``b`` operations), finely sampled."""
+    out = []
+    for op in edge["_draw_"]:
+        if op["op"] not in ("b", "B"):
+            continue
+        pts = op["points"]
+        for i in range(0, len(pts) - 3, 3):
+            p0, p1, p2, p3 = pts[i:i + 4]
+            n = 10 + int(sum(math.dist(a, b) for a, b in ((p0, p1), (p1, p2), (p2, p3))) / 2)
+            for k in range(n + 1):  # a point every 2 pt or closer
+                u = k / n
+                w = ((1 - u) ** 3, 3 * (1 - u) ** 2 * u, 3 * (1 - u) * u ** 2, u ** 3)
+                out.append((sum(wi * p[0] for wi, p in zip(w, (p0, p1, p2, p3), strict=True)),
+                            sum(wi * p[1] for wi, p in zip(w, (p0, p1, p2, p3), strict=True))))
+    return out
+
+
+def as_box(bb: str) -> Box:
+    x0, y0, x1, y1 = map(float, bb.split(","))
+    return x0, y0, x1, y1
+
+
+def box_distance(box: Box, point: tuple[float, float]) -> float:
+    dx = max(box[0] - point[0], 0.0, point[0] - box[2])
+    dy = max(box[1] - point[1], 0.0, point[1] - box[3])
+    return math.hypot(dx, dy)
+
+
+def overlap(a: Box, b: Box, slack: float = 1.0) -> bool:
+    return (a[0] < b[2] - slack and b[0] < a[2] - slack
+            and a[1] < b[3] - slack and b[1] < a[3] - slack)
+
+
+def inside(a: Box, b: Box, slack: float = 1.0) -> bool:
+    return (a[0] >= b[0] - slack and a[1] >= b[1] - slack
+            and a[2] <= b[2] + slack and a[3] <= b[3] + slack)
+
+
+def check_layout(source: str) -> None:
+    """Every transition's label, as dot places it, is by its arrow (an ordinary
+    label within a few points of the curve, a label node at both halves' ends),
+    inside the cluster of its sub-automaton and outside every other cluster,
+    and covers no state."""
+    graph = layout(source)
+    objects = {o["_gvid"]: o for o in graph["objects"] if "nodes" not in o}
+    clusters = {o["name"].removeprefix("cluster_"): as_box(o["bb"])
+                for o in graph["objects"] if "nodes" in o and o["name"].startswith("cluster_")}
+    states = {o["name"]: o for o in objects.values() if not o["name"].startswith("#")}
+    labels: list[tuple[str, Box]] = []  # (source state path, box)
+    for e in graph["edges"]:
+        tail = objects[e["tail"]]
+        if "_ldraw_" in e:  # an ordinary label: beside its curve
+            box = text_box(e["_ldraw_"])
+            assert min(box_distance(box, p) for p in spline_points(e)) <= 12, e.get("label")
+            labels.append((tail["name"], box))
+    for o in objects.values():
+        name = o["name"]
+        if not name.startswith("#") or name == "#interrupt":
+            continue
+        box = text_box(o["_ldraw_"])
+        into = [e for e in graph["edges"] if e["head"] == o["_gvid"]]
+        out = [e for e in graph["edges"] if e["tail"] == o["_gvid"]]
+        assert len(into) == len(out) == 1, name
+        # the arrow stops at the label and goes on from it
+        assert box_distance(box, spline_points(into[0])[-1]) <= 12, name
+        assert box_distance(box, spline_points(out[0])[0]) <= 12, name
+        labels.append((name[1:].rpartition(" ")[0], box))
+    for src, box in labels:
+        parent = src.rpartition("/")[0]
+        holders = {parent} | {parent.rsplit("/", k)[0] for k in range(1, parent.count("/") + 1)}
+        for path, bb in clusters.items():
+            if path in holders and parent:
+                if path == parent:
+                    assert inside(box, bb), (src, "outside its cluster", path)
+            else:
+                assert not overlap(box, bb), (src, "over cluster", path)
+        for name, node in states.items():
+            x, y = map(float, node["pos"].split(","))
+            r = float(node["width"]) * 36
+            assert box_distance(box, (x, y)) >= r - 2, (src, "over state", name)
 
 
 # ---------------------------------------------------------------------------
@@ -311,10 +451,23 @@ def test_example_svg_through_cli(example: Path, tmp_path: Path) -> None:
     out = tmp_path / f"{example.stem}.svg"
     result = run_cli(str(example), "-o", str(out))
     assert result.exit_code == 0, result.output
-    texts = svg_texts(out.read_bytes())
+    data = out.read_bytes()
+    texts = svg_texts(data)
     model = compile_model(example)
     for s in model.states():
         assert s.name in texts, s.path
+    # at 100 %: fits the screen, text of 10 pt or more, unscaled
+    root = etree.fromstring(data)
+    width, height = (float(root.get(k, "").removesuffix("pt")) * 4 / 3 for k in ("width", "height"))
+    check_screen(width, height)
+    sizes = [float(t.get("font-size", "0")) for t in root.iter(SVG_TEXT)]
+    assert sizes and min(sizes) >= 10, sorted(set(sizes))
+    graph0 = root.find("{http://www.w3.org/2000/svg}g")
+    assert graph0 is not None and "scale(1 1)" in str(graph0.get("transform"))
+    # every state's element has its path as id, every transition PATH#N
+    ids = {e.get("id") for e in root.iter()}
+    assert {s.path for s in model.states()} <= ids
+    assert {f"{s.path}#{t.index}" for s in model.states() for t in s.transitions} <= ids
 
 
 @pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
@@ -341,6 +494,30 @@ def test_example_dot_structure(example: Path) -> None:
     check_structure(model, dot.to_dot(model))
 
 
+@pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
+def test_example_png_fits_a_screen(example: Path) -> None:
+    model = compile_model(example)
+    png = dot.render(dot.to_dot(model), "png")
+    assert png.startswith(PNG_SIGNATURE)
+    width, height = struct.unpack(">II", png[16:24])  # the IHDR chunk, 96 dpi
+    check_screen(width, height)
+
+
+@pytest.mark.parametrize(("name", "rankdir"), [
+    ("blinker", "LR"), ("blinker_cpp", "LR"), ("traffic_light", "LR"),
+    ("follow_colors", "TB"), ("follow_colors_cpp", "TB"), ("monitor_area", "TB"),
+])
+def test_example_direction(name: str, rankdir: str) -> None:
+    """Small machines read left to right; long missions top to bottom."""
+    model = compile_model(ROOT / "examples" / name / f"{name}.yaml")
+    assert read_dot(dot.to_dot(model))["rankdir"] == rankdir
+
+
+@pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
+def test_example_labels_by_their_arrows(example: Path) -> None:
+    check_layout(dot.to_dot(compile_model(example)))
+
+
 def test_examples_exist() -> None:
     assert EXAMPLES, "no examples/*/*.yaml found"
 
@@ -350,8 +527,10 @@ def test_traffic_light_labels() -> None:
     graph = read_dot(dot.to_dot(model))
     labels = {(s, d): lines for s, d, lines in drawn_transitions(graph)}
     assert labels[("Green", "Amber")] == ["button", "[button]"]
-    assert labels[("Red", "Night")] == ["done", "[count >= cycles]"]
-    assert labels[("Red", "Green")] == ["after 5s"]
+    assert labels[("Amber", "Red")] == ["amber over", "[elapsed() >= amber_time]"]
+    # Red's transitions are numbered: the order in which they are tried
+    assert labels[("Red", "Night")] == ["1. done", "[count >= cycles]"]
+    assert labels[("Red", "Green")] == ["2. after 5s"]
     assert graph["label"].startswith("traffic_light")
 
 
@@ -368,9 +547,12 @@ def test_nested_structure(tmp_path: Path) -> None:
     assert any(e.get("ltail") == "cluster_Follow" for e in edges)
     assert any(e.get("lhead") == "cluster_Follow/Track" for e in edges)
     assert any(e.get("ltail") == "cluster_Follow/Track" for e in edges)
-    # a self-transition of a simple state is a loop
+    # a self-transition of a simple state in a cluster runs through its label and back
     names = {o["_gvid"]: o["name"] for o in graph["objects"]}
-    assert any(names[e["tail"]] == names[e["head"]] == "Follow/Lost" for e in edges)
+    assert [names[e["head"]] for e in edges if names[e["tail"]] == "#Follow/Lost 1"] == [
+        "Follow/Lost"]
+    assert [names[e["tail"]] for e in edges if names[e["head"]] == "#Follow/Lost 1"] == [
+        "Follow/Lost"]
 
 
 def test_nested_renders_svg_and_png(tmp_path: Path) -> None:
@@ -476,23 +658,46 @@ def test_state_errors(tmp_path: Path, state: str, message: str) -> None:
 # labels and escaping
 
 
-def test_long_condition_is_shortened_with_an_ellipsis(tmp_path: Path) -> None:
-    cond = " and ".join(f"stage != {i}" for i in range(20))
+def test_long_condition_is_wrapped_not_cut(tmp_path: Path) -> None:
+    cond = " and ".join(f"stage != {i}" for i in range(6))
     text = NESTED.replace("{to: Done, when: not seen}", f"{{to: Done, when: '{cond}'}}")
     path = write_model(tmp_path, text)
     model = compile_model(path)
-    source = dot.to_dot(model)
-    assert cond not in source
-    graph = check_structure(model, source)
+    graph = check_structure(model, dot.to_dot(model))
     (shown,) = [lines for s, d, lines in drawn_transitions(graph) if (s, d) == ("Land", "Done")]
-    assert len(shown) == 1
-    assert shown[0].startswith("[stage != 0 and stage != 1")
-    assert shown[0].endswith("…]")
-    assert len(shown[0]) <= dot.LABEL_LIMIT
+    # broken before `and`, continuation lines indented under the bracket
+    assert shown == ["[stage != 0 and stage != 1", " and stage != 2", " and stage != 3",
+                     " and stage != 4", " and stage != 5]"]
 
     out = tmp_path / "long.svg"
     assert run_cli(str(path), "-o", str(out)).exit_code == 0
-    assert shown[0] in svg_texts(out.read_bytes())
+    texts = [t.strip() for t in svg_texts(out.read_bytes())]
+    assert all(line.strip() in texts for line in shown)
+
+
+def test_very_long_condition_ends_in_an_ellipsis(tmp_path: Path) -> None:
+    cond = " and ".join(f"stage != {i}" for i in range(40))
+    text = NESTED.replace("{to: Done, when: not seen}", f"{{to: Done, when: '{cond}'}}")
+    model = compile_model(write_model(tmp_path, text))
+    source = dot.to_dot(model)
+    assert cond not in source
+    graph = read_dot(source)
+    (shown,) = [lines for s, d, lines in drawn_transitions(graph) if (s, d) == ("Land", "Done")]
+    assert len(shown) == dot.MAX_LINES
+    assert shown[-1].endswith("…")
+    assert ("[" + cond).startswith(label_text(shown).removesuffix("…"))
+
+
+@pytest.mark.parametrize(("text", "lines"), [
+    ("[seen]", ["[seen]"]),
+    # balanced: no lone `0.3]` on a second line
+    ("[drone.altitude() > altitude - 0.3]", ["[drone.altitude()", " > altitude - 0.3]"]),
+    ("[elapsed() > settle and centred(seen)]", ["[elapsed() > settle", " and centred(seen)]"]),
+    # a word longer than a line is cut, and only then
+    ("[" + "x" * 40 + " > 1]", ["[" + "x" * 29, " " + "x" * 11 + " > 1]"]),
+])
+def test_wrap(text: str, lines: list[str]) -> None:
+    assert dot.wrap(text, 30, indent=" ") == lines
 
 
 def test_multi_line_condition_is_joined(tmp_path: Path) -> None:
@@ -514,7 +719,7 @@ def test_escaping_renders_valid_svg(tmp_path: Path) -> None:
     texts = svg_texts(out.read_bytes())
     for s in model.states():
         assert s.name in texts, s.path
-    assert '[a < b and c == "x" or d > {1}]' in texts
+    assert '[a < b and c == "x"' in texts and ' or d > {1}]' in texts
     assert '<b>bold</b> "quoted" \\N {x|y}' in texts
     assert "été → \U0001F600" in texts
     assert '[c == "\\\\N\\\\l&amp;\\\\"]' in texts
@@ -540,6 +745,150 @@ def test_the_graph_has_the_required_attributes() -> None:
     graph = read_dot(dot.to_dot(model))
     assert graph["fontname"] == dot.FONT
     assert "sans" in graph["fontname"].lower()
+
+
+# ---------------------------------------------------------------------------
+# direction, depth, order of transitions, interrupt
+
+
+def chain(n: int) -> str:
+    """A model whose states follow each other: S0 -> S1 -> ... -> Sn (final)."""
+    states = "".join(f"  S{i}:\n    transitions: [{{to: S{i + 1}, when: stage > {i}}}]\n"
+                     for i in range(n))
+    return ("hfsm: 1\nname: chain\nlanguage: python\nvariables: {stage: 0}\n"
+            f"initial: S0\nstates:\n{states}  S{n}: {{final: true}}\n")
+
+
+@pytest.mark.parametrize(("n", "rankdir"), [(3, "LR"), (9, "LR"), (20, "TB"), (40, "TB")])
+def test_auto_direction_follows_the_shape(tmp_path: Path, n: int, rankdir: str) -> None:
+    """Left to right while the chain fits the screen's width, then top to bottom."""
+    model = compile_model(write_model(tmp_path, chain(n)))
+    assert read_dot(dot.to_dot(model))["rankdir"] == rankdir
+
+
+def test_estimate_is_near_the_drawing(tmp_path: Path) -> None:
+    """The size the direction is chosen from is within 30 % of dot's own."""
+    model = compile_model(write_model(tmp_path, NESTED))
+    for rankdir in ("LR", "TB"):
+        source = dot.to_dot(model, rankdir=rankdir)
+        drawing = dot._Drawing(dot._expanded(model.root, None), rows=rankdir == "TB")
+        drawing.automaton(graphviz.Digraph(), model.root, level=1, clusters=())
+        est = dot_layout.estimate(drawing.plan, dot.SPACING, rankdir)
+        png = dot.render(source, "png")
+        real = struct.unpack(">II", png[16:24])
+        along = 0 if rankdir == "LR" else 1  # the direction of the arrows
+        assert abs(est[along] - real[along]) <= 0.3 * real[along], (rankdir, est, real)
+
+
+@pytest.mark.parametrize("rankdir", ["LR", "TB"])
+def test_nested_layout_both_directions(tmp_path: Path, rankdir: str) -> None:
+    model = compile_model(write_model(tmp_path, NESTED))
+    source = dot.to_dot(model, rankdir=rankdir)
+    assert check_structure(model, source)["rankdir"] == rankdir
+    check_layout(source)
+
+
+def test_rankdir_option(tmp_path: Path) -> None:
+    path = write_model(tmp_path, NESTED)
+    for given, want in (("tb", "TB"), ("LR", "LR"), ("auto", "LR")):
+        out = tmp_path / f"{given}.dot"
+        result = run_cli(str(path), "--rankdir", given, "-o", str(out))
+        assert result.exit_code == 0, result.output
+        assert read_dot(out.read_text(encoding="utf-8"))["rankdir"] == want
+    result = run_cli(str(path), "--rankdir", "diagonal", "-o", str(tmp_path / "bad.dot"))
+    assert result.exit_code == 2
+    assert "Invalid value for '--rankdir'" in result.stderr
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "bad.dot").exists()
+    with pytest.raises(UsageError, match="rankdir must be one of auto, LR, TB"):
+        dot.to_dot(compile_model(path), rankdir="RL")
+
+
+@pytest.mark.parametrize("depth", [0, 1, 2])
+def test_depth_draws_deeper_composites_as_one_node(tmp_path: Path, depth: int) -> None:
+    path = write_model(tmp_path, NESTED)
+    model = compile_model(path)
+    out = tmp_path / "depth.dot"
+    result = run_cli(str(path), "--depth", str(depth), "-o", str(out))
+    assert result.exit_code == 0, result.output
+    source = out.read_text(encoding="utf-8")
+    assert source == dot.to_dot(model, depth=depth)
+    graph = check_structure(model, source, depth=depth)
+    clusters = {o["name"] for o in graph["objects"] if "nodes" in o and o["name"].startswith("c")}
+    assert clusters == [set(), {"cluster_Follow"},
+                        {"cluster_Follow", "cluster_Follow/Track"}][depth]
+    check_layout(source)
+
+
+def test_depth_counts_from_the_state_drawn(tmp_path: Path) -> None:
+    model = compile_model(write_model(tmp_path, NESTED))
+    follow = model.find("Follow")
+    assert follow is not None and follow.automaton is not None
+    graph = check_structure(model, dot.to_dot(model, "Follow", depth=0), follow.automaton, depth=0)
+    names = {o["name"] for o in graph["objects"]}
+    assert "Follow/Track" in names and "Follow/Track/Hold" not in names
+
+
+@pytest.mark.parametrize("depth", ["-1", "one"])
+def test_bad_depth_is_a_usage_error(tmp_path: Path, depth: str) -> None:
+    path = write_model(tmp_path, NESTED)
+    result = run_cli(str(path), "--depth", depth, "-o", str(tmp_path / "out.svg"))
+    assert result.exit_code == 2
+    assert "Invalid value for '--depth'" in result.stderr
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "out.svg").exists()
+
+
+def test_transitions_are_numbered_in_the_order_tried(tmp_path: Path) -> None:
+    model = compile_model(write_model(tmp_path, NESTED))
+    graph = read_dot(dot.to_dot(model))
+    labels = sorted(drawn_transitions(graph))
+    assert labels == sorted([
+        ("TakeOff", "Follow", ["1. [stage > 0]"]),
+        ("TakeOff", "Land", ["2. after 20s"]),
+        ("Follow", "Land", ["1. [stage >= 4]"]),
+        ("Follow", "Follow", ["2. reset", "[stage == 2]"]),
+        ("Follow/Track", "Follow/Lost", ["[not seen]"]),  # one transition: no number
+        ("Follow/Track/Approach", "Follow/Track/Hold", ["[seen]"]),
+        ("Follow/Track/Hold", "Follow/Track/Approach", ["after 2.5s"]),
+        ("Follow/Lost", "Follow/Track", ["1. [seen]"]),
+        ("Follow/Lost", "Follow/Lost", ["2. retry", "after 1s"]),
+        ("Land", "Done", ["[not seen]"]),
+    ])
+
+
+def interrupt_marker(graph: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]] | None:
+    """The ``#interrupt`` node and its arrow, if drawn."""
+    objects = {o["_gvid"]: o for o in graph["objects"]}
+    marker = [o for o in objects.values() if o["name"] == "#interrupt"]
+    if not marker:
+        return None
+    (edge,) = [e for e in graph["edges"] if e["tail"] == marker[0]["_gvid"]]
+    return marker[0], {**edge, "head": objects[edge["head"]]["name"]}
+
+
+def test_interrupt_state_is_marked() -> None:
+    model = compile_model(ROOT / "examples/follow_colors/follow_colors.yaml")
+    found = interrupt_marker(read_dot(dot.to_dot(model)))
+    assert found is not None
+    marker, edge = found
+    assert esc_lines(marker["label"]) == ["interrupt", "timeout 1m"]
+    assert edge["head"] == "Land" and edge["style"] == "dashed" and "lhead" not in edge
+    # a sub-automaton drawn alone has no interrupt
+    assert interrupt_marker(read_dot(dot.to_dot(model, "Mission"))) is None
+
+
+def test_interrupt_into_a_composite_state(tmp_path: Path) -> None:
+    text = NESTED.replace("initial: TakeOff\n", "initial: TakeOff\non_interrupt: Follow\n")
+    model = compile_model(write_model(tmp_path, text))
+    found = interrupt_marker(read_dot(dot.to_dot(model)))
+    assert found is not None
+    marker, edge = found
+    assert esc_lines(marker["label"]) == ["interrupt"]  # no interrupt_timeout
+    assert edge["head"] == "Follow/Track/Approach" and edge["lhead"] == "cluster_Follow"
+    # collapsed below --depth 0, the arrow goes to the node
+    found = interrupt_marker(read_dot(dot.to_dot(model, depth=0)))
+    assert found is not None and found[1]["head"] == "Follow" and "lhead" not in found[1]
 
 
 # ---------------------------------------------------------------------------

@@ -5,8 +5,13 @@ inside, the initial state of each sub-automaton a double circle; final states
 are filled grey (an initial final state is a grey double circle).  A composite
 state is a cluster labelled with its name, period and ``history`` (and, as a
 cluster cannot be a double circle, ``initial`` and a bold border when it is
-the initial state).  A transition is an arrow labelled with its name,
-``[when]`` and ``after``; long lines are cut with an ellipsis.
+the initial state); below ``depth`` levels it is one tinted circle saying how
+many states it holds.  A transition is an arrow labelled with its name,
+``[when]`` and ``after``, numbered when its state has several (the order they
+are tried); long lines are wrapped, not cut.  The ``on_interrupt`` state gets
+a dashed arrow from an ``interrupt`` marker.  The direction (``rankdir``) is
+chosen from the model's shape unless given (hfsmc/emit/dot_layout.py); the
+choices are explained in docs/diagrams.md.
 
 Node ids are the states' full paths, always quoted, so they cannot collide
 whatever the names; helper nodes carry a ``#``, which no path contains.  An
@@ -14,52 +19,70 @@ edge to or from a composite state is drawn between anchor nodes inside the
 clusters (a leaf reached through initial children going in, one far from the
 initial child going out) and clipped at the cluster's border with ``lhead`` /
 ``ltail`` (``compound=true``); its label is a text node the arrow runs
-through, so that it always sits outside the clusters.
+through, so that it always sits outside the clusters (inside a cluster too,
+so that the cluster grows around it).  In SVG, a state's element (node or
+cluster) has its path as ``id`` and a transition ``PATH#N`` (its source and
+index, as a trace's ``fire`` record names it), for views that colour them.
 
 Labels are Graphviz escStrings: backslashes are doubled (no ``\\N``, ``\\l``
 surprises), ``&`` becomes ``&amp;`` (Graphviz decodes entities even in plain
 labels), ``<...>`` is never taken for an HTML label and quotes are escaped by
-the ``graphviz`` package.  The same model always gives the same DOT bytes.
+the ``graphviz`` package.  The same model always gives the same DOT bytes:
+the direction is estimated, not measured by running Graphviz.
 """
 
 from __future__ import annotations
 
 import unicodedata
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import graphviz
 
 from hfsmc.durations import format_us
+from hfsmc.emit.dot_layout import Plan, Spacing, choose_rankdir, text_size
 from hfsmc.errors import UsageError, did_you_mean
 from hfsmc.fsutil import write_atomic
-from hfsmc.ir import Automaton, Code, Model, State, Transition
+from hfsmc.ir import Automaton, Model, State, Transition
 
-# Longest line of a label (conditions, names), in characters, before "…".
-LABEL_LIMIT = 40
+# Label lines (names, conditions) are wrapped at this many characters, at
+# spaces and preferably before `and` / `or`; a condition longer than
+# MAX_LINES lines (a rare, unreadable thing on a diagram anyway) ends in "…".
+WRAP = 30
+MAX_LINES = 8
 ELLIPSIS = "…"
+BREAK_BEFORE = frozenset({"and", "or", "&&", "||"})
+
+RANKDIRS = ("auto", "LR", "TB")
+# Sub-automata of at most this many simple states are drawn in a row (one
+# rank) top to bottom: a column of them would make tall drawings taller.  Not
+# more: dot routes an edge between the ends of a longer row over the row's
+# cluster label.
+ROW_MAX = 2
 
 FONT = "Helvetica,Arial,sans-serif"
 FINAL_FILL = "#c8c8c8"
+BORDER = "#4a5a70"
+INTERRUPT_COLOR = "#b03a2e"
 # Cluster fills by nesting depth: light tints, so that nesting shows at a glance.
 CLUSTER_FILLS = ("#eef3fa", "#f7f3e8", "#eef7ee", "#f6eef6")
 
 GRAPH_ATTRS: dict[str, str] = {
-    "rankdir": "LR",
     "newrank": "true",
     "compound": "true",
     "fontname": FONT,
     "fontsize": "14",
     "labelloc": "t",
     "labeljust": "l",
-    "nodesep": "0.5",
-    "ranksep": "0.6",
+    "nodesep": "0.35",
+    "ranksep": "0.25",
     "pad": "0.3",
 }
 NODE_ATTRS: dict[str, str] = {
     "shape": "circle",
     "fontname": FONT,
     "fontsize": "12",
-    "width": "0.9",
+    "width": "0.8",
     "margin": "0.04",
     "style": "filled",
     "fillcolor": "white",
@@ -70,14 +93,34 @@ EDGE_ATTRS: dict[str, str] = {
     "fontsize": "10",
     "arrowsize": "0.8",
 }
+CLUSTER_MARGIN = 12
+CLUSTER_FONTSIZE = 13
 
 
-def to_dot(model: Model, state_path: str | None = None) -> str:
+def _inches(attr: str) -> float:
+    return float(attr) * 72
+
+
+SPACING = Spacing(ranksep=_inches(GRAPH_ATTRS["ranksep"]), nodesep=_inches(GRAPH_ATTRS["nodesep"]),
+                  cluster_margin=CLUSTER_MARGIN, title_height=24.0, pad=_inches(GRAPH_ATTRS["pad"]))
+
+
+def to_dot(model: Model, state_path: str | None = None, *, rankdir: str = "auto",
+           depth: int | None = None) -> str:
     """The DOT source of ``model``'s diagram, or of one state's sub-automaton.
 
+    ``rankdir`` is ``LR``, ``TB`` or ``auto`` (chosen from the drawing's
+    estimated size); composite states more than ``depth`` levels below the
+    drawn sub-automaton are drawn as one node (``depth=0``: its own states
+    only; None: every level).
+
     Raises UsageError when ``state_path`` names no state, or a state without a
-    sub-automaton.
+    sub-automaton, or for a bad ``rankdir`` / ``depth``.
     """
+    if rankdir not in RANKDIRS:
+        raise UsageError(f"rankdir must be one of {', '.join(RANKDIRS)}, not {rankdir!r}")
+    if depth is not None and depth < 0:
+        raise UsageError(f"depth must be 0 or more, not {depth}")
     auto, title = _select(model, state_path)
     g = graphviz.Digraph(
         name=model.name,
@@ -85,18 +128,28 @@ def to_dot(model: Model, state_path: str | None = None) -> str:
         node_attr=NODE_ATTRS,
         edge_attr=EDGE_ATTRS,
     )
-    _draw_automaton(g, auto, depth=0)
+    expanded = _expanded(auto, depth)
+    if rankdir == "auto":
+        trial = _Drawing(expanded, rows=False)
+        trial.automaton(graphviz.Digraph(), auto, level=1, clusters=())
+        rankdir = choose_rankdir(trial.plan, SPACING)
+    g.graph_attr["rankdir"] = rankdir
+    drawing = _Drawing(expanded, rows=rankdir == "TB")
+    drawing.automaton(g, auto, level=1, clusters=())
+    if state_path is None and model.on_interrupt:
+        drawing.interrupt(g, model)
     source: str = g.source
     return source if source.endswith("\n") else source + "\n"
 
 
-def write_diagram(model: Model, out: Path, state_path: str | None) -> None:
+def write_diagram(model: Model, out: Path, state_path: str | None, *, rankdir: str = "auto",
+                  depth: int | None = None) -> None:
     """Write the diagram to ``out``: ``.dot`` source, or ``.svg`` / ``.png`` drawn by ``dot``.
 
     The file is written atomically: on any failure no partial file is left and
     an existing file is untouched.
     """
-    source = to_dot(model, state_path)
+    source = to_dot(model, state_path, rankdir=rankdir, depth=depth)
     fmt = out.suffix.lower().lstrip(".")
     if fmt == "dot":
         data = source.encode("utf-8")
@@ -164,50 +217,186 @@ def _listing(composites: list[str]) -> str:
     return "; composite states: " + ", ".join(composites)
 
 
+def _expanded(auto: Automaton, depth: int | None, level: int = 1) -> frozenset[str]:
+    """Paths of the composite states under ``auto`` drawn as clusters: those
+    at most ``depth`` levels down (the states of ``auto`` are level 1)."""
+    out: set[str] = set()
+    for s in auto.states:
+        if s.automaton is not None and (depth is None or level <= depth):
+            out.add(s.path)
+            out |= _expanded(s.automaton, depth, level + 1)
+    return frozenset(out)
+
+
 # ---------------------------------------------------------------------------
 # states
 
 
-def _draw_automaton(g: graphviz.Digraph, auto: Automaton, depth: int) -> None:
-    """The states of ``auto`` (clusters for composite ones), then its transitions.
+@dataclass
+class _Drawing:
+    """Draws into a graphviz graph and records the same boxes and arrows in a
+    Plan, from which the direction is chosen."""
 
-    Everything goes in ``auto``'s own cluster: the label nodes of transitions
-    must sit in the cluster of the sub-automaton they belong to.
-    """
-    for s in auto.states:
-        initial = s.name == auto.initial
-        if s.automaton is None:
-            g.node(_node_id(s), **_state_attrs(s, initial))
-            continue
-        with g.subgraph(name=_cluster_id(s)) as c:
-            c.attr(
-                label=_esc_lines([s.name, _automaton_note(s.automaton, initial)], left=True),
-                style="rounded,filled" + (",bold" if initial else ""),
-                fillcolor=CLUSTER_FILLS[depth % len(CLUSTER_FILLS)],
-                color="#4a5a70",
-                penwidth="2" if initial else "1.2",
-                fontsize="13",
-                labeljust="l",
-                margin="12",
-                tooltip=s.path,
-            )
-            _draw_automaton(c, s.automaton, depth + 1)
-    for s in auto.states:
-        for t in s.transitions:
-            _draw_transition(g, s, t, auto)
+    expanded: frozenset[str]
+    rows: bool  # small flat sub-automata in one row (top-to-bottom drawings)
+    plan: Plan = field(default_factory=Plan)
+
+    def automaton(self, g: graphviz.Digraph, auto: Automaton, level: int,
+                  clusters: tuple[str, ...]) -> None:
+        """The states of ``auto`` (clusters for composite ones), then its transitions.
+
+        Everything goes in ``auto``'s own cluster: the label nodes of
+        transitions must sit in the cluster of the sub-automaton they belong to.
+        """
+        for s in auto.states:
+            initial = s.name == auto.initial
+            if s.automaton is None or s.path not in self.expanded:
+                attrs = _state_attrs(s, initial, level)
+                g.node(_node_id(s), **attrs)
+                self.plan.node(_node_id(s), _circle_size(attrs["label"]), clusters)
+                continue
+            cluster = _cluster_id(s)
+            label = [s.name, _automaton_note(s.automaton, initial)]
+            self.plan.cluster_label[cluster] = text_size(label, CLUSTER_FONTSIZE)
+            with g.subgraph(name=cluster) as c:
+                c.attr(
+                    label=_esc_lines(label, left=True),
+                    style="rounded,filled" + (",bold" if initial else ""),
+                    fillcolor=CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)],
+                    color=BORDER,
+                    penwidth="2" if initial else "1.2",
+                    fontsize=str(CLUSTER_FONTSIZE),
+                    labeljust="l",
+                    margin=str(CLUSTER_MARGIN),
+                    tooltip=s.path,
+                    id=s.path,
+                )
+                self.automaton(c, s.automaton, level + 1, (*clusters, cluster))
+        row = level > 1 and len(auto.states) <= ROW_MAX and not any(
+            s.path in self.expanded for s in auto.states)
+        if row:
+            self.row(g, [_node_id(s) for s in auto.states])
+        for s in auto.states:
+            for t in s.transitions:
+                self.transition(g, s, t, auto, clusters, in_row=row)
+
+    def row(self, g: graphviz.Digraph, ids: list[str]) -> None:
+        """A small sub-automaton of simple states on one rank, when drawn top
+        to bottom: it then takes the height of one state, not of a column."""
+        self.plan.rows.append(tuple(ids))
+        if self.rows:
+            with g.subgraph() as same:
+                same.attr(rank="same")
+                for node_id in ids:
+                    same.node(node_id)
+
+    def transition(self, g: graphviz.Digraph, src: State, t: Transition, parent: Automaton,
+                   clusters: tuple[str, ...], in_row: bool) -> None:
+        dst = parent.state(t.target)
+        if dst is None:  # cannot happen in a checked model
+            raise UsageError(f"transition of `{src.path}` to unknown state `{t.target}`")
+        lines = _label_lines(t, numbered=len(src.transitions) > 1)
+        label = _esc_lines(lines, left=True)
+        size = text_size(lines, float(EDGE_ATTRS["fontsize"]), em=0.48)
+        tail, head = _node_id(self.exit_anchor(src)), _node_id(self.entry_anchor(dst))
+        out_of = src.path in self.expanded
+        into = dst.path in self.expanded
+        ident = _transition_id(src, t)
+        if not out_of and not into and (not clusters or in_row):
+            g.edge(tail, head, label=label, id=ident)
+            self.plan.edge(tail, head, size)
+            return
+        # To or from a composite state: the edge runs between anchor nodes and
+        # is clipped at the cluster's border.  dot would place an ordinary
+        # label at the middle of the unclipped edge, possibly inside the
+        # cluster (and an xlabel gets no room and overlaps nodes), so the
+        # label is a small text node of its own, outside the clusters, that
+        # the arrow runs through.  It also lets a composite state's
+        # self-transition leave the cluster and come back, which a single
+        # edge clipped twice by one cluster cannot do.  Inside a cluster too,
+        # the label is a node: dot does not grow a cluster around an
+        # ordinary label, which then sticks out of its border.  A pair of
+        # states (a row) is the exception: its labels sit between the two.
+        via = f"#{src.path} {t.index}"  # `#` and spaces never occur in a path
+        g.node(via, label=label, shape="plaintext", style="", width="0", height="0",
+               margin="0.04,0.02", fontsize=EDGE_ATTRS["fontsize"], id=f"{ident}:label")
+        self.plan.node(via, size, clusters)
+        g.edge(tail, via, arrowhead="none", id=ident,
+               **({"ltail": _cluster_id(src)} if out_of else {}))
+        g.edge(via, head, id=f"{ident}:head", **({"lhead": _cluster_id(dst)} if into else {}))
+        self.plan.edge(tail, via)
+        self.plan.edge(via, head)
+
+    def interrupt(self, g: graphviz.Digraph, model: Model) -> None:
+        """A dashed arrow from an ``interrupt`` marker to the ``on_interrupt``
+        state (dot puts the marker, whose only edge is this one, just before
+        the state, not at the start)."""
+        target = model.root.state(model.on_interrupt or "")
+        if target is None:  # cannot happen in a checked model
+            return
+        lines = ["interrupt"]
+        if model.interrupt_timeout_us is not None:
+            lines.append(f"timeout {format_us(model.interrupt_timeout_us)}")
+        marker = "#interrupt"
+        head = _node_id(self.entry_anchor(target))
+        g.node(marker, label=_esc_lines(lines), shape="octagon", style="filled",
+               fillcolor="#fbe9e7", color=INTERRUPT_COLOR, fontcolor=INTERRUPT_COLOR,
+               fontsize=EDGE_ATTRS["fontsize"], width="0", height="0", margin="0.06,0.03",
+               tooltip=f"on_interrupt: {target.path}", id=marker)
+        into = {"lhead": _cluster_id(target)} if target.path in self.expanded else {}
+        g.edge(marker, head, style="dashed", color=INTERRUPT_COLOR, id=f"{marker}:head", **into)
+
+    def entry_anchor(self, s: State) -> State:
+        """The node an edge into ``s`` attaches to: ``s``, or its initial leaf.
+
+        The initial child is what the layout puts first in a cluster, so edges
+        come in where the sub-automaton starts.
+        """
+        while s.automaton is not None and s.path in self.expanded:
+            child = s.automaton.state(s.automaton.initial)
+            if child is None:  # cannot happen in a checked model
+                break
+            s = child
+        return s
+
+    def exit_anchor(self, s: State) -> State:
+        """The node an edge out of ``s`` attaches to: ``s``, or a leaf far from the start.
+
+        With ``newrank`` an edge's tail node sets the rank of its head;
+        leaving from the child farthest (in transitions) from the initial one
+        puts the target after the whole cluster, not beside it.
+        """
+        while s.automaton is not None and s.path in self.expanded:
+            s = _farthest(s.automaton)
+        return s
 
 
-def _state_attrs(s: State, initial: bool) -> dict[str, str]:
+def _state_attrs(s: State, initial: bool, level: int) -> dict[str, str]:
     attrs = {
         "label": _esc_lines([s.name]),  # never shortened: names tell states apart
         "tooltip": s.path,  # identifiers and `/`: nothing to escape
+        "id": s.path,
     }
     if initial:
         attrs["shape"] = "doublecircle"
     if s.final:
         attrs["fillcolor"] = FINAL_FILL
         attrs["penwidth"] = "2"
+    if s.automaton is not None:  # a composite state below the depth drawn
+        count = len(s.automaton.states)
+        attrs["label"] = _esc_lines([s.name, f"({count} state{'s' * (count != 1)})"])
+        attrs["fillcolor"] = CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)]
+        attrs["color"] = BORDER
+        attrs["penwidth"] = "2"
     return attrs
+
+
+def _circle_size(label: str) -> tuple[float, float]:
+    """A state circle's diameter (points) for its escaped label, as dot sizes it."""
+    lines = label.split("\\n")
+    width, height = text_size(lines, float(NODE_ATTRS["fontsize"]))
+    d = max(_inches(NODE_ATTRS["width"]), 1.36 * max(width, height) + 8)
+    return d, d
 
 
 def _automaton_note(auto: Automaton, initial: bool = False) -> str:
@@ -230,30 +419,10 @@ def _cluster_id(s: State) -> str:
     return f"cluster_{s.path}"
 
 
-def _entry_anchor(s: State) -> State:
-    """The node an edge into ``s`` attaches to: ``s``, or its initial leaf.
-
-    The initial child is what the layout puts first in a cluster, so edges
-    come in where the sub-automaton starts.
-    """
-    while s.automaton is not None:
-        child = s.automaton.state(s.automaton.initial)
-        if child is None:  # cannot happen in a checked model
-            break
-        s = child
-    return s
-
-
-def _exit_anchor(s: State) -> State:
-    """The node an edge out of ``s`` attaches to: ``s``, or a leaf far from the start.
-
-    With ``rankdir=LR`` and ``newrank`` an edge's tail node sets the rank of its
-    head; leaving from the child farthest (in transitions) from the initial one
-    puts the target to the right of the whole cluster, not beside it.
-    """
-    while s.automaton is not None:
-        s = _farthest(s.automaton)
-    return s
+def _transition_id(src: State, t: Transition) -> str:
+    """``PATH#N``: the SVG id of a transition, as a trace's ``fire`` record
+    names it (``from``, ``index``); ``#`` occurs in no path."""
+    return f"{src.path}#{t.index}"
 
 
 def _farthest(auto: Automaton) -> State:
@@ -276,55 +445,80 @@ def _farthest(auto: Automaton) -> State:
 
 
 # ---------------------------------------------------------------------------
-# transitions
+# transition labels
 
 
-def _draw_transition(g: graphviz.Digraph, src: State, t: Transition, parent: Automaton) -> None:
-    dst = parent.state(t.target)
-    if dst is None:  # cannot happen in a checked model
-        raise UsageError(f"transition of `{src.path}` to unknown state `{t.target}`")
-    label = _esc_lines(_label_lines(t))
-    tail, head = _node_id(_exit_anchor(src)), _node_id(_entry_anchor(dst))
-    if src.automaton is None and dst.automaton is None:
-        g.edge(tail, head, label=label)
-        return
-    # To or from a composite state: the edge runs between anchor nodes and is
-    # clipped at the cluster's border.  dot would place an ordinary label at
-    # the middle of the unclipped edge, possibly inside the cluster (and an
-    # xlabel gets no room and overlaps nodes), so the label is a small text
-    # node of its own, outside the clusters, that the arrow runs through.  It
-    # also lets a composite state's self-transition leave the cluster and come
-    # back, which a single edge clipped twice by one cluster cannot do.
-    via = f"#{src.path} {t.index}"  # `#` and spaces never occur in a path
-    g.node(via, label=label, shape="plaintext", style="", width="0", height="0",
-           margin="0.04,0.02", fontsize=EDGE_ATTRS["fontsize"])
-    out = {"ltail": _cluster_id(src)} if src.automaton is not None else {}
-    into = {"lhead": _cluster_id(dst)} if dst.automaton is not None else {}
-    g.edge(tail, via, arrowhead="none", **out)
-    g.edge(via, head, **into)
-
-
-def _label_lines(t: Transition) -> list[str]:
+def _label_lines(t: Transition, numbered: bool) -> list[str]:
+    """Name, ``[when]`` and ``after`` lines, wrapped; ``N.`` first when the
+    state has several transitions (N: the order in which they are tried)."""
     lines: list[str] = []
     if t.name:
-        lines.append(_shorten(_one_line(t.name), LABEL_LIMIT))
+        lines += wrap(_one_line(t.name), WRAP)
     if t.when is not None:
-        lines.append("[" + _shorten(_code_line(t.when), LABEL_LIMIT - 2) + "]")
+        lines += wrap("[" + _one_line(t.when.text) + "]", WRAP, indent=" ")
     if t.after_us is not None:
         lines.append(f"after {format_us(t.after_us)}")
+    if numbered:
+        lines[0] = f"{t.index + 1}. {lines[0]}"
     return lines
+
+
+def wrap(text: str, width: int, indent: str = "") -> list[str]:
+    """``text`` over lines of at most ``width`` characters, broken at spaces,
+    before ``and`` / ``or`` once a line is half full, and inside words only
+    when one is longer than a line; continuation lines start with ``indent``.
+    Two or three lines are balanced (as narrow as their number allows: no
+    lone ``0.3]`` on the last line); more than MAX_LINES lines end in an
+    ellipsis.  Joining the lines (their indent removed) with spaces gives
+    ``text`` back, but for words cut."""
+    lines = _greedy(text, width, indent)
+    longest = max(len(word) for word in text.split(" "))
+    narrower = width - 1
+    while 1 < len(lines) <= 3 and narrower - len(indent) >= longest:  # no new cuts in words
+        tighter = _greedy(text, narrower, indent)
+        if len(tighter) > len(lines) or _operator_starts(tighter) < _operator_starts(lines):
+            break
+        lines, narrower = tighter, narrower - 1
+    if len(lines) > MAX_LINES:
+        lines = lines[:MAX_LINES]
+        lines[-1] = lines[-1][: width - 1].rstrip() + ELLIPSIS
+    return lines
+
+
+def _operator_starts(lines: list[str]) -> int:
+    """How many continuation lines start with ``and`` / ``or``."""
+    return sum(bool(ln.split()) and ln.split()[0] in BREAK_BEFORE for ln in lines[1:])
+
+
+def _greedy(text: str, width: int, indent: str) -> list[str]:
+    """``text`` wrapped greedily at ``width`` (see wrap)."""
+    lines: list[str] = []
+    line = ""
+    for word in text.split(" "):
+        room = width - (len(indent) if lines else 0)
+        while len(word) > width - len(indent):  # a long word: cut, as few times as needed
+            if line:
+                lines.append(line)
+                line = ""
+                room = width - len(indent)
+            lines.append(word[:room])
+            word = word[room:]
+        if line and (len(line) + 1 + len(word) > room
+                     or (word in BREAK_BEFORE and len(line) >= room // 2)):
+            lines.append(line)
+            line = word
+        else:
+            line = f"{line} {word}" if line else word
+    lines.append(line)
+    return [lines[0], *(indent + ln for ln in lines[1:])]
 
 
 # ---------------------------------------------------------------------------
 # text
 
 
-def _code_line(code: Code) -> str:
-    """A snippet on one line: its lines stripped and joined by spaces."""
-    return _one_line(code.text)
-
-
 def _one_line(text: str) -> str:
+    """A name or snippet on one line: its lines stripped and joined by spaces."""
     return " ".join(part for part in (ln.strip() for ln in text.splitlines()) if part)
 
 
