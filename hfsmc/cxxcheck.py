@@ -11,10 +11,11 @@ Two caches under ``$HFSMC_CACHE_DIR`` (default ``$XDG_CACHE_HOME/hfsmc/cxx``,
 that is ``~/.cache/hfsmc/cxx``) keep a warm check short:
 
 - ``pch/KEY/``: the runtime and driver headers a model includes, copied, and
-  precompiled (``pch.hpp.gch``); KEY hashes the compiler's identity, the flags,
-  the list of headers and their content (the pymavlink version stands for the
-  MAVLink headers, which mavgen makes the same for the same version).  All
-  models with the same interface types share one; the few newest are kept.
+  precompiled (``pch.hpp.gch``, from the second translation unit on that uses
+  them); KEY hashes the compiler's identity, the flags, the list of headers
+  and their content (the pymavlink version stands for the MAVLink headers,
+  which mavgen makes the same for the same version).  All models with the
+  same interface types share one; the few newest are kept.
 - ``out/KEY``: g++'s output for one translation unit (KEY adds the unit's text
   to the header key), so an unchanged model is not compiled again.
 
@@ -54,6 +55,7 @@ _KEEP_PCH = 4  # precompiled header sets kept (each 50-200 MB)
 _KEEP_OUTPUTS = 256
 _PCH_GRACE_S = 600  # never delete a header set used this recently (a check may be reading it)
 _TIMEOUT_S = 600
+_GCH = "pch.hpp.gch"
 
 
 @dataclass
@@ -92,10 +94,10 @@ def check_cpp(model: Model) -> CxxCheck:
     output = _cached(root / "out" / key)
     if output is None:
         try:
-            with _header_set(root / "pch", pch_key, headers, compiler) as folder:
-                code, text = _run([compiler, *toolchain.flags, "-fsyntax-only",
-                                   "-I", str(folder / "include"), "-include", str(folder / "pch.hpp"),
-                                   "-x", "c++", "-"], source)
+            folder = _header_set(root / "pch", pch_key, headers, compiler)
+            code, text = _run([compiler, *toolchain.flags, "-fsyntax-only",
+                               "-I", str(folder / "include"), "-include", str(folder / "pch.hpp"),
+                               "-x", "c++", "-"], source)
         except OSError as e:
             return CxxCheck(note=f"C++ snippets not checked: the cache {root} cannot be written: {e}")
         output = f"{code}\n{text}"
@@ -203,40 +205,33 @@ def _store(folder: Path, key: str, text: str) -> None:
     _prune(folder, _KEEP_OUTPUTS, 0.0, lambda p: p.unlink(missing_ok=True))
 
 
-@contextmanager
-def _header_set(folder: Path, key: str, headers: tuple[str, ...], compiler: str) -> Iterator[Path]:
-    """The folder of a header set: include/ (runtime, MAVLink), pch.hpp and pch.hpp.gch.
+def _header_set(folder: Path, key: str, headers: tuple[str, ...], compiler: str) -> Path:
+    """The folder of a header set: include/ (runtime, MAVLink headers) and pch.hpp.
 
-    Made once, under a lock, and renamed into place.  When g++ cannot precompile
-    the headers (Eigen or OpenCV missing), the folder serves this check only,
-    without the .gch, and is made again by the next one."""
+    Made once, under a lock, and renamed into place.  The first check that
+    needs it compiles without a precompiled header (a one-off check, as in CI,
+    does not pay for one); the next one makes pch.hpp.gch (``_precompile``)."""
     done = folder / key
-    if (done / "pch.hpp.gch").is_file():
+    if (done / "pch.hpp").is_file():
         _touch(done)
-        yield done
-        return
+        if not (done / _GCH).is_file():
+            _precompile(done, folder / f".{key}.lock", compiler)
+        return done
     folder.mkdir(parents=True, exist_ok=True)
     with _locked(folder / f".{key}.lock"):
-        if (done / "pch.hpp.gch").is_file():
-            yield done
-            return
-        tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=folder))
-        try:
-            if not _fill(tmp, headers, compiler):
-                yield tmp
-                return
+        if not (done / "pch.hpp").is_file():
+            tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=folder))
             try:
+                _fill(tmp, headers)
                 os.rename(tmp, done)
-            except OSError:  # made by a process that took no lock
+            finally:
                 shutil.rmtree(tmp, ignore_errors=True)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
     _prune(folder, _KEEP_PCH, _PCH_GRACE_S, lambda p: shutil.rmtree(p, ignore_errors=True))
-    yield done
+    return done
 
 
-def _fill(tmp: Path, headers: tuple[str, ...], compiler: str) -> bool:
-    """Copy the headers into ``tmp`` and precompile them; whether that worked."""
+def _fill(tmp: Path, headers: tuple[str, ...]) -> None:
+    """Copy the runtime headers (and the MAVLink ones if needed) into ``tmp``; write pch.hpp."""
     include = tmp / "include"
     for name, data in _runtime_files().items():
         (include / name).parent.mkdir(parents=True, exist_ok=True)
@@ -253,12 +248,23 @@ def _fill(tmp: Path, headers: tuple[str, ...], compiler: str) -> bool:
             target.parent.mkdir(parents=True, exist_ok=True)
             target.write_bytes(data)
     (tmp / "pch.hpp").write_text("".join(f'#include "{h}"\n' for h in headers), "utf-8")
-    flags = _toolchain(compiler).flags
-    code, _out = _run([compiler, *flags, "-I", str(include), "-x", "c++-header",
-                       str(tmp / "pch.hpp"), "-o", str(tmp / "pch.hpp.gch")], "")
-    if code != 0:  # this check still works, only slower: g++ reads pch.hpp as text
-        (tmp / "pch.hpp.gch").unlink(missing_ok=True)
-    return code == 0
+
+
+def _precompile(done: Path, lock: Path, compiler: str) -> None:
+    """Make ``done``/pch.hpp.gch, renamed into place; nothing when g++ cannot (Eigen or
+    OpenCV missing: it is tried again next time)."""
+    with _locked(lock):
+        if (done / _GCH).is_file():
+            return
+        fd, tmp = tempfile.mkstemp(prefix=".pch.", suffix=".tmp", dir=done)
+        os.close(fd)
+        try:
+            code, _out = _run([compiler, *_toolchain(compiler).flags, "-I", str(done / "include"),
+                               "-x", "c++-header", str(done / "pch.hpp"), "-o", tmp], "")
+            if code == 0:
+                os.replace(tmp, done / _GCH)
+        finally:
+            Path(tmp).unlink(missing_ok=True)
 
 
 @contextmanager

@@ -184,7 +184,7 @@ def test_a_value_the_cpp_component_cannot_hold_is_found_by_check(tmp_path: Path)
 
 
 def test_concurrent_cold_checks_share_one_header_set(tmp_path: Path) -> None:
-    """Two checks on an empty cache at once: both right, one precompiled header, no debris."""
+    """Two checks on an empty cache at once: both right, one header set, no debris."""
     cache = tmp_path / "cache"
     path = write(tmp_path, "typo.yaml", TYPO)
     env = {**os.environ, "HFSMC_CACHE_DIR": str(cache)}
@@ -200,10 +200,23 @@ def test_concurrent_cold_checks_share_one_header_set(tmp_path: Path) -> None:
     for p, (_out, err) in zip(procs, outs, strict=True):
         assert p.returncode == 1, err
         assert f"{path}:11:7: error[E144]" in err, err
-    sets = sorted(q.name for q in (cache / "pch").iterdir() if not q.name.endswith(".lock"))
-    assert len(sets) == 1 and not sets[0].startswith("."), sets
-    assert (cache / "pch" / sets[0] / "pch.hpp.gch").is_file()
+    sets = [q for q in (cache / "pch").iterdir() if not q.name.endswith(".lock")]
+    assert len(sets) == 1 and not sets[0].name.startswith("."), sets
+    assert (sets[0] / "pch.hpp").is_file() and (sets[0] / "include/hfsmc/runtime.hpp").is_file()
+    assert not [q for q in sets[0].iterdir() if q.name.startswith(".")]
     assert [q.name for q in (cache / "out").iterdir() if q.name.startswith(".")] == []
+
+
+def test_the_second_unit_with_the_same_headers_precompiles_them(tmp_path: Path) -> None:
+    """A one-off check compiles without a precompiled header; the next unit makes it."""
+    first = compile_file(write(tmp_path, "typo.yaml", TYPO), cxx=True)
+    second = compile_file(write(tmp_path, "funcs.yaml", FUNCTIONS), cxx=True)
+    assert found(first.diagnostics, "E144") == [(11, 7)]
+    assert found(second.diagnostics, "E144") == [(6, 16)]
+    runtime_only = [q for q in (cxxcheck.cache_dir() / "pch").iterdir()
+                    if (q / "pch.hpp").is_file()
+                    and (q / "pch.hpp").read_text() == '#include "hfsmc/runtime.hpp"\n']
+    assert len(runtime_only) == 1 and (runtime_only[0] / "pch.hpp.gch").is_file()
 
 
 # ---------------------------------------------------------------------------
