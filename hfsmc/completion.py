@@ -39,7 +39,7 @@ def state_paths(model: str | None) -> list[str]:
     try:
         from hfsmc.compiler import compile_file
 
-        result = compile_file(model)
+        result = compile_file(model, cxx=False)  # no g++ run for a Tab
         if result.model is None:
             return []
         return [s.path for s in result.model.states() if s.automaton is not None]
