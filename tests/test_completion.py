@@ -11,7 +11,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
+from hfsmc.cli import main
 from hfsmc.completion import component_flags
 from tests.conftest import ROOT
 
@@ -21,16 +23,15 @@ FOLLOW = "examples/follow_colors/follow_colors.yaml"
 
 
 def complete(line: str) -> list[str]:
-    """The candidates bash gets for the last word of ``line`` (empty after a space)."""
+    """The candidates bash gets for the last word of ``line`` (empty after a space): the
+    protocol run in this process (the console script itself is run by the bash test)."""
     words = shlex.split(line)
     cword = len(words) if line.endswith(" ") else len(words) - 1
-    env = {**os.environ, "_HFSMC_COMPLETE": "bash_complete",
-           "COMP_WORDS": line, "COMP_CWORD": str(cword)}
-    proc = subprocess.run([str(HFSMC)], env=env, cwd=ROOT, capture_output=True, text=True,
-                          timeout=60)
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stderr == ""  # never a diagnostic or a traceback
-    return [line for line in proc.stdout.splitlines() if line]  # no candidate: one empty line
+    env = {"_HFSMC_COMPLETE": "bash_complete", "COMP_WORDS": line, "COMP_CWORD": str(cword)}
+    result = CliRunner().invoke(main, [], prog_name="hfsmc", env=env)
+    assert result.exit_code == 0, result.output
+    assert result.stderr == ""  # never a diagnostic or a traceback
+    return [line for line in result.stdout.splitlines() if line]  # none: one empty line
 
 
 def test_diagram_state_completes_the_composite_states_of_the_model() -> None:
