@@ -788,6 +788,20 @@ def test_nested_layout_both_directions(tmp_path: Path, rankdir: str) -> None:
     check_layout(source)
 
 
+def test_a_chain_of_clusters_stays_in_line() -> None:
+    """Top to bottom, follow_colors' four following stages (pairs of states in
+    a row) sit one under the other, not in a staircase."""
+    model = compile_model(ROOT / "examples/follow_colors/follow_colors.yaml")
+    graph = layout(dot.to_dot(model, "Mission"))
+    assert graph["rankdir"] == "TB"
+    boxes = [as_box(o["bb"]) for o in graph["objects"] if o["name"].startswith("cluster_")]
+    assert len(boxes) == 4
+    for a, b in zip(boxes, boxes[1:], strict=False):
+        shared = min(a[2], b[2]) - max(a[0], b[0])
+        assert shared >= 0.8 * min(a[2] - a[0], b[2] - b[0]), (a, b)
+        assert b[3] < a[1]  # below
+
+
 def test_rankdir_option(tmp_path: Path) -> None:
     path = write_model(tmp_path, NESTED)
     for given, want in (("tb", "TB"), ("LR", "LR"), ("auto", "LR")):

@@ -272,13 +272,17 @@ class _Drawing:
                     id=s.path,
                 )
                 self.automaton(c, s.automaton, level + 1, (*clusters, cluster))
-        row = level > 1 and len(auto.states) <= ROW_MAX and not any(
-            s.path in self.expanded for s in auto.states)
+        row = level > 1 and self.is_row(auto)
         if row:
             self.row(g, [_node_id(s) for s in auto.states])
         for s in auto.states:
             for t in s.transitions:
                 self.transition(g, s, t, auto, clusters, in_row=row)
+
+    def is_row(self, auto: Automaton) -> bool:
+        """Whether a (nested) sub-automaton is a row: a pair of simple states."""
+        return len(auto.states) <= ROW_MAX and not any(s.path in self.expanded
+                                                       for s in auto.states)
 
     def row(self, g: graphviz.Digraph, ids: list[str]) -> None:
         """A small sub-automaton of simple states on one rank, when drawn top
@@ -364,9 +368,13 @@ class _Drawing:
 
         With ``newrank`` an edge's tail node sets the rank of its head;
         leaving from the child farthest (in transitions) from the initial one
-        puts the target after the whole cluster, not beside it.
+        puts the target after the whole cluster, not beside it.  A row is on
+        one rank: arrows leave where they come in, from the initial state, so
+        that clusters in a chain stay in line instead of stepping sideways.
         """
         while s.automaton is not None and s.path in self.expanded:
+            if self.rows and self.is_row(s.automaton):
+                return self.entry_anchor(s)
             s = _farthest(s.automaton)
         return s
 
