@@ -455,7 +455,7 @@ def test_threads_block_sigint_and_sigterm(program: Path, run: Callable[..., Run]
 
 
 # -- the display -------------------------------------------------------------------------
-@pytest.mark.parametrize("focus", [None, "Blinking", "/Blinking/", "Paused"])
+@pytest.mark.parametrize("focus", [None, "Blinking", "/Blinking/"])
 def test_display_plain_lines_are_the_python_ones(build: tuple[Path, dict[str, str]], run: Callable[..., Run],
                                                  focus: str | None) -> None:
     exe, env = build
@@ -484,9 +484,9 @@ def test_display_plain_lines_reach_a_closed_pipe_without_harm(program: Path, run
 class Terminal:
     """A pseudo-terminal that the program gets as its controlling terminal (setsid --ctty)."""
 
-    def __init__(self) -> None:
+    def __init__(self, rows: int = 40, cols: int = 120) -> None:
         self.master, self.slave = pty.openpty()
-        fcntl.ioctl(self.slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
+        fcntl.ioctl(self.slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, cols, 0, 0))
         self.out = b""
 
     def read_until(self, pattern: bytes, timeout: float = 15) -> None:
@@ -530,3 +530,55 @@ def test_display_on_a_terminal(build: tuple[Path, dict[str, str]], run: Callable
         assert re.search(rb"\x1b\[J(component: [a-z ]+\r\n)*component: past the gate\r\n", tty.out)
     finally:
         tty.close()
+
+
+def test_display_fits_80x24_and_says_when_keys_are_not_read(program: Path,
+                                                             run: Callable[..., Run]) -> None:
+    """30 log lines and 8 transitions on an 80x24 terminal: every frame is at most 23
+    lines of at most 80 columns; stdin is not the terminal, and the panel says so."""
+    tty = Terminal(24, 80)
+    try:
+        r = run(program, "--display", "--burst", "30", stdin=subprocess.DEVNULL,
+                stdout=tty.slave, stderr=tty.slave)
+        tty.read_until(b"no keys: stdin is not a terminal")
+        r.release()
+        tty.read_until(b"closed in")
+        assert r.proc.wait(timeout=15) == 0
+        frames = [f for f in tty.out.split(b"\x1b[J")[1:] if b"autofocus" in f]
+        assert frames
+        for frame in frames:
+            text = re.sub(rb"\x1b\[[0-9;]*[A-Za-z]", b"", frame).decode()
+            lines = [ln for ln in text.split("\r\n") if not ln.startswith(("component:", "[", "observers"))]
+            assert len([ln for ln in lines if ln]) <= 23, text
+            assert all(len(ln) <= 80 for ln in lines), text
+        # Sections are cut, not the frame: the newest log line and the variables show.
+        final = re.sub(rb"\x1b\[[0-9;]*[A-Za-z]", b"", frames[-1]).decode()
+        assert "on_shutdown stopped after 2 blinks" in final and "pauses 1" in final, final
+        assert "\u2026" not in final, final
+    finally:
+        tty.close()
+
+
+READABLE = ["0.30000000000000004", "[1.2345678, 'x1.2345678', -2.0000000000000004]",
+            "np.float64(0.1234567891)", "1.23456789e-07", "12345678.9", "123456789", "x1.23456789",
+            "{'a': 3.14159265358979, \"b\": \"it's 2.718281828\"}", "(0.1+0.2j)", "3.0", "1e+20",
+            "100000000000000000000.0", "-0.000123456789", "v_2.5555555", "é1.23456789", "1.5e300",
+            "[nan, inf, -inf]", "0.1234565", "2.5000005", "'unterminated 1.23456789"]
+
+
+def test_readable_values_and_panel_fit_are_the_python_ones(program: Path) -> None:
+    r = subprocess.run([str(program), "--readable"], input="\n".join(READABLE) + "\n",
+                       capture_output=True, text=True, timeout=30, check=False)
+    assert r.returncode == 0, r.stderr
+    hfsmc_viewstate = importlib.import_module("hfsmc.templates.python.hfsmc_viewstate")
+    assert r.stdout.splitlines() == [hfsmc_viewstate.readable(v) for v in READABLE]
+    assert hfsmc_viewstate.readable("0.30000000000000004") == "0.3"
+    cases = [(free, t, lg, v) for free in (-3, 0, 3, 7, 12, 40) for t in (0, 1, 8)
+             for lg in (0, 2, 8) for v in (0, 1, 5)]
+    r = subprocess.run([str(program), "--fit"], input="".join(f"{c[0]} {c[1]} {c[2]} {c[3]}\n"
+                                                             for c in cases),
+                       capture_output=True, text=True, timeout=30, check=False)
+    want = [hfsmc_view.fit(free, {"transitions": t, "logs": lg, "variables": v})
+            for free, t, lg, v in cases]
+    assert r.stdout.splitlines() == [f"{w['transitions']} {w['logs']} {w['variables']}"
+                                     for w in want]

@@ -349,6 +349,57 @@ def test_narrow_terminals_stack_the_panel_under_the_tree() -> None:
     assert panel_row > tree_row
 
 
+def busy() -> ViewState:
+    """A long run: every transition and log line the view keeps, and long values."""
+    v = fed(upto(500))
+    for k in range(40):
+        v.apply_record({"t": 600 + k, "ev": "log", "state": "Blinking/Dark", "msg": f"line {k}"})
+        v.apply_record({"t": 600 + k, "ev": "fire", "from": "Blinking/Dark", "to": "Blinking/Lit",
+                        "index": 0})
+    v.apply_sample(700, {"led": "0.30000000000000004", "count": "[1.2345678, 'x1.2345678']",
+                         "pauses": "x" * 200}, 0)
+    return v
+
+
+@pytest.mark.parametrize("width", [80, 120])
+def test_the_screen_fits_an_80x24_terminal(width: int) -> None:
+    """23 lines at most (the last one is the cursor's), each within the width; the
+    history is shortened, and the newest log line, variables and transition stay."""
+    lines = screen(busy(), width=width, height=24).splitlines()
+    assert len(lines) <= 23, "\n".join(lines)
+    assert all(len(line) <= width for line in lines), "\n".join(lines)
+    text = "\n".join(lines)
+    assert "line 39" in text and "line 32" not in text  # the newest of the 8 kept
+    assert re.search(r"0\.639  Blinking/Dark -> Blinking/Lit", text)
+    assert re.search(r"led\s+0\.3\s", text) and re.search(r"pauses\s+xxx", text)
+
+
+def test_floats_are_shown_readable_but_kept_whole() -> None:
+    v = busy()
+    text = screen(v)
+    assert re.search(r"led\s+0\.3\s", text) and "0.30000000000000004" not in text
+    assert "[1.23457, 'x1.2345678']" in text
+    assert v.values["led"] == "0.30000000000000004"  # what the monitor serves
+    assert hfsmc_view.readable("-2.0000000000000004e-05") == "-2e-05"
+    assert hfsmc_view.readable("v2.5555555 (1.5, 7)") == "v2.5555555 (1.5, 7)"
+
+
+def test_the_autofocus_line_says_when_keys_are_not_read() -> None:
+    assert "on (a: off)" in screen(fed(upto(500)))
+    assert "on (no keys: in the background)" in screen(fed(upto(500)), keys="in the background")
+    assert "off (no keys: stdin is not a terminal)" in screen(
+        fed(upto(500)), autofocus=False, keys="stdin is not a terminal")
+
+
+def test_keys_are_not_read_from_a_stdin_that_is_not_a_terminal(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(sys, "stdin", io.StringIO(""))
+    keys = hfsmc_view._Keys(lambda item: None)
+    keys.start()
+    assert keys.why == "stdin is not a terminal"
+    keys.stop()
+
+
 # -- replay ----------------------------------------------------------------------------------
 @pytest.fixture
 def trace_file(tmp_path: Path) -> Path:

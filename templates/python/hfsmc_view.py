@@ -49,6 +49,7 @@ if __package__:
         check_record,
         clean,
         infer_structure,
+        readable,
     )
 else:  # copied beside the generated component, where the modules are top level
     from hfsmc_viewstate import (  # type: ignore[import-not-found, no-redef]
@@ -60,10 +61,11 @@ else:  # copied beside the generated component, where the modules are top level
         check_record,
         clean,
         infer_structure,
+        readable,
     )
 
 __all__ = ["EVENTS", "RECENT", "Display", "Item", "PlainLines", "ViewState", "check_record",
-           "clean", "infer_structure", "render", "run_viewer"]
+           "clean", "fit", "infer_structure", "readable", "render", "run_viewer"]
 
 REFRESH_S = 0.25  # the live view redraws at 4 Hz
 
@@ -99,6 +101,7 @@ def _label(view: ViewState, path: str, collapsed: int) -> Text:
                      style="dim")
     if collapsed:
         label.append(f"  ▸ {collapsed} states", style="dim")
+    label.no_wrap, label.overflow = True, "ellipsis"  # one line per state, whatever the width
     return label
 
 
@@ -119,31 +122,88 @@ def _status(view: ViewState) -> Text:
     return text
 
 
-def _tree(view: ViewState, focus: str, autofocus: bool) -> RenderableType:
+def _tree(view: ViewState, focus: str, autofocus: bool, max_rows: int = 1 << 30
+          ) -> tuple[RenderableType, int]:
+    """The tree of states, and its height: at most ``max_rows`` lines (then `…`)."""
     from rich.text import Text
     from rich.tree import Tree
 
     if focus and focus not in view.children:
         tree = Tree(Text(clean(view.name or "?"), style="bold"))
         tree.add(Text(f"no state {clean(focus)}", style="yellow"))
-        return tree
+        return tree, 2
     title = _label(view, focus, 0) if focus else Text(clean(view.name or "?"), style="bold")
     if not focus and "" in view.periods:
         title.append(f"  {view.periods['']} ms", style="dim")
     tree = Tree(title, guide_style="dim")
-    stack: list[tuple[Tree, str]] = [(tree, focus)]
-    while stack:
-        node, path = stack.pop()
+    shown = _walk(view, focus, autofocus)
+    cut = len(shown) + 1 > max(max_rows, 2)
+    if cut:
+        shown = shown[:max(max_rows, 2) - 2]
+    nodes: dict[str, Tree] = {focus: tree}
+    for parent, child, expand in shown:
+        grand = view.children[child]
+        nodes[child] = nodes[parent].add(_label(view, child, 0 if expand else len(grand)))
+    if cut:
+        tree.add(Text("…", style="dim"))
+    return tree, len(shown) + 1 + cut
+
+
+def fit(free: int, want: dict[str, int]) -> dict[str, int]:
+    """How many lines of each panel section (``transitions``, ``logs``, ``variables``: the
+    items it has) fit in ``free`` lines, a heading each: the longer history is cut first,
+    down to one line each, then the variables, then whole sections."""
+    keep = dict(want)
+
+    def total() -> int:
+        return sum(k + 1 for k in keep.values() if k)
+
+    while total() > free:
+        history = [s for s in ("transitions", "logs") if keep[s] > 1]
+        if history:
+            keep[max(history, key=lambda s: keep[s])] -= 1
+        elif keep["variables"] > 1:
+            keep["variables"] -= 1
+        else:
+            dropped = next((s for s in ("logs", "transitions", "variables") if keep[s]), None)
+            if dropped is None:
+                break
+            keep[dropped] = 0
+    return keep
+
+
+def _autofocus(autofocus: bool, keys: str | None) -> str:
+    """The autofocus line: the key hint only when keys are read (``keys``: why not)."""
+    state = "on" if autofocus else "off"
+    return f"{state} (a: {'off' if autofocus else 'on'})" if keys is None else \
+        f"{state} (no keys: {keys})"
+
+
+def _one_line(text: str, style: str = "") -> Text:
+    from rich.text import Text
+
+    return Text(text, style=style, no_wrap=True, overflow="ellipsis")
+
+
+def _walk(view: ViewState, focus: str, autofocus: bool) -> list[tuple[str, str, bool]]:
+    """The states the tree shows, depth first in model order: (parent, path, expanded)."""
+    out: list[tuple[str, str, bool]] = []
+
+    def visit(path: str) -> None:
         for child in view.children[path]:
             grand = view.children[child]
             expand = bool(grand) and (not autofocus or _lit(view, child) or not view.started)
-            sub = node.add(_label(view, child, 0 if expand else len(grand)))
+            out.append((path, child, expand))
             if expand:
-                stack.append((sub, child))
-    return tree
+                visit(child)
+
+    visit(focus)
+    return out
 
 
-def _panel(view: ViewState, autofocus: bool) -> RenderableType:
+def _panel(view: ViewState, autofocus: bool, free: int = 1 << 30, keys: str | None = None
+           ) -> RenderableType:
+    """The side panel in at most ``free`` lines (its frame included)."""
     from rich.console import Group
     from rich.panel import Panel
     from rich.table import Table
@@ -158,42 +218,62 @@ def _panel(view: ViewState, autofocus: bool) -> RenderableType:
         i = view.interrupt
         facts.add_row("interrupt", f"{clean(i['reason'])} at {i['t'] / 1000:.3f} s -> {clean(i['to'])}")
     facts.add_row("overruns", Text(str(view.overruns), style="bold red" if view.overruns else ""))
-    facts.add_row("autofocus", "on (a: off)" if autofocus else "off (a: on)")
+    facts.add_row("autofocus", _autofocus(autofocus, keys))
+    names = view.variable_names + sorted(set(view.values) - set(view.variable_names))
+    keep = fit(free - 2 - facts.row_count, {"transitions": len(view.transitions),
+                                             "logs": len(view.logs), "variables": len(names)})
     parts: list[RenderableType] = [facts]
-    if view.transitions:
+    if keep["transitions"]:
         rows = Table.grid(padding=(0, 1))
-        for tr in reversed(view.transitions):
-            line = Text(f"{tr['t'] / 1000:8.3f}  {clean(tr['from'])} -> {clean(tr['to'])}")
+        for tr in list(reversed(view.transitions))[:keep["transitions"]]:
+            line = _one_line(f"{tr['t'] / 1000:8.3f}  {clean(tr['from'])} -> {clean(tr['to'])}")
             if tr.get("name"):
                 line.append(f"  {clean(tr['name'])}", style="cyan")
             rows.add_row(line)
         parts += [Text("recent transitions", style="bold"), rows]
-    names = view.variable_names + sorted(set(view.values) - set(view.variable_names))
-    if view.values:
+    if keep["variables"]:
         rows = Table.grid(padding=(0, 1))
-        for n in names:
-            rows.add_row(Text(clean(n), style="magenta"), Text(clean(view.values.get(n, "?"))))
+        rows.add_column(no_wrap=True, min_width=max(len(clean(n)) for n in names))
+        rows.add_column(no_wrap=True, overflow="ellipsis")
+        shown = names if keep["variables"] == len(names) else names[:keep["variables"] - 1]
+        for n in shown:
+            rows.add_row(_one_line(clean(n), "magenta"),
+                         _one_line(clean(readable(view.values.get(n, "?")))))
+        if len(shown) < len(names):
+            rows.add_row(_one_line(f"… {len(names) - len(shown)} more", "dim"))
         parts += [Text("variables", style="bold"), rows]
-    if view.logs:
+    if keep["logs"]:
         rows = Table.grid(padding=(0, 1))
-        for lg in view.logs:
+        rows.add_column(no_wrap=True, min_width=8)
+        rows.add_column(no_wrap=True, min_width=min(max(len(clean(lg["state"]) or "on_shutdown")
+                                                        for lg in view.logs), 30))
+        rows.add_column(no_wrap=True, overflow="ellipsis")
+        for lg in list(view.logs)[-keep["logs"]:]:
             where = clean(lg["state"]) or "on_shutdown"
-            msg = (Text(f"error in {clean(lg['error'])}", style="red") if "error" in lg
-                   else Text(clean(lg["msg"])))
+            msg = (_one_line(f"error in {clean(lg['error'])}", "red") if "error" in lg
+                   else _one_line(clean(lg["msg"])))
             rows.add_row(Text(f"{lg['t'] / 1000:8.3f}"), Text(where, style="dim"), msg)
         parts += [Text("log", style="bold"), rows]
     return Panel(Group(*parts), title=clean(view.name or "hfsmc"), title_align="left", expand=False)
 
 
 def render(view: ViewState, focus: str | None = None, autofocus: bool = True,
-           width: int = 120) -> RenderableType:
-    """The view as rich renderables: the tree, and the panel beside (or below) it."""
+           width: int = 120, height: int | None = None, keys: str | None = None
+           ) -> RenderableType:
+    """The view as rich renderables: the tree, and the panel beside (or below) it, in
+    ``height - 1`` lines at most when a height is given (the last line stays free for
+    the cursor). ``keys``: why keys are not read, if they are not (the autofocus line)."""
     from rich.console import Group
     from rich.table import Table
 
-    tree, panel = _tree(view, (focus or "").strip("/"), autofocus), _panel(view, autofocus)
+    rows = (height - 1) if height else 1 << 30
+    focus = (focus or "").strip("/")
+    facts = 5 + (view.interrupt is not None)  # the panel's frame and fact lines, at least
     if width < 100:
-        return Group(tree, panel)
+        tree, used = _tree(view, focus, autofocus, max(rows - facts - 2, 2))
+        return Group(tree, _panel(view, autofocus, rows - used, keys))
+    tree, _ = _tree(view, focus, autofocus, rows)
+    panel = _panel(view, autofocus, rows, keys)
     grid = Table.grid(padding=(0, 3))
     grid.add_column(min_width=30)
     grid.add_column()
@@ -226,6 +306,7 @@ class _Keys:
 
     def __init__(self, put: Callable[[Item], None]) -> None:
         self._put = put
+        self.why: str | None = "not started"  # why keys are not read (None: they are)
         self._old: list[Any] | None = None
         self._fd = -1
         self._stop = threading.Event()
@@ -237,13 +318,19 @@ class _Keys:
             import tty
 
             fd = sys.stdin.fileno()
-            if not os.isatty(fd) or os.tcgetpgrp(fd) != os.getpgrp():
+            if not os.isatty(fd):
+                self.why = "stdin is not a terminal"
+                return
+            if os.tcgetpgrp(fd) != os.getpgrp():
+                self.why = "in the background"
                 return
             self._fd, self._old = fd, termios.tcgetattr(fd)
             tty.setcbreak(fd, termios.TCSANOW)
         except (ImportError, OSError, ValueError, AttributeError):
             self._old = None
+            self.why = "stdin is not a terminal"
             return
+        self.why = None
         atexit.register(self.stop)
         self._thread = threading.Thread(target=self._run, name="hfsmc-keys", daemon=True)
         self._thread.start()
@@ -251,25 +338,43 @@ class _Keys:
     def _run(self) -> None:
         try:
             while not self._stop.is_set():
+                # In the background (Ctrl-Z, bg) reading would stop the process: the keys
+                # wait, and the panel says so, until the job is in the foreground again.
+                foreground = os.tcgetpgrp(self._fd) == os.getpgrp()
+                self._say(None if foreground else "in the background")
+                if not foreground:
+                    self._stop.wait(0.1)
+                    continue
                 ready, _, _ = select.select([self._fd], [], [], 0.1)
-                if ready:
+                if ready and os.tcgetpgrp(self._fd) == os.getpgrp():
                     data = os.read(self._fd, 64)
                     if not data:
+                        self._say("stdin closed")
                         return
                     for ch in data.decode("utf-8", "replace"):
                         self._put(("key", ch))
         except (OSError, ValueError):
-            return
+            self._say("stdin closed")
+
+    def _say(self, why: str | None) -> None:
+        if why != self.why:
+            self.why = why
+            self._put(("keys", why))  # the panel says so at the next frame
 
     def stop(self) -> None:
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(0.2)
         if self._old is not None:
+            import signal
             import termios
 
+            # Sent to the background meanwhile: tcsetattr would stop the process on
+            # SIGTTOU unless the signal is blocked (POSIX lets the call through then).
+            blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTTOU})
             with contextlib.suppress(OSError, termios.error):
                 termios.tcsetattr(self._fd, termios.TCSADRAIN, self._old)
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
             self._old = None
         atexit.unregister(self.stop)
 
@@ -311,6 +416,7 @@ class _Screen:
         self.focus, self.autofocus, self.stream = focus, autofocus, stream
         self.live, self.quit_key = live, quit_key
         self.plain = PlainLines(focus)
+        self.keys: str | None = "stdin is not a terminal"  # why keys are not read, if not
 
     def run(self, q: queue.SimpleQueue[Item]) -> tuple[int, str | None]:
         """(exit status, closing message) once the source ends or the user quits."""
@@ -358,6 +464,8 @@ class _Screen:
                     result = (0 if kind == "end" else 1), payload
                 elif kind == "text":
                     console.print(Text.from_ansi(payload), soft_wrap=True)
+                elif kind == "keys":
+                    self.keys, due = payload, 0.0
                 elif kind == "key":
                     if payload in ("a", "A"):
                         self.autofocus, due = not self.autofocus, 0.0
@@ -367,8 +475,8 @@ class _Screen:
                     with contextlib.suppress(Exception):  # malformed data: skipped
                         self.view.apply(kind, payload)
                 if result is not None or time.monotonic() >= due:
-                    live.update(render(self.view, self.focus, self.autofocus, console.width),
-                                refresh=True)
+                    live.update(render(self.view, self.focus, self.autofocus, console.width,
+                                       console.height, self.keys), refresh=True)
                     due = time.monotonic() + REFRESH_S
         return result
 
@@ -400,6 +508,7 @@ class Display:
         if live:
             self._keys = _Keys(self._q.put)
             self._keys.start()
+            screen.keys = self._keys.why
             # Lines the component prints (logs, errors) would tear the live tree apart:
             # they are printed above it instead.
             for name in ("stdout", "stderr"):
@@ -475,9 +584,11 @@ def run_viewer(source: Iterable[Item], focus: str | None = None, autofocus: bool
     threading.Thread(target=pump, name="hfsmc-view-source", daemon=True).start()
     status, message = 130, None
     try:
+        screen = _Screen(focus, autofocus, out, live, quit_key=True)
         if keys is not None:
             keys.start()
-        status, message = _Screen(focus, autofocus, out, live, quit_key=True).run(q)
+            screen.keys = keys.why
+        status, message = screen.run(q)
     except KeyboardInterrupt:
         pass
     finally:

@@ -26,6 +26,70 @@ def clean(text: object) -> str:
     return str(text).translate(_CONTROL)
 
 
+SIGNIFICANT = 6  # digits of a float the live view shows (the monitor keeps every digit)
+
+
+def readable(value: str) -> str:
+    """A value's repr with each long float cut to SIGNIFICANT digits, for the live view:
+    ``0.30000000000000004`` reads ``0.3``, ``[1.2345678, 'x1.2345678']`` reads
+    ``[1.23457, 'x1.2345678']`` (quoted text and names are left alone). The C++
+    view (viewstate.hpp) does the same, character for character."""
+    out: list[str] = []
+    k, n = 0, len(value)
+    while k < n:
+        ch = value[k]
+        if ch in "'\"":  # a quoted string, as repr writes it (backslash escapes)
+            j = k + 1
+            while j < n and value[j] != ch:
+                j += 2 if value[j] == "\\" else 1
+            out.append(value[k:j + 1])
+            k = j + 1
+        elif ch in _DIGITS and not (k and (_word(value[k - 1]) or value[k - 1] == ".")):
+            j = k
+            while j < n and value[j] in _DIGITS:
+                j += 1
+            if j + 1 < n and value[j] == "." and value[j + 1] in _DIGITS:
+                j += 1
+                while j < n and value[j] in _DIGITS:
+                    j += 1
+            if j < n and value[j] in "eE":
+                e = j + 1 + (j + 1 < n and value[j + 1] in "+-")
+                if e < n and value[e] in _DIGITS:
+                    j = e
+                    while j < n and value[j] in _DIGITS:
+                        j += 1
+            out.append(_short_float(value[k:j]))
+            k = j
+        elif _word(ch):  # a name (which may hold digits): as it is
+            j = k
+            while j < n and _word(value[j]):
+                j += 1
+            out.append(value[k:j])
+            k = j
+        else:
+            out.append(ch)
+            k += 1
+    return "".join(out)
+
+
+_DIGITS = "0123456789"
+
+
+def _word(ch: str) -> bool:
+    """A character of a name: ASCII letters, digits, `_`, and anything beyond ASCII."""
+    return not ch.isascii() or ch.isalnum() or ch == "_"
+
+
+def _short_float(token: str) -> str:
+    if "." not in token and "e" not in token.lower():
+        return token  # an integer: every digit counts
+    mantissa = token.lower().partition("e")[0].replace(".", "").lstrip("0")
+    if len(mantissa) <= SIGNIFICANT:
+        return token
+    text = f"{float(token):.{SIGNIFICANT}g}"
+    return text if any(c in text for c in ".einf") else text + ".0"
+
+
 def check_record(rec: object) -> str | None:
     """Why ``rec`` is not a trace record (SPEC 3.7), or None when it is one."""
     if not isinstance(rec, dict):

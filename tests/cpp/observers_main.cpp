@@ -4,6 +4,8 @@
 //   observers_main [--monitor ADDR] [--display] [--focus PATH] [--no-autofocus]
 //                  [--calls FILE] [--gate FILE] [--gate-at N] [--burst N] [--pause-ms N] [--masks]
 //   observers_main --parse ADDR      prints HOST PORT, or the error and exits 2
+//   observers_main --readable        prints hfsmc::readable of each line of stdin
+//   observers_main --fit             prints view_detail::fit's T L V for each FREE T L V of stdin
 //
 // --calls writes every observer call as a JSON line ({"record": ...} / {"sample": ...});
 // --gate waits (up to 20 s) for FILE to exist after the first N calls (--gate-at, 9 by
@@ -14,6 +16,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
@@ -146,7 +149,19 @@ int main(int argc, char** argv) {
                 if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
                 return argv[++i];
             };
-            if (a == "--parse") {
+            if (a == "--readable") {
+                std::string line;
+                while (std::getline(std::cin, line)) std::printf("%s\n", hfsmc::readable(line).c_str());
+                return 0;
+            } else if (a == "--fit") {
+                long long free;
+                std::size_t t, l, v;
+                while (std::cin >> free >> t >> l >> v) {
+                    const auto k = hfsmc::view_detail::fit(free, {t, l, v});
+                    std::printf("%zu %zu %zu\n", k.transitions, k.logs, k.variables);
+                }
+                return 0;
+            } else if (a == "--parse") {
                 auto [host, port] = hfsmc::parse_monitor_address(value());
                 std::printf("%s %d\n", host.c_str(), port);
                 return 0;

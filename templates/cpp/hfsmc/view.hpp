@@ -11,6 +11,8 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <pthread.h>
+#include <signal.h>
 #include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
@@ -42,7 +44,47 @@ namespace view_detail {
 inline std::atomic<bool> keys_taken{false};
 inline termios saved_termios{};
 inline void give_keys_back() {
-    if (keys_taken.exchange(false)) tcsetattr(0, TCSADRAIN, &saved_termios);
+    if (!keys_taken.exchange(false)) return;
+    // Sent to the background meanwhile: tcsetattr would stop the process on SIGTTOU
+    // unless the signal is blocked (POSIX lets the call through then).
+    sigset_t ttou, old;
+    sigemptyset(&ttou);
+    sigaddset(&ttou, SIGTTOU);
+    pthread_sigmask(SIG_BLOCK, &ttou, &old);
+    tcsetattr(0, TCSADRAIN, &saved_termios);
+    pthread_sigmask(SIG_SETMASK, &old, nullptr);
+}
+
+// How many lines of each panel section (transitions, logs, variables: the items it
+// has) fit in `free` lines, a heading each: the longer history is cut first, down to
+// one line each, then the variables, then whole sections. As hfsmc_view.fit.
+struct Fit {
+    std::size_t transitions, logs, variables;
+};
+inline Fit fit(long long free, Fit want) {
+    Fit k = want;
+    const auto total = [&]() {
+        long long t = 0;
+        for (std::size_t n : {k.transitions, k.logs, k.variables}) t += n ? static_cast<long long>(n) + 1 : 0;
+        return t;
+    };
+    while (total() > free) {
+        if (k.transitions > 1 || k.logs > 1) {
+            if (k.transitions > 1 && (k.transitions >= k.logs || k.logs <= 1)) --k.transitions;
+            else --k.logs;
+        } else if (k.variables > 1) {
+            --k.variables;
+        } else if (k.logs) {
+            k.logs = 0;
+        } else if (k.transitions) {
+            k.transitions = 0;
+        } else if (k.variables) {
+            k.variables = 0;
+        } else {
+            break;
+        }
+    }
+    return k;
 }
 
 inline bool write_all(int fd, std::string_view s) {
@@ -96,15 +138,19 @@ inline std::string seconds(long long t_ms, int width) {
 // variables and log lines. As hfsmc_view.render, without the frames.
 class Screen {
 public:
-    Screen(const ViewState& v, const std::string& focus, bool autofocus, int cols)
-        : v_(v), focus_(focus), autofocus_(autofocus), cols_(cols) {}
+    // `rows`: the lines the frame may take; `no_keys`: why keys are not read ("" when they are).
+    Screen(const ViewState& v, const std::string& focus, bool autofocus, int cols, int rows = 1 << 30,
+           std::string no_keys = "")
+        : v_(v), focus_(focus), autofocus_(autofocus), cols_(cols), rows_(rows), no_keys_(std::move(no_keys)) {}
 
     std::vector<Line> draw() {
         bool wide = cols_ >= 100;
-        std::vector<Line> tree = this->tree(wide ? cols_ / 2 : cols_);
+        const int facts = 5 + (v_.interrupt ? 1 : 0);  // the panel's title and fact lines
+        std::vector<Line> tree = this->tree(wide ? cols_ / 2 : cols_, wide ? rows_ : rows_ - facts - 1);
         int left = 30;
         for (const auto& l : tree) left = std::max(left, l.w);
-        std::vector<Line> side = panel(wide ? cols_ - left - 3 : cols_);
+        const int free = wide ? rows_ : rows_ - static_cast<int>(tree.size()) - 1;
+        std::vector<Line> side = panel(wide ? cols_ - left - 3 : cols_, free - facts);
         if (!wide) {
             tree.push_back(Line(cols_));
             tree.insert(tree.end(), side.begin(), side.end());
@@ -124,7 +170,8 @@ private:
     const ViewState& v_;
     std::string focus_;
     bool autofocus_;
-    int cols_;
+    int cols_, rows_;
+    std::string no_keys_;
 
     bool lit(const std::string& p) const {
         return v_.active.find(p) || (v_.stop_reason && v_.stopped_in.find(p));
@@ -148,7 +195,7 @@ private:
         if (collapsed) l.add("  \u25b8 " + std::to_string(collapsed) + " states", "2");
     }
 
-    std::vector<Line> tree(int width) const {
+    std::vector<Line> tree(int width, int max_rows) const {
         std::vector<Line> out;
         out.emplace_back(width);
         if (!focus_.empty() && !v_.children.count(focus_)) {
@@ -165,6 +212,12 @@ private:
             if (root != v_.periods.end()) out.back().add("  " + std::to_string(root->second) + " ms", "2");
         }
         branch(out, focus_, "", width);
+        const std::size_t limit = static_cast<std::size_t>(std::max(max_rows, 2));
+        if (out.size() > limit) {  // the states that do not fit: one `…` under the title
+            out.resize(limit - 1, Line(width));
+            out.emplace_back(width);
+            out.back().add("\u2514\u2500\u2500 ", "2").add("\u2026", "2");
+        }
         return out;
     }
 
@@ -182,7 +235,7 @@ private:
         }
     }
 
-    std::vector<Line> panel(int width) const {
+    std::vector<Line> panel(int width, int free) const {
         std::vector<Line> out;
         auto fact = [&](const char* key) -> Line& {
             out.emplace_back(width);
@@ -202,27 +255,38 @@ private:
                                   " s -> " + clean(v_.interrupt->to));
         }
         fact("overruns").add(std::to_string(v_.overruns), v_.overruns ? "1;31" : nullptr);
-        fact("autofocus").add(autofocus_ ? "on (a: off)" : "off (a: on)");
-        if (!v_.transitions.empty()) {
+        fact("autofocus").add(std::string(autofocus_ ? "on" : "off") +
+                              (no_keys_.empty() ? (autofocus_ ? " (a: off)" : " (a: on)") : " (no keys: " + no_keys_ + ")"));
+        const Fit keep = fit(free, {v_.transitions.size(), v_.logs.size(), v_.values.items.size()});
+        if (keep.transitions) {
             heading("recent transitions");
-            for (auto it = v_.transitions.rbegin(); it != v_.transitions.rend(); ++it) {
+            std::size_t shown = 0;
+            for (auto it = v_.transitions.rbegin(); it != v_.transitions.rend() && shown++ < keep.transitions; ++it) {
                 out.emplace_back(width);
                 out.back().add(seconds(it->t, 8) + "  " + clean(it->from) + " -> " + clean(it->to));
                 if (it->name) out.back().add("  " + clean(*it->name), "36");
             }
         }
-        if (!v_.values.empty()) {
+        if (keep.variables) {
             heading("variables");
+            const std::size_t n = v_.values.items.size();
+            const std::size_t shown = keep.variables == n ? n : keep.variables - 1;
             int w = 0;
             for (const auto& kv : v_.values.items) w = std::max(w, Line(1 << 20).add(clean(kv.first)).w);
-            for (const auto& kv : v_.values.items) {
+            for (std::size_t i = 0; i < shown; ++i) {
+                const auto& kv = v_.values.items[i];
                 out.emplace_back(width);
-                out.back().add(clean(kv.first), "35").pad(w + 1).add(clean(kv.second));
+                out.back().add(clean(kv.first), "35").pad(w + 1).add(clean(readable(kv.second)));
+            }
+            if (shown < n) {
+                out.emplace_back(width);
+                out.back().add("\u2026 " + std::to_string(n - shown) + " more", "2");
             }
         }
-        if (!v_.logs.empty()) {
+        if (keep.logs) {
             heading("log");
-            for (const auto& lg : v_.logs) {
+            for (std::size_t i = v_.logs.size() - keep.logs; i < v_.logs.size(); ++i) {
+                const auto& lg = v_.logs[i];
                 out.emplace_back(width);
                 out.back().add(seconds(lg.t, 8) + " ").add(lg.state.empty() ? "on_shutdown" : clean(lg.state), "2");
                 if (lg.error) out.back().add(" error in " + clean(lg.text), "31");
@@ -308,6 +372,7 @@ private:
         int captured_r = -1;  // the component's stdout / stderr, when they were the terminal
         int saved[3] = {-1, -1, -1};
         bool keys = false;
+        std::string no_keys = "stdin is not a terminal";  // why keys are not read ("" when they are)
         std::string text;  // captured output not shown yet
         int height = 0, cols = 0, rows = 0;  // of the last frame
 
@@ -364,7 +429,11 @@ private:
                 ::close(cap[1]);
             }
             termios t{};
-            if (::isatty(0) && ::tcgetpgrp(0) == ::getpgrp() && ::tcgetattr(0, &t) == 0) {
+            if (!::isatty(0)) {
+                no_keys = "stdin is not a terminal";
+            } else if (::tcgetpgrp(0) != ::getpgrp()) {
+                no_keys = "in the background";
+            } else if (::tcgetattr(0, &t) == 0) {
                 view_detail::saved_termios = t;
                 t.c_lflag &= static_cast<tcflag_t>(~(ECHO | ICANON));
                 t.c_cc[VMIN] = 1;
@@ -372,6 +441,7 @@ private:
                 view_detail::keys_taken = true;
                 keys = ::tcsetattr(0, TCSANOW, &t) == 0;
                 if (!keys) view_detail::keys_taken = false;
+                no_keys = keys ? "" : "stdin is not a terminal";
             }
         }
 
@@ -449,7 +519,14 @@ private:
             auto due = clock::now();
             bool dirty = true, end = false;
             while (!end) {
-                pollfd fds[3] = {{wake_r, POLLIN, 0}, {captured_r, POLLIN, 0}, {keys ? 0 : -1, POLLIN, 0}};
+                // In the background (Ctrl-Z, bg) reading would stop the process: the keys
+                // wait, and the panel says so, until the job is in the foreground again.
+                const bool foreground = keys && ::tcgetpgrp(0) == ::getpgrp();
+                if (keys && no_keys != (foreground ? "" : "in the background")) {
+                    no_keys = foreground ? "" : "in the background";
+                    dirty = true;
+                }
+                pollfd fds[3] = {{wake_r, POLLIN, 0}, {captured_r, POLLIN, 0}, {foreground ? 0 : -1, POLLIN, 0}};
                 auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(due - clock::now()).count();
                 ::poll(fds, 3, dirty ? static_cast<int>(std::max<long long>(wait, 0)) : REFRESH_MS);
                 if (fds[0].revents) {
@@ -458,16 +535,16 @@ private:
                     }
                 }
                 if ((fds[2].revents & POLLIN) && ::tcgetpgrp(0) != ::getpgrp()) {
-                    keys = false;  // sent to the background: reading would stop the process
+                    // sent to the background since the check: not read now, said at the next turn
                 } else if (fds[2].revents & POLLIN) {
                     char buf[64];
                     ssize_t n = ::read(0, buf, sizeof buf);
                     for (ssize_t i = 0; i < n; ++i) {
                         if (buf[i] == 'a' || buf[i] == 'A') autofocus = !autofocus, dirty = true, due = clock::now();
                     }
-                    if (n <= 0) keys = false;  // end of input: no more keys
+                    if (n <= 0) keys = false, no_keys = "stdin closed", dirty = true;  // end of input
                 } else if (fds[2].revents) {
-                    keys = false;
+                    keys = false, no_keys = "stdin closed", dirty = true;
                 }
                 dirty |= read_captured();
                 for (Item& item : take()) {
@@ -512,8 +589,9 @@ private:
                 if (o.back() != '\n') o += '\n';
                 text.erase(0, cut);
             }
+            // r - 1 lines: the last line of the terminal stays free for the cursor.
             std::vector<view_detail::Line> frame =
-                view_detail::Screen(view, focus, autofocus, std::max(c - 1, 20)).draw();
+                view_detail::Screen(view, focus, autofocus, std::max(c - 1, 20), std::max(r - 1, 2), no_keys).draw();
             std::size_t limit = static_cast<std::size_t>(std::max(r - 1, 1));
             if (frame.size() > limit) {
                 frame.erase(frame.begin() + static_cast<std::ptrdiff_t>(limit) - 1, frame.end());

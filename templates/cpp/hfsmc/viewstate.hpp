@@ -5,6 +5,8 @@
 #pragma once
 
 #include <algorithm>
+#include <cctype>
+#include <cstdlib>
 #include <cstdio>
 #include <deque>
 #include <map>
@@ -28,6 +30,69 @@ inline std::string clean(std::string text) {
         if (static_cast<unsigned char>(c) < 32 || c == 127) c = '?';
     }
     return text;
+}
+
+// A value's repr with each long float cut to 6 significant digits, for the live view
+// (the monitor keeps every digit): as hfsmc_viewstate.readable, character for character.
+inline std::string readable(const std::string& v) {
+    constexpr int significant = 6;
+    const auto digit = [&](std::size_t k) { return k < v.size() && v[k] >= '0' && v[k] <= '9'; };
+    const auto word = [&](std::size_t k) {
+        const unsigned char c = static_cast<unsigned char>(v[k]);
+        return std::isalnum(c) || c == '_' || c >= 0x80;  // Python's isalnum() is true for letters beyond ASCII
+    };
+    std::string out;
+    std::size_t k = 0;
+    const std::size_t n = v.size();
+    while (k < n) {
+        const char ch = v[k];
+        if (ch == '\'' || ch == '"') {
+            std::size_t j = k + 1;
+            while (j < n && v[j] != ch) j += v[j] == '\\' ? 2 : 1;
+            out.append(v, k, std::min(j + 1, n) - k);
+            k = j + 1;
+        } else if (digit(k) && !(k > 0 && (word(k - 1) || v[k - 1] == '.'))) {
+            std::size_t j = k;
+            while (digit(j)) ++j;
+            bool is_float = false;
+            if (j + 1 < n && v[j] == '.' && digit(j + 1)) {
+                is_float = true;
+                ++j;
+                while (digit(j)) ++j;
+            }
+            if (j < n && (v[j] == 'e' || v[j] == 'E')) {
+                std::size_t e = j + 1 + (j + 1 < n && (v[j + 1] == '+' || v[j + 1] == '-') ? 1 : 0);
+                if (digit(e)) {
+                    is_float = true;
+                    j = e;
+                    while (digit(j)) ++j;
+                }
+            }
+            const std::string token = v.substr(k, j - k);
+            std::string mantissa;
+            for (char c : token.substr(0, token.find_first_of("eE"))) {
+                if (c != '.' && !(mantissa.empty() && c == '0')) mantissa += c;
+            }
+            if (!is_float || mantissa.size() <= static_cast<std::size_t>(significant)) {
+                out += token;
+            } else {
+                char buf[64];
+                std::snprintf(buf, sizeof buf, "%.*g", significant, std::strtod(token.c_str(), nullptr));
+                out += buf;
+                if (std::string(buf).find_first_of(".einf") == std::string::npos) out += ".0";
+            }
+            k = j;
+        } else if (word(k)) {
+            std::size_t j = k;
+            while (j < n && word(j)) ++j;
+            out.append(v, k, j - k);
+            k = j;
+        } else {
+            out += ch;
+            ++k;
+        }
+    }
+    return out;
 }
 
 // `path` without leading and trailing slashes (a --focus as the user may write it).
