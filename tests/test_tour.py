@@ -195,6 +195,8 @@ def start_in_background(copy: Copy, command: str) -> None:
                                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=True)
     copy.background.append((command, proc, log))
+    if "--monitor" in command:  # a person types the next command slower than a test does
+        wait_for(log, re.compile(r"monitor: listening on"), proc, timeout=60)
     time.sleep(1.0)
     assert proc.poll() is None, f"`{command}` ended at once:\n{log.read_text(errors='replace')}"
 
