@@ -2,6 +2,10 @@
 // that do not depend on the automaton: flags, NAME.yaml (yaml-cpp), the trace file,
 // the live view and the monitor. Copied unchanged into every component folder; one
 // CMake project holding several components builds it once (target hfsmc_runtime).
+// Unlike the Python runtime, it checks no interface library at start: MAVLink is
+// compiled in, Eigen is header-only and OpenCV is found by CMake at build time; a
+// shared library removed after the build stops the program in the dynamic loader,
+// before main (docs/runtime.md, "Start-up").
 #include <getopt.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
@@ -147,7 +151,8 @@ public:
         std::set<std::string> known(names, names + n);
         std::vector<std::string> given;
         if (root_["parameters"] && root_["parameters"].IsMap())
-            for (const auto& kv : root_["parameters"]) given.push_back(kv.first.as<std::string>());
+            for (const auto& kv : root_["parameters"])
+                given.push_back(kv.first.IsScalar() ? kv.first.Scalar() : YAML::Dump(kv.first));
         for (const auto& kv : cli_) given.push_back(kv.first);
         for (const std::string& g : given) {
             if (known.count(g) == 0) {
