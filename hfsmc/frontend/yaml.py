@@ -18,9 +18,9 @@ from ruamel.yaml.scalarstring import (
     SingleQuotedScalarString,
 )
 
-from hfsmc.errors import Diagnostics, ParseError, Span, fail
+from hfsmc.errors import Diagnostic, Diagnostics, ParseError, Span, fail
 from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, YAML11_BOOLS, Document, PathKey, split_lines
-from hfsmc.frontend.yaml_traps import explain, may_have_properties, scan_properties
+from hfsmc.frontend.yaml_traps import PropertyScan, WatchedParser, explain, may_have_properties
 
 
 def _yaml() -> YAML:
@@ -38,30 +38,35 @@ def load_yaml(file: str, text: str, diags: Diagnostics) -> Document:
     """
     lines = split_lines(text)
     doc = Document(file, "yaml", lines)
+    y = _yaml()
+    scan: PropertyScan | None = None
+    if may_have_properties(text):
+        # tags, anchors and aliases that would eat a snippet's `!`, `&&` or `*`,
+        # seen in the parser's events as the document loads (docs/quoting.md)
+        scan = PropertyScan(file, lines)
+        y.Parser = WatchedParser
+        y.parser.watch = scan.feed
     try:
         with warnings.catch_warnings():
             # A redefined anchor is valid YAML (the latest definition wins): ruamel's
             # warning about it would reach the user with positions in `<unicode string>`.
             warnings.simplefilter("ignore", ReusedAnchorWarning)
-            if may_have_properties(text):
-                # tags, anchors and aliases that would eat a snippet's `!`, `&&` or `*`
-                found = scan_properties(file, text, lines)
-                if found:
-                    raise ParseError(found)
-            root = _yaml().load(text)
+            root = y.load(text)
     except MarkedYAMLError as e:
-        _fail_marked(file, lines, e)
+        _fail_marked(file, lines, e, scan.found() if scan else [])
     except YAMLError as e:  # reader errors (bad characters) and the like
         pos = getattr(e, "position", None)
         span = _offset_span(file, text, pos) if isinstance(pos, int) else Span(file, 1, 1)
         fail(ParseError, "E002", _first_line(str(e)), span)
-    except ParseError:
-        raise
     except RecursionError:
         fail(ParseError, "E006", f"the document nests deeper than {MAX_DEPTH} levels", Span(file, 1, 1))
     except Exception as e:  # an explicit tag whose value cannot be built (`!!int abc`)
+        if scan is not None and scan.found():
+            raise ParseError(scan.found()) from None
         fail(ParseError, "E002", f"a tagged value cannot be read: {_first_line(str(e)) or type(e).__name__}",
              _failing_node(file, text))
+    if scan is not None and scan.found():
+        raise ParseError(scan.found())
     doc.spans[()] = Span(file, 1, 1)
     if "&" in text:  # anchors exist: bound the expansion of their aliases first
         _check_expansion(file, root)
@@ -101,14 +106,21 @@ def _check_expansion(file: str, root: Any) -> None:
         stack.extend((c, False) for c in children)
 
 
-def _fail_marked(file: str, lines: list[str], e: MarkedYAMLError) -> NoReturn:
+def _fail_marked(file: str, lines: list[str], e: MarkedYAMLError, found: list[Diagnostic]) -> NoReturn:
+    """Raise the syntax error, explained where hfsmc knows the mistake, after the
+    tags and anchors found before it (the same spot is said once)."""
+    diag = _marked_diagnostic(file, lines, e)
+    raise ParseError([*found, *([diag] if all(f.span != diag.span for f in found) else [])])
+
+
+def _marked_diagnostic(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic:
     mark = e.problem_mark or e.context_mark
     span = Span(file, mark.line + 1, mark.column + 1) if mark else Span(file, 1, 1)
     code = "E003" if type(e).__name__ == "DuplicateKeyError" else "E002"
     if code == "E002" and type(e).__name__ in ("ScannerError", "ParserError"):
         explained = explain(file, lines, e)
         if explained is not None:
-            raise ParseError([explained])
+            return explained
     problem = (e.problem or e.context or "malformed YAML").strip()
     notes: tuple[str, ...] = ()
     if code == "E003":
@@ -121,7 +133,7 @@ def _fail_marked(file: str, lines: list[str], e: MarkedYAMLError) -> NoReturn:
         notes = (f"the parser stopped at line {mark.line + 1}: {problem}",)
         problem = f"this `{opener}` is never closed"
         span = Span(file, cmark.line + 1, cmark.column + 1)
-    fail(ParseError, code, problem, span, *notes)
+    return Diagnostic(code, problem, span, "error", notes)
 
 
 def _failing_node(file: str, text: str) -> Span:

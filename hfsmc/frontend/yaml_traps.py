@@ -14,10 +14,10 @@ Two jobs, both for :mod:`hfsmc.frontend.yaml`:
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ruamel.yaml import YAML
 from ruamel.yaml.error import MarkedYAMLError
 from ruamel.yaml.events import (
     AliasEvent,
@@ -27,6 +27,7 @@ from ruamel.yaml.events import (
     ScalarEvent,
     SequenceStartEvent,
 )
+from ruamel.yaml.parser import RoundTripParser
 
 from hfsmc.errors import Diagnostic, Span
 from hfsmc.frontend.source import PathKey
@@ -81,44 +82,57 @@ class _Frame:
 
 
 @dataclass
-class _Scan:
-    file: str
-    lines: list[str]
-    found: list[Diagnostic] = field(default_factory=list)
-    cpp_inits: list[Diagnostic] = field(default_factory=list)
-    language: str | None = None
-
-
-def scan_properties(file: str, text: str, lines: list[str]) -> list[Diagnostic]:
+class PropertyScan:
     """E105 for a tag, anchor or alias on a snippet; E106 for a tag hfsmc does not define.
 
-    Raises ruamel's :class:`MarkedYAMLError` for a syntax error (the caller explains it).
+    Fed the parser's events one by one (:class:`WatchedParser` does it while the
+    document loads, so the text is parsed once); :meth:`found` gives the result.
     """
-    scan = _Scan(file, lines)
-    stack: list[_Frame] = []
-    for ev in YAML(typ="rt").parse(text):
+
+    file: str
+    lines: list[str]
+    errors: list[Diagnostic] = field(default_factory=list)
+    cpp_inits: list[Diagnostic] = field(default_factory=list)
+    language: str | None = None
+    stack: list[_Frame] = field(default_factory=list)
+
+    def feed(self, ev: Any) -> None:
+        stack = self.stack
         if isinstance(ev, CollectionEndEvent):
-            stack.pop()
+            if stack:
+                stack.pop()
             _advance(stack)
-            continue
+            return
         if not isinstance(ev, NodeEvent):
-            continue
+            return
         path = _node_path(stack)
-        _check_node(scan, ev, path, stack[-1].flow if stack else False)
+        _check_node(self, ev, path, stack[-1].flow if stack else False)
         if isinstance(ev, (MappingStartEvent, SequenceStartEvent)):
             here = path if path is not None else (*stack[-1].path, "?")
             if path is None:  # a mapping or list used as a key
                 stack[-1].key = "?"
             stack.append(_Frame(here, isinstance(ev, MappingStartEvent), bool(ev.flow_style)))
-            continue
+            return
         if path is None and isinstance(ev, ScalarEvent):
             stack[-1].key = ev.value
         elif path == ("language",) and isinstance(ev, ScalarEvent):
-            scan.language = ev.value
+            self.language = ev.value
         _advance(stack)
-    if scan.language == "cpp":
-        scan.found.extend(scan.cpp_inits)
-    return scan.found
+
+    def found(self) -> list[Diagnostic]:
+        return self.errors + (self.cpp_inits if self.language == "cpp" else [])
+
+
+class WatchedParser(RoundTripParser):
+    """ruamel's round-trip parser, showing each event it hands out to ``watch``."""
+
+    watch: Callable[[Any], None] | None = None
+
+    def get_event(self) -> Any:
+        ev = super().get_event()
+        if self.watch is not None:
+            self.watch(ev)
+        return ev
 
 
 def _node_path(stack: list[_Frame]) -> PathKey | None:
@@ -142,7 +156,7 @@ def _advance(stack: list[_Frame]) -> None:
         top.index += 1
 
 
-def _check_node(scan: _Scan, ev: NodeEvent, path: PathKey | None, flow: bool) -> None:
+def _check_node(scan: PropertyScan, ev: NodeEvent, path: PathKey | None, flow: bool) -> None:
     tag = getattr(ev, "tag", None)
     tag = str(tag) if tag is not None else None
     anchor = ev.anchor
@@ -156,17 +170,17 @@ def _check_node(scan: _Scan, ev: NodeEvent, path: PathKey | None, flow: bool) ->
     kind = snippet_kind(path) if path is not None else None
     if kind is not None and (tag is not None or anchor is not None):
         d = _snippet_diagnostic(scan, ev, kind, span, flow)
-        (scan.cpp_inits if kind == "init" else scan.found).append(d)
+        (scan.cpp_inits if kind == "init" else scan.errors).append(d)
         if kind != "init":
             return
     if tag is not None and tag not in ALLOWED_TAGS:
         shown = "!!" + tag[len(_CORE):] if tag.startswith(_CORE) else tag
-        scan.found.append(Diagnostic(
+        scan.errors.append(Diagnostic(
             "E106", f"YAML tag `{shown}`: hfsmc defines no tags", span, "error",
             ("remove the tag, or quote the value if the `!` belongs to it (docs/quoting.md)",)))
 
 
-def _snippet_diagnostic(scan: _Scan, ev: NodeEvent, kind: str, span: Span, flow: bool) -> Diagnostic:
+def _snippet_diagnostic(scan: PropertyScan, ev: NodeEvent, kind: str, span: Span, flow: bool) -> Diagnostic:
     tag = getattr(ev, "tag", None)
     parts: list[str] = []
     if tag is not None:
