@@ -11,6 +11,7 @@ sit by their arrows and inside their sub-automaton's cluster.
 from __future__ import annotations
 
 import html
+import itertools
 import json
 import math
 import os
@@ -37,6 +38,8 @@ from tests.conftest import examples
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = examples()
+# Real VisualStates / VisualHFSM models (converted on the fly): robot_arm is a long chain.
+LEGACY = sorted((ROOT / "tests/legacy/corpus").glob("*/*.xml"))
 SVG_TEXT = "{http://www.w3.org/2000/svg}text"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -262,9 +265,10 @@ def check_structure(model: Model, source: str, auto: Automaton | None = None,
     objects = graph.get("objects", [])
     clusters = {o["name"]: o for o in objects if "nodes" in o and o["name"].startswith("cluster_")}
     nodes = {o["name"]: o for o in objects if "nodes" not in o and not o["name"].startswith("#")}
-    # the only other subgraphs: rows, pairs of states on one rank (top to bottom)
+    # the only other subgraphs: rows of states on one rank (top to bottom)
     for row in (o for o in objects if "nodes" in o and o["name"] not in clusters):
-        assert graph["rankdir"] == "TB" and row["rank"] == "same" and len(row["nodes"]) <= 2
+        assert graph["rankdir"] == "TB" and row["rank"] == "same"
+        assert len(row["nodes"]) <= dot.CHAIN_ROW
 
     # one cluster per composite state, labelled with its name and period
     assert set(clusters) == {f"cluster_{s.path}" for s in composites(auto, depth)}
@@ -494,10 +498,13 @@ def test_example_dot_structure(example: Path) -> None:
     check_structure(model, dot.to_dot(model))
 
 
-@pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
+@pytest.mark.parametrize("example", EXAMPLES + LEGACY, ids=lambda p: p.stem)
 def test_example_png_fits_a_screen(example: Path) -> None:
-    model = compile_model(example)
-    png = dot.render(dot.to_dot(model), "png")
+    result = compile_file(str(example.relative_to(ROOT)))
+    assert result.model is not None, [str(d) for d in result.diagnostics]
+    source = dot.to_dot(result.model)
+    check_layout(source)
+    png = dot.render(source, "png")
     assert png.startswith(PNG_SIGNATURE)
     width, height = struct.unpack(">II", png[16:24])  # the IHDR chunk, 96 dpi
     check_screen(width, height)
@@ -511,11 +518,6 @@ def test_example_direction(name: str, rankdir: str) -> None:
     """Small machines read left to right; long missions top to bottom."""
     model = compile_model(ROOT / "examples" / name / f"{name}.yaml")
     assert read_dot(dot.to_dot(model))["rankdir"] == rankdir
-
-
-@pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
-def test_example_labels_by_their_arrows(example: Path) -> None:
-    check_layout(dot.to_dot(compile_model(example)))
 
 
 def test_examples_exist() -> None:
@@ -766,6 +768,22 @@ def test_auto_direction_follows_the_shape(tmp_path: Path, n: int, rankdir: str) 
     assert read_dot(dot.to_dot(model))["rankdir"] == rankdir
 
 
+def test_a_long_chain_is_wrapped_in_rows(tmp_path: Path) -> None:
+    """Top to bottom, states that only lead to the next are drawn four to a
+    row, like lines of text, not as one tall column."""
+    model = compile_model(write_model(tmp_path, chain(20)))
+    source = dot.to_dot(model)
+    graph = read_dot(source)
+    assert graph["rankdir"] == "TB"
+    objects = {o["_gvid"]: o["name"] for o in graph["objects"]}
+    rows = [[objects[n] for n in o["nodes"]] for o in graph["objects"]
+            if "nodes" in o and o.get("rank") == "same"]
+    assert rows == [[f"S{i}" for i in range(k, min(k + 4, 21))] for k in range(0, 21, 4)]
+    png = dot.render(source, "png")
+    check_screen(*struct.unpack(">II", png[16:24]))
+    check_layout(source)
+
+
 def test_estimate_is_near_the_drawing(tmp_path: Path) -> None:
     """The size the direction is chosen from is within 30 % of dot's own."""
     model = compile_model(write_model(tmp_path, NESTED))
@@ -796,7 +814,7 @@ def test_a_chain_of_clusters_stays_in_line() -> None:
     assert graph["rankdir"] == "TB"
     boxes = [as_box(o["bb"]) for o in graph["objects"] if o["name"].startswith("cluster_")]
     assert len(boxes) == 4
-    for a, b in zip(boxes, boxes[1:], strict=False):
+    for a, b in itertools.pairwise(boxes):
         shared = min(a[2], b[2]) - max(a[0], b[0])
         assert shared >= 0.8 * min(a[2] - a[0], b[2] - b[0]), (a, b)
         assert b[3] < a[1]  # below

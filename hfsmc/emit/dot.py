@@ -10,8 +10,9 @@ many states it holds.  A transition is an arrow labelled with its name,
 ``[when]`` and ``after``, numbered when its state has several (the order they
 are tried); long lines are wrapped, not cut.  The ``on_interrupt`` state gets
 a dashed arrow from an ``interrupt`` marker.  The direction (``rankdir``) is
-chosen from the model's shape unless given (hfsmc/emit/dot_layout.py); the
-choices are explained in docs/diagrams.md.
+chosen from the model's shape unless given (hfsmc/emit/dot_layout.py); top
+to bottom, a nested pair of states is drawn in a row and a chain of states in
+rows of CHAIN_ROW.  The choices are explained in docs/diagrams.md.
 
 Node ids are the states' full paths, always quoted, so they cannot collide
 whatever the names; helper nodes carry a ``#``, which no path contains.  An
@@ -59,6 +60,9 @@ RANKDIRS = ("auto", "LR", "TB")
 # more: dot routes an edge between the ends of a longer row over the row's
 # cluster label.
 ROW_MAX = 2
+# A chain of states (each leading only to the next) is drawn top to bottom in
+# rows of this many, like lines of text, instead of one long column.
+CHAIN_ROW = 4
 
 FONT = "Helvetica,Arial,sans-serif"
 FINAL_FILL = "#c8c8c8"
@@ -272,21 +276,31 @@ class _Drawing:
                     id=s.path,
                 )
                 self.automaton(c, s.automaton, level + 1, (*clusters, cluster))
-        row = level > 1 and self.is_row(auto)
-        if row:
-            self.row(g, [_node_id(s) for s in auto.states])
+        rows = self.row_groups(auto, level)
+        for ids in rows:
+            self.row(g, ids)
         for s in auto.states:
             for t in s.transitions:
-                self.transition(g, s, t, auto, clusters, in_row=row)
+                self.transition(g, s, t, auto, clusters, in_row=bool(rows))
 
-    def is_row(self, auto: Automaton) -> bool:
-        """Whether a (nested) sub-automaton is a row: a pair of simple states."""
+    def is_pair(self, auto: Automaton) -> bool:
+        """Whether a nested sub-automaton is a pair of simple states (or one)."""
         return len(auto.states) <= ROW_MAX and not any(s.path in self.expanded
                                                        for s in auto.states)
 
+    def row_groups(self, auto: Automaton, level: int) -> list[list[str]]:
+        """The rows ``auto``'s states are drawn in top to bottom: a nested pair
+        in one row; a chain (each state's arrows only to the next one, from
+        the initial state on) wrapped in rows of CHAIN_ROW states, read like
+        text; else none."""
+        if level > 1 and self.is_pair(auto):
+            return [[_node_id(s) for s in auto.states]]
+        ids = [_node_id(s) for s in _chain(auto, self.expanded)]
+        return [ids[i:i + CHAIN_ROW] for i in range(0, len(ids), CHAIN_ROW)]
+
     def row(self, g: graphviz.Digraph, ids: list[str]) -> None:
-        """A small sub-automaton of simple states on one rank, when drawn top
-        to bottom: it then takes the height of one state, not of a column."""
+        """States on one rank, when drawn top to bottom: they then take the
+        height of one state, not of a column."""
         self.plan.rows.append(tuple(ids))
         if self.rows:
             with g.subgraph() as same:
@@ -373,7 +387,7 @@ class _Drawing:
         that clusters in a chain stay in line instead of stepping sideways.
         """
         while s.automaton is not None and s.path in self.expanded:
-            if self.rows and self.is_row(s.automaton):
+            if self.rows and self.is_pair(s.automaton):
                 return self.entry_anchor(s)
             s = _farthest(s.automaton)
         return s
@@ -431,6 +445,23 @@ def _transition_id(src: State, t: Transition) -> str:
     """``PATH#N``: the SVG id of a transition, as a trace's ``fire`` record
     names it (``from``, ``index``); ``#`` occurs in no path."""
     return f"{src.path}#{t.index}"
+
+
+def _chain(auto: Automaton, expanded: frozenset[str]) -> list[State]:
+    """``auto``'s states in order when they form a chain: three or more
+    simple states, from the initial one each with arrows to one next state
+    only (and to itself), every state on the way; else nothing."""
+    if len(auto.states) < 3 or any(s.path in expanded for s in auto.states):
+        return []
+    order: list[State] = []
+    s = auto.state(auto.initial)
+    while s is not None and s not in order:
+        order.append(s)
+        targets = {t.target for t in s.transitions} - {s.name}
+        if len(targets) > 1:
+            return []
+        s = auto.state(targets.pop()) if targets else None
+    return order if s is None and len(order) == len(auto.states) else []
 
 
 def _farthest(auto: Automaton) -> State:
