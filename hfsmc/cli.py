@@ -126,7 +126,8 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx
 @_guard
 def diagram(model: str, output: str | None, state_path: str | None, rankdir: str,
             depth: int | None) -> None:
-    """Draw MODEL with Graphviz: sub-automata as nested clusters (docs/diagrams.md)."""
+    """Draw MODEL with Graphviz: sub-automata as nested clusters, arrows numbered in the
+    order they are tried, the direction chosen to fit a screen."""
     from hfsmc.emit.dot import write_diagram
 
     result = _compile_or_exit(model)
