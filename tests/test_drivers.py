@@ -9,6 +9,7 @@ import http.server
 import importlib
 import json
 import math
+import re
 import signal
 import socket
 import subprocess
@@ -634,9 +635,14 @@ def test_generated_component_waits_for_ready_then_takes_off(tmp_path: Path) -> N
     assert records[-1]["ev"] == "stop" and records[-1]["reason"] == "final"
     ready_at = next(r["t"] for r in records if r["ev"] == "enter" and r["state"] == "Guided")
     assert ready_at >= 1000  # the EKF had no absolute position for a second
-    logs = [r["msg"] for r in records if r["ev"] == "log"]
-    assert logs == ["ready, mode STABILIZE, battery 87 %", "taking off from 0.0 m",
-                    "up at 2.0 m, ack accepted"]
+    logs = [(r["state"], r["msg"]) for r in records if r["ev"] == "log"]
+    # It stops at its final state with the vehicle armed: said loudly, in the trace too.
+    warning = ("drone: WARNING: the vehicle is still ARMED (mode GUIDED, altitude 2.0 m) as the "
+               "component stops: nothing lands it now")
+    assert logs == [("Guided", "ready, mode STABILIZE, battery 87 %"),
+                    ("TakeOff", "taking off from 0.0 m"), ("Up", "up at 2.0 m, ack accepted"),
+                    ("", warning)]
+    assert f"takeoff_probe: {warning}\n" in run.stderr
     commands = [(m.command, m.param1, m.param2, m.param7) for m in fake.commands()
                 if m.command != MAV.MAV_CMD_SET_MESSAGE_INTERVAL]
     assert commands == [(MAV.MAV_CMD_DO_SET_MODE, 1, GUIDED, 0),
@@ -674,9 +680,14 @@ def test_takeoff_to_three_metres_and_land_in_the_simulator(tmp_path: Path,
         assert wait_until(lambda: drone.altitude() > 2.8, 15)
         time.sleep(1.0)
         assert 2.7 < drone.altitude() < 3.3 and abs(drone.position()[2] + 3.0) < 0.4
+        warning = drone.warning_at_stop()
+        assert warning is not None and re.fullmatch(
+            r"WARNING: the vehicle is still ARMED \(mode GUIDED, altitude (2\.9|3\.0|3\.1) m\) "
+            r"as the component stops: nothing lands it now", warning), warning
         drone.land()
         assert wait_until(lambda: not drone.armed(), 25, step=0.1)  # landed, disarmed by itself
         assert drone.mode() == "LAND" and drone.altitude() < 0.3
+        assert drone.warning_at_stop() is None
     finally:
         sim.send_signal(signal.SIGINT)
         try:

@@ -243,6 +243,15 @@ class Vehicle:
         self._target_local(MAV_FRAME_LOCAL_NED, POSITION_MASK,
                            (north, east, -alt), (0.0, 0.0, 0.0), 0.0)
 
+    def warning_at_stop(self) -> str | None:
+        """What the component says when it stops with the vehicle still armed (then nothing
+        lands it: --until, an error without on_interrupt...); None when disarmed."""
+        if not self.armed():
+            return None
+        link = "" if self.connected() else f", link lost {self.heartbeat_age():.0f} s ago"
+        return (f"WARNING: the vehicle is still ARMED (mode {self.mode()}, altitude "
+                f"{self.altitude():.1f} m{link}) as the component stops: nothing lands it now")
+
     def close(self) -> None:
         """Stop the reader and close the socket (also run at exit)."""
         if self._stop.is_set():

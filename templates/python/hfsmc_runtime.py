@@ -403,12 +403,26 @@ class Engine:
         self.EXIT[self.cur[0]]()
         self.owner = self.root
         self.m["on_shutdown"]()
+        self.warn_at_stop()
         self.status = 1 if self.stop_failed else EXIT_STATUS[reason]
         self.finish(reason)
         if self.real:  # the virtual clock never overruns: nothing to tell
             share = 100 * self.overruns / max(self.ticks + self.overruns, 1)
             sys.stderr.write(f"{self.name}: stopped ({reason}) at {self.t // 1000 / 1000:.3f} s; "
                              f"{self.ticks} ticks, {self.overruns} overruns ({share:.1f} %)\n")
+
+    def warn_at_stop(self) -> None:
+        """An interface that leaves something going (a vehicle still armed) says so: a log
+        line, so that stderr, the trace and the live views all show it."""
+        ns = self.m["namespace"]
+        for name, *_ in self.m["interfaces"]:
+            check = getattr(ns.get(name), "warning_at_stop", None)
+            try:
+                text = check() if callable(check) else None
+            except Exception:  # a driver's trouble must not change how the stop ends
+                text = None
+            if text:
+                self.log(f"{name}: {text}")
 
     def finish(self, reason: str) -> None:
         if self.recording:

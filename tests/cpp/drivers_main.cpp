@@ -157,9 +157,13 @@ int flight(const std::string& port) {
   check(wait_until([&] { return std::abs(drone.position().x() - 4.0) < 0.5; }, 15),
         "reached 4 m north");
   check(drone.hold(), "hold sent");
+  check(hfsmc::warning_at_stop(drone).rfind(
+            "WARNING: the vehicle is still ARMED (mode GUIDED, altitude ", 0) == 0,
+        "armed in the air: the warning at stop names mode and altitude");
   check(drone.land(), "land sent");
   check(wait_until([&] { return !drone.armed(); }, 25, 0.1), "landed and disarmed");
   check(drone.mode() == "LAND" && drone.altitude() < 0.3, "LAND mode on the ground");
+  check(hfsmc::warning_at_stop(drone).empty(), "disarmed: no warning at stop");
   check(drone.connected(), "still connected");
   return 0;
 }

@@ -108,6 +108,22 @@ class Mavlink {
   }
 
   ~Mavlink() { close(); }
+
+  /// What the component says when it stops with the vehicle still armed (then nothing
+  /// lands it: --until, an error without on_interrupt...); "" when disarmed.
+  std::string warning_at_stop() const {
+    if (!armed()) return "";
+    char alt[64];
+    std::snprintf(alt, sizeof alt, "%.1f", altitude());
+    std::string link;
+    if (!connected()) {
+      char age[64];
+      std::snprintf(age, sizeof age, "%.0f", heartbeat_age());
+      link = std::string(", link lost ") + age + " s ago";
+    }
+    return "WARNING: the vehicle is still ARMED (mode " + mode() + ", altitude " + alt + " m" +
+           link + ") as the component stops: nothing lands it now";
+  }
   Mavlink(const Mavlink&) = delete;
   Mavlink& operator=(const Mavlink&) = delete;
 
@@ -814,5 +830,8 @@ class Mavlink {
   std::atomic<bool> stop_{false};
   std::thread reader_;
 };
+
+// Found by the generated class's _hfsm_warnings_at_stop() (runtime.hpp has the default).
+inline std::string warning_at_stop(const Mavlink& vehicle) { return vehicle.warning_at_stop(); }
 
 }  // namespace hfsmc

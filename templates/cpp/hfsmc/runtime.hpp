@@ -111,6 +111,11 @@ struct Unavailable {
     Unavailable(const std::string&, const std::string&, const std::map<std::string, std::string>&) {}
 };
 
+// What an interface says when the component stops and it leaves something going (the
+// `mavlink` vehicle still armed: mavlink.hpp overloads this); "" for the others.
+template <class T>
+std::string warning_at_stop(const T&) { return std::string(); }
+
 inline int exit_status(std::string_view reason) {
     if (reason == "sigint") return 130;
     if (reason == "sigterm") return 143;
@@ -295,7 +300,7 @@ inline std::string current_exception_text() {
 
 // --- the engine -----------------------------------------------------------------------
 // M is the generated class: it has _hfsm_enter(int), _hfsm_exit(int), _hfsm_tick(int),
-// _hfsm_on_shutdown() and _hfsm_values().
+// _hfsm_on_shutdown(), _hfsm_warnings_at_stop() and _hfsm_values().
 template <class M>
 class Engine {
 public:
@@ -622,6 +627,9 @@ private:
         m_._hfsm_exit(cur[0]);
         owner = root_;
         m_._hfsm_on_shutdown();
+        // An interface that leaves something going (a vehicle still armed) says so: a log
+        // line, so that stderr, the trace and the live views all show it.
+        for (const std::string& warning : m_._hfsm_warnings_at_stop()) log(warning);
         status_ = stop_failed_ ? 1 : exit_status(reason);
         finish(reason);
         if (real_) {  // the virtual clock never overruns: nothing to tell
