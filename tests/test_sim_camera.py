@@ -26,9 +26,9 @@ import pytest
 from pymavlink import mavutil
 
 from hfsmc.sim.camera import MIN_ALTITUDE, OUTSIDE, CameraFeed, Renderer, bgr, footprint
-from hfsmc.sim.follow import run_follow
+from hfsmc.sim.follow import _Follower, run_follow
 from hfsmc.sim.mjpeg import MjpegServer
-from hfsmc.sim.world import World, WorldError, load_world, parse_world
+from hfsmc.sim.world import World, WorldClock, WorldError, load_world, parse_world
 from tests.conftest import ROOT
 
 GREEN = (0, 200, 0)
@@ -511,6 +511,42 @@ def test_follow_stops_on_its_event_and_reports_a_bad_link(tmp_path: Path) -> Non
     with contextlib.redirect_stderr(err):
         assert run_follow(world(), "udpin:256.1.1.1:14551", 0, stop=stop) == 1
     assert "cannot open the MAVLink link udpin:256.1.1.1:14551" in err.getvalue()
+
+
+def test_the_world_clock_starts_at_start_arming_or_take_off() -> None:
+    start, armed, takeoff = WorldClock("start"), WorldClock("armed"), WorldClock("takeoff")
+    assert start.time(5.0) == 5.0 and not start.update(5.0, True, 3.0)
+    assert not armed.update(40.0, False, 0.0) and armed.time(40.0) == 0.0
+    assert armed.update(41.0, True, 0.0) and armed.time(51.0) == 10.0
+    assert not armed.update(60.0, False, 0.0) and armed.time(61.0) == 20.0  # once started, runs
+    assert not takeoff.update(41.0, True, 0.1) and takeoff.time(43.0) == 0.0  # still on the ground
+    assert takeoff.update(44.0, True, 0.4) and takeoff.time(45.5) == 1.5
+    with pytest.raises(ValueError):
+        WorldClock("boot")
+
+
+def test_the_follower_starts_the_world_clock_when_the_vehicle_arms() -> None:
+    """With a real autopilot ready a minute after its start, the objects wait for it."""
+    said: list[str] = []
+    follower = _Follower(WorldClock("armed"), say=said.append)
+    ml = mavutil.mavlink
+    disarmed = ml.MAVLink_heartbeat_message(2, 3, ml.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 3, 3)
+    armed = ml.MAVLink_heartbeat_message(
+        2, 3, ml.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | ml.MAV_MODE_FLAG_SAFETY_ARMED, 4, 4, 3)
+    follower.handle(disarmed)
+    follower.handle(ml.MAVLink_local_position_ned_message(0, 1.0, 2.0, -0.05, 0, 0, 0))
+    assert follower.clock.zero is None and follower.pose()[0] == 0.0 and said == []
+    follower.handle(armed)
+    assert follower.clock.zero is not None and said == ["the world's clock starts (vehicle armed)"]
+    follower.handle(armed)
+    assert len(said) == 1
+    assert follower.pose()[1:4] == (1.0, 2.0, -0.05)
+
+
+def test_world_clock_option_is_in_the_help() -> None:
+    r = subprocess.run([sys.executable, "-m", "hfsmc", "sim", "--help"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode == 0 and "--world-clock WHEN" in r.stdout and "takeoff" in r.stdout
 
 
 # --- the example worlds ----------------------------------------------------------------------

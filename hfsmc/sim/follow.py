@@ -4,7 +4,9 @@ The vehicle (ArduPilot SITL, say) is heard on a pymavlink URL such as
 ``udpin:127.0.0.1:14551``; its LOCAL_POSITION_NED and ATTITUDE (yaw) are the
 camera's pose. Once the vehicle has been heard, the streams are asked for at
 20 Hz with SET_MESSAGE_INTERVAL, as a ground station would, and again while
-they do not come. The world's clock (its objects' motion) starts with the follower.
+they do not come. The world's clock (its objects' motion) starts when the vehicle
+first arms (by default: a real autopilot may take a minute to be ready), when it
+first leaves the ground, or when the follower starts (``world_clock``).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any, TextIO
 from pymavlink import mavutil
 
 from hfsmc.sim.camera import CameraFeed, Pose
-from hfsmc.sim.world import World
+from hfsmc.sim.world import World, WorldClock
 
 RATE_HZ = 20.0  # pose messages asked of the vehicle
 ASK_AGAIN = 3.0  # seconds without a pose before asking again
@@ -33,9 +35,13 @@ MSG_LOCAL_POSITION_NED = 32
 class _Follower:
     """The other vehicle's latest pose, written by the MAVLink loop, read by the camera."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: WorldClock | None = None,
+                 say: Callable[[str], None] = lambda text: None) -> None:
         self._lock = threading.Lock()
         self._t0 = time.monotonic()
+        self.clock = clock or WorldClock("armed")
+        self.say = say
+        self.armed = False
         self.north = self.east = self.down = self.yaw = 0.0
         self.system: int | None = None  # the vehicle's system id once heard
         self.last_position = -math.inf
@@ -43,7 +49,8 @@ class _Follower:
 
     def pose(self) -> Pose:
         with self._lock:
-            return (time.monotonic() - self._t0, self.north, self.east, self.down, self.yaw)
+            t = self.clock.time(time.monotonic() - self._t0)
+            return (t, self.north, self.east, self.down, self.yaw)
 
     def handle(self, msg: Any) -> None:
         kind = msg.get_type()
@@ -51,6 +58,9 @@ class _Follower:
         if kind == "HEARTBEAT":
             if self.system is None and msg.autopilot != mavutil.mavlink.MAV_AUTOPILOT_INVALID:
                 self.system = src
+            if src == self.system:
+                self.armed = bool(msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+                self._clock()
             return
         if self.system is not None and src != self.system:
             return  # a ground station or another vehicle on the same link
@@ -60,6 +70,14 @@ class _Follower:
                 self.last_position = time.monotonic()
             elif kind == "ATTITUDE":
                 self.yaw = float(msg.yaw)
+        if kind == "LOCAL_POSITION_NED":
+            self._clock()
+
+    def _clock(self) -> None:
+        with self._lock:
+            started = self.clock.update(time.monotonic() - self._t0, self.armed, -self.down)
+        if started:
+            self.say(f"the world's clock starts (vehicle {self.clock.start})")
 
 
 def _ask_for_pose(conn: Any, system: int) -> None:
@@ -70,9 +88,11 @@ def _ask_for_pose(conn: Any, system: int) -> None:
 
 
 def run_follow(world: World, mavlink_url: str, port: int = 8554, host: str = "127.0.0.1",
-               stop: threading.Event | None = None, out: TextIO | None = None) -> int:
+               stop: threading.Event | None = None, out: TextIO | None = None,
+               world_clock: str = "armed") -> int:
     """Serve ``world``'s camera from the pose of the vehicle heard on ``mavlink_url`` until
     SIGINT or SIGTERM (or ``stop`` is set); 0 then, 1 when the link or the port cannot open.
+    The world's objects start moving at ``world_clock`` (``armed``, ``takeoff``, ``start``).
 
     Prints the stream's URL on ``out`` (stdout) once serving.
     """
@@ -84,7 +104,8 @@ def run_follow(world: World, mavlink_url: str, port: int = 8554, host: str = "12
     except Exception as e:  # pymavlink raises whatever its transport raises
         print(f"hfsmc sim: cannot open the MAVLink link {mavlink_url}: {e}", file=sys.stderr)
         return 1
-    follower = _Follower()
+    follower = _Follower(WorldClock(world_clock), say=lambda text: print(
+        f"hfsmc sim: {text}", file=sys.stderr, flush=True))
     feed = CameraFeed(world, follower.pose, host=host, port=port)
     try:
         url = feed.start()

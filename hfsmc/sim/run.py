@@ -33,7 +33,7 @@ from hfsmc.fsutil import write_atomic
 from hfsmc.sim.autopilot import Autopilot
 from hfsmc.sim.telemetry import latlon
 from hfsmc.sim.vehicle import Body
-from hfsmc.sim.world import World, WorldError, load_world
+from hfsmc.sim.world import WORLD_CLOCKS, World, WorldClock, WorldError, load_world
 
 DEFAULT_MAVLINK = "udpout:127.0.0.1:14550"
 MAX_DATAGRAMS = 500  # per step: a flood must not starve the physics
@@ -103,7 +103,8 @@ class Simulator:
 
     def __init__(self, world: World, link: Link, *, boot_time: float = 3.0,
                  truth: str | None = None, drop_after: float | None = None,
-                 drop_for: float = 5.0, params: dict[str, float] | None = None) -> None:
+                 drop_for: float = 5.0, params: dict[str, float] | None = None,
+                 world_clock: str = "start") -> None:
         self.world = world
         self.link = link
         self.truth_path = truth
@@ -111,6 +112,7 @@ class Simulator:
         self.body = Body(world.vehicle, world.seed)
         self.ap = Autopilot(world, self.body, link.send, boot_time=boot_time, log=self.log)
         self.ap.set_params(params or {})
+        self.clock = WorldClock(world_clock)
         self.pose = self.body.pose
         self.camera: Any = None
         self.stopping = False
@@ -134,7 +136,10 @@ class Simulator:
             for data in self.link.receive():
                 self.ap.receive(data)
             self.ap.step()
-            self.pose = self.body.pose
+            b = self.body
+            if self.clock.update(b.t, b.armed, b.altitude):
+                self.log(f"the world's clock starts (vehicle {self.clock.start})")
+            self.pose = (self.clock.time(b.t), b.north, b.east, b.down, b.yaw)
             if self.truth_path and self.body.steps % per_second == 0:
                 self.write_truth()
             if duration is not None and self.body.t >= duration - 1e-9:
@@ -191,6 +196,7 @@ class Simulator:
         """The ground truth now (what really happened, without sensor noise)."""
         b, ap, w = self.body, self.ap, self.world
         t = b.t
+        world_t = self.clock.time(t)
         lat, lon = latlon(w.home, b.north, b.east)
         home_lat, home_lon = latlon(w.home, 0.0, 0.0)
 
@@ -221,7 +227,8 @@ class Simulator:
             "accident": None if w.accident is None else dataclasses.asdict(w.accident),
             "victims": [{"north": v.north, "east": v.east} for v in w.victims],
             "objects": [{"name": o.name, "color": list(o.color),
-                         "north": _r(o.position(t)[0], 3), "east": _r(o.position(t)[1], 3)}
+                         "north": _r(o.position(world_t)[0], 3),
+                         "east": _r(o.position(world_t)[1], 3)}
                         for o in w.objects],
         }
 
@@ -297,6 +304,11 @@ def parser() -> argparse.ArgumentParser:
                    help="only render the camera for another vehicle (with --follow)")
     p.add_argument("--follow", metavar="URL",
                    help="MAVLink URL of the vehicle whose camera to render")
+    p.add_argument("--world-clock", choices=WORLD_CLOCKS, metavar="WHEN",
+                   help="when the world's objects start moving: start (when the simulator "
+                        "starts), armed (when the vehicle first arms) or takeoff (when it first "
+                        "leaves the ground); default: start, and armed with --follow, since a "
+                        "real autopilot may take a minute to be ready (docs/worlds.md)")
     return p
 
 
@@ -342,7 +354,8 @@ def main(argv: list[str]) -> int:
         follow = _run_follow()
         if isinstance(follow, str):
             return _fail(f"--camera-only: the camera is not available ({follow})")
-        return int(follow(world, args.follow, args.camera_port))
+        return int(follow(world, args.follow, args.camera_port,
+                          world_clock=args.world_clock or "armed"))
     params = dict(args.param)
     unknown = sorted(set(params) - set(Autopilot.default_params(world)))
     if unknown:
@@ -355,7 +368,7 @@ def main(argv: list[str]) -> int:
     sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
                     drop_after=args.drop_link_after,
                     drop_for=5.0 if args.drop_link_for is None else args.drop_link_for,
-                    params=params)
+                    params=params, world_clock=args.world_clock or "start")
     try:
         with sim.signals():
             where = _start_camera(sim, args)

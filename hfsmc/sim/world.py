@@ -146,6 +146,36 @@ class World:
     file: str = "<default>"
 
 
+WORLD_CLOCKS = ("start", "armed", "takeoff")
+TAKEOFF_HEIGHT = 0.3  # m above the ground: the vehicle has left it
+
+
+class WorldClock:
+    """When the world's time (its objects' motion) starts: when the simulator starts
+    (``start``), or when the vehicle first arms (``armed``) or first leaves the ground
+    (``takeoff``); until then the world's time is 0 and every object waits."""
+
+    def __init__(self, start: str = "start") -> None:
+        if start not in WORLD_CLOCKS:
+            raise ValueError(f"world clock {start!r}: expected one of {', '.join(WORLD_CLOCKS)}")
+        self.start = start
+        self.zero: float | None = 0.0 if start == "start" else None
+
+    def update(self, t: float, armed: bool, height: float) -> bool:
+        """Note the vehicle's state at ``t`` (seconds on the caller's clock); True when
+        this starts the world's clock."""
+        if self.zero is not None:
+            return False
+        if armed and (self.start == "armed" or height > TAKEOFF_HEIGHT):
+            self.zero = t
+            return True
+        return False
+
+    def time(self, t: float) -> float:
+        """The world's time at ``t`` on the caller's clock."""
+        return 0.0 if self.zero is None else max(0.0, t - self.zero)
+
+
 def _rgb(v: Any, where: str) -> RGB:
     if (not isinstance(v, (list, tuple)) or len(v) != 3
             or not all(isinstance(c, int) and 0 <= c <= 255 for c in v)):
