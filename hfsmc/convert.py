@@ -19,10 +19,10 @@ from ruamel.yaml.comments import CommentedMap, CommentedSeq
 from ruamel.yaml.error import YAMLError
 from ruamel.yaml.scalarstring import LiteralScalarString
 
-from hfsmc.compiler import Result
+from hfsmc.compiler import Result, compile_file
 from hfsmc.durations import parse_us
 from hfsmc.emit.data import model_to_data
-from hfsmc.errors import UsageError
+from hfsmc.errors import Diagnostic, Diagnostics, UsageError
 from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Model
 from hfsmc.resources import schema_file
@@ -162,9 +162,12 @@ def yaml_comments(lines: list[str]) -> list[tuple[int, str]]:
 
     Lines inside block scalars (`|`, `>`) are code or text, not comments; the
     editor hint on the first line is left out (the XML names its own schema).
+    The comments above the first key (the file's header) get line 0: they go
+    before the first element.
     """
     out: list[tuple[int, str]] = []
     block: int | None = None  # indentation of the key that opened a block scalar
+    header = True
     for n, line in enumerate(lines, 1):
         body = line.rstrip("\r\n")
         stripped = body.lstrip(" ")
@@ -177,7 +180,9 @@ def yaml_comments(lines: list[str]) -> list[tuple[int, str]]:
         if cut is not None:
             text = body[indent + 1 if cut == 0 else cut + 1:].strip()
             if text and not (n == 1 and text.startswith("yaml-language-server:")):
-                out.append((n, text))
+                out.append((0 if header and cut == 0 else n, text))
+        if cut != 0 and stripped.strip():
+            header = False
         if _BLOCK_START.search(body if cut is None else body[:indent if cut == 0 else cut]):
             block = indent
     return out
@@ -195,6 +200,36 @@ def _comment_start(line: str) -> int | None:
         elif ch == "#" and k > 0 and line[k - 1] in " \t":
             return k
     return None
+
+
+# Problems in the code of a legacy file (a name the file never imported, a syntax error):
+# `convert` still writes the model and reports them as warnings, so that the user fixes
+# them in the new file; `check` and `build` stay strict (docs/legacy.md).
+LEGACY_CODE_PROBLEMS = frozenset({"E140", "E141", "E142", "E143", "E145", "E146"})
+
+
+def compile_for_convert(path: str, strict: bool = False) -> Result:
+    """``path`` compiled for ``convert``: as ``check`` does, except that a legacy file whose
+    only errors are in its code gives its model, those errors reported as W220."""
+    result = compile_file(path)
+    doc = result.document
+    errors = [d for d in result.diagnostics if d.severity == "error"]
+    if strict or not errors or doc is None or doc.format not in ("visualstates", "visualhfsm") \
+            or any(d.code not in LEGACY_CODE_PROBLEMS for d in errors):
+        return result
+    from hfsmc import schema
+    from hfsmc.builder import build
+    from hfsmc.frontend import load
+    from hfsmc.lower import lower
+
+    diags = Diagnostics()
+    doc = load(path, diags)
+    schema.validate(doc, diags)
+    model = lower(build(doc, diags), diags)
+    kept = [d if d.severity != "error" else Diagnostic(
+        "W220", f"{d.message} ({d.code}: the converted model keeps it; fix it there)", d.span,
+        "warning", d.notes) for d in diags.sorted()]
+    return Result(path, model, kept, doc.lines, doc, result.notes)
 
 
 def legacy_report(result: Result) -> list[str]:
