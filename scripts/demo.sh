@@ -19,7 +19,8 @@ if ! kill -0 $sim 2>/dev/null; then
 fi
 
 echo "== flying follow_colors (about 2.5 min; Ctrl+C lands the drone and stops) =="
-"$BIN"/python "$OUT"/follow_colors/follow_colors.py --display --until 240s \
+# --time-limit: past 4 min the mission stops as on Ctrl+C, landing the drone (exit 124).
+"$BIN"/python "$OUT"/follow_colors/follow_colors.py --display --time-limit 240s \
   --trace "$OUT"/trace.jsonl --param report="$OUT"/report.json
 status=$?
 kill -INT $sim 2>/dev/null; wait $sim 2>/dev/null; trap - EXIT
@@ -42,6 +43,8 @@ print(f"   stages reached: {' -> '.join(report['stages'])}")
 print(f"   landed at north {land['north']:.2f} m, east {land['east']:.2f} m: "
       f"{miss:.2f} m from the red object; armed: {truth['armed']}")
 print(f"   flight {truth['track']['flight_time']:.0f} s, {truth['track']['distance']:.0f} m flown")
+if status == 124:
+    print("   the mission's time limit (240 s) ran out: the drone landed where it was")
 print(f"   files: {out}/trace.jsonl (trace), {out}/report.json, {out}/truth.json (simulator's truth)")
 print("   watch it live next time: add --monitor 8765 to the component, then `hfsmc view 8765`")
 print("   draw it: hfsmc diagram examples/follow_colors/follow_colors.yaml -o follow_colors.svg")

@@ -101,7 +101,8 @@ def mission(request: pytest.FixtureRequest) -> list[str] | None:
 @contextmanager
 def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors.yaml",
            world: Path = FOLLOW / "world.yaml",
-           command: list[str] | None = None) -> Iterator[Flight]:
+           command: list[str] | None = None,
+           component_args: tuple[str, ...] = ()) -> Iterator[Flight]:
     """Start the simulator and the component on free ports: `command` (a built component's
     command line), or else the Python component of `model`, built here."""
     folder = tmp_path / "flight"
@@ -126,7 +127,7 @@ def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors
     started = time.monotonic()
     component = subprocess.Popen(
         [*command, "--config", str(folder / "config.yaml"), "--trace", str(folder / "trace.jsonl"),
-         "--until", "240s"],
+         "--until", "240s", *component_args],
         stdout=comp_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     f = Flight(folder, component, sim, started, time.monotonic())
     try:
@@ -229,6 +230,24 @@ def test_link_loss_fires_the_failsafe_and_the_mission_resumes(tmp_path: Path) ->
     landing = truth["landing"]
     assert isinstance(landing, dict) and truth["armed"] is False and truth["landed"] is True
     assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
+
+
+@pytest.mark.slow
+def test_time_limit_lands_and_exits_124(tmp_path: Path) -> None:
+    """--time-limit stops through on_interrupt: the drone lands, and nothing is left armed."""
+    with flight(tmp_path, component_args=("--time-limit", "20s")) as f:
+        status = f.component.wait(timeout=90)
+        time.sleep(1.5)  # one more truth write
+        truth = f.truth()
+        f.stop_sim()
+        log = (f.folder / "component.log").read_text()
+        assert status == 124, log[-3000:]
+    interrupt = [r for r in f.trace if r["ev"] == "interrupt"]
+    assert interrupt == [{"t": 20000, "ev": "interrupt", "reason": "time_limit", "to": "Land"}]
+    assert f.trace[-1]["ev"] == "stop" and f.trace[-1]["reason"] == "time_limit"
+    assert [r["state"] for r in f.trace if r["ev"] == "enter"][-2:] == ["Land", "Done"]
+    assert truth["armed"] is False and truth["landed"] is True and truth["mode"] == "LAND"
+    assert "still ARMED" not in log and "stopped (time_limit)" in log
 
 
 @pytest.mark.slow
