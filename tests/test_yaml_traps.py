@@ -307,8 +307,49 @@ def test_key_at_no_level_names_the_levels_around_it() -> None:
         "hfsm: 1\nname: m\ninitial: A\nstates:\n  A:\n      entry: x = 1\n    exit: y = 2\n")
     assert (code, line, col) == ("E002", 7, 5)
     assert message == "`exit` at column 5 lines up with no key or list item above it: its indentation is wrong"
-    assert notes[0] == ("the blocks above start at column 7 (`entry`, line 6), column 3 (`A`, line 5): "
-                        "line it up with one of them")
+    assert notes[0] == ("the keys and items above start at column 7 (`entry`, line 6), column 3 (`A`, "
+                        "line 5): line it up with one of them")
+
+
+def test_list_item_at_no_level() -> None:
+    code, line, col, message, _ = syntax(
+        HEAD + "initial: A\nstates:\n  A:\n    transitions:\n      - {to: A, after: 1s}\n"
+        "       - {to: A, after: 2s}\n")
+    assert (code, line, col) == ("E002", 8, 8)
+    assert message.startswith("this list item at column 8 lines up with no key")
+
+
+def test_block_line_indented_less_than_the_first_one() -> None:
+    code, line, col, message, _ = syntax(
+        HEAD + "initial: A\nstates:\n  A:\n    entry: |\n        led = True\n      count = 1\n"
+        "    final: true\n")
+    assert (code, line, col) == ("E002", 8, 7)
+    assert message == ("this line is indented less than the first line of the `entry` block "
+                       "(line 7, column 9), so the block ends above it")
+
+
+def test_first_key_of_the_document_indented() -> None:
+    code, line, col, message, _ = syntax("# a model\n hfsm: 1\nname: m\n")
+    assert (code, line, col) == ("E002", 2, 2)
+    assert message.startswith("`hfsm` is indented")
+
+
+def test_bracket_inside_a_flow_mapping() -> None:
+    code, line, col, message, _ = syntax(
+        HEAD + "initial: A\nstates:\n  A: {transitions: [{to: A, when: a[0] > 1}]}\n")
+    assert (code, line, col) == ("E002", 5, 40)
+    assert message.startswith("YAML cannot read `>` here, inside a `{...}` or `[...]`: quote code")
+    code, line, col, message, _ = syntax(
+        HEAD + "initial: A\nstates:\n  A: {transitions: [{to: A, when: x >= a[r}]}\n")
+    assert (code, line, col) == ("E002", 5, 41)
+    assert message.startswith("YAML cannot read `[` here, inside a `{...}` or `[...]` that ends with `}`")
+
+
+def test_quoted_key_never_closed_on_its_line() -> None:
+    code, line, col, message, _ = syntax(
+        HEAD + "initial: A\nstates:\n  A:\n    \"    transitions:\n      - {to: A, when: \"x\"}\n")
+    assert (code, line, col) == ("E002", 6, 5)
+    assert message == 'this `"` is not closed on its line: YAML reads on to the `"` on line 7'
 
 
 def test_colon_inside_a_value_suggests_the_quoted_value() -> None:

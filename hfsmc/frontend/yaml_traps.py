@@ -232,10 +232,10 @@ def _rest_of_line(lines: list[str], span: Span) -> str:
 
 _SNIPPET_START = re.compile(
     r"(?:^\s*(?:-\s+)?|[{,]\s*)(?P<key>" + "|".join(sorted(SNIPPET_KEYS)) + r")\s*:\s+(?P<c>[!&*])")
-_NO_SPACE = re.compile(r"^(?P<lead>\s*(?:-\s+)?)(?P<key>[A-Za-z_][A-Za-z0-9_]*):(?P<rest>[^\s:/\\])")
+_NO_SPACE = re.compile(r"^(?P<lead>\s*(?:-\s+)?)(?P<key>[A-Za-z_][A-Za-z0-9_]*):(?P<rest>[^\s:/\\'\"])")
 _KEY_AT = re.compile(r"(?P<key>[^\s#'\"{}\[\],:][^#:]*?)\s*:(?:\s|$)")
 _PLAIN_VALUE = re.compile(r"^\s*(?:-\s+)?(?P<key>[^\s#'\"{}\[\],:-][^#:]*?)\s*:\s+(?P<v>[^\s#'\"|>{\[&*!].*)$")
-_QUOTE_OPEN = re.compile(r"(?:^\s*(?:-\s+)?[^\s#'\"{\[][^#]*?:\s+|^\s*-\s+)(?P<q>['\"])")
+_QUOTE_OPEN = re.compile(r"(?:^\s*(?:-\s+)?[^\s#'\"{\[][^#]*?:\s+|^\s*(?:-\s+)?)(?P<q>['\"])")
 
 
 def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | None:
@@ -263,6 +263,8 @@ def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | Non
         return _tab(file, lines, line, col, raw)
     if problem.startswith("found character") and "cannot start any token" in problem:
         c = _at(lines, line, col)
+        if _in_flow(lines, line, col):
+            return _flow_char(file, line, col, c, "", raw)
         return Diagnostic("E002", f"`{c}` cannot start a value or a key in YAML: quote the whole "
                           "value (docs/quoting.md)", Span(file, line + 1, col + 1), "error", (raw,))
     indicator = _indicator_at_start(file, lines, problem, ctx, mark, cmark, raw)
@@ -282,7 +284,11 @@ def explain(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic | Non
             return found
     if problem.startswith("mapping values are not allowed"):
         return _colon_in_value(file, lines, line, col, raw)
-    if problem.startswith("expected <block end>") or problem.startswith("did not find expected"):
+    if problem.startswith("expected ',' or ") and cmark is not None and cmark.line == line:
+        closer = "}" if "'}'" in problem else "]"
+        return _flow_char(file, line, col, _at(lines, line, col), f" that ends with `{closer}`", raw)
+    if problem.startswith("expected <block end>") or problem.startswith("did not find expected") \
+            or problem.startswith("expected '<document start>'"):
         return _after_quote(file, lines, line, col, raw) or _misaligned(file, lines, line, col, raw)
     return None
 
@@ -306,6 +312,18 @@ def _indicator_at_start(file: str, lines: list[str], problem: str, ctx: str, mar
     return Diagnostic("E002", f"`{c}` at the start of a value begins {_INDICATORS[c]} in YAML, not "
                       "code: quote the whole value (docs/quoting.md)",
                       Span(file, at.line + 1, at.column + 1), "error", (raw,))
+
+
+def _flow_char(file: str, line: int, col: int, c: str, ends: str, raw: str) -> Diagnostic:
+    return Diagnostic("E002", f"YAML cannot read `{c}` here, inside a `{{...}}` or `[...]`{ends}: "
+                      "quote code that holds `,` `[` `]` `{` `}` or `: `", Span(file, line + 1, col + 1),
+                      "error", ("or write the mapping as a block, one key per line (docs/quoting.md)", raw))
+
+
+def _in_flow(lines: list[str], line: int, col: int) -> bool:
+    """Is ``col`` inside a `{...}` or `[...]` opened on its line (quotes ignored)?"""
+    text = lines[line][:col] if 0 <= line < len(lines) else ""
+    return text.count("{") + text.count("[") > text.count("}") + text.count("]")
 
 
 def _at(lines: list[str], line: int, col: int) -> str:
@@ -473,6 +491,9 @@ def _after_quote(file: str, lines: list[str], line: int, col: int, raw: str) -> 
                       (f"write: {m['key']}: {quoted(value)}   (docs/quoting.md)", raw))
 
 
+_BLOCK_START = re.compile(r"^(?P<head>\s*(?:-\s+)?(?:[^#'\"\s][^#]*?:\s+)?)[|>][-+0-9]*\s*(?:#.*)?$")
+
+
 def _misaligned(file: str, lines: list[str], line: int, col: int, raw: str) -> Diagnostic | None:
     if not 0 <= line < len(lines):
         return None
@@ -480,17 +501,53 @@ def _misaligned(file: str, lines: list[str], line: int, col: int, raw: str) -> D
     start = _key_start(text)
     if col != start and col != _indent(text):
         return None  # not about where the line starts
-    levels = _levels_above(lines, line)
     here = _indent(text)
+    blocks = _block_lines(lines, line)
+    if line in blocks:  # a line of a `|` block indented less than the block's first line
+        head, first = blocks[line]
+        key = _first_word(lines[head][_key_start(lines[head]):])
+        col0 = _indent(lines[first]) + 1
+        return Diagnostic(
+            "E002", f"this line is indented less than the first line of the `{key}` block "
+            f"(line {first + 1}, column {col0}), so the block ends above it", Span(file, line + 1, here + 1),
+            "error", (f"indent every line of the block to column {col0} at least; if this line is a "
+                      "key, line it up with the keys above", raw))
+    levels = [lv for lv in _levels_above(lines, line) if lv[1] not in blocks]
     if any(level == here for level, _, _ in levels):
         return None
+    if here == 0 and levels and levels[-1][0] > 0:  # the document's first key is indented
+        c, n, w = levels[-1]
+        return Diagnostic("E002", f"`{w}` is indented, so the keys after it at column 1 cannot "
+                          "belong to the same mapping: top-level keys start at column 1",
+                          Span(file, n + 1, c + 1), "error", (raw,))
     near = [lv for lv in levels if lv[0] > here][-1:] + [lv for lv in levels if lv[0] < here][:1]
-    word = _first_word(text[start:])
+    what = "this list item" if text[here:here + 1] == "-" else f"`{_first_word(text[start:])}`"
     shown = ", ".join(f"column {c + 1} (`{w}`, line {n + 1})" for c, n, w in near)
-    notes = (f"the blocks above start at {shown}: line it up with one of them",) if near else ()
-    return Diagnostic("E002", f"`{word}` at column {here + 1} lines up with no key or list item "
+    notes = (f"the keys and items above start at {shown}: line it up with one of them",) if near else ()
+    return Diagnostic("E002", f"{what} at column {here + 1} lines up with no key or list item "
                       "above it: its indentation is wrong", Span(file, line + 1, here + 1), "error",
                       (*notes, raw))
+
+
+def _block_lines(lines: list[str], upto: int) -> dict[int, tuple[int, int]]:
+    """Lines (up to ``upto``) inside `|`/`>` blocks, loosely: indented more than the
+    block's key.  Each maps to (the key's line, the block's first content line)."""
+    out: dict[int, tuple[int, int]] = {}
+    head: int | None = None
+    first: int | None = None
+    for ln in range(min(upto + 1, len(lines))):
+        text = lines[ln]
+        if head is not None:
+            if not text.strip():
+                continue
+            if _indent(text) > _indent(lines[head]):
+                first = ln if first is None else first
+                out[ln] = (head, first)
+                continue
+            head = first = None
+        if _BLOCK_START.match(text) and "{" not in text and "[" not in text:
+            head = ln
+    return out
 
 
 def _first_word(text: str) -> str:
