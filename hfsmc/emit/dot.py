@@ -505,7 +505,8 @@ def _label_lines(t: Transition, numbered: bool) -> list[str]:
 def wrap(text: str, width: int, indent: str = "") -> list[str]:
     """``text`` over lines of at most ``width`` characters, broken at spaces,
     before ``and`` / ``or`` once a line is half full, and inside words only
-    when one is longer than a line; continuation lines start with ``indent``.
+    when one is longer than a line (after ``(``, before ``.`` and the like
+    if it can); continuation lines start with ``indent``.
     Two or three lines are balanced (as narrow as their number allows: no
     lone ``0.3]`` on the last line); more than MAX_LINES lines end in an
     ellipsis.  Joining the lines (their indent removed) with spaces gives
@@ -529,19 +530,40 @@ def _operator_starts(lines: list[str]) -> int:
     return sum(bool(ln.split()) and ln.split()[0] in BREAK_BEFORE for ln in lines[1:])
 
 
+def _cut(word: str, room: int) -> int:
+    """Where to cut a word too long for a line of ``room`` characters: after
+    an opening parenthesis or a comma, else before ``.``, ``::`` or ``->``,
+    else after ``[``, as far on as the line allows; else at the line's end."""
+    tiers = (
+        [i + 1 for i, ch in enumerate(word) if ch in "(,"],
+        [i for i in range(1, len(word)) if word.startswith((".", "::", "->"), i)
+         and not word.startswith("::", i - 1)],
+        [i + 1 for i, ch in enumerate(word) if ch == "["],
+    )
+    for tier in tiers:
+        fitting = [i for i in tier if room // 3 <= i <= room]
+        if fitting:
+            return max(fitting)
+    return room
+
+
 def _greedy(text: str, width: int, indent: str) -> list[str]:
     """``text`` wrapped greedily at ``width`` (see wrap)."""
     lines: list[str] = []
     line = ""
     for word in text.split(" "):
-        room = width - (len(indent) if lines else 0)
-        while len(word) > width - len(indent):  # a long word: cut, as few times as needed
+        while True:  # a word longer than a line: cut, on lines of its own
+            room = width - (0 if not lines and not line else len(indent))
+            if len(word) <= room:
+                break
             if line:
                 lines.append(line)
                 line = ""
-                room = width - len(indent)
-            lines.append(word[:room])
-            word = word[room:]
+                continue
+            cut = _cut(word, room)
+            lines.append(word[:cut])
+            word = word[cut:]
+        room = width - (len(indent) if lines else 0)
         if line and (len(line) + 1 + len(word) > room
                      or (word in BREAK_BEFORE and len(line) >= room // 2)):
             lines.append(line)
