@@ -31,7 +31,7 @@ from lxml import etree
 from hfsmc.cli import main
 from hfsmc.compiler import compile_file
 from hfsmc.durations import format_us
-from hfsmc.emit import dot, dot_layout
+from hfsmc.emit import dot, dot_layout, dot_text
 from hfsmc.errors import UsageError
 from hfsmc.ir import Automaton, Model, State
 from tests.conftest import examples
@@ -319,7 +319,7 @@ def check_structure(model: Model, source: str, auto: Automaton | None = None,
         assert innermost == (f"cluster_{parent}" if parent != auto.owner else None), src
 
     # one arrow per transition, between the right states, with its whole label,
-    # wrapped in lines of at most dot.WRAP characters
+    # wrapped in lines of at most dot_text.WRAP characters
     drawn = drawn_transitions(graph)
     want = expected_transitions(auto, depth)
     assert Counter((s, d) for s, d, _ in drawn) == Counter((s, d) for s, d, _ in want)
@@ -329,7 +329,7 @@ def check_structure(model: Model, source: str, auto: Automaton | None = None,
             src, dst, text, candidates)
     for _, _, shown in drawn:
         unnumbered = [re.sub(r"^\d+\. ", "", shown[0]), *shown[1:]]
-        assert all(len(line) <= dot.WRAP for line in unnumbered), shown
+        assert all(len(line) <= dot_text.WRAP for line in unnumbered), shown
     return graph
 
 
@@ -691,7 +691,7 @@ def test_very_long_condition_ends_in_an_ellipsis(tmp_path: Path) -> None:
     assert cond not in source
     graph = read_dot(source)
     (shown,) = [lines for s, d, lines in drawn_transitions(graph) if (s, d) == ("Land", "Done")]
-    assert len(shown) == dot.MAX_LINES
+    assert len(shown) == dot_text.MAX_LINES
     assert shown[-1].endswith("…")
     assert ("[" + cond).startswith(label_text(shown).removesuffix("…"))
 
@@ -709,7 +709,7 @@ def test_very_long_condition_ends_in_an_ellipsis(tmp_path: Path) -> None:
     ("[" + "x" * 29, ["[" + "x" * 29]),  # exactly a line
 ])
 def test_wrap(text: str, lines: list[str]) -> None:
-    assert dot.wrap(text, 30, indent=" ") == lines
+    assert dot_text.wrap(text, 30, indent=" ") == lines
 
 
 def test_multi_line_condition_is_joined(tmp_path: Path) -> None:

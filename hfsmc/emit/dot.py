@@ -25,16 +25,13 @@ so that the cluster grows around it).  In SVG, a state's element (node or
 cluster) has its path as ``id`` and a transition ``PATH#N`` (its source and
 index, as a trace's ``fire`` record names it), for views that colour them.
 
-Labels are Graphviz escStrings: backslashes are doubled (no ``\\N``, ``\\l``
-surprises), ``&`` becomes ``&amp;`` (Graphviz decodes entities even in plain
-labels), ``<...>`` is never taken for an HTML label and quotes are escaped by
-the ``graphviz`` package.  The same model always gives the same DOT bytes:
-the direction is estimated, not measured by running Graphviz.
+Label text is wrapped and escaped by hfsmc/emit/dot_text.py.  The same model
+always gives the same DOT bytes: the direction is estimated, not measured by
+running Graphviz.
 """
 
 from __future__ import annotations
 
-import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,17 +39,10 @@ import graphviz
 
 from hfsmc.durations import format_us
 from hfsmc.emit.dot_layout import Plan, Spacing, choose_rankdir, text_size
+from hfsmc.emit.dot_text import WRAP, esc_lines, one_line, shorten, wrap
 from hfsmc.errors import UsageError, did_you_mean
 from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Automaton, Model, State, Transition
-
-# Label lines (names, conditions) are wrapped at this many characters, at
-# spaces and preferably before `and` / `or`; a condition longer than
-# MAX_LINES lines (a rare, unreadable thing on a diagram anyway) ends in "…".
-WRAP = 30
-MAX_LINES = 8
-ELLIPSIS = "…"
-BREAK_BEFORE = frozenset({"and", "or", "&&", "||"})
 
 RANKDIRS = ("auto", "LR", "TB")
 # Sub-automata of at most this many simple states are drawn in a row (one
@@ -128,7 +118,7 @@ def to_dot(model: Model, state_path: str | None = None, *, rankdir: str = "auto"
     auto, title = _select(model, state_path)
     g = graphviz.Digraph(
         name=model.name,
-        graph_attr={**GRAPH_ATTRS, "label": _esc_lines([title])},
+        graph_attr={**GRAPH_ATTRS, "label": esc_lines([title])},
         node_attr=NODE_ATTRS,
         edge_attr=EDGE_ATTRS,
     )
@@ -189,7 +179,7 @@ def _stderr_text(stderr: bytes | str | None) -> str:
     if isinstance(stderr, bytes):
         stderr = stderr.decode("utf-8", errors="replace")
     lines = [ln.strip() for ln in (stderr or "").splitlines() if ln.strip()]
-    return _shorten(" / ".join(lines[-3:]), 300) if lines else "no message"
+    return shorten(" / ".join(lines[-3:]), 300) if lines else "no message"
 
 
 # ---------------------------------------------------------------------------
@@ -264,7 +254,7 @@ class _Drawing:
             self.plan.cluster_label[cluster] = text_size(label, CLUSTER_FONTSIZE)
             with g.subgraph(name=cluster) as c:
                 c.attr(
-                    label=_esc_lines(label, left=True),
+                    label=esc_lines(label, left=True),
                     style="rounded,filled" + (",bold" if initial else ""),
                     fillcolor=CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)],
                     color=BORDER,
@@ -314,7 +304,7 @@ class _Drawing:
         if dst is None:  # cannot happen in a checked model
             raise UsageError(f"transition of `{src.path}` to unknown state `{t.target}`")
         lines = _label_lines(t, numbered=len(src.transitions) > 1)
-        label = _esc_lines(lines, left=True)
+        label = esc_lines(lines, left=True)
         size = text_size(lines, float(EDGE_ATTRS["fontsize"]), em=0.48)
         tail, head = _node_id(self.exit_anchor(src)), _node_id(self.entry_anchor(dst))
         out_of = src.path in self.expanded
@@ -357,7 +347,7 @@ class _Drawing:
             lines.append(f"timeout {format_us(model.interrupt_timeout_us)}")
         marker = "#interrupt"
         head = _node_id(self.entry_anchor(target))
-        g.node(marker, label=_esc_lines(lines), shape="octagon", style="filled",
+        g.node(marker, label=esc_lines(lines), shape="octagon", style="filled",
                fillcolor="#fbe9e7", color=INTERRUPT_COLOR, fontcolor=INTERRUPT_COLOR,
                fontsize=EDGE_ATTRS["fontsize"], width="0", height="0", margin="0.06,0.03",
                tooltip=f"on_interrupt: {target.path}", id=marker)
@@ -395,7 +385,7 @@ class _Drawing:
 
 def _state_attrs(s: State, initial: bool, level: int) -> dict[str, str]:
     attrs = {
-        "label": _esc_lines([s.name]),  # never shortened: names tell states apart
+        "label": esc_lines([s.name]),  # never shortened: names tell states apart
         "tooltip": s.path,  # identifiers and `/`: nothing to escape
         "id": s.path,
     }
@@ -406,7 +396,7 @@ def _state_attrs(s: State, initial: bool, level: int) -> dict[str, str]:
         attrs["penwidth"] = "2"
     if s.automaton is not None:  # a composite state below the depth drawn
         count = len(s.automaton.states)
-        attrs["label"] = _esc_lines([s.name, f"({count} state{'s' * (count != 1)})"])
+        attrs["label"] = esc_lines([s.name, f"({count} state{'s' * (count != 1)})"])
         attrs["fillcolor"] = CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)]
         attrs["color"] = BORDER
         attrs["penwidth"] = "2"
@@ -492,128 +482,11 @@ def _label_lines(t: Transition, numbered: bool) -> list[str]:
     state has several transitions (N: the order in which they are tried)."""
     lines: list[str] = []
     if t.name:
-        lines += wrap(_one_line(t.name), WRAP)
+        lines += wrap(one_line(t.name), WRAP)
     if t.when is not None:
-        lines += wrap("[" + _one_line(t.when.text) + "]", WRAP, indent=" ")
+        lines += wrap("[" + one_line(t.when.text) + "]", WRAP, indent=" ")
     if t.after_us is not None:
         lines.append(f"after {format_us(t.after_us)}")
     if numbered:
         lines[0] = f"{t.index + 1}. {lines[0]}"
     return lines
-
-
-def wrap(text: str, width: int, indent: str = "") -> list[str]:
-    """``text`` over lines of at most ``width`` characters, broken at spaces,
-    before ``and`` / ``or`` once a line is half full, and inside words only
-    when one is longer than a line (after ``(``, before ``.`` and the like
-    if it can); continuation lines start with ``indent``.
-    Two or three lines are balanced (as narrow as their number allows: no
-    lone ``0.3]`` on the last line); more than MAX_LINES lines end in an
-    ellipsis.  Joining the lines (their indent removed) with spaces gives
-    ``text`` back, but for words cut."""
-    lines = _greedy(text, width, indent)
-    longest = max(len(word) for word in text.split(" "))
-    narrower = width - 1
-    while 1 < len(lines) <= 3 and narrower - len(indent) >= longest:  # no new cuts in words
-        tighter = _greedy(text, narrower, indent)
-        if len(tighter) > len(lines) or _operator_starts(tighter) < _operator_starts(lines):
-            break
-        lines, narrower = tighter, narrower - 1
-    if len(lines) > MAX_LINES:
-        lines = lines[:MAX_LINES]
-        lines[-1] = lines[-1][: width - 1].rstrip() + ELLIPSIS
-    return lines
-
-
-def _operator_starts(lines: list[str]) -> int:
-    """How many continuation lines start with ``and`` / ``or``."""
-    return sum(bool(ln.split()) and ln.split()[0] in BREAK_BEFORE for ln in lines[1:])
-
-
-def _cut(word: str, room: int) -> int:
-    """Where to cut a word too long for a line of ``room`` characters: after
-    an opening parenthesis or a comma, else before ``.``, ``::`` or ``->``,
-    else after ``[``, as far on as the line allows; else at the line's end."""
-    tiers = (
-        [i + 1 for i, ch in enumerate(word) if ch in "(,"],
-        [i for i in range(1, len(word)) if word.startswith((".", "::", "->"), i)
-         and not word.startswith("::", i - 1)],
-        [i + 1 for i, ch in enumerate(word) if ch == "["],
-    )
-    for tier in tiers:
-        fitting = [i for i in tier if room // 3 <= i <= room]
-        if fitting:
-            return max(fitting)
-    return room
-
-
-def _greedy(text: str, width: int, indent: str) -> list[str]:
-    """``text`` wrapped greedily at ``width`` (see wrap)."""
-    lines: list[str] = []
-    line = ""
-    for word in text.split(" "):
-        while True:  # a word longer than a line: cut, on lines of its own
-            room = width - (0 if not lines and not line else len(indent))
-            if len(word) <= room:
-                break
-            if line:
-                lines.append(line)
-                line = ""
-                continue
-            cut = _cut(word, room)
-            lines.append(word[:cut])
-            word = word[cut:]
-        room = width - (len(indent) if lines else 0)
-        if line and (len(line) + 1 + len(word) > room
-                     or (word in BREAK_BEFORE and len(line) >= room // 2)):
-            lines.append(line)
-            line = word
-        else:
-            line = f"{line} {word}" if line else word
-    lines.append(line)
-    return [lines[0], *(indent + ln for ln in lines[1:])]
-
-
-# ---------------------------------------------------------------------------
-# text
-
-
-def _one_line(text: str) -> str:
-    """A name or snippet on one line: its lines stripped and joined by spaces."""
-    return " ".join(part for part in (ln.strip() for ln in text.splitlines()) if part)
-
-
-def _shorten(text: str, limit: int) -> str:
-    """``text`` cut to ``limit`` characters, the cut marked with an ellipsis."""
-    if len(text) <= limit:
-        return text
-    return text[: limit - 1].rstrip() + ELLIPSIS
-
-
-def _esc(text: str) -> str:
-    """One label line as a Graphviz escString body (quotes are left to ``graphviz``)."""
-    out = []
-    for ch in text:
-        if ch == "\\":
-            out.append("\\\\")
-        elif ch == "&":
-            out.append("&amp;")
-        elif ch == "\t":
-            out.append(" ")
-        elif unicodedata.category(ch) in ("Cc", "Cs") or ch in "\u2028\u2029\ufffe\uffff":
-            # Control characters (and the like) are invalid in SVG's XML or
-            # break lines: show them as Python would spell them.
-            out.append(ascii(ch)[1:-1].replace("\\", "\\\\"))
-        else:
-            out.append(ch)
-    return "".join(out)
-
-
-def _esc_lines(lines: list[str], left: bool = False) -> str:
-    """Label lines, centred (or left-justified), never taken for an HTML label."""
-    if left:
-        text = "".join(_esc(line) + "\\l" for line in lines)
-    else:
-        text = "\\n".join(_esc(line) for line in lines)
-    label: str = graphviz.nohtml(text)
-    return label
