@@ -125,6 +125,10 @@ def test_config_that_is_a_directory_or_empty(component: tuple[list[str], str],
     empty.write_text("# nothing set here\n")
     r = run([*cmd, "--config", str(empty), "--clock", "virtual", "--focus", "/Mission/"])
     assert r.returncode == 0, r.stderr  # an empty configuration keeps the model's values
+    bom = tmp_path / "bom.yaml"
+    bom.write_bytes(b'\xef\xbb\xbf{"parameters": {"count": 3}}\n')  # as some editors save it
+    r = run([*cmd, "--config", str(bom), "--clock", "virtual", "--param", "altitude=2"])
+    assert r.returncode == 0, r.stderr
 
 
 def test_missing_interface_library_is_reported_at_start(tmp_path: Path) -> None:

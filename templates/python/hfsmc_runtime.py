@@ -623,7 +623,7 @@ def _read_config(path: str) -> dict[str, Any]:
     except OSError as e:
         raise UsageError(f"{path}: cannot read the configuration: {e.strerror}") from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8").removeprefix("\ufeff")  # a BOM, as some editors write it
     except UnicodeDecodeError as e:
         line = raw.count(b"\n", 0, e.start) + 1
         col = e.start - (raw.rfind(b"\n", 0, e.start) + 1) + 1
