@@ -410,7 +410,7 @@ def inside(a: Box, b: Box, slack: float = 1.0) -> bool:
 
 def check_layout(source: str) -> None:
     """Every transition's label, as dot places it, is by its arrow (an ordinary
-    label within a few points of the curve, a label node at both halves' ends),
+    label within 16 pt of the curve, a label node at both halves' ends),
     inside the cluster of its sub-automaton and outside every other cluster,
     and covers no state."""
     graph = layout(source)
@@ -423,7 +423,7 @@ def check_layout(source: str) -> None:
         tail = objects[e["tail"]]
         if "_ldraw_" in e:  # an ordinary label: beside its curve
             box = text_box(e["_ldraw_"])
-            assert min(box_distance(box, p) for p in spline_points(e)) <= 12, e.get("label")
+            assert min(box_distance(box, p) for p in spline_points(e)) <= 16, e.get("label")
             labels.append((tail["name"], box))
     for o in objects.values():
         name = o["name"]
@@ -434,8 +434,8 @@ def check_layout(source: str) -> None:
         out = [e for e in graph["edges"] if e["tail"] == o["_gvid"]]
         assert len(into) == len(out) == 1, name
         # the arrow stops at the label and goes on from it
-        assert box_distance(box, spline_points(into[0])[-1]) <= 12, name
-        assert box_distance(box, spline_points(out[0])[0]) <= 12, name
+        assert box_distance(box, spline_points(into[0])[-1]) <= 16, name
+        assert box_distance(box, spline_points(out[0])[0]) <= 16, name
         labels.append((name[1:].rpartition(" ")[0], box))
     for src, box in labels:
         parent = src.rpartition("/")[0]
@@ -514,6 +514,16 @@ def test_example_png_fits_a_screen(example: Path) -> None:
     assert png.startswith(PNG_SIGNATURE)
     width, height = struct.unpack(">II", png[16:24])  # the IHDR chunk, 96 dpi
     check_screen(width, height)
+
+
+@pytest.mark.parametrize("example", EXAMPLES + LEGACY, ids=lambda p: p.stem)
+def test_labels_by_their_arrows_in_every_layout(example: Path) -> None:
+    """Both directions, every level drawn or the first one only or none."""
+    result = compile_file(str(example.relative_to(ROOT)))
+    assert result.model is not None
+    for rankdir in ("LR", "TB"):
+        for depth in (None, 1, 0):
+            check_layout(dot.to_dot(result.model, rankdir=rankdir, depth=depth))
 
 
 @pytest.mark.parametrize(("name", "rankdir"), [

@@ -266,12 +266,13 @@ class _Drawing:
                     id=s.path,
                 )
                 self.automaton(c, s.automaton, level + 1, (*clusters, cluster))
-        rows = self.row_groups(auto, level)
-        for ids in rows:
+        row_of: dict[str, int] = {}
+        for i, ids in enumerate(self.row_groups(auto, level)):
             self.row(g, ids)
+            row_of.update(dict.fromkeys(ids, i))
         for s in auto.states:
             for t in s.transitions:
-                self.transition(g, s, t, auto, clusters, in_row=bool(rows))
+                self.transition(g, s, t, auto, clusters, row_of)
 
     def is_pair(self, auto: Automaton) -> bool:
         """Whether a nested sub-automaton is a pair of simple states (or one)."""
@@ -299,7 +300,7 @@ class _Drawing:
                     same.node(node_id)
 
     def transition(self, g: graphviz.Digraph, src: State, t: Transition, parent: Automaton,
-                   clusters: tuple[str, ...], in_row: bool) -> None:
+                   clusters: tuple[str, ...], row_of: dict[str, int]) -> None:
         dst = parent.state(t.target)
         if dst is None:  # cannot happen in a checked model
             raise UsageError(f"transition of `{src.path}` to unknown state `{t.target}`")
@@ -310,6 +311,7 @@ class _Drawing:
         out_of = src.path in self.expanded
         into = dst.path in self.expanded
         ident = _transition_id(src, t)
+        in_row = row_of.get(tail, -1) == row_of.get(head, -2)  # both in one row
         if not out_of and not into and (not clusters or in_row):
             g.edge(tail, head, label=label, id=ident)
             self.plan.edge(tail, head, size)
@@ -323,8 +325,8 @@ class _Drawing:
         # self-transition leave the cluster and come back, which a single
         # edge clipped twice by one cluster cannot do.  Inside a cluster too,
         # the label is a node: dot does not grow a cluster around an
-        # ordinary label, which then sticks out of its border.  A pair of
-        # states (a row) is the exception: its labels sit between the two.
+        # ordinary label, which then sticks out of its border.  Arrows within
+        # a row are the exception: their labels sit between its states.
         via = f"#{src.path} {t.index}"  # `#` and spaces never occur in a path
         g.node(via, label=label, shape="plaintext", style="", width="0", height="0",
                margin="0.04,0.02", fontsize=EDGE_ATTRS["fontsize"], id=f"{ident}:label")
