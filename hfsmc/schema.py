@@ -138,6 +138,8 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
                         "unit", doc.span(path), *_seconds_hint(instance))
             return
         hint: tuple[str, ...] = ()
+        if isinstance(instance, dict) and path and path[-1] == "transitions":
+            hint = ("each transition is a list item: start it with `- ` (`- to: B`)",)
         if isinstance(instance, (dict, list)) and snippet_kind(path) is not None:
             opener = "{" if isinstance(instance, dict) else "["
             hint = (f"code starting with `{opener}` is read as a YAML {_describe(instance)[2:]}: "

@@ -319,6 +319,21 @@ def test_list_item_at_no_level() -> None:
     assert message.startswith("this list item at column 8 lines up with no key")
 
 
+def test_key_under_the_dash_of_a_list_item() -> None:
+    code, line, col, message, _ = syntax(
+        HEAD + "initial: A\nstates:\n  A:\n    transitions:\n      - to: A\n      after: 1s\n")
+    assert (code, line, col) == ("E002", 8, 7)
+    assert message == ("`after` lines up with the `-` of the list item on line 7: a key of that item "
+                       "starts at column 9, a new item with `- `")
+
+
+def test_transitions_written_as_a_mapping_says_to_start_items_with_a_dash() -> None:
+    r = comp("initial: A\nstates:\n  A:\n    transitions:\n      to: A\n      after: 1s\n")
+    [d] = r.diagnostics
+    assert (d.code, d.span.line, d.span.col) == ("E101", 7, 7)
+    assert d.notes == ("each transition is a list item: start it with `- ` (`- to: B`)",)
+
+
 def test_block_line_indented_less_than_the_first_one() -> None:
     code, line, col, message, _ = syntax(
         HEAD + "initial: A\nstates:\n  A:\n    entry: |\n        led = True\n      count = 1\n"

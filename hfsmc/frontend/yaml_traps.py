@@ -513,8 +513,17 @@ def _misaligned(file: str, lines: list[str], line: int, col: int, raw: str) -> D
             "error", (f"indent every line of the block to column {col0} at least; if this line is a "
                       "key, line it up with the keys above", raw))
     levels = [lv for lv in _levels_above(lines, line) if lv[1] not in blocks]
-    if any(level == here for level, _, _ in levels):
-        return None
+    same = next((lv for lv in levels if lv[0] == here), None)
+    if same is not None:
+        item = lines[same[1]]
+        if same[2] != "-" or text[here:here + 1] == "-" \
+                or any(lv[0] == here and lv[2] != "-" for lv in levels):  # `key:` then `- ` at its column
+            return None
+        under = _key_start(item)
+        return Diagnostic(
+            "E002", f"`{_first_word(text[start:])}` lines up with the `-` of the list item on line "
+            f"{same[1] + 1}: a key of that item starts at column {under + 1}, a new item with `- `",
+            Span(file, line + 1, here + 1), "error", (raw,))
     if here == 0 and levels and levels[-1][0] > 0:  # the document's first key is indented
         c, n, w = levels[-1]
         return Diagnostic("E002", f"`{w}` is indented, so the keys after it at column 1 cannot "
