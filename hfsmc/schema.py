@@ -197,6 +197,8 @@ def _keys_named_as_states(doc: Document, diags: Diagnostics) -> list[PathKey]:
     is one); the paths of the E107 ones, whose schema errors would only confuse."""
     out: list[PathKey] = []
     data = doc.data
+    if doc.format != "yaml":  # XML and legacy files name their states in attributes
+        return out
     todo: list[tuple[PathKey, Any]] = [(("states",), data.get("states") if isinstance(data, dict) else None)]
     while todo:
         path, states = todo.pop()

@@ -178,6 +178,14 @@ def test_valid_state_named_like_a_key_is_a_warning() -> None:
     assert not any(d.severity == "error" and d.code in ("E107", "E101") for d in r.diagnostics)
 
 
+def test_xml_states_named_like_keys_are_just_names() -> None:
+    text = ('<hfsm version="1" name="m">\n  <automaton initial="entry">\n'
+            '    <state name="entry"><transition to="final" after="1s"/></state>\n'
+            '    <state name="final" final="true"/>\n  </automaton>\n</hfsm>\n')
+    r = compile_file("m.xml", text=text)
+    assert r.ok and not r.diagnostics, r.diagnostics
+
+
 # ---------------------------------------------------------------------------
 # W210 / W211: YAML 1.1 spellings
 
