@@ -20,7 +20,8 @@ from ruamel.yaml.scalarstring import (
 
 from hfsmc.errors import Diagnostic, Diagnostics, ParseError, Span, fail
 from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, YAML11_BOOLS, Document, PathKey, split_lines
-from hfsmc.frontend.yaml_traps import PropertyScan, WatchedParser, explain, may_have_properties
+from hfsmc.frontend.yaml_syntax import explain
+from hfsmc.frontend.yaml_traps import PropertyScan, WatchedParser, may_have_properties
 
 
 def _yaml() -> YAML:
