@@ -141,12 +141,18 @@ def diagram(model: str, output: str | None, state_path: str | None, rankdir: str
 @click.argument("source", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="OUT.yaml or OUT.xml; an existing YAML file is edited in place (comments kept).")
+@click.option("--strict", is_flag=True,
+              help="Legacy files: refuse when their code has errors (default: convert, and "
+                   "report them as W220 warnings to fix in the new model).")
 @_guard
-def convert(source: str, output: str) -> None:
+def convert(source: str, output: str, strict: bool) -> None:
     """Convert SOURCE between YAML and XML (and legacy XML to version 1)."""
-    from hfsmc.convert import convert_model
+    from hfsmc.convert import compile_for_convert, convert_model
 
-    result = _compile_or_exit(source)
+    result = compile_for_convert(source, strict)
+    _print(result.diagnostics, {source: result.lines}, "text")
+    if not result.ok:
+        sys.exit(1)
     assert result.model is not None
     for line in convert_model(result, Path(output)):
         click.echo(line, err=True)

@@ -80,6 +80,7 @@ CODES: dict[str, str] = {
     "W212": "duration written without a unit: a bare number means milliseconds",
     "W213": "a state named like a state key (`final`, `history`...): maybe a key indented wrongly",
     "W215": "done() in a state without a sub-automaton: always false",
+    "W220": "legacy code problem that `convert` carries into the new model (fix it there)",
 }
 
 

@@ -21,6 +21,7 @@ what matters to a user is a warning (W205-W208).  The decisions are listed in
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,11 +34,14 @@ from hfsmc.frontend.legacy_code import (
     Mapped,
     Pos,
     Ref,
+    edit,
 )
 from hfsmc.frontend.source import Document
 from hfsmc.frontend.xmlsource import Element, XmlIndex, written_name
 
 DEFAULT_PERIOD_MS = DEFAULT_ROOT_PERIOD_MS
+_ENTITIES = {"&lt;": "<", "&gt;": ">", "&amp;": "&", "&quot;": '"', "&apos;": "'"}
+_ESCAPED = re.compile("|".join(_ENTITIES))
 
 
 def load_legacy(root: Element, index: XmlIndex, diags: Diagnostics) -> Document:
@@ -48,10 +52,18 @@ def load_legacy(root: Element, index: XmlIndex, diags: Diagnostics) -> Document:
     doc.spans[()] = index.span(root)
     doc.data = {}
     reader = Reader(doc, index, diags, kind)
-    if kind == "VisualStates":
+    if kind == "VisualStates" and root.find("state") is None \
+            and root.find("SubAutomata") is not None:
+        # VisualStates' C++ editor (2016-2017) saved VisualHFSM 5's layout under this root
+        from hfsmc.frontend.legacy_visualhfsm import read
+    elif kind == "VisualStates":
         from hfsmc.frontend.legacy_visualstates import read
     else:
-        from hfsmc.frontend.legacy_visualhfsm import read
+        from hfsmc.frontend.legacy_visualhfsm3 import is_visualhfsm3
+        if is_visualhfsm3(root):
+            from hfsmc.frontend.legacy_visualhfsm3 import read
+        else:
+            from hfsmc.frontend.legacy_visualhfsm import read
     legacy = read(reader, root)
     if legacy is not None and not diags.has_errors:
         from hfsmc.frontend.legacy_map import Assembler
@@ -96,6 +108,7 @@ class Context:
     """Where each kind of reference looks a name up, in order (see legacy_code.Ref)."""
 
     scopes: dict[str, tuple[Space, ...]]
+    state: bool = False  # the code of a state or transition (not a namespace's functions)
 
     def find(self, ref: Ref) -> Member | None:
         for space in self.scopes.get(ref.scope, ()):
@@ -163,6 +176,9 @@ class Legacy:
     history: bool  # what re-entering a composite state does in the legacy tool
     implicit_imports: tuple[str, ...]  # modules the legacy tool's generated code imported
     dropped: list[tuple[Span, str]] = field(default_factory=list)  # for the report
+    language: str | None = None  # the code's language when the format fixes it
+    language_why: str = ""
+    ros_dependencies: list[tuple[str, Span]] = field(default_factory=list)  # ROS packages
 
 
 # ---------------------------------------------------------------------------
@@ -204,6 +220,7 @@ class Reader:
         self.diags = diags
         self.kind = kind
         self.notes = doc.notes
+        self.unescaped = False
 
     def span(self, el: Element) -> Span:
         return self.index.span(el)
@@ -265,7 +282,23 @@ class Reader:
             return Mapped.synth("", self.pos(self.span(el)))
         src = self.index.src
         offsets = _char_offsets(src.text, start, len(raw))
-        return Mapped(raw, tuple(self.pos(src.span(o)) for o in offsets))
+        return self._unescape(Mapped(raw, tuple(self.pos(src.span(o)) for o in offsets)))
+
+    def _unescape(self, m: Mapped) -> Mapped:
+        """Text escaped twice (``&amp;lt;`` in the file, ``&lt;`` once read): VisualStates'
+        editor saved some files so, and unescaped the code again when it read them."""
+        found = list(_ESCAPED.finditer(m.text))
+        if not found:
+            return m
+        edits = [(e.start(), e.end(), Mapped(_ENTITIES[e.group()], (m.pos[e.start()],
+                                                                     m.pos[e.end()])))
+                 for e in found]
+        if not self.unescaped:
+            self.unescaped = True
+            self.note(self.to_span(m.at(found[0].start())),
+                      f"code escaped twice (`{found[0].group()}` once read): unescaped again, "
+                      "as VisualStates did")
+        return edit(m, edits)
 
     def value(self, el: Element) -> tuple[str, Span]:
         """The element's text, stripped, and where it starts."""

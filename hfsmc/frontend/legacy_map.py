@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import ast
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -74,11 +74,16 @@ class Assembler(Names):
         self.why = ""  # how the language was told
         self.helpers: list[Mapped] = []  # condition functions
         self.counts = {"global": 0, "local": 0, "self": 0}  # prefixes dropped
+        self.selfs: set[tuple[Pos, str]] = set()  # (text, name) of `self.x` in state code, warned
 
     # -- the whole model -------------------------------------------------------
     def model(self) -> dict[str, Any]:
         lg = self.legacy
-        self.language, self.why = guess_language(self._texts_for_language())
+        if lg.language in ("python", "cpp"):
+            self.language = "cpp" if lg.language == "cpp" else "python"
+            self.why = lg.language_why
+        else:
+            self.language, self.why = guess_language(self._texts_for_language())
         for space in lg.spaces:
             self._read_space(space)
         d: dict[str, Any] = {}
@@ -100,6 +105,7 @@ class Assembler(Names):
             for i, (_, span) in enumerate(imports):
                 self._put_span(("imports", i), span, span)
         self._interface_data(d)
+        self._variable_data(d, "parameter", "parameters")
         self._variable_data(d)
         states = self._level(lg.root, (), d, None)
         self._functions_data(d)
@@ -151,7 +157,14 @@ class Assembler(Names):
         for ref in references(m.text, self.language, bare_names):
             member = ctx.find(ref)
             if member is None and (ref.scope == "bare" or ref.scope not in ctx.scopes):
-                continue  # `self.x` of a state's own object: left for the checks to point at
+                continue  # a name of no namespace: left for the checks to point at
+            if ctx.state and ref.scope == "self" and member is not None \
+                    and member.kind != "implicit" and (m.start, member.name) not in self.selfs:
+                self.selfs.add((m.start, member.name))
+                self.r.warn("W208", f"`self.{ref.name}` in the code of a state or transition: "
+                            f"{self.r.kind} looked it up on that state's own object; read as "
+                            f"the namespace member `{member.final}`",
+                            self.r.to_span(m.at(ref.start)))
             new = member.final if member is not None else ref.name
             if ref.scope in self.counts:
                 self.counts[ref.scope] += 1
@@ -166,43 +179,53 @@ class Assembler(Names):
             shift += len(new) - (ref.end - ref.start)
         return _Converted(edit(m, edits), stores, named)
 
-    def _local_clashes(self, conv: _Converted, module: Callable[[int, int], set[str]]) -> None:
-        """W208 for a name the legacy code kept local that is now also a module-level name
-        (``module(start, end)``: those of the text between two offsets): one name now."""
-        if self.language != "python":
-            return
+    def _rename_locals(self, m: Mapped) -> Mapped:
+        """Bare names of legacy Python code that are now also module-level names of the
+        model (``odom = self.odom`` in a function): renamed ``NAME_local`` (W206).
+
+        In the legacy code a bare name was always a local (namespace members were
+        reached through ``self.``); once prefixes are dropped, a local and a member of
+        one name would be one name (``odom = odom`` does not even run)."""
+        if self.language != "python" or not m.text:
+            return m
         try:
-            tree = ast.parse(conv.text.text)
+            tree = ast.parse(m.text)
         except (SyntaxError, ValueError, MemoryError, RecursionError):
-            return
-        rows = conv.text.text.split("\n")
+            return m
+        module = {mem.final for space in self.legacy.spaces for mem in space.members.values()}
+        rows = m.text.split("\n")
         starts = [0]
         for row in rows:
             starts.append(starts[-1] + len(row) + 1)
-
-        def offset(node: ast.expr | ast.stmt | ast.arg) -> int:
+        hits: list[tuple[int, str]] = []
+        for node in ast.walk(tree):
+            name = node.id if isinstance(node, ast.Name) else \
+                node.arg if isinstance(node, ast.arg) else None
+            if name is None or name not in module or name == "self":
+                continue
+            assert isinstance(node, ast.Name | ast.arg)
             row = rows[node.lineno - 1]
             col = len(row.encode("utf-8")[:node.col_offset].decode("utf-8", "replace"))
-            return starts[node.lineno - 1] + col
-
-        scopes: list[tuple[int, int, ast.AST]] = [(0, len(conv.text.text), tree)]
-        if isinstance(tree, ast.Module) and any(isinstance(n, ast.FunctionDef)
-                                                for n in tree.body):
-            scopes = [(offset(n), offset(n) + len(ast.get_source_segment(conv.text.text, n) or ""),
-                       n) for n in tree.body if isinstance(n, ast.FunctionDef)]
-        for start, end, node in scopes:
-            taken = module(start, end)
-            local = [n for n in ast.walk(node) if isinstance(n, ast.Name | ast.arg)
-                     and (isinstance(n, ast.arg) or isinstance(n.ctx, ast.Store))]
-            for n in local:
-                name = n.arg if isinstance(n, ast.arg) else n.id
-                at = offset(n)
-                if name in taken and at not in conv.refs:
-                    self.r.warn("W208", f"`{name}` is a local name of this code in {self.r.kind}, "
-                                f"and the model also has `{name}` at module level: here they are "
-                                "one name", self.r.to_span(conv.text.at(at)),
-                                "rename the local")
-                    return
+            hits.append((starts[node.lineno - 1] + col, name))
+        if not hits:
+            return m
+        edits: list[tuple[int, int, Mapped]] = []
+        warned: set[str] = set()
+        for off, name in sorted(hits):
+            new = f"{name}_local"
+            while new in module:
+                new += "_"
+            edits.append((off, off + len(name), join(
+                [m.cut(off, off + len(name)), Mapped.synth(new[len(name):], m.at(off + len(name)))],
+                m.at(off))))
+            if name not in warned:
+                warned.add(name)
+                self.renames += 1
+                self.r.warn("W206", f"`{name}`, a local name of this code in {self.r.kind}, "
+                            f"renamed `{new}`: the model also has `{name}` at module level, "
+                            "and in one module they would be one name",
+                            self.r.to_span(m.at(off)), "every use of the local is renamed too")
+        return edit(m, edits)
 
     def _snippet(self, m: Mapped | None, ctx: Context) -> Mapped | None:
         """State or transition code: a snippet that declares what it assigns at module level."""
@@ -211,10 +234,7 @@ class Assembler(Names):
         m = block(m)
         if not m.text:
             return None
-        conv = self._convert(m, ctx)
-        variables = {mem.final for s in self.legacy.spaces for mem in s.members.values()
-                     if mem.kind == "variable"}
-        self._local_clashes(conv, lambda a, b: variables | {m.final for m in conv.refs.values()})
+        conv = self._convert(self._rename_locals(m), ctx)
         names = sorted({mem.final for mem in conv.stores.values() if mem.kind != "variable"})
         if names and self.language == "python":
             return join([Mapped.synth(f"global {', '.join(names)}\n", m.start), conv.text],
@@ -223,7 +243,7 @@ class Assembler(Names):
 
     def _condition(self, t: Transition, source: LState) -> Mapped:
         cond = block(t.cond) if t.cond is not None else Mapped.synth("", self.r.pos(t.span))
-        conv = self._convert(cond, source.ctx)
+        conv = self._convert(self._rename_locals(cond), source.ctx)
         text = conv.text
         lang = self.language
         expression = parses(text.text, "eval") if lang == "python" else cpp_is_expression(text)
@@ -265,11 +285,9 @@ class Assembler(Names):
                        if n in space.members and space.members[n].final != n]
             f = edit(f, [(off, off + size, Mapped.synth(new, f.at(off)))
                          for off, size, new in renames])
-        conv = self._convert(f, space.ctx)
+        conv = self._convert(self._rename_locals(f), space.ctx)
         if self.language != "python":
             return conv.text
-        self._local_clashes(conv, lambda a, b: {m.final for off, m in conv.refs.items()
-                                                if a <= off < b})
         return add_globals(conv.text, {off: m.final for off, m in conv.stores.items()})
 
     # -- the sections of the model -------------------------------------------
@@ -292,12 +310,13 @@ class Assembler(Names):
                 for k, v in itf.options.items():
                     self._put(opts, (*path, "options", k), v, itf.span)
 
-    def _variable_data(self, d: dict[str, Any]) -> None:
+    def _variable_data(self, d: dict[str, Any], kind: str = "variable",
+                       section: str = "variables") -> None:
         out: dict[str, Any] = {}
         for space in self.legacy.spaces:
             for member in space.members.values():
-                if member.kind == "variable":
-                    path: PathKey = ("variables", member.final)
+                if member.kind == kind:
+                    path: PathKey = (section, member.final)
                     value_span = member.value_span or member.span
                     self._put(out, path, member.value, value_span, member.span)
                     if isinstance(member.value, dict):
@@ -305,7 +324,7 @@ class Assembler(Names):
                             self._put_span((*path, k), value_span, value_span)
         if out:
             first = next(iter(out))
-            self._put(d, ("variables",), out, self.doc.key_span(("variables", first)))
+            self._put(d, (section,), out, self.doc.key_span((section, first)))
 
     def _functions_data(self, d: dict[str, Any]) -> None:
         c = _COMMENT[self.language]
@@ -428,6 +447,7 @@ class Assembler(Names):
             for member in space.members.values():
                 kinds[member.kind] = kinds.get(member.kind, 0) + 1
         words = {"variable": "variables", "function": "functions", "interface": "interfaces",
+                 "parameter": "parameters (settable at start, as VisualStates' were)",
                  "init": "names set by statements kept in `functions`",
                  "implicit": "attributes assigned but never declared (None at first)"}
         if kinds:

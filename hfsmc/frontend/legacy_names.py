@@ -195,8 +195,26 @@ class Names:
                                 else f"<{pkg}/{msg}.h>", span):
                     self.r.note(span, f"import of the ROS message type {text} added: the code "
                                 f"{self.r.kind} generated imported it")
+        if self.language == "cpp":
+            # The .cpp VisualStates and VisualHFSM generated included these for the code.
+            for header, used in (("<iostream>", r"\bstd\s*::\s*(?:cout|cerr|clog|endl)\b"),
+                                 ("<string>", r"\bstd\s*::\s*string\b")):
+                at = next((self.r.to_span(m.at(f.start())) for m, _ in self._all_code()
+                           if (f := re.search(used, mask(m.text, "cpp"))) is not None), None)
+                if at is not None and add(header, at):
+                    self.r.note(at, f"`#include {header}` added: the code {self.r.kind} "
+                                "generated included it, and this model uses it")
         if self.language == "python":
             texts = [m.text for m, _ in self._all_code()]
+            for package, span in self.legacy.ros_dependencies:
+                if identifier(package, "") == package and package not in self.imported \
+                        and self._declared(package) is None:
+                    at = self._first_use(package, module=True)
+                    if at is not None and add(f"import {package}", span):
+                        self.r.warn("W208", f"`{package}` is used as a module, and it is a ROS "
+                                    f"dependency of the file, but the legacy code never "
+                                    f"imported it (the component stopped with NameError "
+                                    f"here): `import {package}` added", at)
             for module in self.legacy.implicit_imports:
                 if module not in self.imported and self._declared(module) is None:
                     at = self._first_use(module)
@@ -212,8 +230,10 @@ class Names:
                 return space.members[name]
         return None
 
-    def _first_use(self, name: str) -> Span | None:
-        pattern = re.compile(r"(?<![\w.])" + re.escape(name) + r"\b")
+    def _first_use(self, name: str, module: bool = False) -> Span | None:
+        """Where code first names ``name`` (``module``: as a module, ``name.attr``)."""
+        pattern = re.compile(r"(?<![\w.])" + re.escape(name) + (r"[ \t]*\.[ \t]*[A-Za-z_]"
+                                                                 if module else r"\b"))
         for m, _ in self._all_code():
             found = pattern.search(mask(m.text, self.language))
             if found is not None:
@@ -244,13 +264,19 @@ class Names:
 
     # -- names -----------------------------------------------------------------
     def _implicit_members(self) -> None:
-        """Python code may assign ``self.x`` that no namespace declares: declare it (None)."""
+        """Python code may assign ``self.x`` that no namespace declares: declare it (None).
+
+        A name only read, never declared nor assigned, stays undefined: the check reports
+        it (E141), as the legacy component failed there (AttributeError)."""
         if self.language != "python":
             return
         for m, ctx in self._all_code():
             for ref in references(m.text, "python"):
                 if ref.plain and ctx.find(ref) is None and ctx.scopes.get(ref.scope):
-                    space = ctx.scopes[ref.scope][0]
+                    # a state's `self.x = ...` (VisualStates: an attribute of the state
+                    # object) becomes a module-level name: the global namespace's
+                    space = self.legacy.spaces[0] if ctx.state and ref.scope == "self" \
+                        else ctx.scopes[ref.scope][0]
                     member = self._member(space, ref.name, "implicit",
                                           self.r.to_span(m.at(ref.start)))
                     space.inits.append(Mapped.synth(f"self.{ref.name} = None",

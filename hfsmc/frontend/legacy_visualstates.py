@@ -23,6 +23,7 @@ from hfsmc.frontend.legacy import (
     Legacy,
     Level,
     LState,
+    Member,
     Reader,
     Space,
     Transition,
@@ -30,15 +31,15 @@ from hfsmc.frontend.legacy import (
 from hfsmc.frontend.legacy_code import identifier
 from hfsmc.frontend.xmlsource import Element
 
-_STATE_SINGLE = ("name", "code", "timestep", "namespace")
+_STATE_SINGLE = ("name", "code", "timestep", "namespace", "functions", "variables")
 _TRANSITION_SINGLE = ("type", "time", "condition", "name", "originid", "destinationid", "code")
 # Modules VisualStates' generated Python imported for the code (plain JdeRobot and ROS).
 _IMPLICIT = ("sys", "threading", "time", "signal", "rospy")
 
 
 def read(r: Reader, root: Element) -> Legacy | None:
-    groups = r.children(root, ("config", "global_namespace", "functions", "variables",
-                               "libraries"), ("state",))
+    groups = r.children(root, ("config", "configs", "global_namespace", "functions",
+                               "variables", "libraries"), ("state",))
     states = groups.get("state", [])
     if not states:
         r.error("E102", "a VisualStates file needs its root `<state>`", r.span(root))
@@ -56,20 +57,66 @@ def read(r: Reader, root: Element) -> Legacy | None:
             (glob.functions if tag == "functions" else glob.variables).append(r.text(el))
     glob.ctx = Context({k: (glob,) for k in ("self", "global", "local", "bare")})
     dropped: list[tuple[Span, str]] = []
-    interfaces = _config(r, r.first(groups, "config"), dropped)
+    packages: list[tuple[str, Span]] = []
+    interfaces = _config(r, r.first(groups, "config"), dropped, packages)
+    interfaces += _configs(r, r.first(groups, "configs"))
     libraries = _libraries(r, r.first(groups, "libraries"))
     reader = _States(r, glob, states[0])
     level = reader.root(states[0], dropped)
     dropped.append((r.span(root), "the layout of the diagram (posx, posy)"))
-    return Legacy(level, [glob, *reader.spaces], interfaces, libraries, False, _IMPLICIT, dropped)
+    return Legacy(level, [glob, *reader.spaces], interfaces, libraries, False, _IMPLICIT, dropped,
+                  ros_dependencies=packages)
 
 
 def _namespace(r: Reader, el: Element, space: Space) -> None:
-    groups = r.children(el, ("functions", "variables"))
+    groups = r.children(el, ("functions", "variables", "parameters"))
     for tag in ("functions", "variables"):
         found = r.first(groups, tag)
         if found is not None:
             (space.functions if tag == "functions" else space.variables).append(r.text(found))
+    params = r.first(groups, "parameters")
+    if params is not None:
+        for p in r.children(params, (), ("param",)).get("param", []):
+            _parameter(r, p, space)
+
+
+# VisualStates' parameter types (core/parameter.py) as model parameter types.
+_PARAM_TYPES = {"boolean": "bool", "integer": "int", "float": "float", "string": "str",
+                "character": "str"}
+
+
+def _parameter(r: Reader, el: Element, space: Space) -> None:
+    """``<param name type><value/><description/></param>``: a parameter of the model
+    (VisualStates let a launch set it; so does `--param`)."""
+    name, name_span = r.attr(el, "name")
+    kind, kind_span = r.attr(el, "type")
+    if not name or not name.strip():
+        r.error("E102", "this `<param>` has no `name`", r.span(el))
+        return
+    g = r.children(el, ("value", "description"))
+    value_el, desc_el = r.first(g, "value"), r.first(g, "description")
+    text, value_span = r.value(value_el) if value_el is not None else ("", r.span(el))
+    typ = _PARAM_TYPES.get((kind or "").strip().lower())
+    value: object = text
+    try:
+        if typ == "bool" and text.lower() in ("true", "false"):
+            value = text.lower() == "true"
+        elif typ == "int":
+            value = int(text)
+        elif typ == "float":
+            value = float(text)
+        elif typ != "str":
+            raise ValueError(text)
+    except ValueError:
+        r.warn("W208", f"parameter `{name}` of type {kind!r} has the value {text!r}: read as "
+               "a string", value_span if value_el is not None else kind_span)
+        typ, value = "str", text
+    data: dict[str, object] = {"type": typ, "default": value}
+    if desc_el is not None and r.value(desc_el)[0]:
+        data["description"] = r.value(desc_el)[0]
+    name = name.strip()
+    if name not in space.members:
+        space.members[name] = Member(name, "parameter", name_span, data, value_span)
 
 
 def _libraries(r: Reader, el: Element | None) -> list[tuple[str, Span]]:
@@ -93,17 +140,20 @@ def _norm(uid: str) -> str:
 # config: ROS topics, or JdeRobot interfaces
 
 
-def _config(r: Reader, el: Element | None, dropped: list[tuple[Span, str]]) -> list[Interface]:
+def _config(r: Reader, el: Element | None, dropped: list[tuple[Span, str]],
+            packages: list[tuple[str, Span]]) -> list[Interface]:
     if el is None:
         return []
     groups = r.children(el, ("buildDependencies", "runDependencies", "topics", "interfaces"))
     for tag in ("buildDependencies", "runDependencies"):
         deps = r.first(groups, tag)
         if deps is not None:
-            names = [r.value(d)[0] for d in r.children(deps, (), ("dependency",))
-                     .get("dependency", [])]
-            if any(names):
-                dropped.append((r.span(deps), f"ROS {tag} {', '.join(n for n in names if n)}"))
+            listed = [r.value(d) for d in r.children(deps, (), ("dependency",))
+                      .get("dependency", [])]
+            names = [n for n, _ in listed if n]
+            packages += [(n, span) for n, span in listed if n]
+            if names:
+                dropped.append((r.span(deps), f"ROS {tag} {', '.join(names)}"))
     out: list[Interface] = []
     topics = r.first(groups, "topics")
     if topics is not None:
@@ -117,6 +167,23 @@ def _config(r: Reader, el: Element | None, dropped: list[tuple[Span, str]]) -> l
             found = _jderobot_interface(r, i)
             if found is not None:
                 out.append(found)
+    return out
+
+
+def _configs(r: Reader, el: Element | None) -> list[Interface]:
+    """``<configs><config>`` (VisualStates' first Python editor, 2017): ICE interfaces."""
+    if el is None:
+        return []
+    out: list[Interface] = []
+    for c in r.children(el, (), ("config",)).get("config", []):
+        t = _texts(r, c, ("name", "proxyname", "ip", "port", "interface"))
+        name, span = t.get("name", ("", r.span(c)))
+        if not name:
+            r.error("E102", "this `<config>` has no `<name>`", span)
+            continue
+        proxy, ip, port, kind = (t[k][0] if k in t else ""
+                                 for k in ("proxyname", "ip", "port", "interface"))
+        out.append(ice_interface(name, "ice", proxy, ip, port, kind, "", r.span(c)))
     return out
 
 
@@ -197,6 +264,9 @@ class _States:
         self.spaces: list[Space] = []
         # every id in the file, to tell a transition to another level from one to nowhere
         self.everywhere: dict[str, str] = {}
+        # Files written before VisualStates had timesteps (and before its editor marked
+        # the first state of a level initial) have no <timestep> at all.
+        self.timesteps = next(root.iter("timestep"), None) is not None
         for el in root.iter("state"):
             uid = _norm(el.get("id", ""))
             name = el.find("name")
@@ -217,12 +287,24 @@ class _States:
         if name and name != "root":
             dropped.append((r.value(name_el)[1] if name_el is not None else r.span(el),
                             f"the root state's name `{name}`"))
+        self.state_namespace(groups)
         space = self.space(el, groups, identifier(name or "root", "root"), ())
         level = self.level(el, groups, (space,), name or "root")
         if not level.states:
             r.error("E102", "the root state has no child `<state>`: nothing to run",
                     r.span(el))
         return level
+
+    def state_namespace(self, groups: dict[str, list[Element]]) -> None:
+        """A state's own `<functions>` and `<variables>` (files of 2017, before namespaces):
+        VisualStates read them as the file's, the global namespace."""
+        for tag in ("functions", "variables"):
+            found = self.r.first(groups, tag)
+            if found is not None and self.r.text(found).text.strip():
+                into = self.glob.functions if tag == "functions" else self.glob.variables
+                into.append(self.r.text(found))
+                self.r.note(self.r.span(found), f"`<{tag}>` of a state read as the file's "
+                            f"{tag} (the global namespace), as VisualStates read them then")
 
     def space(self, el: Element, groups: dict[str, list[Element]], owner: str,
               chain: tuple[Space, ...]) -> Space:
@@ -242,7 +324,8 @@ class _States:
               owner_name: str) -> Level:
         r = self.r
         level = Level(r.span(owner))
-        step = r.required(groups, "timestep", owner, f"state `{owner_name}`")
+        step = r.required(groups, "timestep", owner, f"state `{owner_name}`") \
+            if self.timesteps else None
         if step is not None:
             level.period_ms, level.period_span = r.milliseconds(step, "timestep", "E110")
             if level.period_ms == 0:
@@ -272,7 +355,13 @@ class _States:
                 found = self.transition(t, s, by_id, owner_name)
                 if found is not None:
                     s.transitions.append(found)
-        if level.states and level.initial is None:
+        if level.states and level.initial is None and not self.timesteps:
+            level.initial, level.initial_span = level.states[0], r.span(owner)
+            r.warn("W208", f"no child of `{owner_name}` is initial: it starts at its first "
+                   f"child, `{level.states[0].written}` (this file predates timesteps and "
+                   "initial marks; VisualStates' editor made the first state of a level "
+                   "initial)", r.span(owner))
+        elif level.states and level.initial is None:
             r.error("E130", f"no child of `{owner_name}` is initial", r.span(owner),
                     f"mark one of {', '.join(s.written for s in level.states)} "
                     "with initial=\"True\"")
@@ -291,8 +380,11 @@ class _States:
         what = f"state `{written}`" if written else "this state"
         code_el = r.required(groups, "code", el, what)
         code = r.text(code_el) if code_el is not None else None
+        self.state_namespace(groups)
         own = self.space(el, groups, identifier(written, "state"), chain)
-        ctx = Context({"local": (*chain, self.glob, own), "global": (self.glob, *chain, own)})
+        # A bare `self.x` (the state object in VisualStates) looks in the namespaces too.
+        ctx = Context({"local": (*chain, self.glob, own), "global": (self.glob, *chain, own),
+                       "self": (*chain, self.glob, own)}, state=True)
         s = LState(_norm(uid or ""), written, name_span, code, ctx)
         if groups.get("state"):
             s.child = self.level(el, groups, (own, *chain), written)
@@ -300,7 +392,7 @@ class _States:
             step = r.first(groups, "timestep")
             assert step is not None
             r.milliseconds(step, "timestep", "E110")  # unused without children, still checked
-        else:
+        elif self.timesteps:
             r.required(groups, "timestep", el, what)
         return s, groups.get("transition", [])
 
