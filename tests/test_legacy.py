@@ -534,7 +534,9 @@ def test_bad_file_gives_its_diagnostic(case: tuple[str, str, int, int]) -> None:
 # ---------------------------------------------------------------------------
 # fuzz: mutated corpus files give diagnostics, never a crash
 
-_TEXTS = {p.name: p.read_text("utf-8") for p in CORPUS_FILES}
+# the corpus and the files of the tools' history (tests/legacy/history: VisualHFSM 3.x too)
+_TEXTS = {p.name: p.read_text("utf-8")
+          for p in [*CORPUS_FILES, *sorted((LEGACY / "history").glob("*.xml"))]}
 _GARBAGE = ["", "0", "-1", "99", "x y", "&lt;", "self.", "1e999", "True", "None", "\t\n", "é",
             "return", "state", "12abc"]
 
@@ -555,7 +557,8 @@ def mutated(draw: st.DrawFn) -> str:
             parent.insert(parent.index(el), etree.fromstring(etree.tostring(el)))
         elif op == "rename":
             el.tag = draw(st.sampled_from(["state", "transition", "code", "name", "namespace",
-                                           "SubAutomata", "trans", "x"]))
+                                           "SubAutomata", "trans", "x", "Estado", "hijo",
+                                           "transicion", "idSub", "parameters", "timestep"]))
         elif op == "text":
             el.text = draw(st.sampled_from(_GARBAGE))
         elif op == "truncate" and el.text:
@@ -564,7 +567,8 @@ def mutated(draw: st.DrawFn) -> str:
             other = elements[draw(st.integers(0, len(elements) - 1))]
             el.text, other.text = other.text, el.text
         elif op == "attribute":
-            el.set(draw(st.sampled_from(["id", "idFather", "initial", "type"])),
+            el.set(draw(st.sampled_from(["id", "idFather", "initial", "type", "estado_inicial",
+                                         "name"])),
                    draw(st.sampled_from(_GARBAGE)))
         elif op == "move" and parent is not None:
             target = elements[draw(st.integers(0, len(elements) - 1))]

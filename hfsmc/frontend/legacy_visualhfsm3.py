@@ -105,7 +105,8 @@ def read(r: Reader, root: Element) -> Legacy | None:
                 if name:
                     libraries.setdefault(name, span)
     if not order:
-        r.error("E102", "this VisualHFSM file has no `<SubAutomata>`", r.span(root))
+        if not groups.get("SubAutomata"):
+            r.error("E102", "this VisualHFSM file has no `<SubAutomata>`", r.span(root))
         return None
     roots = [s for s in order if s.father == "0"]
     if not roots:
