@@ -93,13 +93,17 @@ def check_cpp(model: Model) -> CxxCheck:
     root = cache_dir()
     output = _cached(root / "out" / key)
     if output is None:
+        def compile_in(pch: Path) -> tuple[int, str]:
+            folder = _header_set(pch, pch_key, headers, compiler)
+            return _run([compiler, *toolchain.flags, "-fsyntax-only",
+                         "-I", str(folder / "include"), "-include", str(folder / "pch.hpp"),
+                         "-x", "c++", "-"], source)
+
         try:
-            folder = _header_set(root / "pch", pch_key, headers, compiler)
-            code, text = _run([compiler, *toolchain.flags, "-fsyntax-only",
-                               "-I", str(folder / "include"), "-include", str(folder / "pch.hpp"),
-                               "-x", "c++", "-"], source)
-        except OSError as e:
-            return CxxCheck(note=f"C++ snippets not checked: the cache {root} cannot be written: {e}")
+            code, text = compile_in(root / "pch")
+        except OSError:  # a cache that cannot be written (read-only home): a folder for once
+            with tempfile.TemporaryDirectory(prefix="hfsmc-cxx-") as tmp:
+                code, text = compile_in(Path(tmp))
         output = f"{code}\n{text}"
         if "fatal error" not in text and code != 124:  # a missing header may be installed later
             _store(root / "out", key, output)

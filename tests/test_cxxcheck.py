@@ -176,6 +176,14 @@ def test_a_missing_compiler_is_a_note_not_an_error(tmp_path: Path,
                         "only by `hfsmc build --compile` (`make deps` installs g++)\n")
 
 
+def test_a_cache_that_cannot_be_written_only_costs_time(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    (tmp_path / "file").write_text("not a folder")
+    monkeypatch.setenv("HFSMC_CACHE_DIR", str(tmp_path / "file"))
+    r = compile_file(write(tmp_path, "typo.yaml", TYPO), cxx=True)
+    assert found(r.diagnostics, "E144") == [(11, 7)] and not r.notes
+
+
 def test_a_value_the_cpp_component_cannot_hold_is_found_by_check(tmp_path: Path) -> None:
     path = write(tmp_path, "lst.yaml", "hfsm: 1\nname: lst\nlanguage: cpp\nvariables:\n"
                  "  xs: [1, 2]\ninitial: A\nstates:\n  A: {final: true}\n")
