@@ -76,9 +76,11 @@ def cache_dir() -> Path:
 
 def check_cpp(model: Model) -> CxxCheck:
     """Compile the model's translation unit with ``-fsyntax-only``; its diagnostics."""
-    compiler = shutil.which(os.environ.get("CXX") or "g++")
+    name = os.environ.get("CXX") or "g++"
+    compiler = shutil.which(name)
     if compiler is None:
-        return CxxCheck(note="g++ is not installed: C++ snippets are compiled only by "
+        what = "g++ is not installed" if name == "g++" else f"CXX names {name}, which is not found"
+        return CxxCheck(note=f"{what}: C++ snippets are compiled only by "
                         "`hfsmc build --compile` (`make deps` installs g++)")
     from hfsmc.emit import cpp
 

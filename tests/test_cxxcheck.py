@@ -172,8 +172,14 @@ def test_a_missing_compiler_is_a_note_not_an_error(tmp_path: Path,
     path = write(tmp_path, "typo.yaml", TYPO)
     r = CliRunner().invoke(main, ["check", path])
     assert r.exit_code == 0, r.output
-    assert r.stderr == (f"hfsmc: note: {path}: g++ is not installed: C++ snippets are compiled "
-                        "only by `hfsmc build --compile` (`make deps` installs g++)\n")
+    assert r.stderr == (f"hfsmc: note: {path}: CXX names {tmp_path / 'no-such-g++'}, which is not "
+                        "found: C++ snippets are compiled only by `hfsmc build --compile` "
+                        "(`make deps` installs g++)\n")
+    monkeypatch.setenv("PATH", str(tmp_path))  # no g++ on the PATH
+    monkeypatch.delenv("CXX")
+    r = CliRunner().invoke(main, ["check", path])
+    assert r.exit_code == 0, r.output
+    assert r.stderr.startswith(f"hfsmc: note: {path}: g++ is not installed: "), r.stderr
 
 
 def test_a_cache_that_cannot_be_written_only_costs_time(tmp_path: Path,
