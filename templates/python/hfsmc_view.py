@@ -268,9 +268,13 @@ def render(view: ViewState, focus: str | None = None, autofocus: bool = True,
 
     rows = (height - 1) if height else 1 << 30
     focus = (focus or "").strip("/")
-    facts = 5 + (view.interrupt is not None)  # the panel's frame and fact lines, at least
     if width < 100:
-        tree, used = _tree(view, focus, autofocus, max(rows - facts - 2, 2))
+        # Under the tree, the panel keeps its frame, its facts and up to 6 lines of its
+        # sections; the tree may take the rest (and leaves what it does not use).
+        items = [len(view.transitions), len(view.logs),
+                 len(set(view.variable_names) | set(view.values))]
+        panel_min = 2 + 4 + (view.interrupt is not None) + min(sum(n + 1 for n in items if n), 6)
+        tree, used = _tree(view, focus, autofocus, max(rows - panel_min, 2))
         return Group(tree, _panel(view, autofocus, rows - used, keys))
     tree, _ = _tree(view, focus, autofocus, rows)
     panel = _panel(view, autofocus, rows, keys)

@@ -146,7 +146,13 @@ public:
     std::vector<Line> draw() {
         bool wide = cols_ >= 100;
         const int facts = 5 + (v_.interrupt ? 1 : 0);  // the panel's title and fact lines
-        std::vector<Line> tree = this->tree(wide ? cols_ / 2 : cols_, wide ? rows_ : rows_ - facts - 1);
+        // Under the tree, the panel keeps its facts and up to 6 lines of its sections
+        // (as hfsmc_view.render); the tree may take the rest, after one blank line.
+        int sections = 0;
+        for (std::size_t n : {v_.transitions.size(), v_.logs.size(), v_.values.items.size()})
+            sections += n ? static_cast<int>(n) + 1 : 0;
+        const int panel_min = facts + std::min(sections, 6);
+        std::vector<Line> tree = this->tree(wide ? cols_ / 2 : cols_, wide ? rows_ : rows_ - panel_min - 1);
         int left = 30;
         for (const auto& l : tree) left = std::max(left, l.w);
         const int free = wide ? rows_ : rows_ - static_cast<int>(tree.size()) - 1;
