@@ -1,11 +1,13 @@
 """The paper's monitor-an-area mission flown end to end: the component and `hfsmc sim`
 as real processes on 127.0.0.1 (SPEC 6, 7), its report checked against the simulator's
-ground truth."""
+ground truth. It flies in Python and in C++ (examples/monitor_area_cpp, the same mission
+in the same world), the C++ component compiled once per session."""
 
 from __future__ import annotations
 
 import json
 import math
+import subprocess
 import time
 from pathlib import Path
 
@@ -13,10 +15,21 @@ import pytest
 from ruamel.yaml import YAML
 
 from tests.conftest import ROOT
-from tests.test_missions import Flight, fired_into, flight
+from tests.cppbuild import need_toolchain
+from tests.test_missions import (
+    CPP_BUILD_TIMEOUT,
+    HFSMC,
+    LANGUAGES,
+    Flight,
+    fired_into,
+    flight,
+    mission_seconds,
+)
 
 MONITOR = ROOT / "examples/monitor_area"
 MODEL = MONITOR / "monitor_area.yaml"
+MODEL_CPP = ROOT / "examples/monitor_area_cpp/monitor_area_cpp.yaml"
+SITL_SECONDS = 133  # ArduCopter SITL flew it in 133 s from take-off to the end (project issue 13)
 BAND = 1.0  # m: the altitude kept within this of the mission's altitude
 FLYING = ("Mission", "Correct", "LinkLost")  # between take-off and landing
 
@@ -62,9 +75,31 @@ def fly_and_sample(f: Flight, timeout: float) -> list[float]:
     return altitudes
 
 
+@pytest.fixture(scope="session")
+def cpp_monitor_area(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    """examples/monitor_area_cpp compiled (`hfsmc build -t cpp --compile`): its command."""
+    need_toolchain()
+    out = tmp_path_factory.mktemp("monitor_area_cpp") / "component"
+    r = subprocess.run([*HFSMC, "build", "-t", "cpp", str(MODEL_CPP), "-o", str(out), "--compile"],
+                       capture_output=True, text=True, timeout=CPP_BUILD_TIMEOUT)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return [str(out / "build" / "monitor_area_cpp")]
+
+
+@pytest.fixture
+def monitor(request: pytest.FixtureRequest) -> list[str] | None:
+    """The monitor_area component to fly, by language (None: flight() builds the Python one)."""
+    if request.param == "python":
+        return None
+    command: list[str] = request.getfixturevalue("cpp_monitor_area")
+    return command
+
+
 @pytest.mark.slow
-def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path) -> None:
-    with flight(tmp_path, model=MODEL, world=MONITOR / "world.yaml") as f:
+@pytest.mark.parametrize("monitor", LANGUAGES, indirect=True)
+def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path,
+                                                       monitor: list[str] | None) -> None:
+    with flight(tmp_path, model=MODEL, world=MONITOR / "world.yaml", command=monitor) as f:
         altitudes = fly_and_sample(f, timeout=200)
         status = f.component.wait(timeout=60)
         time.sleep(1.5)  # one more truth write after the disarm
@@ -81,6 +116,8 @@ def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path) -> None:
     assert report["stages"] == ["takeoff", "road", "accident", "back at the road",
                                 "road back", "home", "landing", "landed"]
     assert report["time_s"] < 180
+    flown = mission_seconds(trace)
+    assert abs(flown / SITL_SECONDS - 1) < 0.15, flown
 
     # At least 4 of the 5 victims, each recorded once, within 1.5 m of the truth.
     victims = truth["victims"]
@@ -112,7 +149,8 @@ def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path) -> None:
     assert worst <= BAND, (worst, corrections, altitudes)
     errors = [round(min(math.dist((v["north"], v["east"]), p) for p in found), 2)
               for v in victims]
-    print(f"monitor_area: {report['time_s']} s, victims' errors {errors} m, landed "
+    print(f"monitor_area: {report['time_s']} s ({flown} s from take-off), victims' errors "
+          f"{errors} m, landed "
           f"{math.dist((landing['north'], landing['east']), (0, 0)):.2f} m from home, "
           f"altitude within {worst:.2f} m of {altitude} m ({len(altitudes)} samples), "
           f"{corrections} corrections")
