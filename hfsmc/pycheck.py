@@ -247,6 +247,8 @@ def check_active_path(model: Model, sn: Snippet, path: str, where: Span,
                       diags: Diagnostics) -> None:
     """E146 when ``active(path)``'s literal names no state (the component would fail
     at run time); ``where`` is the string literal's position."""
+    if sn.code.span.file != model.file:
+        return  # a snippet of a used file: its paths are relative to where it is used
     wanted = path.strip("/")  # as the runtimes read it
     if wanted and model.find(wanted) is not None:
         return
