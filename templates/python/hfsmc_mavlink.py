@@ -248,9 +248,9 @@ class Vehicle:
         lands it: --until, an error without on_interrupt...); None when disarmed."""
         if not self.armed():
             return None
-        link = "" if self.connected() else f", link lost {self.heartbeat_age():.0f} s ago"
-        return (f"WARNING: the vehicle is still ARMED (mode {self.mode()}, altitude "
-                f"{self.altitude():.1f} m{link}) as the component stops: nothing lands it now")
+        link = "" if self.connected() else f" (link lost {self.heartbeat_age():.0f} s ago)"
+        return (f"WARNING: vehicle still ARMED in {self.mode()} at {self.altitude():.1f} m{link} "
+                "as the component stops: nothing lands it now")
 
     def close(self) -> None:
         """Stop the reader and close the socket (also run at exit)."""

@@ -119,10 +119,10 @@ class Mavlink {
     if (!connected()) {
       char age[64];
       std::snprintf(age, sizeof age, "%.0f", heartbeat_age());
-      link = std::string(", link lost ") + age + " s ago";
+      link = std::string(" (link lost ") + age + " s ago)";
     }
-    return "WARNING: the vehicle is still ARMED (mode " + mode() + ", altitude " + alt + " m" +
-           link + ") as the component stops: nothing lands it now";
+    return "WARNING: vehicle still ARMED in " + mode() + " at " + alt + " m" + link +
+           " as the component stops: nothing lands it now";
   }
   Mavlink(const Mavlink&) = delete;
   Mavlink& operator=(const Mavlink&) = delete;
