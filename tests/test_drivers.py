@@ -637,8 +637,8 @@ def test_generated_component_waits_for_ready_then_takes_off(tmp_path: Path) -> N
     assert ready_at >= 1000  # the EKF had no absolute position for a second
     logs = [(r["state"], r["msg"]) for r in records if r["ev"] == "log"]
     # It stops at its final state with the vehicle armed: said loudly, in the trace too.
-    warning = ("drone: WARNING: vehicle still ARMED in GUIDED at 2.0 m as the component stops: "
-               "nothing lands it now")
+    warning = ("drone: WARNING: ARMED in GUIDED at 2.0 m as the component stops: "
+               "nothing lands the vehicle now")
     assert logs == [("Guided", "ready, mode STABILIZE, battery 87 %"),
                     ("TakeOff", "taking off from 0.0 m"), ("Up", "up at 2.0 m, ack accepted"),
                     ("", warning)]
@@ -682,8 +682,8 @@ def test_takeoff_to_three_metres_and_land_in_the_simulator(tmp_path: Path,
         assert 2.7 < drone.altitude() < 3.3 and abs(drone.position()[2] + 3.0) < 0.4
         warning = drone.warning_at_stop()
         assert warning is not None and re.fullmatch(
-            r"WARNING: vehicle still ARMED in GUIDED at (2\.9|3\.0|3\.1) m "
-            r"as the component stops: nothing lands it now", warning), warning
+            r"WARNING: ARMED in GUIDED at (2\.9|3\.0|3\.1) m "
+            r"as the component stops: nothing lands the vehicle now", warning), warning
         drone.land()
         assert wait_until(lambda: not drone.armed(), 25, step=0.1)  # landed, disarmed by itself
         assert drone.mode() == "LAND" and drone.altitude() < 0.3

@@ -249,8 +249,8 @@ class Vehicle:
         if not self.armed():
             return None
         link = "" if self.connected() else f" (link lost {self.heartbeat_age():.0f} s ago)"
-        return (f"WARNING: vehicle still ARMED in {self.mode()} at {self.altitude():.1f} m{link} "
-                "as the component stops: nothing lands it now")
+        return (f"WARNING: ARMED in {self.mode()} at {self.altitude():.1f} m{link} "
+                "as the component stops: nothing lands the vehicle now")
 
     def close(self) -> None:
         """Stop the reader and close the socket (also run at exit)."""

@@ -158,7 +158,7 @@ int flight(const std::string& port) {
         "reached 4 m north");
   check(drone.hold(), "hold sent");
   check(hfsmc::warning_at_stop(drone).rfind(
-            "WARNING: vehicle still ARMED in GUIDED at ", 0) == 0,
+            "WARNING: ARMED in GUIDED at ", 0) == 0,
         "armed in the air: the warning at stop names mode and altitude");
   check(drone.land(), "land sent");
   check(wait_until([&] { return !drone.armed(); }, 25, 0.1), "landed and disarmed");

@@ -121,8 +121,8 @@ class Mavlink {
       std::snprintf(age, sizeof age, "%.0f", heartbeat_age());
       link = std::string(" (link lost ") + age + " s ago)";
     }
-    return "WARNING: vehicle still ARMED in " + mode() + " at " + alt + " m" + link +
-           " as the component stops: nothing lands it now";
+    return "WARNING: ARMED in " + mode() + " at " + alt + " m" + link +
+           " as the component stops: nothing lands the vehicle now";
   }
   Mavlink(const Mavlink&) = delete;
   Mavlink& operator=(const Mavlink&) = delete;
