@@ -79,8 +79,9 @@ def write(tmp_path: Path, name: str, text: str) -> str:
     return str(path)
 
 
-def found(diags: list[Diagnostic], code: str) -> list[tuple[int, int]]:
-    return [(d.span.line, d.span.col) for d in diags if d.code == code]
+def found(diags: list[Diagnostic], code: str) -> list[str]:
+    """``FILE:LINE:COL`` of each diagnostic with that code."""
+    return [str(d.span) for d in diags if d.code == code]
 
 
 # ---------------------------------------------------------------------------
@@ -131,15 +132,19 @@ def test_messages_on_generated_lines_go_to_the_snippet_they_close() -> None:
 
 
 def test_missing_semicolon_at_the_end_of_a_snippet_is_at_its_last_line(tmp_path: Path) -> None:
-    r = compile_file(write(tmp_path, "ends.yaml", ENDS), cxx=True)
-    assert found(r.diagnostics, "E144") == [(9, 21), (12, 24), (15, 22), (16, 24)], r.diagnostics
+    path = write(tmp_path, "ends.yaml", ENDS)
+    r = compile_file(path, cxx=True)
+    # entry (after `count = 1`), during's last line, when (after `count >`), do
+    assert found(r.diagnostics, "E144") == [f"{path}:9:21", f"{path}:12:24", f"{path}:15:22",
+                                            f"{path}:16:24"], r.diagnostics
     assert not found(r.diagnostics, "E150")
     assert r.model is None and not r.ok
 
 
 def test_missing_semicolon_at_the_end_of_functions(tmp_path: Path) -> None:
-    r = compile_file(write(tmp_path, "funcs.yaml", FUNCTIONS), cxx=True)
-    assert [(d.code, d.span.line, d.span.col) for d in r.diagnostics] == [("E144", 6, 16)]
+    path = write(tmp_path, "funcs.yaml", FUNCTIONS)
+    r = compile_file(path, cxx=True)
+    assert [(d.code, str(d.span)) for d in r.diagnostics] == [("E144", f"{path}:6:16")]
 
 
 def test_check_compiles_cpp_snippets_and_no_cxx_skips_it(tmp_path: Path) -> None:
@@ -163,7 +168,7 @@ def test_warm_check_reads_the_cache_not_gxx(tmp_path: Path, monkeypatch: pytest.
 
     monkeypatch.setattr(cxxcheck, "_run", no_compile)
     assert compile_file(path, cxx=True).diagnostics == cold
-    assert found(cold, "E144") == [(11, 7)]
+    assert found(cold, "E144") == [f"{path}:11:7"]
 
 
 def test_a_missing_compiler_is_a_note_not_an_error(tmp_path: Path,
@@ -186,8 +191,9 @@ def test_a_cache_that_cannot_be_written_only_costs_time(tmp_path: Path,
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     (tmp_path / "file").write_text("not a folder")
     monkeypatch.setenv("HFSMC_CACHE_DIR", str(tmp_path / "file"))
-    r = compile_file(write(tmp_path, "typo.yaml", TYPO), cxx=True)
-    assert found(r.diagnostics, "E144") == [(11, 7)] and not r.notes
+    path = write(tmp_path, "typo.yaml", TYPO)
+    r = compile_file(path, cxx=True)
+    assert found(r.diagnostics, "E144") == [f"{path}:11:7"] and not r.notes
 
 
 def test_a_value_the_cpp_component_cannot_hold_is_found_by_check(tmp_path: Path) -> None:
@@ -223,10 +229,11 @@ def test_concurrent_cold_checks_share_one_header_set(tmp_path: Path) -> None:
 
 def test_the_second_unit_with_the_same_headers_precompiles_them(tmp_path: Path) -> None:
     """A one-off check compiles without a precompiled header; the next unit makes it."""
-    first = compile_file(write(tmp_path, "typo.yaml", TYPO), cxx=True)
-    second = compile_file(write(tmp_path, "funcs.yaml", FUNCTIONS), cxx=True)
-    assert found(first.diagnostics, "E144") == [(11, 7)]
-    assert found(second.diagnostics, "E144") == [(6, 16)]
+    typo, funcs = write(tmp_path, "typo.yaml", TYPO), write(tmp_path, "funcs.yaml", FUNCTIONS)
+    first = compile_file(typo, cxx=True)
+    second = compile_file(funcs, cxx=True)
+    assert found(first.diagnostics, "E144") == [f"{typo}:11:7"]
+    assert found(second.diagnostics, "E144") == [f"{funcs}:6:16"]
     runtime_only = [q for q in (cxxcheck.cache_dir() / "pch").iterdir()
                     if (q / "pch.hpp").is_file()
                     and (q / "pch.hpp").read_text() == '#include "hfsmc/runtime.hpp"\n']
@@ -286,12 +293,11 @@ def test_active_paths_and_done_are_checked_in_both_languages(tmp_path: Path, lan
     first = 10 if language == "python" else 11  # the line of `entry: ...` (cpp: one more line)
     entry_col = 21 if language == "python" else 26  # done() in the entry of a leaf state
     fwd_col = 78 if language == "python" else 77  # the literal "Patrol/Fwd"
-    got = [(d.code, d.span.line, d.span.col, d.notes) for d in r.diagnostics
-           if d.code in ("E146", "W215")]
+    got = [(d.code, str(d.span), d.notes) for d in r.diagnostics if d.code in ("E146", "W215")]
     assert got == [
-        ("W215", first, entry_col, ("done() says whether the owning state's sub-automaton is in a "
-                                 "final state",)),
-        ("E146", first + 1, fwd_col, ("did you mean `Patrol/Forward`?",)),
+        ("W215", f"{path}:{first}:{entry_col}",
+         ("done() says whether the owning state's sub-automaton is in a final state",)),
+        ("E146", f"{path}:{first + 1}:{fwd_col}", ("did you mean `Patrol/Forward`?",)),
     ], r.diagnostics
     messages = [d.message for d in r.diagnostics if d.code == "E146"]
     assert messages == ['active("Patrol/Fwd"): no state has this path']
