@@ -45,6 +45,8 @@ BAD_INPUTS: list[tuple[list[str], str | None, str]] = [
     (["--focus", "Elsewhere"], None, "--focus Elsewhere: no state `Elsewhere` in {name}"),
     ([], b'{"parameters": {"count": 3}}\n# caf\xe9\n', "{config}:2:6: the configuration is not "
      "UTF-8 text (byte 0xe9); save it as UTF-8"),
+    (["--parm", "count=3"], None, "unknown flag --parm; did you mean `--param`?"),
+    (["stray"], None, "unexpected argument `stray`"),
     ([], b"[1, 2]\n", "{config}: the configuration must be a mapping"),
     ([], b'{"parameters": [1]}\n', "{config}: `parameters` must be a mapping, not `[1]`"),
     ([], b'{"interfaces": {"drone": 3}}\n', "{config}: interface `drone` must be a mapping, "

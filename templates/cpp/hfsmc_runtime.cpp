@@ -397,7 +397,12 @@ Options parse_options(int argc, char** argv, bool& help) {
             case TIME_LIMIT: o.time_limit = arg; break;
             case 'h': help = true; break;
             case ':': throw UsageError(std::string(argv[optind - 1]) + ": expected a value");
-            default: throw UsageError(std::string("unknown flag ") + argv[optind - 1]);
+            default: {
+                const std::string flag = std::string(argv[optind - 1]).substr(0, std::string(argv[optind - 1]).find('='));
+                std::vector<std::string> known;
+                for (const option* lo = longopts; lo->name; ++lo) known.push_back(std::string("--") + lo->name);
+                throw UsageError("unknown flag " + flag + did_you_mean(flag, known));
+            }
         }
     }
     if (optind < argc) throw UsageError(std::string("unexpected argument `") + argv[optind] + "`");

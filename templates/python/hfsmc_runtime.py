@@ -613,7 +613,14 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
     p.add_argument("--time-limit", metavar="DURATION",
                    help="after that much time, stop as on SIGINT: through on_interrupt "
                         "(a drone lands), exit status 124")
-    return p.parse_args(list(argv))
+    args, extra = p.parse_known_args(list(argv))
+    if extra:  # one line, as the C++ component says it, with a "did you mean"
+        flag = extra[0].partition("=")[0]
+        if not flag.startswith("-"):
+            raise UsageError(f"unexpected argument `{extra[0]}`")
+        known = [o for a in p._actions for o in a.option_strings if o.startswith("--")]
+        raise UsageError(f"unknown flag {flag}{_did_you_mean(flag, known)}")
+    return args
 
 
 def _read_config(path: str) -> dict[str, Any]:
