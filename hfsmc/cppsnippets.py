@@ -9,6 +9,9 @@ far from its cause or not at all:
 - ``active("A/B")`` with a literal path that names no state: the component
   would throw at run time (E146), and ``done()`` in a state without a
   sub-automaton, where it is always false (W215); see hfsmc/pycheck.py.
+- a bracket the snippet leaves open, or closes without opening (E147): g++
+  would see it only in the generated code after the snippet, and then report
+  errors in the snippets that follow.
 
 Everything else is g++'s business (hfsmc/cxxcheck.py).
 """
@@ -27,17 +30,19 @@ _TOKEN = re.compile(r"""
     (?P<comment>//[^\n]*|/\*.*?(?:\*/|\Z))
   | (?P<raw>(?:u8|[uUL])?R"(?P<delim>[^()\\\s"]{0,16})\(.*?(?:\)(?P=delim)"|\Z))
   | (?P<string>(?:u8|[uUL])?"(?:[^"\\\n]|\\.)*"?)
-  | (?P<char>(?:u8|[uUL])?'(?:[^'\\\n]|\\.)*'?)
+  | (?P<char>(?:u8|[uUL])?'(?:[^'\\\n]|\\.)*')
+  | (?P<number>\.?[0-9](?:[eEpP][+-]|[A-Za-z0-9_.'])*)
   | (?P<ident>[A-Za-z_][A-Za-z0-9_]*)
   | (?P<punct>->|::|[.()])
   | (?P<other>[^\s])
 """, re.VERBOSE | re.DOTALL)
 _MEMBER = (".", "->", "::")
+_PAIRS = {"{": "}", "(": ")", "[": "]"}
 
 
 @dataclass(frozen=True, slots=True)
 class Token:
-    kind: str  # raw | string | char | ident | punct | other
+    kind: str  # raw | string | char | number | ident | punct | other
     text: str
     offset: int  # in the snippet's text
 
@@ -54,10 +59,46 @@ def tokens(text: str) -> Iterator[Token]:
 
 
 def check_cpp_snippets(model: Model, diags: Diagnostics) -> None:
-    """E145, E146 and W215 in every snippet of a C++ model."""
+    """E145, E146, E147 and W215 in every snippet of a C++ model."""
     for sn in snippets(model):
-        if "goto" in sn.code.text or "active" in sn.code.text or "done" in sn.code.text:
-            _check(model, sn, list(tokens(sn.code.text)), diags)
+        text = sn.code.text
+        toks: list[Token] | None = None
+        if any(text.count(a) != text.count(b) for a, b in _PAIRS.items()):
+            toks = list(tokens(text))  # only then: most snippets are balanced
+            _check_brackets(sn, toks, diags)
+        if "goto" in text or "active" in text or "done" in text:
+            _check(model, sn, toks if toks is not None else list(tokens(text)), diags)
+
+
+def _check_brackets(sn: Snippet, toks: list[Token], diags: Diagnostics) -> None:
+    """E147 for a bracket the snippet leaves open or closes without opening: g++ would
+    report it in the generated code after the snippet, or in the next snippets."""
+    if any(line.lstrip().startswith("#") for line in sn.code.text.split("\n")):
+        return  # preprocessor branches may each hold half a pair
+    closers = {b: a for a, b in _PAIRS.items()}
+    stack: list[Token] = []
+    for tok in toks:
+        if tok.kind not in ("punct", "other"):
+            continue
+        if tok.text in _PAIRS:
+            stack.append(tok)
+        elif tok.text in closers:
+            if stack and stack[-1].text == closers[tok.text]:
+                stack.pop()
+                continue
+            what = (f"`{tok.text}` closes `{stack[-1].text}`" if stack
+                    else f"`{tok.text}` closes nothing")
+            diags.error("E147", f"{what} in {sn.kind}{_of(sn)}", _position(sn, tok.offset))
+            return
+    if stack:
+        tok = stack[-1]
+        diags.error("E147", f"`{tok.text}` is not closed in {sn.kind}{_of(sn)}",
+                    _position(sn, tok.offset),
+                    f"each snippet closes its own brackets: add `{_PAIRS[tok.text]}`")
+
+
+def _of(sn: Snippet) -> str:
+    return f" of `{sn.where}`" if sn.where else ""
 
 
 def _check(model: Model, sn: Snippet, toks: list[Token], diags: Diagnostics) -> None:

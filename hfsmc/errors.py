@@ -62,6 +62,7 @@ CODES: dict[str, str] = {
     "E144": "C++ compiler error in a snippet (hfsmc check, build --compile)",
     "E145": "`goto` called as a method in a C++ snippet: the method is `go_to`",
     "E146": "active() with a literal path that names no state",
+    "E147": "bracket left open or closed without opening in a C++ snippet",
     # output
     "E150": "output cannot be written (a value the output format cannot hold, a failing tool)",
     # warnings

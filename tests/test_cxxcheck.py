@@ -246,11 +246,40 @@ def test_the_second_unit_with_the_same_headers_precompiles_them(tmp_path: Path) 
 
 def test_the_cpp_lexer_skips_comments_and_literals() -> None:
     text = ('x.goto(1); // y.goto(2)\n/* active("A") */ s = "z.goto(3)";\n'
-            'r = R"(done())"; c = \'"\'; active("B/C");')
+            'r = R"(done())"; c = \'"\'; active("B/C"); n = f(1\'000);')
     seen = [(t.kind, t.text) for t in tokens(text)]
-    assert [t for k, t in seen if k == "ident"] == ["x", "goto", "s", "r", "c", "active"]
+    assert [t for k, t in seen if k == "ident"] == ["x", "goto", "s", "r", "c", "active", "n", "f"]
     assert ("raw", 'R"(done())"') in seen and ("string", '"B/C"') in seen
-    assert ("char", "'\"'") in seen
+    assert ("char", "'\"'") in seen and ("number", "1'000") in seen
+
+
+BRACKETS = """\
+hfsm: 1
+name: brackets
+language: cpp
+variables:
+  xs: {type: "std::vector<int>", init: "{1, 2}"}
+initial: A
+states:
+  A:
+    entry: xs[0 = 1);
+    during: log("{ is fine in a string"); int n = 1'000; (void)n;
+    transitions:
+      - to: B
+        when: (xs.size() > 3}
+      - to: B
+        after: 1s
+        do: xs.clear(); }
+  B: {final: true}
+"""
+
+
+def test_brackets_a_cpp_snippet_leaves_open_or_closes_wrongly(tmp_path: Path) -> None:
+    path = write(tmp_path, "brackets.yaml", BRACKETS)
+    got = [(str(d.span), d.message) for d in compile_file(path).diagnostics if d.code == "E147"]
+    assert got == [(f"{path}:9:20", "`)` closes `[` in entry of `A`"),
+                   (f"{path}:13:29", "`}` closes `(` in when of `A`"),
+                   (f"{path}:16:25", "`}` closes nothing in do of `A`")]
 
 
 PATHS = {
