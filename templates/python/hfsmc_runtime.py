@@ -416,8 +416,8 @@ class Engine:
         line, so that stderr, the trace and the live views all show it."""
         ns = self.m["namespace"]
         for name, *_ in self.m["interfaces"]:
-            check = getattr(ns.get(name), "warning_at_stop", None)
-            try:
+            try:  # getattr too: an Unavailable interface (a legacy ICE one) raises on any use
+                check = getattr(ns.get(name), "warning_at_stop", None)
                 text = check() if callable(check) else None
             except Exception:  # a driver's trouble must not change how the stop ends
                 text = None
