@@ -1,8 +1,8 @@
-"""Checks of C++ snippets that need no compiler, run by every ``hfsmc check``.
+"""Checks of C++ snippets that need no compiler (a lowering pass: check, build, run).
 
-A small lexer (comments, string, character and raw string literals,
-identifiers, ``.``, ``->``, ``::``, parentheses) finds what g++ would report
-far from its cause or not at all:
+A small lexer (comments, string, character and raw string literals, numbers,
+identifiers, ``.``, ``->``, ``::``, brackets) finds what g++ would report far
+from its cause or not at all:
 
 - ``drone.goto(...)``: ``goto`` is a C++ keyword, so g++ says only "expected
   unqualified-id before 'goto'"; the driver's method is ``go_to`` (E145).
