@@ -147,3 +147,18 @@ def test_missing_interface_library_is_reported_at_start(tmp_path: Path) -> None:
     assert r.returncode == 1
     assert r.stderr == ("needs: error: cannot start: interface `drone` (mavlink) needs the Python "
                         "module `pymavlink`, which is not installed: pip install pymavlink\n")
+
+
+def test_a_url_the_driver_refuses_stops_at_start_without_traceback(tmp_path: Path) -> None:
+    pytest.importorskip("pymavlink")
+    model = tmp_path / "url.yaml"
+    model.write_text(MODEL.format(suffix="", lang="python").replace("name: flags", "name: url")
+                     .replace("parameters:", "interfaces:\n  drone: {type: mavlink, url: "
+                              "\"udpin:127.0.0.1:99999\"}\nparameters:"))
+    r = run([sys.executable, "-m", "hfsmc", "build", str(model), "-o", str(tmp_path / "c")])
+    assert r.returncode == 0, r.stderr
+    r = run([sys.executable, str(tmp_path / "c" / "url.py"), "--clock", "virtual"])
+    assert r.returncode == 1
+    assert r.stderr.startswith("url: error: cannot start: interface `drone` (mavlink): cannot "
+                               "open `udpin:127.0.0.1:99999`: OverflowError"), r.stderr
+    assert "Traceback" not in r.stderr

@@ -78,7 +78,8 @@ class StartError(Exception):
 
 
 # What to install for a module a driver imports (pip names; Debian: python3-opencv etc.).
-_INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": "numpy"}
+_INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": "numpy",
+            "serial": "pyserial"}
 
 
 def make_interface(name: str, kind: str, url: str | None, options: dict[str, str]) -> object:
@@ -91,14 +92,17 @@ def make_interface(name: str, kind: str, url: str | None, options: dict[str, str
     if kind in modules:
         try:
             module = __import__(modules[kind])
-        except ImportError as e:
+            factory: Callable[..., object] = module.connect
+            return factory(name, url, options)
+        except ImportError as e:  # the driver's library, or one its URL needs (pyserial)
             missing = getattr(e, "name", None) or "?"
             top = missing.partition(".")[0]
             how = f"pip install {_INSTALL[top]}" if top in _INSTALL else f"install `{top}`"
             raise StartError(f"interface `{name}` ({kind}) needs the Python module `{missing}`, "
                              f"which is not installed: {how}") from None
-        factory: Callable[..., object] = module.connect
-        return factory(name, url, options)
+        except Exception as e:  # a URL the driver's library refuses (a port out of range)
+            raise StartError(f"interface `{name}` ({kind}): cannot open `{url}`: "
+                             f"{type(e).__name__}: {e}") from None
     return Unavailable(name, f"interfaces of type `{kind}` are kept from a legacy model "
                              "but hfsmc components cannot drive them")
 
