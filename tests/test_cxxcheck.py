@@ -68,6 +68,7 @@ states:
     entry: |
       count = 1;
       cuont += 2;
+    during: int unused = 0;
     transitions: [{to: B, after: 1s}]
   B: {final: true}
 """
@@ -153,6 +154,7 @@ def test_check_compiles_cpp_snippets_and_no_cxx_skips_it(tmp_path: Path) -> None
     assert r.exit_code == 1, r.output
     assert f"{path}:11:7: error[E144]: 'cuont' was not declared in this scope" in r.stderr
     assert "      cuont += 2;\n        ^" in r.stderr  # the model's line and the caret
+    assert f"{path}:12:17: warning[W209]: unused variable 'unused' [-Wunused-variable]" in r.stderr
     skipped = CliRunner().invoke(main, ["check", "--no-cxx", path])
     assert skipped.exit_code == 0 and skipped.stderr == "", skipped.output
 
