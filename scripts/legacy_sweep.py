@@ -33,6 +33,8 @@ from pathlib import Path
 
 from lxml import etree
 
+from hfsmc.compiler import Result, compile_file
+
 STAGES = ("convert", "counts", "diagram", "build", "compile")
 
 
@@ -75,6 +77,15 @@ def _cpp_check(yaml: Path, here: Path) -> str:
     return f"FAIL {(errors or ['?'])[0].split(': ', 1)[-1][:70]}"
 
 
+def _converted_model(path: Path) -> Result:
+    """What `convert` compiled the file to (its model even when the file's code has errors)."""
+    try:
+        from hfsmc.convert import compile_for_convert
+    except ImportError:  # an hfsmc older than convert's W220 (to measure "before")
+        return compile_file(str(path))
+    return compile_for_convert(str(path))
+
+
 def sweep(folder: Path, cpp_compile: bool, keep: Path | None) -> list[dict[str, str]]:
     rows: list[dict[str, str]] = []
     files = sorted(p for p in folder.rglob("*.xml") if p.is_file())
@@ -97,9 +108,7 @@ def sweep(folder: Path, cpp_compile: bool, keep: Path | None) -> list[dict[str, 
             row["warnings"] = str(len(re.findall(r"warning\[", out)))
             if "warning[W220]" in out:  # errors of the file's own code, carried over
                 row["file_code"] = "yes"
-            from hfsmc.convert import compile_for_convert
-
-            result = compile_for_convert(str(path))  # the model convert wrote
+            result = _converted_model(path)
             if result.model is None:
                 row["counts"] = f"FAIL {_why(str(result.diagnostics))}"
                 continue

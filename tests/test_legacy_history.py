@@ -6,7 +6,7 @@ corpus did not; ``SOURCES`` names the repository, commit and path of each.
 Each converts with a report and no traceback, with as many states and
 transitions as the file (counted here in the XML); the ones whose own code is
 sound draw and build (Python: byte-compiles; C++: the CMake project, and dnm4
-compiles with g++); the two whose code has errors convert with W220 and stay
+compiles with g++); the three whose code has errors convert with W220 and stay
 errors for `check` (`convert --strict` refuses them).
 """
 
@@ -30,6 +30,7 @@ HISTORY = ROOT / "tests" / "legacy" / "history"
 FILES = sorted(HISTORY.glob("*.xml"))
 # Files whose own code is wrong (the legacy component failed there too).
 CODE_ERRORS = {"deneme2": [("E141", 48, 20), ("E141", 48, 25)],
+               "kobuki_obstacle_avoidance": [("E141", 5, 35), ("E141", 30, 26), ("E141", 33, 22)],
                "prius_spawn": [("E141", 47, 35)]}
 SOUND = [p for p in FILES if p.stem not in CODE_ERRORS]
 
@@ -205,6 +206,12 @@ def test_parameters_locals_escapes_and_imports() -> None:
     assert "if val < obstacle_threshold:" in model.functions.text
     assert "import tf" in [i.text for i in model.imports]
     assert ("W208", "62:16") in [(c, at) for c, at, _ in diags]
+
+    model, diags = model_and_diags("prius_in_city")
+    assert [(c, at) for c, at, m in diags if "`self.overtake_done`" in m] == [("W208", "548:15")]
+    state = model.find("stay_on_road")
+    assert state is not None and state.transitions[4].do is not None
+    assert state.transitions[4].do.text == "overtake_done = True"
 
     model, _ = model_and_diags("printSensor")
     assert [i.text for i in model.imports] == ["<iostream>"]

@@ -162,7 +162,7 @@ class Assembler(Names):
                     and member.kind != "implicit" and (m.start, member.name) not in self.selfs:
                 self.selfs.add((m.start, member.name))
                 self.r.warn("W208", f"`self.{ref.name}` in the code of a state or transition: "
-                            f"{self.r.kind} looked it up on that state's own object; read as "
+                            f"{self.r.kind} looked it up on the object running that code; read as "
                             f"the namespace member `{member.final}`",
                             self.r.to_span(m.at(ref.start)))
             new = member.final if member is not None else ref.name
