@@ -215,3 +215,23 @@ def test_parameters_locals_escapes_and_imports() -> None:
 
     model, _ = model_and_diags("printSensor")
     assert [i.text for i in model.imports] == ["<iostream>"]
+
+
+def test_cpp_ros_node_prefix_is_dropped_before_members_only() -> None:
+    """VisualStates' C++ ROS code reached the namespace through `node->`; a user's own
+    `node->next` stays."""
+    text = ('<?xml version="1.0" ?>\n<VisualStates><functions>void calc() {}</functions>'
+            "<variables>bool busy = false;</variables>"
+            '<state id="0" initial="True"><name>root</name><code></code><timestep>100</timestep>'
+            '<state id="1" initial="True"><name>A</name><code>node-&gt;calc();\n'
+            "Item* node = head; node-&gt;next = 0;</code><timestep>100</timestep>"
+            "<transition id=\"1\"><type>1</type><condition>return node-&gt;busy;</condition>"
+            "<name>t</name><destinationid>1</destinationid><code></code></transition>"
+            "</state></state></VisualStates>\n")
+    result = compile_file("m.xml", text)
+    assert result.model is not None, result.diagnostics
+    state = result.model.find("A")
+    assert state is not None and state.during is not None
+    assert state.during.text == "calc();\nItem* node = head; node->next = 0;\n"
+    assert state.transitions[0].when is not None and state.transitions[0].when.text == "busy"
+

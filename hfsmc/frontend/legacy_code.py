@@ -188,7 +188,10 @@ def mask(text: str, language: Language) -> str:
 PY_SCOPES = {"globalNamespace": "global", "interfaces": "global", "rosNode": "global",
              "namespace": "local", "localNamespace": "local"}
 CPP_SCOPES = {"globalNamespace": "global", "interfaces": "global", "rosNode": "global",
-              "stateNamespace": "local", "localNamespace": "local", "namespace": "local"}
+              "stateNamespace": "local", "localNamespace": "local", "namespace": "local",
+              "node": "global"}
+# A prefix a user's own C++ may spell too (`node->next`): dropped only before a member.
+WEAK_PREFIXES = frozenset({"node"})
 
 _PY_SELF = re.compile(r"(?<![\w.])self[ \t]*\.[ \t]*((?!\d)\w+)")
 _PY_MEMBER = re.compile(r"[ \t]*\.[ \t]*((?!\d)\w+)")

@@ -33,6 +33,7 @@ from hfsmc.frontend.legacy import (
     Transition,
 )
 from hfsmc.frontend.legacy_code import (
+    WEAK_PREFIXES,
     Mapped,
     Pos,
     add_globals,
@@ -156,7 +157,9 @@ class Assembler(Names):
         shift = 0
         for ref in references(m.text, self.language, bare_names):
             member = ctx.find(ref)
-            if member is None and (ref.scope == "bare" or ref.scope not in ctx.scopes):
+            if member is None and (ref.scope == "bare" or ref.scope not in ctx.scopes
+                                   or m.text[ref.start:ref.end].split("-")[0].strip()
+                                   in WEAK_PREFIXES):
                 continue  # a name of no namespace: left for the checks to point at
             if ctx.state and ref.scope == "self" and member is not None \
                     and member.kind != "implicit" and (m.start, member.name) not in self.selfs:
@@ -435,7 +438,7 @@ class Assembler(Names):
             spelled = ({"global": "`self.globalNamespace.` (or `.interfaces.`, `.rosNode.`)",
                         "local": "`self.namespace.`", "self": "`self.`"}
                        if self.language == "python" else
-                       {"global": "`globalNamespace->` (or `interfaces->`, `rosNode->`)",
+                       {"global": "`globalNamespace->` (or `interfaces->`, `rosNode->`, `node->`)",
                         "local": "`stateNamespace->`", "self": "`this->`"})
             r.note(self.root_span, "namespace prefixes dropped: " + ", ".join(
                 f"{spelled[k]}: {n}" for k, n in self.counts.items() if n))
