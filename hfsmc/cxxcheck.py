@@ -11,8 +11,8 @@ Two caches under ``$HFSMC_CACHE_DIR`` (default ``$XDG_CACHE_HOME/hfsmc/cxx``,
 that is ``~/.cache/hfsmc/cxx``) keep a warm check short:
 
 - ``pch/KEY/``: the runtime and driver headers a model includes, copied, and
-  precompiled (``pch.hpp.gch``, from the second translation unit on that uses
-  them); KEY hashes the compiler's identity, the flags, the list of headers
+  precompiled (``pch.hpp.gch``) by the first check after the one that made
+  the folder; KEY hashes the compiler's identity, the flags, the list of headers
   and their content (the pymavlink version stands for the MAVLink headers,
   which mavgen makes the same for the same version).  All models with the
   same interface types share one; the few newest are kept.
@@ -56,6 +56,7 @@ _KEEP_OUTPUTS = 256
 _PCH_GRACE_S = 600  # never delete a header set used this recently (a check may be reading it)
 _TIMEOUT_S = 600
 _GCH = "pch.hpp.gch"
+_MADE_HERE: set[Path] = set()  # header sets this process made (and so precompiles not)
 
 
 @dataclass
@@ -214,13 +215,15 @@ def _store(folder: Path, key: str, text: str) -> None:
 def _header_set(folder: Path, key: str, headers: tuple[str, ...], compiler: str) -> Path:
     """The folder of a header set: include/ (runtime, MAVLink headers) and pch.hpp.
 
-    Made once, under a lock, and renamed into place.  The first check that
-    needs it compiles without a precompiled header (a one-off check, as in CI,
-    does not pay for one); the next one makes pch.hpp.gch (``_precompile``)."""
+    Made once, under a lock, and renamed into place.  The check that makes it
+    compiles without a precompiled header, and so does every other unit of
+    the same process (one run over many models, as in CI, does not pay for
+    one); the first later process that uses it makes pch.hpp.gch: someone is
+    checking again, after an edit (``_precompile``)."""
     done = folder / key
     if (done / "pch.hpp").is_file():
         _touch(done)
-        if not (done / _GCH).is_file():
+        if not (done / _GCH).is_file() and done not in _MADE_HERE:
             _precompile(done, folder / f".{key}.lock", compiler)
         return done
     folder.mkdir(parents=True, exist_ok=True)
@@ -230,6 +233,7 @@ def _header_set(folder: Path, key: str, headers: tuple[str, ...], compiler: str)
             try:
                 _fill(tmp, headers)
                 os.rename(tmp, done)
+                _MADE_HERE.add(done)
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
     _prune(folder, _KEEP_PCH, _PCH_GRACE_S, lambda p: shutil.rmtree(p, ignore_errors=True))

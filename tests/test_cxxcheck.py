@@ -229,10 +229,13 @@ def test_concurrent_cold_checks_share_one_header_set(tmp_path: Path) -> None:
     assert [q.name for q in (cache / "out").iterdir() if q.name.startswith(".")] == []
 
 
-def test_the_second_unit_with_the_same_headers_precompiles_them(tmp_path: Path) -> None:
-    """A one-off check compiles without a precompiled header; the next unit makes it."""
+def test_a_later_check_precompiles_the_headers(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """The process that makes a header set compiles without a precompiled header; the
+    next process that checks a new unit with it makes one."""
     typo, funcs = write(tmp_path, "typo.yaml", TYPO), write(tmp_path, "funcs.yaml", FUNCTIONS)
     first = compile_file(typo, cxx=True)
+    monkeypatch.setattr(cxxcheck, "_MADE_HERE", set())  # as in a later `hfsmc check`
     second = compile_file(funcs, cxx=True)
     assert found(first.diagnostics, "E144") == [f"{typo}:11:7"]
     assert found(second.diagnostics, "E144") == [f"{funcs}:6:16"]
