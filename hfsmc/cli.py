@@ -130,11 +130,18 @@ def diagram(model: str, output: str | None, state_path: str | None, rankdir: str
     order they are tried, the direction chosen to fit a screen."""
     from hfsmc.emit.dot import write_diagram
 
-    result = _compile_or_exit(model)
-    assert result.model is not None
+    # Errors inside snippets do not change the picture: a model being written, or a legacy
+    # file whose code never ran, is still drawn (the errors are shown; check still fails).
+    result = compile_file(model)
+    _print(result.diagnostics, {model: result.lines}, "text")
+    drawn = result.model if result.ok else (
+        result.structure if result.errors_only_in_snippets else None)
+    if drawn is None:
+        sys.exit(1)
     out = Path(output) if output else Path(model).with_suffix(".svg")
-    write_diagram(result.model, out, state_path, rankdir=rankdir, depth=depth)
-    click.echo(f"wrote {out}", err=True)
+    write_diagram(drawn, out, state_path, rankdir=rankdir, depth=depth)
+    note = "" if result.ok else " (drawn although its snippets have errors: check fails)"
+    click.echo(f"wrote {out}{note}", err=True)
 
 
 @main.command()

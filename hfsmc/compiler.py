@@ -15,6 +15,11 @@ from hfsmc.frontend.source import Document, split_lines
 from hfsmc.ir import Model
 from hfsmc.lower import lower
 
+# Errors inside snippet code (syntax, names, parameters assigned, imports, C++ keywords and
+# brackets, active() paths): the model's structure is sound, so it can still be drawn and a
+# legacy file converted; check and build refuse it.
+SNIPPET_CODES = frozenset({"E140", "E141", "E142", "E143", "E145", "E146", "E147"})
+
 
 @dataclass
 class Result:
@@ -26,10 +31,18 @@ class Result:
     lines: list[str] = field(default_factory=list)
     document: Document | None = None
     notes: list[str] = field(default_factory=list)  # said once, not problems of the model
+    # The lowered model even when its snippets have errors (None when the structure has any).
+    structure: Model | None = None
 
     @property
     def ok(self) -> bool:
         return self.model is not None and not any(d.severity == "error" for d in self.diagnostics)
+
+    @property
+    def errors_only_in_snippets(self) -> bool:
+        """The model has errors, and all of them are inside snippet code."""
+        errors = [d.code for d in self.diagnostics if d.severity == "error"]
+        return self.structure is not None and bool(errors) and set(errors) <= SNIPPET_CODES
 
 
 @contextmanager
@@ -85,7 +98,8 @@ def _compile(path: str, text: str | None) -> Result:
     except HfsmcError as e:
         diags.extend(e.diagnostics)
         return Result(path, None, diags.sorted(), doc.lines if doc else _lines(path, text), doc)
-    return Result(path, None if diags.has_errors else model, diags.sorted(), doc.lines, doc)
+    return Result(path, None if diags.has_errors else model, diags.sorted(), doc.lines, doc,
+                  structure=model)
 
 
 def _lines(path: str, text: str | None) -> list[str]:

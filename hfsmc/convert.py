@@ -22,7 +22,7 @@ from ruamel.yaml.scalarstring import LiteralScalarString
 from hfsmc.compiler import Result, compile_file
 from hfsmc.durations import parse_us
 from hfsmc.emit.data import model_to_data
-from hfsmc.errors import Diagnostic, Diagnostics, UsageError
+from hfsmc.errors import Diagnostic, UsageError
 from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Model
 from hfsmc.resources import schema_file
@@ -205,31 +205,18 @@ def _comment_start(line: str) -> int | None:
 # Problems in the code of a legacy file (a name the file never imported, a syntax error):
 # `convert` still writes the model and reports them as warnings, so that the user fixes
 # them in the new file; `check` and `build` stay strict (docs/legacy.md).
-LEGACY_CODE_PROBLEMS = frozenset({"E140", "E141", "E142", "E143", "E145", "E146"})
-
-
 def compile_for_convert(path: str, strict: bool = False) -> Result:
     """``path`` compiled for ``convert``: as ``check`` does, except that a legacy file whose
     only errors are in its code gives its model, those errors reported as W220."""
     result = compile_file(path)
     doc = result.document
-    errors = [d for d in result.diagnostics if d.severity == "error"]
-    if strict or not errors or doc is None or doc.format not in ("visualstates", "visualhfsm") \
-            or any(d.code not in LEGACY_CODE_PROBLEMS for d in errors):
+    if strict or doc is None or doc.format not in ("visualstates", "visualhfsm") \
+            or not result.errors_only_in_snippets:
         return result
-    from hfsmc import schema
-    from hfsmc.builder import build
-    from hfsmc.frontend import load
-    from hfsmc.lower import lower
-
-    diags = Diagnostics()
-    doc = load(path, diags)
-    schema.validate(doc, diags)
-    model = lower(build(doc, diags), diags)
     kept = [d if d.severity != "error" else Diagnostic(
         "W220", f"{d.message} ({d.code}: the converted model keeps it; fix it there)", d.span,
-        "warning", d.notes) for d in diags.sorted()]
-    return Result(path, model, kept, doc.lines, doc, result.notes)
+        "warning", d.notes) for d in result.diagnostics]
+    return Result(path, result.structure, kept, result.lines, doc, result.notes)
 
 
 def legacy_report(result: Result) -> list[str]:

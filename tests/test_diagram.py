@@ -1003,3 +1003,35 @@ def test_unknown_suffix_is_a_usage_error(tmp_path: Path) -> None:
     with pytest.raises(UsageError, match=r"\.svg, \.png or \.dot"):
         dot.write_diagram(compile_model(path), tmp_path / "out.pdf", None)
     assert not (tmp_path / "out.pdf").exists()
+
+
+SNIPPET_ERROR = """\
+hfsm: 1
+name: wip
+initial: A
+states:
+  A:
+    during: log(undefined_thing)
+    transitions: [{to: B, after: 1s}]
+  B: {final: true}
+"""
+
+
+def test_snippet_errors_do_not_stop_the_drawing(tmp_path: Path) -> None:
+    """A model whose only errors are in snippet code is drawn; the errors are shown."""
+    path = write_model(tmp_path, SNIPPET_ERROR)
+    out = tmp_path / "wip.svg"
+    result = run_cli(str(path), "-o", str(out))
+    assert result.exit_code == 0, result.output
+    assert f"{path}:6:17: error[E141]: undefined name `undefined_thing`" in result.stderr
+    assert "drawn although its snippets have errors" in result.stderr
+    assert {"A", "B"} <= set(svg_texts(out.read_bytes()))
+
+
+def test_structure_errors_stop_the_drawing(tmp_path: Path) -> None:
+    path = write_model(tmp_path, SNIPPET_ERROR.replace("initial: A", "initial: Q"))
+    out = tmp_path / "wip.svg"
+    result = run_cli(str(path), "-o", str(out))
+    assert result.exit_code == 1
+    assert f"{path}:3:10: error[E131]" in result.stderr
+    assert not out.exists()
