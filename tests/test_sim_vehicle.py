@@ -581,3 +581,21 @@ def test_param_option_rejects_unknown_names() -> None:
                           cwd=ROOT, capture_output=True, text=True, timeout=20)
     assert proc.returncode == 2
     assert proc.stderr.startswith("hfsmc: error: --param NO_SUCH: no such parameter")
+
+
+def test_world_clock_armed_holds_the_objects_until_arming(tmp_path: Path) -> None:
+    """--world-clock armed: nobody arms, so the object waits; by default it has moved."""
+    world = tmp_path / "moving.yaml"
+    world.write_text("objects:\n  - {name: g, color: [0, 200, 0], speed: 1.0, "
+                     "path: [[0, 0], [30, 0]]}\n")
+    where = {}
+    for clock in ("armed", None):
+        truth = tmp_path / f"truth-{clock}.json"
+        args = ["--world-clock", clock] if clock else []
+        proc = subprocess.run([sys.executable, "-c", RUN, "--no-camera", "--world", str(world),
+                               "--mavlink", f"udpout:127.0.0.1:{free_udp_port()}",
+                               "--duration", "1.5", "--truth", str(truth), *args],
+                              cwd=ROOT, capture_output=True, text=True, timeout=30)
+        assert proc.returncode == 0, proc.stderr
+        where[clock] = json.loads(truth.read_text())["objects"][0]["north"]
+    assert where == {"armed": 0.0, None: 1.5}
