@@ -159,9 +159,13 @@ class Proxy:
         self.back.bind(("127.0.0.1", 0))
         self.port: int = self.front.getsockname()[1]
         self.sim: tuple[str, int] | None = None
-        rng = random.Random(seed)
-        self.ways = {"up": Way(rng, dup, swap, set(always_dup), hold_s),  # sim -> driver
-                     "down": Way(rng, dup, swap, set(always_dup), hold_s)}  # driver -> sim
+        # One generator per way, so that the sparse way's draws do not depend on how the
+        # busy way's datagrams interleave with them. The driver sends about one datagram a
+        # second besides its commands: its way holds one back up to 1.5 s, so that it goes
+        # behind the next one (a swap) instead of merely late.
+        self.ways = {"up": Way(random.Random(seed), dup, swap, set(always_dup), hold_s),  # sim -> driver
+                     "down": Way(random.Random(seed + 1), dup, swap, set(always_dup),
+                                 max(hold_s, 1.5))}  # driver -> sim
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
