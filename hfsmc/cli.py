@@ -239,20 +239,24 @@ def run(model: str, args: tuple[str, ...]) -> None:
 @click.option("--replay", metavar="TRACE", type=click.Path(dir_okay=False),
               help="Play a trace file (written with --trace) instead of watching a component.")
 @click.option("--model", metavar="MODEL", type=click.Path(dir_okay=False),
-              help="With --replay: take the whole tree from the model, not only the states seen.")
+              help="With --replay: take the whole tree from the model, not only the states seen. "
+                   "With --web: draw the diagram from it (conditions and timers on the arrows).")
 @click.option("--speed", type=float, default=1.0, show_default=True,
               help="With --replay: times real time; 0 shows the end at once.")
 @click.option("--focus", metavar="PATH", help="Show only this state's sub-automaton.",
               shell_complete=complete.complete_focus)
 @click.option("--no-autofocus", is_flag=True, help="Show every branch, not only the active ones.")
+@click.option("--web", metavar="[HOST:]PORT",
+              help="Serve a web page that draws the component live, on loopback unless a host "
+                   "is named (port 0 picks one); see docs/web.md.")
 @_guard
 def view(target: str | None, replay: str | None, model: str | None, speed: float,
-         focus: str | None, no_autofocus: bool) -> None:
+         focus: str | None, no_autofocus: bool, web: str | None) -> None:
     """Watch a component started with --monitor [HOST:]PORT, or replay a trace."""
     from hfsmc.viewer import view as run_view
 
     sys.exit(run_view(target, replay, focus=focus, autofocus=not no_autofocus, speed=speed,
-                      model=model))
+                      model=model, web=web))
 
 
 @main.command(cls=complete.SimCommand,

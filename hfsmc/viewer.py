@@ -35,18 +35,29 @@ class _ViewError(Exception):
 
 
 def view(target: str | None, replay: str | None, focus: str | None = None,
-         autofocus: bool = True, speed: float = 1.0, model: str | None = None) -> int:
+         autofocus: bool = True, speed: float = 1.0, model: str | None = None,
+         web: str | None = None) -> int:
     """Run ``hfsmc view`` and return its exit status.
 
     ``target`` is ``[HOST:]PORT`` of a component started with ``--monitor``;
     ``replay`` a trace file (``--trace``) played at ``speed`` times real time
     (0: at once, then the final screen), its tree taken from ``model`` when
-    given, else inferred from the paths in the trace. Errors are one line on
+    given, else inferred from the paths in the trace. With ``web``
+    (``[HOST:]PORT``) the component is shown in a browser instead
+    (docs/web.md), drawn from ``model`` when given. Errors are one line on
     stderr: exit 2 for usage errors, 1 for anything else.
     """
     try:
         if (target is None) == (replay is None):
             raise _ViewError("give either [HOST:]PORT or --replay TRACE", 2)
+        if web is not None:
+            if replay is not None:
+                raise _ViewError("--web shows a running component; it cannot replay a trace yet", 2)
+            if focus is not None:
+                raise _ViewError("--focus is for the terminal view; the web view draws every state",
+                                 2)
+            assert target is not None
+            return _web(web, target, model, autofocus)
         if replay is not None:
             return _replay(replay, focus, autofocus, speed, model)
         assert target is not None
@@ -75,6 +86,32 @@ def _attach(target: str, focus: str | None, autofocus: bool) -> int:
 
     print(f"hfsmc view: connected to {label}", file=sys.stderr, flush=True)
     return int(screen.run_viewer(monitor.client_items(sock, label), focus, autofocus, stop=hang_up))
+
+
+def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
+    from hfsmc.errors import UsageError
+    from hfsmc.web import watch
+    from hfsmc.web.server import listen
+
+    try:
+        host, port = monitor.parse_address(target)
+        web_host, web_port = monitor.parse_address(web)
+    except ValueError as e:
+        raise _ViewError(str(e), 2) from None
+    if port == 0:
+        raise _ViewError(f"bad address {target!r}: port 0 is not a component's port", 2)
+    model = _load_model(model_path) if model_path is not None else None
+    try:
+        sock = listen(web_host, web_port)
+    except OSError as e:
+        where = monitor.format_address(web_host, web_port)
+        raise _ViewError(f"cannot serve the web view on {where}: {e.strerror or e}") from None
+    try:
+        return int(watch(sock, host, port, model, autofocus=autofocus))
+    except UsageError as e:
+        raise _ViewError(str(e)) from None
+    finally:
+        sock.close()
 
 
 def _replay(path: str, focus: str | None, autofocus: bool, speed: float, model: str | None) -> int:
@@ -131,6 +168,10 @@ def _replay_items(records: list[dict[str, Any]], structure: dict[str, Any], spee
 
 
 def _model_structure(path: str) -> dict[str, Any]:
+    return structure_of(_load_model(path, "the trace"))
+
+
+def _load_model(path: str, what: str = "the component") -> Model:
     from hfsmc.compiler import compile_file
     from hfsmc.errors import render_text
 
@@ -138,8 +179,8 @@ def _model_structure(path: str) -> dict[str, Any]:
     if result.model is None or not result.ok:
         sys.stderr.write(render_text(result.diagnostics, {path: result.lines},
                                      color=sys.stderr.isatty()))
-        raise _ViewError(f"{path} has errors; the trace cannot be shown with it")
-    return structure_of(result.model)
+        raise _ViewError(f"{path} has errors; {what} cannot be shown with it")
+    return result.model
 
 
 def structure_of(model: Model) -> dict[str, Any]:

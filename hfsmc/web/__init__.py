@@ -1,0 +1,34 @@
+"""The web view of a running component (``hfsmc view --web``): docs/web.md.
+
+``server.py`` serves the page and its WebSocket, ``bridge.py`` is the monitor
+client that keeps what the pages show, ``picture.py`` draws the diagram, and
+``static/`` holds the page's own HTML, JavaScript and CSS.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+from typing import TextIO
+
+from hfsmc.ir import Model
+
+
+def watch(sock: socket.socket, host: str, port: int, model: Model | None, *,
+          autofocus: bool = True, out: TextIO | None = None) -> int:
+    """Serve the web view on ``sock`` of the component at ``host:port`` until SIGINT/SIGTERM.
+
+    ``model`` (``--model``) gives the picture while the component is that
+    model's; without it the picture is drawn from the component's structure.
+    Raises UsageError when ``dot`` cannot draw the model. Returns the exit status.
+    """
+    from hfsmc.viewer import structure_of
+    from hfsmc.web.bridge import Bridge, Picture
+    from hfsmc.web.picture import svg_of
+    from hfsmc.web.server import painter, serve
+
+    drawn = Picture(svg_of(model), "model") if model is not None else None
+    paint = painter(drawn, structure_of(model) if model is not None else None)
+    bridge = Bridge(host, port, paint, autofocus=autofocus)
+    asyncio.run(serve(sock, bridge, out))
+    return 0

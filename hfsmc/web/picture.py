@@ -1,0 +1,82 @@
+"""The web view's picture: the model's diagram as SVG, drawn by ``dot`` here.
+
+The drawing is hfsmc's own (hfsmc/emit/dot.py), so a state's SVG element has
+its path as ``id`` and a transition ``PATH#N``, as the trace names them
+(docs/diagrams.md). It is drawn from the model file when ``--model`` is given
+(conditions and timers on the arrows), else from the structure the component
+sends in its ``hello`` (states and arrows, with the transitions' names only).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from hfsmc.emit.dot import render, to_dot
+from hfsmc.errors import Span
+from hfsmc.ir import Automaton, Model, State, Transition
+
+_NOWHERE = Span("<monitor>", 1, 1)
+
+
+def svg_of(model: Model) -> str:
+    """The diagram of ``model`` as an SVG element to put in a page (no XML prologue).
+
+    Raises UsageError when ``dot`` is missing or fails.
+    """
+    text = render(to_dot(model), "svg").decode("utf-8")
+    start = text.find("<svg")
+    return text[start:] if start >= 0 else text
+
+
+def model_from_structure(structure: dict[str, Any]) -> Model:
+    """A model with the states, sub-automata and transitions a ``hello`` gives, and no code.
+
+    Enough for the diagram: it lacks the conditions and timers of the arrows
+    and the ``on_interrupt`` mark, which the monitor protocol does not carry.
+    Raises ValueError when the structure does not hold together.
+    """
+    states = [st for st in structure.get("states", ()) if isinstance(st, dict)]
+    autos = {str(a["owner"]): a for a in structure.get("automata", ()) if isinstance(a, dict)}
+    children: dict[str, list[dict[str, Any]]] = {"": []}
+    for st in states:
+        path = str(st["path"])
+        children.setdefault(path.rpartition("/")[0], []).append(st)
+        children.setdefault(path, [])
+    moves: dict[str, list[dict[str, Any]]] = {}
+    for tr in structure.get("transitions", ()):
+        if isinstance(tr, dict):
+            moves.setdefault(str(tr["from"]), []).append(tr)
+
+    def automaton(owner: str, period: int) -> Automaton:
+        info = autos.get(owner, {})
+        period = int(info.get("period_ms", period))
+        kids = tuple(state(st, period) for st in children.get(owner, ()))
+        if not kids:
+            raise ValueError(f"the structure has no states under {owner or 'the root'!r}")
+        initial = str(info.get("initial") or kids[0].name)
+        return Automaton(owner=owner, period_ms=period, period_written=True, initial=initial,
+                         history=bool(info.get("history")), states=kids, span=_NOWHERE,
+                         initial_span=_NOWHERE)
+
+    def state(st: dict[str, Any], period: int) -> State:
+        path = str(st["path"])
+        name = path.rpartition("/")[2]
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+            raise ValueError(f"bad state path {path!r}")
+        composite = bool(st.get("composite")) and bool(children.get(path))
+        trs = tuple(
+            Transition(index=int(tr["index"]), target=str(tr["to"]).rpartition("/")[2], when=None,
+                       after_us=None, do=None,
+                       name=None if tr.get("name") is None else str(tr["name"]),
+                       span=_NOWHERE, target_span=_NOWHERE)
+            for tr in sorted(moves.get(path, ()), key=lambda tr: int(tr["index"])))
+        return State(name=name, path=path, entry=None, during=None, exit=None, transitions=trs,
+                     final=bool(st.get("final")),
+                     automaton=automaton(path, period) if composite else None, span=_NOWHERE)
+
+    root = automaton("", 100)
+    return Model(name=str(structure.get("name") or "component"), language="python",
+                 description=None, imports=(), interfaces=(), parameters=(), variables=(),
+                 functions=None, on_shutdown=None, on_interrupt=None, interrupt_timeout_us=None,
+                 root=root, file="<monitor>", span=_NOWHERE)

@@ -1,0 +1,168 @@
+"""``hfsmc view --web``: serve a page that draws a running component live.
+
+One aiohttp server, on loopback unless a host is named: ``/`` is the page,
+``/app.js`` and ``/app.css`` its own code (package data: nothing is fetched
+from elsewhere), ``/ws`` the WebSocket each page reads its messages from
+(docs/web.md). Everything a page sends is read and thrown away. The monitor
+client and what the pages are told live in hfsmc/web/bridge.py.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import signal
+import socket
+import sys
+from collections.abc import Awaitable, Callable
+from importlib import resources
+from typing import Any, TextIO
+
+from aiohttp import WSMsgType, web
+
+from hfsmc.errors import UsageError
+from hfsmc.web.bridge import Bridge, Page, Picture
+
+MAX_PAGES = 64  # pages served at once; more WebSockets are closed at once
+WS_MESSAGE_LIMIT = 1 << 16  # a page sends nothing legitimate: a bigger frame closes its socket
+STATIC = {"": ("index.html", "text/html"), "app.js": ("app.js", "text/javascript"),
+          "app.css": ("app.css", "text/css")}
+# Only the page's own files and its WebSocket; the SVG is inline.
+CSP = ("default-src 'none'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+       "img-src 'self' data:; connect-src 'self'; base-uri 'none'; form-action 'none'")
+_BRIDGE = web.AppKey("bridge", Bridge)
+_FILES = web.AppKey("files", dict)
+
+
+def static_files() -> dict[str, tuple[bytes, str]]:
+    """The page's files, read from the package (they ship in the wheel)."""
+    folder = resources.files("hfsmc.web") / "static"
+    return {route: ((folder / name).read_bytes(), kind) for route, (name, kind) in STATIC.items()}
+
+
+def make_app(bridge: Bridge) -> web.Application:
+    """The web application that serves ``bridge``'s view."""
+    app = web.Application()
+    app[_BRIDGE] = bridge
+    app[_FILES] = static_files()
+    app.router.add_get("/", _file)
+    app.router.add_get("/app.js", _file)
+    app.router.add_get("/app.css", _file)
+    app.router.add_get("/ws", _socket)
+    app.router.add_get("/favicon.ico", _no_icon)
+    return app
+
+
+async def _file(request: web.Request) -> web.Response:
+    body, kind = request.app[_FILES][request.path.lstrip("/")]
+    return web.Response(body=body, content_type=kind, charset="utf-8",
+                        headers={"Cache-Control": "no-cache", "Content-Security-Policy": CSP,
+                                 "X-Content-Type-Options": "nosniff"})
+
+
+async def _no_icon(request: web.Request) -> web.Response:
+    return web.Response(status=204)
+
+
+async def _socket(request: web.Request) -> web.WebSocketResponse:
+    bridge = request.app[_BRIDGE]
+    ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=WS_MESSAGE_LIMIT)
+    await ws.prepare(request)
+    if len(bridge.pages) >= MAX_PAGES:
+        await ws.close(code=1013, message=b"too many pages")
+        return ws
+    page = bridge.attach()
+    sender = asyncio.create_task(_send(ws, page))
+    try:
+        async for msg in ws:  # read-only: whatever a page sends is thrown away
+            if msg.type == WSMsgType.ERROR:
+                break
+    finally:
+        bridge.detach(page)
+        page.end()
+        with contextlib.suppress(Exception):
+            await asyncio.wait_for(sender, 2.0)
+        if not sender.done():
+            sender.cancel()
+    return ws
+
+
+async def _send(ws: web.WebSocketResponse, page: Page) -> None:
+    """Send a page its queue until the queue ends; a page that fell behind is closed."""
+    try:
+        while (text := await page.queue.get()) is not None:
+            await ws.send_str(text)
+    except (ConnectionError, RuntimeError):  # the page went away meanwhile
+        pass
+    with contextlib.suppress(Exception):
+        await ws.close(code=1008 if page.dropped else 1000,
+                       message=b"too slow: reload" if page.dropped else b"")
+
+
+def listen(host: str, port: int) -> socket.socket:
+    """The web view's listening socket (OSError when the address is taken)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.create_server((host, port), family=family, backlog=128)
+    sock.setblocking(False)
+    return sock
+
+
+def url_of(sock: socket.socket) -> str:
+    host, port = sock.getsockname()[:2]
+    return f"http://[{host}]:{port}/" if ":" in host else f"http://{host}:{port}/"
+
+
+async def serve(sock: socket.socket, bridge: Bridge, out: TextIO | None = None,
+                stop: asyncio.Event | None = None) -> None:
+    """Serve the page on ``sock`` and run ``bridge`` until ``stop`` is set (or SIGINT/SIGTERM)."""
+    out = out if out is not None else sys.stdout
+    stop = stop if stop is not None else asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+            loop.add_signal_handler(sig, stop.set)
+    runner = web.AppRunner(make_app(bridge), access_log=None, handle_signals=False)
+    await runner.setup()
+    watching = asyncio.create_task(bridge.run())
+    try:
+        await web.SockSite(runner, sock, shutdown_timeout=1.0).start()
+        print(f"hfsmc view: web view on {url_of(sock)} (component {bridge.label})",
+              file=out, flush=True)
+        await stop.wait()
+    finally:
+        watching.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await watching
+        for page in list(bridge.pages):
+            page.end()
+        await runner.cleanup()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+                loop.remove_signal_handler(sig)
+
+
+def painter(drawn: Picture | None, model_structure: dict[str, Any] | None,
+            ) -> Callable[[dict[str, Any]], Awaitable[Picture]]:
+    """The bridge's ``paint``: the model's picture while the component is that model's,
+    else a drawing from the component's own structure."""
+    from hfsmc.web.picture import model_from_structure, svg_of
+
+    def shape(structure: dict[str, Any] | None) -> tuple[Any, ...]:
+        # What the drawing shows: parameter values (--param) do not change it.
+        s = structure or {}
+        return tuple(s.get(k) for k in ("name", "automata", "states", "transitions"))
+
+    async def paint(structure: dict[str, Any]) -> Picture:
+        if drawn is not None and shape(structure) == shape(model_structure):
+            return drawn
+        problem = None
+        if drawn is not None:
+            problem = ("the component is not the model given with --model (its states or "
+                       "transitions differ): drawn from the component's own structure")
+        try:
+            svg = await asyncio.to_thread(lambda: svg_of(model_from_structure(structure)))
+        except (UsageError, ValueError, KeyError, TypeError) as e:
+            return Picture(None, "", f"no picture: {e}")
+        return Picture(svg, "structure", problem)
+
+    return paint

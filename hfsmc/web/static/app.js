@@ -1,0 +1,360 @@
+// hfsmc view --web: the page. It draws what the server's bridge says (docs/web.md):
+// a "model" (structure and SVG), a "state" (everything, on connect), then "delta"s
+// and "status"es. What is active is decided by the bridge; this page only shows it.
+"use strict";
+
+(function () {
+  const FIRED_MS = 1500;      // how long the transition just taken stays highlighted
+  const RETRY_MAX_MS = 5000;  // the page's own reconnection to the web view server
+  const $ = (id) => document.getElementById(id);
+
+  const view = {
+    structure: null,
+    elements: new Map(),   // SVG id (state path, PATH#N, ...) -> element
+    rows: new Map(),       // state path -> tree row
+    active: new Map(),     // active path -> entry time (ms)
+    variables: {},
+    transitions: [],
+    logs: [],
+    t: 0,
+    tAt: performance.now(),  // when t was received: the clock runs on from it
+    status: "connecting",
+    stopped: false,
+    whole: null,           // the diagram's own viewBox [x, y, w, h]
+    box: null,             // the viewBox shown now
+    svg: null,
+  };
+
+  // -- text helpers ------------------------------------------------------------------
+  function seconds(ms) { return (ms / 1000).toFixed(3); }
+  function el(tag, cls, text) {
+    const e = document.createElement(tag);
+    if (cls) e.className = cls;
+    if (text !== undefined) e.textContent = text;
+    return e;
+  }
+  function now() {
+    if (view.status !== "connected" || view.stopped) return view.t;
+    return view.t + (performance.now() - view.tAt);
+  }
+  function setTime(t) { view.t = t; view.tAt = performance.now(); }
+
+  // -- the model: the picture and the tree ---------------------------------------------
+  function showModel(msg) {
+    view.structure = msg.structure || {states: [], variables: [], automata: []};
+    $("hv-name").textContent = view.structure.name || "component";
+    document.title = (view.structure.name || "component") + " · hfsmc view";
+    $("hv-autofocus").checked = msg.autofocus !== false;
+    drawPicture(msg.svg, msg.problem);
+    buildTree();
+    showActive(true);
+    showVariables({});
+  }
+
+  function drawPicture(svgText, problem) {
+    const pane = $("hv-diagram");
+    pane.replaceChildren();
+    view.elements.clear();
+    view.svg = null;
+    if (problem) pane.appendChild(el("p", "hv-hint", problem));
+    if (!svgText) return;
+    const doc = new DOMParser().parseFromString(svgText, "image/svg+xml");
+    const svg = doc.documentElement;
+    if (svg.nodeName !== "svg") {
+      pane.appendChild(el("p", "hv-hint", "the diagram could not be read"));
+      return;
+    }
+    svg.removeAttribute("width");
+    svg.removeAttribute("height");
+    svg.setAttribute("preserveAspectRatio", "xMidYMid meet");
+    const node = document.importNode(svg, true);
+    pane.appendChild(node);
+    view.svg = node;
+    // Ids as dot wrote them; the first element of a kind wins (graphviz's own ids such as
+    // "graph0" or "a_X" never have the node, cluster or edge class).
+    for (const g of node.querySelectorAll("g.node, g.cluster, g.edge")) {
+      if (g.id && !view.elements.has(g.id)) view.elements.set(g.id, g);
+    }
+    const vb = (node.getAttribute("viewBox") || "0 0 100 100").split(/[\s,]+/).map(Number);
+    view.whole = vb;
+    setBox(vb.slice());
+  }
+
+  function buildTree() {
+    const tree = $("hv-tree");
+    tree.replaceChildren();
+    view.rows.clear();
+    const periods = new Map((view.structure.automata || []).map((a) => [a.owner, a.period_ms]));
+    for (const st of view.structure.states || []) {
+      const depth = st.path.split("/").length - 1;
+      const li = el("li");
+      li.dataset.path = st.path;
+      li.style.paddingLeft = (4 + 16 * depth) + "px";
+      if (st.final) li.classList.add("hv-final");
+      li.append(el("span", "hv-mark"), el("span", "hv-name", st.path.split("/").pop()));
+      if (st.composite && periods.has(st.path)) {
+        li.append(el("span", "hv-note", periods.get(st.path) + " ms"));
+      }
+      li.append(el("span", "hv-time"));
+      tree.appendChild(li);
+      view.rows.set(st.path, li);
+    }
+  }
+
+  // -- what is active ------------------------------------------------------------------
+  function showActive(focus) {
+    for (const [path, g] of view.elements) {
+      if (g.classList.contains("edge")) continue;
+      g.classList.toggle("hv-active", view.active.has(path));
+    }
+    for (const [path, li] of view.rows) {
+      const on = view.active.has(path);
+      li.classList.toggle("hv-active", on);
+      if (!on) li.querySelector(".hv-time").textContent = "";
+    }
+    tick();
+    if (focus && $("hv-autofocus").checked) autofocus();
+  }
+
+  function fired(list) {
+    for (const tr of list) {
+      const id = tr.from + "#" + tr.index;
+      for (const key of [id, id + ":head", id + ":label"]) {
+        const g = view.elements.get(key);
+        if (!g) continue;
+        g.classList.remove("hv-fired");
+        void g.getBoundingClientRect();  // restart the highlight when it is taken again
+        g.classList.add("hv-fired");
+        clearTimeout(g._hvTimer);
+        g._hvTimer = setTimeout(() => g.classList.remove("hv-fired"), FIRED_MS);
+      }
+    }
+  }
+
+  // -- the lists beside the picture -----------------------------------------------------
+  function showVariables(changed) {
+    const body = $("hv-vars").tBodies[0];
+    body.replaceChildren();
+    const names = (view.structure && view.structure.variables) || [];
+    const all = [...names, ...Object.keys(view.variables).filter((n) => !names.includes(n))];
+    for (const name of all) {
+      const tr = el("tr");
+      tr.dataset.name = name;
+      if (name in changed) tr.classList.add("hv-changed");
+      tr.append(el("td", "", name), el("td", "", name in view.variables ? view.variables[name] : "–"));
+      body.appendChild(tr);
+    }
+  }
+
+  function showTransitions() {
+    const list = $("hv-transitions");
+    list.replaceChildren();
+    for (const tr of view.transitions.slice().reverse()) {
+      const li = el("li");
+      li.append(el("span", "hv-t", seconds(tr.t)),
+        document.createTextNode(tr.from + " → " + tr.to + (tr.name ? "  (" + tr.name + ")" : "")));
+      list.appendChild(li);
+    }
+  }
+
+  function showLogs() {
+    const list = $("hv-logs");
+    list.replaceChildren();
+    for (const lg of view.logs.slice().reverse()) {
+      const li = el("li", lg.error ? "hv-error" : "");
+      const where = lg.state ? "[" + lg.state + "] " : "";
+      li.append(el("span", "hv-t", seconds(lg.t)),
+        document.createTextNode(where + (lg.error ? "error in " + lg.error : lg.msg)));
+      list.appendChild(li);
+    }
+  }
+
+  function showStatus(status, note) {
+    view.status = status;
+    document.body.dataset.status = status;
+    $("hv-status").textContent = status;
+    const banner = $("hv-banner");
+    banner.hidden = status === "connected";
+    banner.textContent = note || "";
+  }
+
+  function showOverruns(n) {
+    const o = $("hv-overruns");
+    o.textContent = "overruns " + n;
+    o.classList.toggle("hv-some", n > 0);
+  }
+
+  // The clock and the times in state run on between messages.
+  function tick() {
+    const t = now();
+    $("hv-clock").textContent = "t " + seconds(t) + " s";
+    for (const [path, since] of view.active) {
+      const li = view.rows.get(path);
+      if (li) li.querySelector(".hv-time").textContent = seconds(Math.max(t - since, 0)) + " s";
+    }
+  }
+
+  // -- messages ------------------------------------------------------------------------
+  function onState(msg) {
+    setTime(msg.t);
+    view.active = new Map(msg.active.map((a) => [a.state, a.since]));
+    view.variables = msg.variables || {};
+    view.transitions = msg.transitions || [];
+    view.logs = msg.logs || [];
+    view.stopped = !!msg.stop;
+    showStatus(msg.status, msg.note);
+    showOverruns(msg.overruns || 0);
+    showActive(true);
+    showVariables({});
+    showTransitions();
+    showLogs();
+  }
+
+  function onDelta(msg) {
+    setTime(msg.t);
+    let moved = false;
+    for (const path of msg.exit || []) { view.active.delete(path); moved = true; }
+    for (const a of msg.enter || []) { view.active.set(a.state, a.since); moved = true; }
+    // Keep the active states outermost first, as the structure lists them.
+    if (moved && view.structure) {
+      const order = new Map(view.structure.states.map((s, i) => [s.path, i]));
+      view.active = new Map([...view.active].sort((a, b) =>
+        (order.get(a[0]) ?? 1e9) - (order.get(b[0]) ?? 1e9)));
+    }
+    if (msg.fired) {
+      view.transitions = view.transitions.concat(msg.fired).slice(-8);
+      showTransitions();
+    }
+    if (msg.logs) {
+      view.logs = view.logs.concat(msg.logs).slice(-8);
+      showLogs();
+    }
+    if (msg.variables) {
+      const changed = {};
+      for (const k of Object.keys(msg.variables)) {
+        if (view.variables[k] !== msg.variables[k]) changed[k] = true;
+      }
+      view.variables = msg.variables;
+      showVariables(changed);
+    }
+    if ("overruns" in msg) showOverruns(msg.overruns);
+    if ("stop" in msg) view.stopped = !!msg.stop;
+    if (moved) showActive(true);
+    if (msg.fired) fired(msg.fired);
+    tick();
+  }
+
+  function onMessage(ev) {
+    let msg;
+    try { msg = JSON.parse(ev.data); } catch (e) { return; }
+    if (!msg || typeof msg !== "object") return;
+    if (msg.type === "model") showModel(msg);
+    else if (msg.type === "state") onState(msg);
+    else if (msg.type === "delta") onDelta(msg);
+    else if (msg.type === "status") {
+      setTime(msg.t);
+      showStatus(msg.status, msg.note);
+    }
+  }
+
+  let retry = 250;
+  function connect() {
+    const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
+    ws.onopen = () => { retry = 250; };
+    ws.onmessage = onMessage;
+    ws.onclose = (ev) => {
+      showStatus("offline", ev.code === 1008
+        ? "this page fell behind and was dropped by the web view; reconnecting"
+        : "the web view server is gone; reconnecting");
+      setTimeout(connect, retry);
+      retry = Math.min(retry * 2, RETRY_MAX_MS);
+    };
+  }
+
+  // -- pan, zoom and autofocus -----------------------------------------------------------
+  function setBox(b) {
+    view.box = b;
+    if (view.svg) view.svg.setAttribute("viewBox", b.map((x) => x.toFixed(2)).join(" "));
+  }
+
+  // A client point in the SVG's viewBox coordinates.
+  function toSvg(x, y) {
+    const p = view.svg.createSVGPoint();
+    p.x = x; p.y = y;
+    return p.matrixTransform(view.svg.getScreenCTM().inverse());
+  }
+
+  function manual() { $("hv-autofocus").checked = false; }
+
+  function zoom(ev) {
+    if (!view.svg) return;
+    ev.preventDefault();
+    const f = Math.exp(Math.max(-1, Math.min(1, ev.deltaY / 300)));
+    const p = toSvg(ev.clientX, ev.clientY);
+    const [x, y, w, h] = view.box;
+    const nw = Math.min(Math.max(w * f, view.whole[2] / 50), view.whole[2] * 4);
+    const k = nw / w;
+    setBox([p.x - (p.x - x) * k, p.y - (p.y - y) * k, w * k, h * k]);
+    manual();
+  }
+
+  let drag = null;
+  function down(ev) {
+    if (!view.svg || ev.button !== 0) return;
+    drag = {x: ev.clientX, y: ev.clientY, box: view.box.slice(), moved: false};
+    $("hv-diagram").classList.add("hv-dragging");
+  }
+  function move(ev) {
+    if (!drag) return;
+    const r = view.svg.getBoundingClientRect();
+    const scale = Math.max(drag.box[2] / r.width, drag.box[3] / r.height);
+    const dx = (ev.clientX - drag.x) * scale, dy = (ev.clientY - drag.y) * scale;
+    if (Math.abs(dx) + Math.abs(dy) > 0) drag.moved = true;
+    setBox([drag.box[0] - dx, drag.box[1] - dy, drag.box[2], drag.box[3]]);
+    if (drag.moved) manual();
+  }
+  function up() {
+    drag = null;
+    $("hv-diagram").classList.remove("hv-dragging");
+  }
+
+  // Keep the deepest active state in view: pan to it when it is (partly) outside,
+  // and zoom out when it is bigger than the view.
+  function autofocus() {
+    if (!view.svg || !view.active.size) return;
+    let deepest = null;
+    for (const path of view.active.keys()) {
+      if (!view.elements.has(path)) continue;
+      if (!deepest || path.split("/").length > deepest.split("/").length) deepest = path;
+    }
+    if (!deepest) return;
+    const r = view.elements.get(deepest).getBoundingClientRect();
+    if (!r.width && !r.height) return;
+    const a = toSvg(r.left, r.top), b = toSvg(r.right, r.bottom);
+    const [x, y, w, h] = view.box;
+    const m = Math.min(Math.max(b.x - a.x, b.y - a.y) * 0.25, Math.min(w, h) * 0.05);
+    const inside = a.x - m >= x && a.y - m >= y && b.x + m <= x + w && b.y + m <= y + h;
+    if (inside) return;
+    const k = Math.max(1, (b.x - a.x + 2 * m) / w, (b.y - a.y + 2 * m) / h);
+    const nw = w * k, nh = h * k;
+    setBox([(a.x + b.x) / 2 - nw / 2, (a.y + b.y) / 2 - nh / 2, nw, nh]);
+  }
+
+  function fit() {
+    if (view.whole) setBox(view.whole.slice());
+  }
+
+  window.addEventListener("DOMContentLoaded", () => {
+    const pane = $("hv-diagram");
+    pane.addEventListener("wheel", zoom, {passive: false});
+    pane.addEventListener("mousedown", down);
+    window.addEventListener("mousemove", move);
+    window.addEventListener("mouseup", up);
+    $("hv-fit").addEventListener("click", () => { fit(); manual(); });
+    $("hv-autofocus").addEventListener("change", () => {
+      if ($("hv-autofocus").checked) autofocus();
+    });
+    setInterval(tick, 100);
+    connect();
+  });
+})();
