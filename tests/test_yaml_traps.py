@@ -153,6 +153,15 @@ def test_missing_root_initial_lists_the_states_at_the_first_key() -> None:
     assert d.notes == ("its states: A, B",)
 
 
+def test_missing_root_initial_in_xml_lists_the_states_at_the_automaton() -> None:
+    text = ('<hfsm version="1" name="m">\n  <automaton period="100ms">\n'
+            '    <state name="A"/>\n    <state name="B" final="true"/>\n  </automaton>\n</hfsm>\n')
+    r = compile_file("m.xml", text=text)
+    [d] = r.diagnostics
+    assert (d.code, d.span.line, d.span.col) == ("E102", 2, 3)
+    assert d.notes == ("its states: A, B",)
+
+
 # ---------------------------------------------------------------------------
 # E107 / W213: a key indented as a state
 

@@ -182,8 +182,10 @@ def _diagnose(message: str, el: Element, index: XmlIndex, grammar: _Grammar) -> 
     if "is required but missing" in what:
         missing = re.search(r"attribute '([^']*)'", what)
         name = missing.group(1) if missing else "?"
+        states = [c.get("name", "?") for c in el if c.tag == "state"]
+        notes = (f"its states: {', '.join(states)}",) if name == "initial" and states else ()
         return Diagnostic("E102", f"missing required attribute `{name}` of `<{tag}>`",
-                          index.span(el))
+                          index.span(el), "error", notes)
     if "Missing child element" in what:
         names = _EXPECTED.search(what)
         wanted = " or ".join(f"`<{n.strip()}>`" for n in names.group(1).split(",")) if names \
