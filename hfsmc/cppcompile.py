@@ -63,6 +63,12 @@ def compile_component(folder: Path, model_file: str, build_type: str = "RelWithD
     return diags
 
 
+# g++ names the type of a legacy ROS/ICE interface (runtime.hpp) when a snippet uses one.
+UNAVAILABLE_NOTE = ("the interface is a legacy ROS topic or ICE proxy, which hfsmc components "
+                    "cannot drive (W205): replace it with a `mavlink` or `camera` "
+                    "interface, or with code of your own")
+
+
 def messages(output: str, model_file: str, source: str | None = None) -> list[Diagnostic]:
     """g++'s errors and warnings: those in the model as its positions, the rest as E150.
 
@@ -104,6 +110,8 @@ def messages(output: str, model_file: str, source: str | None = None) -> list[Di
             span = here
             notes = (f"in {file}:{line}, instantiated from this line",)
         here = None
+        if "hfsmc::Unavailable" in m["msg"]:
+            notes = (*notes, UNAVAILABLE_NOTE)
         if span is not None and (span, m["msg"]) not in placed:
             placed.add((span, m["msg"]))
             out.append(Diagnostic("E144" if error else "W209", m["msg"], span,

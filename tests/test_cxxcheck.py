@@ -128,6 +128,13 @@ def test_messages_on_generated_lines_go_to_the_snippet_they_close() -> None:
     assert [(str(d.span), d.code) for d in alone] == [("m.yaml:1:1", "E150")]
 
 
+def test_a_legacy_interface_used_in_cpp_is_explained() -> None:
+    out = "m.yaml:9:12: error: base operand of '->' has non-pointer type 'hfsmc::Unavailable'\n"
+    [d] = messages(out, "m.yaml", GENERATED)
+    assert (str(d.span), d.code) == ("m.yaml:9:12", "E144")
+    assert any("legacy ROS topic or ICE proxy" in n for n in d.notes)
+
+
 # ---------------------------------------------------------------------------
 # g++ at `hfsmc check`
 
