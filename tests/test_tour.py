@@ -255,7 +255,9 @@ def test_the_tour_runs_as_written(fresh: Copy, block: Block) -> None:
     if any(c.startswith("hfsmc sim") for c in commands):
         busy = [f"{kind} {port}" for kind, port in SIM_PORTS if not port_free(kind, port)]
         if busy:
-            pytest.skip(f"the simulator's ports are in use ({', '.join(busy)})")
+            # The README names these ports: the tour cannot run as written without them.
+            pytest.fail(f"the simulator's ports the README names are in use ({', '.join(busy)}): "
+                        "stop what holds them and run again")
     ports = {m.group(1) for c in commands for m in re.finditer(r"--monitor (\d+)", c)}
     for port in ports:
         mine = str(free_port())
