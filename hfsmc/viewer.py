@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
 import time
 from collections.abc import Iterator
@@ -105,7 +106,8 @@ def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
         sock = listen(web_host, web_port)
     except OSError as e:
         where = monitor.format_address(web_host, web_port)
-        raise _ViewError(f"cannot serve the web view on {where}: {e.strerror or e}") from None
+        why = os.strerror(e.errno) if e.errno else str(e)
+        raise _ViewError(f"cannot serve the web view on {where}: {why}") from None
     try:
         return int(watch(sock, host, port, model, autofocus=autofocus))
     except UsageError as e:

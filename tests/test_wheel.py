@@ -31,7 +31,9 @@ def test_wheel_contents(wheel: Path) -> None:
                      "hfsmc/templates/python/component.py.j2", "hfsmc/schemas/trace.schema.json",
                      "hfsmc/emit/cpp.py", "hfsmc/templates/cpp/component.cpp.j2",
                      "hfsmc/templates/cpp/CMakeLists.txt.j2", "hfsmc/templates/cpp/hfsmc_runtime.cpp",
-                     "hfsmc/templates/cpp/hfsmc/runtime.hpp", "hfsmc/templates/cpp/hfsmc/mavlink.hpp"):
+                     "hfsmc/templates/cpp/hfsmc/runtime.hpp", "hfsmc/templates/cpp/hfsmc/mavlink.hpp",
+                     "hfsmc/web/server.py", "hfsmc/web/static/index.html",
+                     "hfsmc/web/static/app.js", "hfsmc/web/static/app.css"):
         assert required in names, f"{required} missing from {wheel.name}"
     entry = next(n for n in names if n.endswith("entry_points.txt"))
     assert "hfsmc = hfsmc.cli:main" in zipfile.ZipFile(wheel).read(entry).decode()

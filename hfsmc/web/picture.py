@@ -53,7 +53,8 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
         period = int(info.get("period_ms", period))
         kids = tuple(state(st, period) for st in children.get(owner, ()))
         if not kids:
-            raise ValueError(f"the structure has no states under {owner or 'the root'!r}")
+            where = repr(owner) if owner else "the root"
+            raise ValueError(f"the structure has no states under {where}")
         initial = str(info.get("initial") or kids[0].name)
         return Automaton(owner=owner, period_ms=period, period_written=True, initial=initial,
                          history=bool(info.get("history")), states=kids, span=_NOWHERE,

@@ -1,0 +1,409 @@
+"""The web view (`hfsmc view --web`): the bridge and the picture at unit level, then the
+page in a real browser (Debian's chromium, driven by selenium through its chromedriver)
+against the blinker running on the real clock."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import importlib
+import io
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hfsmc.compiler import compile_file
+from hfsmc.viewer import structure_of, view
+from hfsmc.web.bridge import Bridge, Page, Picture
+from hfsmc.web.picture import model_from_structure, svg_of
+from tests.conftest import ROOT
+from tests.test_view import BLINKER, STRUCTURE, build_blinker
+
+monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
+
+CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
+GREEN = "rgb(76, 175, 80)"  # --active in app.css
+WHITE = "rgb(255, 255, 255)"
+LEAVES = ("Blinking/Lit", "Blinking/Dark")
+
+
+# -- the picture ------------------------------------------------------------------------------
+def ids(svg: str, kind: str) -> set[str]:
+    return set(re.findall(rf'<g id="([^"]+)" class="{kind}"', svg))
+
+
+def test_the_structure_alone_draws_the_same_states_and_arrows_as_the_model() -> None:
+    result = compile_file(BLINKER)
+    assert result.model is not None
+    from_model = svg_of(result.model)
+    from_structure = svg_of(model_from_structure(structure_of(result.model)))
+    assert from_structure.startswith("<svg")
+    for kind in ("node", "cluster"):
+        states = {i for i in ids(from_model, kind) if "#" not in i}
+        assert states == {i for i in ids(from_structure, kind) if "#" not in i}
+    assert {"Blinking/Lit", "Blinking/Dark", "Paused", "Done"} <= ids(from_structure, "node")
+    assert ids(from_structure, "cluster") == {"Blinking"}
+    edges = {i for i in ids(from_model, "edge") if ":" not in i and not i.startswith("#")}
+    assert edges == {"Blinking#0", "Blinking#1", "Blinking/Lit#0", "Blinking/Dark#0", "Paused#0"}
+    assert edges == {i for i in ids(from_structure, "edge") if ":" not in i}
+    assert "[count &gt;= blinks" in from_model and "blinks" not in from_structure  # no conditions
+
+
+def test_a_structure_that_does_not_hold_together_is_refused() -> None:
+    with pytest.raises(ValueError, match="bad state path"):
+        model_from_structure({**STRUCTURE, "states": [{"path": "a b", "final": False,
+                                                       "composite": False}]})
+    with pytest.raises(ValueError, match="no states under the root"):
+        model_from_structure({**STRUCTURE, "states": []})
+
+
+# -- the bridge against a real monitor server --------------------------------------------------
+async def next_message(page: Page, timeout: float = 3.0) -> dict[str, Any]:
+    text = await asyncio.wait_for(page.queue.get(), timeout)
+    assert text is not None
+    msg: dict[str, Any] = json.loads(text)
+    return msg
+
+
+async def _bridge_story() -> None:
+    srv = monitor.MonitorServer(port=0, announce=io.StringIO())
+    srv.start(STRUCTURE)
+    painted: list[dict[str, Any]] = []
+
+    async def paint(structure: dict[str, Any]) -> Picture:
+        painted.append(structure)
+        return Picture("<svg/>", "structure")
+
+    log = io.StringIO()
+    bridge = Bridge("127.0.0.1", srv.port, paint, log=log)
+    task = asyncio.create_task(bridge.run())
+    try:
+        for rec in ({"t": 0, "ev": "start", "name": "blinker"},
+                    {"t": 0, "ev": "enter", "state": "Blinking"},
+                    {"t": 0, "ev": "enter", "state": "Blinking/Lit"}):
+            srv.record(rec)
+        first = bridge.attach()
+        assert (await next_message(first))["type"] == "state"  # not connected yet: no model
+        while bridge.status != "connected" or "Blinking/Lit" not in bridge.view.active:
+            await asyncio.sleep(0.01)
+        late = bridge.attach()
+        model, state = await next_message(late), await next_message(late)
+        assert model["type"] == "model" and model["svg"] == "<svg/>"
+        assert model["structure"] == STRUCTURE and painted == [STRUCTURE]
+        assert state["status"] == "connected"
+        assert state["active"] == [{"state": "Blinking", "since": 0},
+                                   {"state": "Blinking/Lit", "since": 0}]
+        # A transition: one delta says what the pages draw, whoever attached when.
+        for rec in ({"t": 500, "ev": "fire", "from": "Blinking/Lit", "to": "Blinking/Dark",
+                     "index": 0},
+                    {"t": 500, "ev": "exit", "state": "Blinking/Lit"},
+                    {"t": 500, "ev": "enter", "state": "Blinking/Dark"}):
+            srv.record(rec)
+        srv.sample(520, {"x": "0.30000000000000004"}, 2)
+        delta = await next_message(late)
+        while "variables" not in delta:
+            more = await next_message(late)
+            for key in ("enter", "exit", "fired"):
+                delta[key] = delta.get(key, []) + more.get(key, [])
+            delta.update({k: v for k, v in more.items() if k not in ("enter", "exit", "fired")})
+        assert delta["enter"] == [{"state": "Blinking/Dark", "since": 500}]
+        assert delta["exit"] == ["Blinking/Lit"]
+        assert delta["fired"] == [{"t": 500, "from": "Blinking/Lit", "to": "Blinking/Dark",
+                                   "index": 0, "name": None}]
+        assert delta["variables"] == {"x": "0.3"}  # readable precision
+        assert delta["overruns"] == 2
+        # The component goes: the pages are told, and the bridge keeps trying.
+        srv.close()
+        while bridge.status == "connected":
+            await asyncio.sleep(0.01)
+        status = await next_message(late)
+        while status["type"] != "status":
+            status = await next_message(late)
+        assert status["status"] == "stopped"
+        assert status["note"] == "component closed the monitor; waiting for it to come back"
+        assert "hfsmc view: connected to 127.0.0.1:" in log.getvalue()
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+        srv.close()
+
+
+def test_the_bridge_gives_a_state_then_deltas() -> None:
+    asyncio.run(asyncio.wait_for(_bridge_story(), 20))
+
+
+def test_a_page_that_falls_behind_is_dropped() -> None:
+    async def story() -> None:
+        page = Page(limit=3)
+        assert all(page.offer(str(n)) for n in range(3))
+        assert not page.offer("3") and page.dropped
+        assert page.queue.get_nowait() is None  # what waited is thrown away; then the end
+        assert not page.offer("4")
+
+    asyncio.run(story())
+
+
+# -- the command line ---------------------------------------------------------------------------
+def test_web_usage_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert view(None, str(tmp_path / "t.jsonl"), web="0") == 2
+    assert "cannot replay a trace yet" in capsys.readouterr().err
+    assert view("8765", None, web="1.2.3:x") == 2
+    assert capsys.readouterr().err == ("hfsmc: error: bad address '1.2.3:x': expected [HOST:]PORT "
+                                       "with a port from 0 to 65535\n")
+    assert view("0", None, web="0") == 2
+    assert "port 0 is not a component's port" in capsys.readouterr().err
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = taken.getsockname()[1]
+        assert view("8765", None, web=str(port)) == 1
+    assert capsys.readouterr().err == (f"hfsmc: error: cannot serve the web view on "
+                                       f"127.0.0.1:{port}: Address already in use\n")
+
+
+# -- in a real browser ----------------------------------------------------------------------------
+needs_browser = pytest.mark.skipif(
+    not (os.path.exists(CHROMIUM) and os.path.exists(CHROMEDRIVER)),
+    reason="chromium and chromium-driver are not installed (`make deps` installs them)")
+
+
+@pytest.fixture(scope="module")
+def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_blinker(tmp_path_factory.mktemp("component") / "blinker")
+
+
+def free_port() -> int:
+    with socket.create_server(("127.0.0.1", 0)) as s:
+        port: int = s.getsockname()[1]
+        return port
+
+
+class Process:
+    """A process whose stderr goes to a file; killed at the end of the test."""
+
+    def __init__(self, args: list[str], tmp: Path, name: str) -> None:
+        self.err_path = tmp / f"{name}.err"
+        self.out_path = tmp / f"{name}.out"
+        with open(self.err_path, "w") as err, open(self.out_path, "w") as out:
+            self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=out, stderr=err,
+                                         cwd=tmp)
+
+    def wait_for(self, pattern: str, where: str = "err", timeout: float = 15) -> re.Match[str]:
+        path = self.err_path if where == "err" else self.out_path
+        deadline = time.monotonic() + timeout
+        while not (m := re.search(pattern, path.read_text())):
+            assert time.monotonic() < deadline and self.proc.poll() is None, path.read_text()
+            time.sleep(0.02)
+        return m
+
+    def kill(self, sig: int = signal.SIGKILL) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        return self.proc.wait(10)
+
+
+@pytest.fixture
+def processes(tmp_path: Path) -> Iterator[Callable[..., Process]]:
+    made: list[Process] = []
+
+    def start(args: list[str], name: str) -> Process:
+        made.append(Process(args, tmp_path, f"{name}{len(made)}"))
+        return made[-1]
+
+    yield start
+    for p in made:
+        p.kill()
+
+
+def component(processes: Callable[..., Process], main: Path, port: int = 0,
+              until: str = "60s") -> tuple[Process, int]:
+    """The blinker on the real clock, blinking until ``until``; its monitor port."""
+    p = processes([sys.executable, str(main), "--monitor", str(port), "--clock", "real",
+                   "--until", until, "--param", "blinks=100000"], "component")
+    return p, int(p.wait_for(r"monitor: listening on 127\.0\.0\.1:(\d+)").group(1))
+
+
+def web_view(processes: Callable[..., Process], port: int) -> tuple[Process, str]:
+    p = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
+                   "--model", str(ROOT / BLINKER)], "web")
+    url = p.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+    return p, url
+
+
+@pytest.fixture
+def browsers(tmp_path: Path) -> Iterator[Callable[[], Any]]:
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    os.environ["SE_OFFLINE"] = "true"  # never let Selenium Manager fetch a driver
+    made: list[Any] = []
+
+    def start() -> Any:
+        options = webdriver.ChromeOptions()
+        options.binary_location = CHROMIUM
+        for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                     "--no-first-run", "--disable-background-networking",
+                     "--disable-component-update", "--disable-sync", "--window-size=1280,800",
+                     f"--user-data-dir={tmp_path / f'profile{len(made)}'}"):
+            options.add_argument(flag)
+        made.append(webdriver.Chrome(service=Service(CHROMEDRIVER), options=options))
+        made[-1].set_page_load_timeout(15)
+        made[-1].set_script_timeout(10)
+        return made[-1]
+
+    yield start
+    for driver in made:
+        with contextlib.suppress(Exception):
+            driver.quit()
+    shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+# What the page shows, read from its DOM: the SVG elements and tree rows marked active, and
+# the computed fill of each state's circle.
+PAGE_JS = """
+const fill = (p) => {
+  const g = [...document.querySelectorAll('#hv-diagram g.node')].find((e) => e.id === p);
+  const e = g && g.querySelector('ellipse');
+  return e ? getComputedStyle(e).fill : null;
+};
+return {
+  status: document.body.dataset.status,
+  banner: document.getElementById('hv-banner').hidden ? '' : document.getElementById('hv-banner').textContent,
+  svg: [...document.querySelectorAll('#hv-diagram g.hv-active')].map((g) => g.id),
+  tree: [...document.querySelectorAll('#hv-tree li.hv-active')].map((li) => li.dataset.path),
+  fills: Object.fromEntries(arguments[0].map((p) => [p, fill(p)])),
+  count: (document.querySelector('#hv-vars tr[data-name="count"] td:last-child') || {}).textContent,
+};
+"""
+
+
+def page(driver: Any) -> dict[str, Any]:
+    shown: dict[str, Any] = driver.execute_script(PAGE_JS, [*LEAVES, "Paused", "Done"])
+    return shown
+
+
+def wait_page(driver: Any, ok: Callable[[dict[str, Any]], bool], timeout: float = 10) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout
+    while not ok(shown := page(driver)):
+        assert time.monotonic() < deadline, shown
+        time.sleep(0.05)
+    return shown
+
+
+def green_leaf(shown: dict[str, Any]) -> str | None:
+    """The leaf drawn green while the tree agrees with the picture (None otherwise)."""
+    if shown["status"] != "connected" or sorted(shown["svg"]) != sorted(shown["tree"]):
+        return None
+    leaves = [p for p in LEAVES if p in shown["svg"]]
+    if len(leaves) != 1 or "Blinking" not in shown["svg"]:
+        return None
+    other = LEAVES[1 - LEAVES.index(leaves[0])]
+    ok = shown["fills"][leaves[0]] == GREEN and shown["fills"][other] == WHITE
+    return leaves[0] if ok else None
+
+
+def moved_on(driver: Any) -> None:
+    """Wait until another leaf than the one drawn now is drawn green."""
+    seen = green_leaf(page(driver))
+    wait_page(driver, lambda s: green_leaf(s) not in (None, seen), timeout=5)
+
+
+def screenshot(driver: Any, name: str, tmp_path: Path) -> None:
+    """Saved for a person to look at: in $HFSMC_SCREENSHOTS when set, else beside the test."""
+    folder = Path(os.environ.get("HFSMC_SCREENSHOTS") or tmp_path)
+    folder.mkdir(parents=True, exist_ok=True)
+    assert driver.save_screenshot(str(folder / f"{name}.png"))
+
+
+async def _garbage(url: str) -> None:
+    """Things no page sends, on the page's WebSocket and on the web view's port."""
+    import aiohttp
+
+    ws_url = url.replace("http://", "ws://") + "ws"
+    async with aiohttp.ClientSession() as session:
+        async with session.ws_connect(ws_url) as ws:
+            for junk in ("not json", '{"type":"state","active":[]}', "{" * 10_000, "\0\1\2"):
+                await ws.send_str(junk)
+            await ws.send_bytes(os.urandom(5000))
+            first = await ws.receive(timeout=5)
+            assert json.loads(first.data)["type"] in ("model", "state")
+        async with session.ws_connect(ws_url) as ws:
+            await ws.send_bytes(b"x" * 200_000)  # over the page's message limit: closed
+            while (await ws.receive(timeout=5)).type not in (aiohttp.WSMsgType.CLOSE,
+                                                              aiohttp.WSMsgType.CLOSED):
+                pass
+    host, port = url[len("http://"):].rstrip("/").split(":")
+    with socket.create_connection((host, int(port)), timeout=5) as raw:
+        raw.sendall(os.urandom(3000) + b"\r\n\r\n")
+        with contextlib.suppress(OSError):
+            raw.recv(1000)
+
+
+@needs_browser
+def test_the_page_draws_the_running_component(blinker: Path, processes: Callable[..., Process],
+                                               browsers: Callable[[], Any], tmp_path: Path) -> None:
+    _, port = component(processes, blinker)
+    web, url = web_view(processes, port)
+    first = browsers()
+    first.get(url)
+    shown = wait_page(first, lambda s: green_leaf(s) is not None)
+    leaf = green_leaf(shown)
+    assert shown["fills"]["Paused"] == WHITE and shown["fills"]["Done"] != GREEN
+    # The component takes its next transition (every 500 ms): the green moves.
+    wait_page(first, lambda s: green_leaf(s) not in (None, leaf), timeout=5)
+    screenshot(first, "web-blinker", tmp_path)
+    # Garbage on the WebSocket and the port changes nothing for anyone.
+    asyncio.run(asyncio.wait_for(_garbage(url), 20))
+    assert web.proc.poll() is None
+    # A late browser sees the current state at once, and both follow the component.
+    time.sleep(0.3)
+    late = browsers()
+    t0 = time.monotonic()
+    late.get(url)
+    now = wait_page(late, lambda s: green_leaf(s) is not None, timeout=5)
+    assert time.monotonic() - t0 < 5
+    assert re.fullmatch(r"\d+", now["count"] or ""), now
+    for driver in (first, late):
+        moved_on(driver)
+    deadline = time.monotonic() + 5
+    while {green_leaf(page(first)), green_leaf(page(late))} != {"Blinking/Lit"} and \
+            {green_leaf(page(first)), green_leaf(page(late))} != {"Blinking/Dark"}:
+        assert time.monotonic() < deadline, "the two pages do not agree"
+        time.sleep(0.02)
+    assert web.kill(signal.SIGTERM) == 0
+    assert "Traceback" not in web.err_path.read_text()
+
+
+@needs_browser
+def test_the_page_says_when_the_component_goes_and_comes_back(
+        blinker: Path, processes: Callable[..., Process], browsers: Callable[[], Any],
+        tmp_path: Path) -> None:
+    port = free_port()
+    first, _ = component(processes, blinker, port)
+    web, url = web_view(processes, port)
+    driver = browsers()
+    driver.get(url)
+    wait_page(driver, lambda s: green_leaf(s) is not None)
+    first.kill()
+    gone = wait_page(driver, lambda s: s["status"] == "disconnected", timeout=5)
+    assert gone["banner"] == f"disconnected from 127.0.0.1:{port}; trying again"
+    screenshot(driver, "web-disconnected", tmp_path)
+    component(processes, blinker, port, until="2500ms")
+    back = wait_page(driver, lambda s: green_leaf(s) is not None, timeout=10)
+    assert back["banner"] == ""
+    stopped = wait_page(driver, lambda s: s["status"] == "stopped", timeout=10)
+    assert stopped["banner"] == "component stopped (until); waiting for it to come back"
+    assert web.kill(signal.SIGTERM) == 0
+    err = web.err_path.read_text()
+    assert "Traceback" not in err
+    assert err.count(f"hfsmc view: connected to 127.0.0.1:{port}") == 2, err
