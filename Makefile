@@ -7,8 +7,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-# graphviz: diagrams; tmux: the live-view tests; the rest: C++ components
-# (CMake, g++, Eigen, OpenCV, yaml-cpp for NAME.yaml).
+# graphviz: diagrams; tmux: the live-view tests; chromium: the web view's tests;
+# the rest: C++ components (CMake, g++, Eigen, OpenCV, yaml-cpp for NAME.yaml).
 DEB_PACKAGES := graphviz tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev chromium chromium-driver
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=

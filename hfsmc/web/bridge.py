@@ -236,6 +236,8 @@ class Bridge:
             try:
                 if await self._read(reader):
                     delay = RETRY_FIRST_S
+                elif self.status == "error":  # another protocol: it will not change soon
+                    delay = RETRY_MAX_S
             finally:
                 writer.close()
                 with contextlib.suppress(Exception):
