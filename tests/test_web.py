@@ -27,6 +27,7 @@ from hfsmc.compiler import compile_file
 from hfsmc.viewer import structure_of, view
 from hfsmc.web.bridge import Bridge, Page, Picture
 from hfsmc.web.picture import model_from_structure, svg_of
+from hfsmc.web.server import painter
 from tests.conftest import ROOT
 from tests.test_view import BLINKER, STRUCTURE, build_blinker
 
@@ -66,6 +67,22 @@ def test_a_structure_that_does_not_hold_together_is_refused() -> None:
                                                        "composite": False}]})
     with pytest.raises(ValueError, match="no states under the root"):
         model_from_structure({**STRUCTURE, "states": []})
+
+
+def test_the_model_is_drawn_while_the_component_is_that_model() -> None:
+    result = compile_file(BLINKER)
+    assert result.model is not None
+    drawn = Picture("<svg>model</svg>", "model")
+    paint = painter(drawn, structure_of(result.model))
+    other_params = {**structure_of(result.model), "parameters": {"blinks": "1000"}}
+    assert asyncio.run(paint(other_params)) is drawn  # --param changes no drawing
+    other = {**STRUCTURE, "transitions": STRUCTURE["transitions"][:-1]}
+    fallback = asyncio.run(paint(other))
+    assert fallback.drawn_from == "structure" and fallback.svg is not None
+    assert 'id="Paused"' in fallback.svg and 'id="Paused#0"' not in fallback.svg
+    assert fallback.problem is not None and "not the model given with --model" in fallback.problem
+    broken = asyncio.run(paint({**STRUCTURE, "states": []}))
+    assert broken == Picture(None, "", "no picture: the structure has no states under the root")
 
 
 # -- the bridge against a real monitor server --------------------------------------------------
@@ -398,11 +415,12 @@ def test_the_page_says_when_the_component_goes_and_comes_back(
     gone = wait_page(driver, lambda s: s["status"] == "disconnected", timeout=5)
     assert gone["banner"] == f"disconnected from 127.0.0.1:{port}; trying again"
     screenshot(driver, "web-disconnected", tmp_path)
-    component(processes, blinker, port, until="2500ms")
+    second, _ = component(processes, blinker, port)
     back = wait_page(driver, lambda s: green_leaf(s) is not None, timeout=10)
     assert back["banner"] == ""
+    assert second.kill(signal.SIGINT) == 130  # on_interrupt: Done, then the stop
     stopped = wait_page(driver, lambda s: s["status"] == "stopped", timeout=10)
-    assert stopped["banner"] == "component stopped (until); waiting for it to come back"
+    assert stopped["banner"] == "component stopped (sigint); waiting for it to come back"
     assert web.kill(signal.SIGTERM) == 0
     err = web.err_path.read_text()
     assert "Traceback" not in err

@@ -301,8 +301,9 @@ class Bridge:
         self.view = viewstate.ViewState(structure)
         self._told_active, self._told_values, self._told = {}, {}, {}
         if structure != self.structure:
-            self.structure = structure
-            self.picture = await self._paint(structure)
+            picture = await self._paint(structure)
+            # Both at once: a page that attached while dot was drawing got the old pair.
+            self.structure, self.picture = structure, picture
             self._broadcast(self.model_message())
 
 
