@@ -329,6 +329,39 @@ def green_leaf(shown: dict[str, Any]) -> str | None:
     return leaves[0] if ok else None
 
 
+# Whether the deepest active state is drawn inside the diagram's pane; its viewBox.
+FOCUS_JS = """
+const svg = document.querySelector('#hv-diagram svg');
+const active = [...svg.querySelectorAll('g.hv-active')];
+const deepest = active.sort((a, b) => b.id.split('/').length - a.id.split('/').length)[0];
+const r = deepest.getBoundingClientRect(), s = svg.getBoundingClientRect();
+return [r.left >= s.left && r.right <= s.right && r.top >= s.top && r.bottom <= s.bottom,
+        svg.getAttribute('viewBox'), document.getElementById('hv-autofocus').checked];
+"""
+GESTURE_JS = """
+const pane = document.getElementById('hv-diagram');
+const at = {clientX: 200, clientY: 300, bubbles: true, cancelable: true};
+pane.dispatchEvent(new WheelEvent('wheel', {...at, deltaY: -600}));
+pane.dispatchEvent(new MouseEvent('mousedown', {...at, button: 0}));
+window.dispatchEvent(new MouseEvent('mousemove', {...at, clientX: 3000, clientY: 2500}));
+window.dispatchEvent(new MouseEvent('mouseup', at));
+"""
+
+
+def pan_zoom_and_autofocus(driver: Any) -> None:
+    """Zooming and panning by hand turn autofocus off; turned on, it brings the deepest
+    active state back into view."""
+    inside, box, on = driver.execute_script(FOCUS_JS)
+    assert on
+    width = float(box.split()[2])
+    driver.execute_script(GESTURE_JS)
+    inside, box, on = driver.execute_script(FOCUS_JS)
+    assert not on and float(box.split()[2]) < width / 2 and not inside, (inside, box)
+    driver.find_element("id", "hv-autofocus").click()
+    inside, box, on = driver.execute_script(FOCUS_JS)
+    assert on and inside, box
+
+
 def moved_on(driver: Any) -> None:
     """Wait until another leaf than the one drawn now is drawn green."""
     seen = green_leaf(page(driver))
@@ -397,6 +430,8 @@ def test_the_page_draws_the_running_component(blinker: Path, processes: Callable
             {green_leaf(page(first)), green_leaf(page(late))} != {"Blinking/Dark"}:
         assert time.monotonic() < deadline, "the two pages do not agree"
         time.sleep(0.02)
+    pan_zoom_and_autofocus(first)
+    screenshot(first, "web-autofocus", tmp_path)
     assert web.kill(signal.SIGTERM) == 0
     assert "Traceback" not in web.err_path.read_text()
 
