@@ -92,7 +92,12 @@ def _attach(target: str, focus: str | None, autofocus: bool) -> int:
 def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
     from hfsmc.errors import UsageError
     from hfsmc.web import watch
-    from hfsmc.web.server import listen
+
+    try:
+        from hfsmc.web.server import listen
+    except ImportError as e:  # an installation made before the web view needed aiohttp
+        raise _ViewError(f"the web view needs {e.name or 'aiohttp'}: reinstall hfsmc "
+                         "(pip install aiohttp)") from None
 
     try:
         host, port = monitor.parse_address(target)
