@@ -27,7 +27,7 @@ from hfsmc.compiler import compile_file
 from hfsmc.viewer import structure_of, view
 from hfsmc.web.bridge import Bridge, Page, Picture
 from hfsmc.web.picture import model_from_structure, svg_of
-from hfsmc.web.server import painter
+from hfsmc.web.server import listen, make_app, painter
 from tests.conftest import ROOT
 from tests.test_view import BLINKER, STRUCTURE, build_blinker
 
@@ -170,6 +170,46 @@ def test_a_page_that_falls_behind_is_dropped() -> None:
         assert not page.offer("4")
 
     asyncio.run(story())
+
+
+async def _slow_and_fast_pages() -> None:
+    import aiohttp
+    from aiohttp import web
+
+    async def no_picture(structure: dict[str, Any]) -> Picture:
+        return Picture(None, "")
+
+    bridge = Bridge("127.0.0.1", 9, no_picture, log=io.StringIO(), queue_limit=8)
+    runner = web.AppRunner(make_app(bridge))
+    await runner.setup()
+    sock = listen("127.0.0.1", 0)
+    port = sock.getsockname()[1]
+    await web.SockSite(runner, sock).start()
+    # A browser that never reads: a WebSocket handshake by hand on a socket left alone.
+    slow = socket.socket()
+    slow.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    slow.connect(("127.0.0.1", port))
+    slow.sendall(b"GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                 b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
+    try:
+        async with aiohttp.ClientSession() as session, \
+                session.ws_connect(f"http://127.0.0.1:{port}/ws") as fast:
+            assert json.loads((await fast.receive(timeout=5)).data)["type"] == "state"
+            while len(bridge.pages) < 2:
+                await asyncio.sleep(0.01)
+            pad = "x" * 100_000
+            for n in range(300):  # 30 MB: far more than the slow page's socket holds
+                bridge._broadcast({"type": "delta", "n": n, "pad": pad})
+                got = json.loads((await fast.receive(timeout=5)).data)
+                assert got["n"] == n  # the fast page gets every message, in order
+            assert len(bridge.pages) == 1, "the slow page was not dropped"
+    finally:
+        slow.close()
+        await runner.cleanup()
+
+
+def test_a_browser_that_does_not_read_is_dropped_and_the_others_go_on() -> None:
+    asyncio.run(asyncio.wait_for(_slow_and_fast_pages(), 60))
 
 
 # -- the command line ---------------------------------------------------------------------------
