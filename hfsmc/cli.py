@@ -242,13 +242,14 @@ def run(model: str, args: tuple[str, ...]) -> None:
               help="With --replay: take the whole tree from the model, not only the states seen. "
                    "With --web: draw the diagram from it (conditions and timers on the arrows).")
 @click.option("--speed", type=float, default=1.0, show_default=True,
-              help="With --replay: times real time; 0 shows the end at once.")
+              help="With --replay: times real time; 0 shows the end at once. With --web "
+                   "--replay: the speed the page starts with.")
 @click.option("--focus", metavar="PATH", help="Show only this state's sub-automaton.",
               shell_complete=complete.complete_focus)
 @click.option("--no-autofocus", is_flag=True, help="Show every branch, not only the active ones.")
 @click.option("--web", metavar="[HOST:]PORT",
-              help="Serve a web page that draws the component live, on loopback unless a host "
-                   "is named (port 0 picks one); see docs/web.md.")
+              help="Serve a web page that draws the component live (or plays --replay), on "
+                   "loopback unless a host is named (port 0 picks one); see docs/web.md.")
 @_guard
 def view(target: str | None, replay: str | None, model: str | None, speed: float,
          focus: str | None, no_autofocus: bool, web: str | None) -> None:

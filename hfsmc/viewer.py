@@ -45,18 +45,19 @@ def view(target: str | None, replay: str | None, focus: str | None = None,
     (0: at once, then the final screen), its tree taken from ``model`` when
     given, else inferred from the paths in the trace. With ``web``
     (``[HOST:]PORT``) the component is shown in a browser instead
-    (docs/web.md), drawn from ``model`` when given. Errors are one line on
+    (docs/web.md), drawn from ``model`` when given, or the trace ``replay``
+    is played there, from the pages' controls. Errors are one line on
     stderr: exit 2 for usage errors, 1 for anything else.
     """
     try:
         if (target is None) == (replay is None):
             raise _ViewError("give either [HOST:]PORT or --replay TRACE", 2)
         if web is not None:
-            if replay is not None:
-                raise _ViewError("--web shows a running component; it cannot replay a trace yet", 2)
             if focus is not None:
                 raise _ViewError("--focus is for the terminal view; the web view draws every state",
                                  2)
+            if replay is not None:
+                return _web_replay(web, replay, model, autofocus, speed)
             assert target is not None
             return _web(web, target, model, autofocus)
         if replay is not None:
@@ -89,30 +90,62 @@ def _attach(target: str, focus: str | None, autofocus: bool) -> int:
     return int(screen.run_viewer(monitor.client_items(sock, label), focus, autofocus, stop=hang_up))
 
 
-def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
-    from hfsmc.errors import UsageError
-    from hfsmc.web import watch
-
+def _web_listen(web: str) -> Any:
+    """The web view's listening socket at ``web`` ([HOST:]PORT)."""
     try:
         from hfsmc.web.server import listen
     except ImportError as e:  # an installation made before the web view needed aiohttp
         raise _ViewError(f"the web view needs {e.name or 'aiohttp'}: reinstall hfsmc "
                          "(pip install aiohttp)") from None
+    try:
+        web_host, web_port = monitor.parse_address(web)
+    except ValueError as e:
+        raise _ViewError(str(e), 2) from None
+    try:
+        return listen(web_host, web_port)
+    except OSError as e:
+        where = monitor.format_address(web_host, web_port)
+        why = os.strerror(e.errno) if e.errno else str(e)
+        raise _ViewError(f"cannot serve the web view on {where}: {why}") from None
+
+
+def _web_replay(web: str, path: str, model_path: str | None, autofocus: bool,
+                speed: float) -> int:
+    from hfsmc.errors import UsageError
+
+    if not (speed > 0 and speed <= 1000):  # also refuses NaN
+        raise _ViewError(f"bad --speed {speed}: the web view plays from more than 0 to 1000 "
+                         "times real time", 2)
+    try:
+        monitor.parse_address(web)
+    except ValueError as e:
+        raise _ViewError(str(e), 2) from None
+    records = load_trace(path)
+    model = _load_model(model_path, "the trace") if model_path is not None else None
+    sock = _web_listen(web)
+    try:
+        from hfsmc.web import replay
+
+        return int(replay(sock, path, records, model, speed=speed, autofocus=autofocus))
+    except UsageError as e:
+        raise _ViewError(str(e)) from None
+    finally:
+        sock.close()
+
+
+def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
+    from hfsmc.errors import UsageError
+    from hfsmc.web import watch
 
     try:
         host, port = monitor.parse_address(target)
-        web_host, web_port = monitor.parse_address(web)
+        monitor.parse_address(web)
     except ValueError as e:
         raise _ViewError(str(e), 2) from None
     if port == 0:
         raise _ViewError(f"bad address {target!r}: port 0 is not a component's port", 2)
     model = _load_model(model_path) if model_path is not None else None
-    try:
-        sock = listen(web_host, web_port)
-    except OSError as e:
-        where = monitor.format_address(web_host, web_port)
-        why = os.strerror(e.errno) if e.errno else str(e)
-        raise _ViewError(f"cannot serve the web view on {where}: {why}") from None
+    sock = _web_listen(web)
     try:
         return int(watch(sock, host, port, model, autofocus=autofocus))
     except UsageError as e:

@@ -27,9 +27,10 @@ from hfsmc.compiler import compile_file
 from hfsmc.viewer import structure_of, view
 from hfsmc.web.bridge import Bridge, Page, Picture
 from hfsmc.web.picture import model_from_structure, svg_of
+from hfsmc.web.replay import Replay, active_at
 from hfsmc.web.server import listen, make_app, painter
 from tests.conftest import ROOT
-from tests.test_view import BLINKER, STRUCTURE, build_blinker
+from tests.test_view import BLINKER, RECORDS, STRUCTURE, build_blinker
 
 monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 
@@ -213,9 +214,91 @@ def test_a_browser_that_does_not_read_is_dropped_and_the_others_go_on() -> None:
 
 
 # -- the command line ---------------------------------------------------------------------------
+# -- replay ------------------------------------------------------------------------------------
+def trace_active(records: list[dict[str, Any]], t: int) -> set[str]:
+    """The states active at ``t`` by the trace's own enter and exit records (the test's fold)."""
+    active: set[str] = set()
+    for rec in records:
+        if rec["t"] <= t and rec["ev"] == "enter":
+            active.add(rec["state"])
+        elif rec["t"] <= t and rec["ev"] == "exit":
+            active.discard(rec["state"])
+    return active
+
+
+def test_the_states_active_at_an_instant_come_from_the_trace() -> None:
+    assert active_at(STRUCTURE, RECORDS, 499) == ["Blinking", "Blinking/Lit"]
+    assert active_at(STRUCTURE, RECORDS, 500) == ["Blinking", "Blinking/Dark"]
+    assert active_at(STRUCTURE, RECORDS, 3100) == ["Paused"]
+    assert active_at(STRUCTURE, RECORDS, 3200) == []
+    for t in range(0, 3300, 50):
+        assert set(active_at(STRUCTURE, RECORDS, t)) == trace_active(RECORDS, t), t
+
+
+async def _replay_story() -> None:
+    async def paint(structure: dict[str, Any]) -> Picture:
+        return Picture("<svg/>", "structure")
+
+    replay = Replay(RECORDS, STRUCTURE, "blinker.trace", paint, log=io.StringIO())
+    task = asyncio.create_task(replay.run())
+    try:
+        while replay.structure is None:
+            await asyncio.sleep(0.01)
+        page = replay.attach()
+        model, state = await next_message(page), await next_message(page)
+        assert model["replay"] == {"trace": "blinker.trace", "end": 3200, "fires": [500, 3000],
+                                   "variables": False}
+        assert state["status"] == "replay" and "no variable records" in state["note"]
+        assert state["replay"] == {"t": 0, "playing": False, "speed": 1.0, "end": 3200}
+
+        async def after(command: dict[str, Any] | str) -> tuple[list[str], dict[str, Any]]:
+            replay.command(command if isinstance(command, str) else json.dumps(command))
+            msg = await next_message(page)
+            assert msg["type"] == "state"
+            where = await next_message(page)
+            assert where["type"] == "replay"
+            return [a["state"] for a in msg["active"]], where
+
+        assert await after({"do": "seek", "t": 1200}) == (
+            ["Blinking", "Blinking/Dark"], {"type": "replay", "t": 1200, "playing": False,
+                                            "speed": 1.0, "end": 3200})
+        assert (await after({"do": "next"}))[0] == ["Paused"] and replay.position == 3000
+        assert (await after({"do": "next"}))[1]["t"] == 3200  # no transition after: the end
+        assert (await after({"do": "previous"}))[1]["t"] == 3000
+        assert (await after({"do": "previous"}))[1]["t"] == 500
+        assert (await after({"do": "previous"}))[0] == ["Blinking", "Blinking/Lit"]
+        for junk in ("nope", "[]", '{"do":"seek","t":"x"}', '{"do":"speed","speed":true}',
+                     '{"do":"seek","t":1e999}', '{"do":"launch"}', '{"do":"seek","t":1}' + " " * 300):
+            replay.command(junk)
+        assert replay.position == 0 and page.queue.empty()
+        # Played at 100 times real time: the deltas of a live component, then the end.
+        replay.command(json.dumps({"do": "speed", "speed": 100}))
+        replay.command(json.dumps({"do": "play"}))
+        entered: list[str] = []
+        while True:
+            msg = await next_message(page)
+            entered += [a["state"] for a in msg.get("enter", [])]
+            if msg["type"] == "replay" and not msg["playing"] and msg["t"] == 3200:
+                break
+        assert entered == ["Blinking/Dark", "Paused"]
+        assert replay.view.stop_reason == "sigint" and not replay.view.active
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+
+def test_a_replay_seeks_steps_and_plays_as_the_pages_say() -> None:
+    asyncio.run(asyncio.wait_for(_replay_story(), 20))
+
+
 def test_web_usage_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    assert view(None, str(tmp_path / "t.jsonl"), web="0") == 2
-    assert "cannot replay a trace yet" in capsys.readouterr().err
+    assert view(None, str(tmp_path / "t.jsonl"), web="0") == 1
+    assert capsys.readouterr().err == (f"hfsmc: error: cannot read {tmp_path / 't.jsonl'}: "
+                                       "No such file or directory\n")
+    assert view(None, str(tmp_path / "t.jsonl"), web="0", speed=0.0) == 2
+    assert capsys.readouterr().err == ("hfsmc: error: bad --speed 0.0: the web view plays from "
+                                       "more than 0 to 1000 times real time\n")
     assert view("8765", None, web="1.2.3:x") == 2
     assert capsys.readouterr().err == ("hfsmc: error: bad address '1.2.3:x': expected [HOST:]PORT "
                                        "with a port from 0 to 65535\n")
@@ -500,3 +583,56 @@ def test_the_page_says_when_the_component_goes_and_comes_back(
     err = web.err_path.read_text()
     assert "Traceback" not in err
     assert err.count(f"hfsmc view: connected to 127.0.0.1:{port}") == 2, err
+
+
+SEEK_JS = """
+const line = document.getElementById('hv-timeline');
+line.value = String(arguments[0]);
+line.dispatchEvent(new Event('input', {bubbles: true}));
+"""
+
+
+@needs_browser
+def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Process],
+                                  browsers: Callable[[], Any], tmp_path: Path) -> None:
+    trace = tmp_path / "blinker.trace"
+    subprocess.run([sys.executable, str(blinker), "--clock", "virtual", "--until", "12s",
+                    "--trace", str(trace)], check=True, capture_output=True, timeout=60,
+                   stdin=subprocess.DEVNULL)
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    fires = sorted({r["t"] for r in records if r["ev"] == "fire"})
+    web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", "--replay", str(trace),
+                     "--model", str(ROOT / BLINKER)], "web")
+    url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) \(replay of ", where="out").group(1)
+    driver = browsers()
+    driver.get(url)
+
+    def shown_at(t: int) -> dict[str, Any]:
+        return wait_page(driver, lambda s: driver.execute_script(
+            "return document.body.dataset.position") == str(t) and s["status"] == "replay")
+
+    shown = shown_at(0)
+    assert shown["banner"] == "" and set(shown["svg"]) == trace_active(records, 0)
+    hint = driver.find_element("css selector", "#hv-vars tr.hv-hint").text
+    assert hint == "the trace has no variable records: no variables in replay"
+    # Seek to instants inside states, at a transition and after the stop: the green
+    # states and the tree are the ones the trace's enter/exit records say.
+    for t in (1250, fires[3], fires[3] - 1, 3500, 7777, 12000):
+        driver.execute_script(SEEK_JS, t)
+        shown = shown_at(t)
+        assert set(shown["svg"]) == set(shown["tree"]) == trace_active(records, t), (t, shown)
+        for leaf in (*LEAVES, "Paused"):
+            assert shown["fills"][leaf] == (GREEN if leaf in shown["svg"] else WHITE), (t, shown)
+        if t == 3500:
+            screenshot(driver, "web-replay", tmp_path)
+    # The buttons: previous and next go from one transition to the other.
+    driver.execute_script(SEEK_JS, 2600)
+    shown_at(2600)
+    driver.find_element("id", "hv-next").click()
+    nxt = min(f for f in fires if f > 2600)
+    assert set(shown_at(nxt)["svg"]) == trace_active(records, nxt)
+    driver.find_element("id", "hv-previous").click()
+    before = max(f for f in fires if f < nxt)
+    assert set(shown_at(before)["svg"]) == trace_active(records, before)
+    assert web.kill(signal.SIGTERM) == 0
+    assert "Traceback" not in web.err_path.read_text()

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import socket
-from typing import TextIO
+from typing import Any, TextIO
 
 from hfsmc.ir import Model
 
@@ -30,5 +30,27 @@ def watch(sock: socket.socket, host: str, port: int, model: Model | None, *,
     drawn = Picture(svg_of(model), "model") if model is not None else None
     paint = painter(drawn, structure_of(model) if model is not None else None)
     bridge = Bridge(host, port, paint, autofocus=autofocus)
+    asyncio.run(serve(sock, bridge, out))
+    return 0
+
+
+def replay(sock: socket.socket, path: str, records: list[dict[str, Any]], model: Model | None, *,
+           speed: float = 1.0, autofocus: bool = True, out: TextIO | None = None) -> int:
+    """Serve the web view on ``sock`` of the trace ``path`` (its ``records``) until SIGINT/SIGTERM.
+
+    The tree and picture come from ``model`` when given, else from the paths in
+    the trace. Raises UsageError when ``dot`` cannot draw the model.
+    """
+    from hfsmc.templates.python import hfsmc_viewstate  # type: ignore[import-not-found]
+    from hfsmc.viewer import structure_of
+    from hfsmc.web.bridge import Picture
+    from hfsmc.web.picture import svg_of
+    from hfsmc.web.replay import Replay
+    from hfsmc.web.server import painter, serve
+
+    structure = structure_of(model) if model is not None else hfsmc_viewstate.infer_structure(records)
+    drawn = Picture(svg_of(model), "model") if model is not None else None
+    bridge = Replay(records, structure, path, painter(drawn, structure if model else None),
+                    speed=speed, autofocus=autofocus)
     asyncio.run(serve(sock, bridge, out))
     return 0

@@ -95,6 +95,7 @@ class Bridge:
                  queue_limit: int = QUEUE_LIMIT) -> None:
         self.host, self.port = host, port
         self.label: str = monitor.format_address(host, port)
+        self.watching = f"component {self.label}"  # what the server's first line names
         self._paint = paint
         self.autofocus = autofocus
         self._log = log if log is not None else sys.stderr
@@ -125,6 +126,9 @@ class Bridge:
 
     def detach(self, page: Page) -> None:
         self.pages.discard(page)
+
+    def command(self, text: str) -> None:
+        """A page's command (a replay's controls, hfsmc/web/replay.py): a live view takes none."""
 
     def _broadcast(self, msg: dict[str, Any]) -> None:
         if not self.pages:

@@ -3,7 +3,7 @@
 One aiohttp server, on loopback unless a host is named: ``/`` is the page,
 ``/app.js`` and ``/app.css`` its own code (package data: nothing is fetched
 from elsewhere), ``/ws`` the WebSocket each page reads its messages from
-(docs/web.md). Everything a page sends is read and thrown away. The monitor
+(docs/web.md). What a page sends is thrown away, but for a replay's controls. The monitor
 client and what the pages are told live in hfsmc/web/bridge.py.
 """
 
@@ -74,9 +74,11 @@ async def _socket(request: web.Request) -> web.WebSocketResponse:
     page = bridge.attach()
     sender = asyncio.create_task(_send(ws, page))
     try:
-        async for msg in ws:  # read-only: whatever a page sends is thrown away
+        async for msg in ws:  # only a replay takes commands; anything else is thrown away
             if msg.type == WSMsgType.ERROR:
                 break
+            if msg.type == WSMsgType.TEXT:
+                bridge.command(msg.data)
     finally:
         bridge.detach(page)
         page.end()
@@ -126,7 +128,7 @@ async def serve(sock: socket.socket, bridge: Bridge, out: TextIO | None = None,
     watching = asyncio.create_task(bridge.run())
     try:
         await web.SockSite(runner, sock, shutdown_timeout=1.0).start()
-        print(f"hfsmc view: web view on {url_of(sock)} (component {bridge.label})",
+        print(f"hfsmc view: web view on {url_of(sock)} ({bridge.watching})",
               file=out, flush=True)
         await stop.wait()
     finally:

@@ -23,7 +23,10 @@
     whole: null,           // the diagram's own viewBox [x, y, w, h]
     box: null,             // the viewBox shown now
     svg: null,
+    replay: null,          // a replay's trace: {trace, end, fires, variables}
+    playing: false,
   };
+  let socket = null;
 
   // -- text helpers ------------------------------------------------------------------
   function seconds(ms) { return (ms / 1000).toFixed(3); }
@@ -48,6 +51,9 @@
     drawPicture(msg.svg, msg.problem);
     buildTree();
     showActive(true);
+    view.replay = msg.replay || null;
+    $("hv-replay").hidden = !view.replay;
+    if (view.replay) $("hv-timeline").max = String(view.replay.end);
     showVariables({});
   }
 
@@ -135,6 +141,13 @@
   function showVariables(changed) {
     const body = $("hv-vars").tBodies[0];
     body.replaceChildren();
+    if (view.replay && !view.replay.variables) {
+      const tr = el("tr", "hv-hint");
+      const td = el("td", "", "the trace has no variable records: no variables in replay");
+      td.colSpan = 2;
+      tr.appendChild(td);
+      body.appendChild(tr);
+    }
     const names = (view.structure && view.structure.variables) || [];
     const all = [...names, ...Object.keys(view.variables).filter((n) => !names.includes(n))];
     for (const name of all) {
@@ -174,7 +187,7 @@
     document.body.dataset.status = status;
     $("hv-status").textContent = status;
     const banner = $("hv-banner");
-    banner.hidden = status === "connected";
+    banner.hidden = status === "connected" || status === "replay";
     banner.textContent = note || "";
   }
 
@@ -208,6 +221,29 @@
     showVariables({});
     showTransitions();
     showLogs();
+    if (msg.replay) onReplay(msg.replay);
+  }
+
+  // A replay's position, playing or not, and speed: the bridge's, shared by every page.
+  function onReplay(r) {
+    view.playing = !!r.playing;
+    $("hv-play").textContent = r.playing ? "pause" : "play";
+    const line = $("hv-timeline");
+    line.max = String(r.end);
+    if (document.activeElement !== line || r.playing) line.value = String(r.t);
+    $("hv-position").textContent = seconds(r.t) + " / " + seconds(r.end) + " s";
+    document.body.dataset.position = String(r.t);
+    const speed = $("hv-speed");
+    if (document.activeElement !== speed && Number(speed.value) !== r.speed) {
+      if (![...speed.options].some((o) => Number(o.value) === r.speed)) {
+        speed.appendChild(el("option", "", r.speed + "×")).value = String(r.speed);
+      }
+      speed.value = String(r.speed);
+    }
+  }
+
+  function send(command) {
+    if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(command));
   }
 
   function onDelta(msg) {
@@ -251,6 +287,7 @@
     if (msg.type === "model") showModel(msg);
     else if (msg.type === "state") onState(msg);
     else if (msg.type === "delta") onDelta(msg);
+    else if (msg.type === "replay") onReplay(msg);
     else if (msg.type === "status") {
       setTime(msg.t);
       showStatus(msg.status, msg.note);
@@ -260,6 +297,7 @@
   let retry = 250;
   function connect() {
     const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
+    socket = ws;
     ws.onopen = () => { retry = 250; };
     ws.onmessage = onMessage;
     ws.onclose = (ev) => {
@@ -354,6 +392,11 @@
     $("hv-autofocus").addEventListener("change", () => {
       if ($("hv-autofocus").checked) autofocus();
     });
+    $("hv-play").addEventListener("click", () => send({do: view.playing ? "pause" : "play"}));
+    $("hv-next").addEventListener("click", () => send({do: "next"}));
+    $("hv-previous").addEventListener("click", () => send({do: "previous"}));
+    $("hv-speed").addEventListener("change", () => send({do: "speed", speed: Number($("hv-speed").value)}));
+    $("hv-timeline").addEventListener("input", () => send({do: "seek", t: Number($("hv-timeline").value)}));
     setInterval(tick, 100);
     connect();
   });
