@@ -485,6 +485,42 @@ def pan_zoom_and_autofocus(driver: Any) -> None:
     assert on and inside, box
 
 
+def open_subautomaton(driver: Any, tmp_path: Path) -> None:
+    """A click on the Blinking cluster opens its sub-automaton alone in a tab, live; the tree
+    folds and unfolds it."""
+    driver.find_element("id", "hv-fit").click()
+    driver.find_element("css selector", '#hv-diagram g.cluster[id="Blinking"] text').click()
+    tabs = driver.find_element("id", "hv-tabs")
+    deadline = time.monotonic() + 5
+    while not tabs.is_displayed() or len(tabs.find_elements("css selector", ".hv-tab")) != 2:
+        assert time.monotonic() < deadline, "no tab opened"
+        time.sleep(0.05)
+    current = tabs.find_element("css selector", ".hv-tab.hv-current")
+    assert current.get_attribute("data-path") == "Blinking" and current.text.startswith("Blinking")
+    nodes = {g.get_attribute("id") for g in
+             driver.find_elements("css selector", "#hv-diagram g.node[id]")}
+    assert {"Blinking/Lit", "Blinking/Dark"} <= nodes and not {"Paused", "Done"} & nodes, nodes
+
+    def leaf(s: dict[str, Any]) -> str | None:  # the one green leaf, the other white
+        on = [p for p in LEAVES if p in s["svg"]]
+        if len(on) != 1 or s["fills"][on[0]] != GREEN:
+            return None
+        return on[0] if s["fills"][LEAVES[1 - LEAVES.index(on[0])]] == WHITE else None
+
+    first = leaf(wait_page(driver, lambda s: leaf(s) is not None, timeout=5))
+    wait_page(driver, lambda s: leaf(s) not in (None, first), timeout=5)  # live
+    screenshot(driver, "web-subautomaton", tmp_path)
+    rows = {p: driver.find_element("css selector", f'#hv-tree li[data-path="{p}"]') for p in LEAVES}
+    fold = driver.find_element("css selector", '#hv-tree li[data-path="Blinking"] .hv-fold')
+    fold.click()
+    assert not any(r.is_displayed() for r in rows.values()) and fold.text == "▸"
+    fold.click()
+    assert all(r.is_displayed() for r in rows.values()) and fold.text == "▾"
+    tabs.find_element("css selector", '.hv-tab[data-path="Blinking"] .hv-close').click()
+    assert not tabs.is_displayed()
+    assert driver.find_elements("css selector", '#hv-diagram g.node[id="Paused"]')
+
+
 def moved_on(driver: Any) -> None:
     """Wait until another leaf than the one drawn now is drawn green."""
     seen = green_leaf(page(driver))
@@ -555,6 +591,7 @@ def test_the_page_draws_the_running_component(blinker: Path, processes: Callable
         time.sleep(0.02)
     pan_zoom_and_autofocus(first)
     screenshot(first, "web-autofocus", tmp_path)
+    open_subautomaton(first, tmp_path)
     assert web.kill(signal.SIGTERM) == 0
     assert "Traceback" not in web.err_path.read_text()
 

@@ -27,7 +27,7 @@ def watch(sock: socket.socket, host: str, port: int, model: Model | None, *,
     from hfsmc.web.picture import svg_of
     from hfsmc.web.server import painter, serve
 
-    drawn = Picture(svg_of(model), "model") if model is not None else None
+    drawn = Picture(svg_of(model), "model", source=model) if model is not None else None
     paint = painter(drawn, structure_of(model) if model is not None else None)
     bridge = Bridge(host, port, paint, autofocus=autofocus)
     asyncio.run(serve(sock, bridge, out))
@@ -49,7 +49,7 @@ def replay(sock: socket.socket, path: str, records: list[dict[str, Any]], model:
     from hfsmc.web.server import painter, serve
 
     structure = structure_of(model) if model is not None else hfsmc_viewstate.infer_structure(records)
-    drawn = Picture(svg_of(model), "model") if model is not None else None
+    drawn = Picture(svg_of(model), "model", source=model) if model is not None else None
     bridge = Replay(records, structure, path, painter(drawn, structure if model else None),
                     speed=speed, autofocus=autofocus)
     asyncio.run(serve(sock, bridge, out))

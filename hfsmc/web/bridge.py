@@ -26,9 +26,13 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any, TextIO
 
+from hfsmc.errors import UsageError
+from hfsmc.ir import Model
+
 # The component's own modules, shipped as the data package hfsmc.templates (see hfsmc/viewer.py).
 from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
 from hfsmc.templates.python import hfsmc_viewstate as viewstate
+from hfsmc.web.picture import svg_of
 
 QUEUE_LIMIT = 256  # messages waiting for one page; beyond, the page is dropped
 RETRY_FIRST_S = 0.2  # first delay before connecting again; doubled up to RETRY_MAX_S
@@ -46,6 +50,7 @@ class Picture:
     svg: str | None
     drawn_from: str  # "model", "structure" or "" (no picture)
     problem: str | None = None  # why it is not the model's drawing, or why there is none
+    source: Model | None = None  # the model drawn: its sub-automata are drawn from it
 
 
 class Page:
@@ -112,6 +117,29 @@ class Bridge:
         self._told_t = -1
         self._pending = _Pending()
         self._said = ""  # the last status line written to the log
+        self._subs_of: Picture | None = None  # the picture the sub-automata below were drawn for
+        self._subs: dict[str, str | None] = {}
+
+    # -- sub-automata -----------------------------------------------------------------------
+    async def sub_svg(self, path: str) -> str | None:
+        """The drawing of the composite state ``path``'s sub-automaton alone (as
+        ``hfsmc diagram --state PATH``), drawn once per picture; None when there is no
+        such composite state or no model to draw it from."""
+        picture = self.picture
+        if picture.source is None or len(path) > 1000:
+            return None
+        if picture is not self._subs_of:
+            self._subs_of, self._subs = picture, {}
+        if path not in self._subs:
+            source = picture.source
+            try:
+                svg: str | None = await asyncio.to_thread(lambda: svg_of(source, path))
+            except UsageError:
+                svg = None
+            if picture is self._subs_of:
+                self._subs[path] = svg
+            return svg
+        return self._subs[path]
 
     # -- pages ------------------------------------------------------------------------------
     def attach(self) -> Page:

@@ -19,12 +19,15 @@ from hfsmc.ir import Automaton, Model, State, Transition
 _NOWHERE = Span("<monitor>", 1, 1)
 
 
-def svg_of(model: Model) -> str:
-    """The diagram of ``model`` as an SVG element to put in a page (no XML prologue).
+def svg_of(model: Model, state_path: str | None = None) -> str:
+    """The diagram of ``model`` (or of the sub-automaton of its composite state
+    ``state_path`` alone, as ``hfsmc diagram --state``) as an SVG element to put in
+    a page (no XML prologue).
 
-    Raises UsageError when ``dot`` is missing or fails.
+    Raises UsageError when ``dot`` is missing or fails, or ``state_path`` names no
+    composite state.
     """
-    text = render(to_dot(model), "svg").decode("utf-8")
+    text = render(to_dot(model, state_path), "svg").decode("utf-8")
     start = text.find("<svg")
     return text[start:] if start >= 0 else text
 

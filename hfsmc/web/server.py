@@ -2,7 +2,8 @@
 
 One aiohttp server, on loopback unless a host is named: ``/`` is the page,
 ``/app.js`` and ``/app.css`` its own code (package data: nothing is fetched
-from elsewhere), ``/ws`` the WebSocket each page reads its messages from
+from elsewhere), ``/sub?state=PATH`` a composite state's sub-automaton drawn
+alone, ``/ws`` the WebSocket each page reads its messages from
 (docs/web.md). What a page sends is thrown away, but for a replay's controls. The monitor
 client and what the pages are told live in hfsmc/web/bridge.py.
 """
@@ -49,6 +50,7 @@ def make_app(bridge: Bridge) -> web.Application:
     app.router.add_get("/app.js", _file)
     app.router.add_get("/app.css", _file)
     app.router.add_get("/ws", _socket)
+    app.router.add_get("/sub", _sub)
     app.router.add_get("/favicon.ico", _no_icon)
     return app
 
@@ -58,6 +60,15 @@ async def _file(request: web.Request) -> web.Response:
     return web.Response(body=body, content_type=kind, charset="utf-8",
                         headers={"Cache-Control": "no-cache", "Content-Security-Policy": CSP,
                                  "X-Content-Type-Options": "nosniff"})
+
+
+async def _sub(request: web.Request) -> web.Response:
+    """``/sub?state=PATH``: the sub-automaton of the composite state PATH alone, as SVG."""
+    svg = await request.app[_BRIDGE].sub_svg(request.query.get("state", ""))
+    headers = {"Cache-Control": "no-cache", "X-Content-Type-Options": "nosniff"}
+    if svg is None:
+        return web.Response(status=404, text="no such sub-automaton", headers=headers)
+    return web.Response(text=svg, content_type="image/svg+xml", headers=headers)
 
 
 async def _no_icon(request: web.Request) -> web.Response:
@@ -162,9 +173,10 @@ def painter(drawn: Picture | None, model_structure: dict[str, Any] | None,
             problem = ("the component is not the model given with --model (its states or "
                        "transitions differ): drawn from the component's own structure")
         try:
-            svg = await asyncio.to_thread(lambda: svg_of(model_from_structure(structure)))
+            model = model_from_structure(structure)
+            svg = await asyncio.to_thread(lambda: svg_of(model))
         except (UsageError, ValueError, KeyError, TypeError) as e:
             return Picture(None, "", f"no picture: {e}")
-        return Picture(svg, "structure", problem)
+        return Picture(svg, "structure", problem, model)
 
     return paint

@@ -23,6 +23,12 @@
     whole: null,           // the diagram's own viewBox [x, y, w, h]
     box: null,             // the viewBox shown now
     svg: null,
+    pictures: new Map(),   // drawings open as tabs: "" (the whole automaton) or a composite's path -> SVG text
+    tab: "",               // the drawing shown
+    problem: null,         // why the whole drawing is not the model's
+    composites: new Set(), // paths of the composite states
+    folded: new Set(),     // composite states folded in the tree
+    dragged: false,        // the last mouse press panned (then it is no click)
     replay: null,          // a replay's trace: {trace, end, fires, variables}
     playing: false,
   };
@@ -48,7 +54,12 @@
     $("hv-name").textContent = view.structure.name || "component";
     document.title = (view.structure.name || "component") + " · hfsmc view";
     $("hv-autofocus").checked = msg.autofocus !== false;
+    view.composites = new Set(view.structure.states.filter((st) => st.composite).map((st) => st.path));
+    view.pictures = new Map([["", msg.svg]]);
+    view.tab = "";
+    view.problem = msg.problem;
     drawPicture(msg.svg, msg.problem);
+    showTabs();
     buildTree();
     showActive(true);
     view.replay = msg.replay || null;
@@ -80,10 +91,84 @@
     // "graph0" or "a_X" never have the node, cluster or edge class).
     for (const g of node.querySelectorAll("g.node, g.cluster, g.edge")) {
       if (g.id && !view.elements.has(g.id)) view.elements.set(g.id, g);
+      if (!g.classList.contains("edge") && view.composites.has(g.id) && g.id !== view.tab) {
+        g.classList.add("hv-composite");  // a click opens its sub-automaton
+      }
     }
     const vb = (node.getAttribute("viewBox") || "0 0 100 100").split(/[\s,]+/).map(Number);
     view.whole = vb;
     setBox(vb.slice());
+  }
+
+  // -- sub-automata: each drawn alone in its own tab, coloured like the whole ---------------
+  function showTabs() {
+    const nav = $("hv-tabs");
+    nav.replaceChildren();
+    nav.hidden = view.pictures.size < 2;
+    for (const path of view.pictures.keys()) {
+      const b = el("button", "hv-tab" + (path === view.tab ? " hv-current" : ""), path || "whole automaton");
+      b.type = "button";
+      b.dataset.path = path;
+      b.addEventListener("click", () => selectTab(path));
+      if (path) {
+        const x = el("span", "hv-close", "×");
+        x.title = "close this sub-automaton";
+        x.addEventListener("click", (ev) => { ev.stopPropagation(); closeTab(path); });
+        b.appendChild(x);
+      }
+      nav.appendChild(b);
+    }
+  }
+
+  function selectTab(path) {
+    if (!view.pictures.has(path)) path = "";
+    view.tab = path;
+    drawPicture(view.pictures.get(path), path ? null : view.problem);
+    showTabs();
+    showActive(true);
+  }
+
+  function closeTab(path) {
+    view.pictures.delete(path);
+    if (view.tab === path) selectTab("");
+    else showTabs();
+  }
+
+  // Open the composite state's sub-automaton alone (VisualHFSM's "Open Subautomaton"),
+  // drawn by the server as `hfsmc diagram --state PATH` draws it.
+  async function openSub(path) {
+    if (!view.pictures.has(path)) {
+      let text = null;
+      try {
+        const r = await fetch("sub?state=" + encodeURIComponent(path));
+        if (r.ok) text = await r.text();
+      } catch (e) { text = null; }
+      if (text === null) return;
+      view.pictures.set(path, text);
+    }
+    selectTab(path);
+  }
+
+  function clicked(ev) {
+    if (view.dragged) return;
+    const g = ev.target.closest && ev.target.closest("g.hv-composite");
+    if (g) openSub(g.id);
+  }
+
+  // -- the tree: fold and unfold composite states -----------------------------------------
+  function fold(path) {
+    if (view.folded.has(path)) view.folded.delete(path);
+    else view.folded.add(path);
+    for (const [p, li] of view.rows) {
+      const parts = p.split("/");
+      let away = false;
+      for (let i = 1; i < parts.length; i++) {
+        if (view.folded.has(parts.slice(0, i).join("/"))) { away = true; break; }
+      }
+      li.classList.toggle("hv-folded-away", away);
+      const f = li.querySelector(".hv-fold");
+      if (f) f.textContent = view.folded.has(p) ? "▸" : "▾";
+    }
   }
 
   function buildTree() {
@@ -97,14 +182,28 @@
       li.dataset.path = st.path;
       li.style.paddingLeft = (4 + 16 * depth) + "px";
       if (st.final) li.classList.add("hv-final");
-      li.append(el("span", "hv-mark"), el("span", "hv-name", st.path.split("/").pop()));
+      const composite = view.composites.has(st.path);
+      const f = el("span", "hv-fold", composite ? (view.folded.has(st.path) ? "▸" : "▾") : "");
+      if (composite) {
+        f.title = "fold or unfold";
+        f.addEventListener("click", () => fold(st.path));
+      }
+      li.append(f, el("span", "hv-mark"), el("span", "hv-name", st.path.split("/").pop()));
       if (st.composite && periods.has(st.path)) {
         li.append(el("span", "hv-note", periods.get(st.path) + " ms"));
+      }
+      if (composite) {
+        const open = el("span", "hv-open", "open");
+        open.title = "draw its sub-automaton alone";
+        open.addEventListener("click", () => openSub(st.path));
+        li.append(open);
       }
       li.append(el("span", "hv-time"));
       tree.appendChild(li);
       view.rows.set(st.path, li);
     }
+    view.folded = new Set([...view.folded].filter((p) => view.composites.has(p)));
+    if (view.folded.size) { const p = [...view.folded][0]; view.folded.delete(p); fold(p); }
   }
 
   // -- what is active ------------------------------------------------------------------
@@ -352,6 +451,7 @@
     if (drag.moved) manual();
   }
   function up() {
+    view.dragged = !!(drag && drag.moved);
     drag = null;
     $("hv-diagram").classList.remove("hv-dragging");
   }
@@ -386,6 +486,7 @@
     const pane = $("hv-diagram");
     pane.addEventListener("wheel", zoom, {passive: false});
     pane.addEventListener("mousedown", down);
+    pane.addEventListener("click", clicked);
     window.addEventListener("mousemove", move);
     window.addEventListener("mouseup", up);
     $("hv-fit").addEventListener("click", () => { fit(); manual(); });
