@@ -673,3 +673,71 @@ def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Proces
     assert set(shown_at(before)["svg"]) == trace_active(records, before)
     assert web.kill(signal.SIGTERM) == 0
     assert "Traceback" not in web.err_path.read_text()
+
+
+def many_states(groups: int = 20, per: int = 24) -> dict[str, Any]:
+    """``groups`` composite states of ``per`` leaves each: 500 states (bench/web.py's model)."""
+    states: list[dict[str, Any]] = []
+    automata = [{"owner": "", "period_ms": 100, "initial": "G0", "history": False}]
+    transitions: list[dict[str, Any]] = []
+    for g in range(groups):
+        states.append({"path": f"G{g}", "final": False, "composite": True})
+        automata.append({"owner": f"G{g}", "period_ms": 10, "initial": "S0", "history": False})
+        for i in range(per):
+            states.append({"path": f"G{g}/S{i}", "final": False, "composite": False})
+            transitions.append({"from": f"G{g}/S{i}", "to": f"G{g}/S{(i + 1) % per}",
+                                "index": 0, "name": None})
+        transitions.append({"from": f"G{g}", "to": f"G{(g + 1) % groups}", "index": 0,
+                            "name": None})
+    return {"name": "many", "automata": automata, "states": states, "transitions": transitions,
+            "variables": [], "parameters": {}}
+
+
+BIG_JS = r"""
+const g = [...document.querySelectorAll('#hv-diagram g.node')];
+const fill = (p) => { const e = g.find((x) => x.id === p); const s = e && e.querySelector('ellipse');
+                      return s ? getComputedStyle(s).fill : null; };
+return {status: document.body.dataset.status,
+        nodes: g.filter((x) => /^G\d+\/S\d+$/.test(x.id)).length,
+        svg: [...document.querySelectorAll('#hv-diagram g.hv-active')].map((x) => x.id),
+        tree: [...document.querySelectorAll('#hv-tree li.hv-active')].map((li) => li.dataset.path),
+        fills: [fill(arguments[0]), fill(arguments[1])]};
+"""
+
+
+@needs_browser
+def test_a_500_state_model_opens_and_colours_its_active_state(
+        processes: Callable[..., Process], browsers: Callable[[], Any]) -> None:
+    structure = many_states()
+    assert len(structure["states"]) == 500
+    srv = monitor.MonitorServer(port=0, announce=io.StringIO())
+    srv.start(structure)
+    try:
+        for rec in ({"t": 0, "ev": "start", "name": "many"},
+                    {"t": 0, "ev": "enter", "state": "G7"},
+                    {"t": 0, "ev": "enter", "state": "G7/S13"}):
+            srv.record(rec)
+        web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0",
+                         f"127.0.0.1:{srv.port}"], "web")
+        url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+        driver = browsers()
+        driver.get(url)
+
+        def shown(ok: Callable[[dict[str, Any]], bool], leaf: str) -> dict[str, Any]:
+            deadline = time.monotonic() + 30
+            while not ok(s := driver.execute_script(BIG_JS, leaf, "G0/S0")):
+                assert time.monotonic() < deadline, s
+                time.sleep(0.1)
+            return s
+
+        s = shown(lambda s: s["status"] == "connected" and s["nodes"] == 480 and
+                  s["fills"][0] == GREEN, "G7/S13")
+        assert sorted(s["svg"]) == sorted(s["tree"]) == ["G7", "G7/S13"] and s["fills"][1] == WHITE
+        for rec in ({"t": 10, "ev": "fire", "from": "G7", "to": "G8", "index": 0},
+                    {"t": 10, "ev": "exit", "state": "G7/S13"}, {"t": 10, "ev": "exit", "state": "G7"},
+                    {"t": 10, "ev": "enter", "state": "G8"}, {"t": 10, "ev": "enter", "state": "G8/S0"}):
+            srv.record(rec)
+        s = shown(lambda s: sorted(s["svg"]) == ["G8", "G8/S0"] and s["fills"][0] == GREEN, "G8/S0")
+        assert sorted(s["tree"]) == ["G8", "G8/S0"]
+    finally:
+        srv.close()
