@@ -18,12 +18,32 @@ if ! kill -0 $sim 2>/dev/null; then
   echo "demo: the simulator did not start:"; cat "$OUT"/sim.log; exit 1
 fi
 
+# The web view (docs/web.md) next to the flight: the component's monitor on a free port.
+port=$("$BIN"/python -c 'import socket; s = socket.create_server(("127.0.0.1", 0)); print(s.getsockname()[1])')
+rm -f "$OUT"/web.out
+"$BIN"/hfsmc view --web 0 "127.0.0.1:$port" --model examples/follow_colors/follow_colors.yaml \
+  >"$OUT"/web.out 2>"$OUT"/web.log &
+web=$!
+trap 'kill -INT $sim 2>/dev/null; kill -TERM $web 2>/dev/null; wait $sim $web 2>/dev/null' EXIT
+url=""
+for _ in $(seq 50); do
+  url=$(sed -n 's/^hfsmc view: web view on \(http[^ ]*\) .*/\1/p' "$OUT"/web.out 2>/dev/null)
+  [ -n "$url" ] && break
+  kill -0 $web 2>/dev/null || break
+  sleep 0.2
+done
+if [ -n "$url" ]; then
+  echo "== web view of the flight: $url (open it in a browser) =="
+else
+  echo "demo: the web view did not start (see $OUT/web.log); flying without it"
+fi
+
 echo "== flying follow_colors (about 2.5 min; Ctrl+C lands the drone and stops) =="
 # --time-limit: past 4 min the mission stops as on Ctrl+C, landing the drone (exit 124).
 "$BIN"/python "$OUT"/follow_colors/follow_colors.py --display --time-limit 240s \
-  --trace "$OUT"/trace.jsonl --param report="$OUT"/report.json
+  --monitor "$port" --trace "$OUT"/trace.jsonl --param report="$OUT"/report.json
 status=$?
-kill -INT $sim 2>/dev/null; wait $sim 2>/dev/null; trap - EXIT
+kill -INT $sim 2>/dev/null; kill -TERM $web 2>/dev/null; wait $sim $web 2>/dev/null; trap - EXIT
 
 "$BIN"/python - "$OUT" "$status" <<'PY'
 import json, math, sys
@@ -46,7 +66,8 @@ print(f"   flight {truth['track']['flight_time']:.0f} s, {truth['track']['distan
 if status == 124:
     print("   the mission's time limit (240 s) ran out: the drone landed where it was")
 print(f"   files: {out}/trace.jsonl (trace), {out}/report.json, {out}/truth.json (simulator's truth)")
-print("   watch it live next time: add --monitor 8765 to the component, then `hfsmc view 8765`")
+print(f"   replay it in the browser: hfsmc view --web 8080 --replay {out}/trace.jsonl "
+      "--model examples/follow_colors/follow_colors.yaml")
 print("   draw it: hfsmc diagram examples/follow_colors/follow_colors.yaml -o follow_colors.svg")
 sys.exit(0 if ok else 1)
 PY
