@@ -86,6 +86,25 @@ def test_the_model_is_drawn_while_the_component_is_that_model() -> None:
     assert broken == Picture(None, "", "no picture: the structure has no states under the root")
 
 
+def test_a_sub_automaton_is_drawn_alone_from_the_picture_s_model() -> None:
+    async def story() -> None:
+        async def paint(structure: dict[str, Any]) -> Picture:
+            return Picture("<svg/>", "structure")
+
+        bridge = Bridge("127.0.0.1", 9, paint, log=io.StringIO())
+        assert await bridge.sub_svg("Blinking") is None  # no picture yet
+        bridge.picture = await painter(None, None)(STRUCTURE)
+        sub = await bridge.sub_svg("Blinking")
+        assert sub is not None and sub.startswith("<svg")
+        assert ids(sub, "node") >= {"Blinking/Lit", "Blinking/Dark"}
+        assert "Paused" not in ids(sub, "node") | ids(sub, "cluster")
+        assert await bridge.sub_svg("Blinking") is sub  # drawn once
+        for wrong in ("Paused", "Nope", "", "Blinking/Lit"):
+            assert await bridge.sub_svg(wrong) is None, wrong
+
+    asyncio.run(asyncio.wait_for(story(), 20))
+
+
 # -- the bridge against a real monitor server --------------------------------------------------
 async def next_message(page: Page, timeout: float = 3.0) -> dict[str, Any]:
     text = await asyncio.wait_for(page.queue.get(), timeout)
