@@ -13,8 +13,13 @@ rm -f "$OUT"/truth.json "$OUT"/report.json "$OUT"/trace.jsonl
   >"$OUT"/sim.log 2>&1 &
 sim=$!
 trap 'kill -INT $sim 2>/dev/null; wait $sim 2>/dev/null' EXIT
-sleep 1
-if ! kill -0 $sim 2>/dev/null; then
+# Up when it says where it serves; a simulator that cannot take its ports exits instead.
+for _ in $(seq 100); do
+  grep -q '^sim: MAVLink to' "$OUT"/sim.log 2>/dev/null && break
+  kill -0 $sim 2>/dev/null || break
+  sleep 0.2
+done
+if ! kill -0 $sim 2>/dev/null || ! grep -q '^sim: MAVLink to' "$OUT"/sim.log; then
   echo "demo: the simulator did not start:"; cat "$OUT"/sim.log; exit 1
 fi
 
