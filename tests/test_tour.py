@@ -37,6 +37,7 @@ import signal
 import socket
 import subprocess
 import time
+import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -232,6 +233,28 @@ def attach_a_viewer(copy: Copy, command: str) -> None:
     assert status in (0, 130), log.read_text(errors="replace")
 
 
+def serve_a_web_view(copy: Copy, command: str) -> None:
+    """`hfsmc view --web`: it says where it serves, the page loads, Ctrl+C stops it."""
+    log = copy.log("web")
+    with log.open("wb") as out:
+        proc = subprocess.Popen(copy.shell("exec " + command), cwd=copy.root, env=copy.env,
+                                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                start_new_session=True)
+    try:
+        text = wait_for(log, re.compile(r"web view on (http://127\.0\.0\.1:\d+/)"), proc, timeout=60)
+        url = re.search(r"web view on (http://\S+/)", text)
+        assert url, text
+        with urllib.request.urlopen(url.group(1), timeout=10) as page:
+            assert page.status == 200 and b"<html" in page.read().lower()
+        if "--replay" not in command:
+            wait_for(log, re.compile(r"hfsmc view: connected to 127\.0\.0\.1:"), proc, timeout=30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+        status = proc.wait(timeout=30)
+    assert status in (0, 130), log.read_text(errors="replace")
+
+
 def run(copy: Copy, command: str) -> None:
     words = shlex.split(command)
     if words[0] in (".", "source"):
@@ -241,6 +264,8 @@ def run(copy: Copy, command: str) -> None:
         start_in_background(copy, command[:-1].strip())
     elif "--display" in words:
         run_display_in_a_terminal(copy, command)
+    elif words[:2] == ["hfsmc", "view"] and "--web" in words:
+        serve_a_web_view(copy, command)
     elif words[:2] == ["hfsmc", "view"] and "--replay" not in words:
         attach_a_viewer(copy, command)
     else:
@@ -258,7 +283,7 @@ def test_the_tour_runs_as_written(fresh: Copy, block: Block) -> None:
             # The README names these ports: the tour cannot run as written without them.
             pytest.fail(f"the simulator's ports the README names are in use ({', '.join(busy)}): "
                         "stop what holds them and run again")
-    ports = {m.group(1) for c in commands for m in re.finditer(r"--monitor (\d+)", c)}
+    ports = {m.group(1) for c in commands for m in re.finditer(r"--(?:monitor|web) (\d+)", c)}
     for port in ports:
         mine = str(free_port())
         commands = [re.sub(rf"\b{port}\b", mine, c) for c in commands]

@@ -664,8 +664,10 @@ def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Proces
     driver.get(url)
 
     def shown_at(t: int) -> dict[str, Any]:
+        # At the position and drawn so: the page may be read between two of its messages.
         return wait_page(driver, lambda s: driver.execute_script(
-            "return document.body.dataset.position") == str(t) and s["status"] == "replay")
+            "return document.body.dataset.position") == str(t) and s["status"] == "replay"
+            and set(s["svg"]) == trace_active(records, t))
 
     shown = shown_at(0)
     assert shown["banner"] == "" and set(shown["svg"]) == trace_active(records, 0)
