@@ -12,10 +12,6 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEB_PACKAGES := graphviz tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev chromium chromium-driver
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=
-# Most of the suite waits on real time (flights, real-clock runs, tmux screens), not on
-# the cores: three workers overlap the waits; each test file stays on one worker, so
-# its fixtures (builds, simulators) are made once.
-PYTEST_JOBS ?= 3
 
 .PHONY: all setup deps test demo bench golden lint examples clean fuzz soak
 
@@ -45,7 +41,7 @@ lint: setup
 	$(BIN)/mypy --strict $(wildcard templates/python/hfsmc_*.py)
 
 test: lint
-	$(BIN)/pytest -n $(PYTEST_JOBS) --dist loadfile $(PYTEST_ARGS)
+	$(BIN)/pytest $(PYTEST_ARGS)
 
 # The demo flies the paper's follow_colors mission: it starts the simulator,
 # builds the Python component and runs it with the live view (about 2.5 min),
