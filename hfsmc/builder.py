@@ -16,6 +16,7 @@ from hfsmc.durations import has_unit, parse_us
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend.source import YAML11_BOOLS, Document, PathKey
 from hfsmc.ir import (
+    DEFAULT_ROOT_PERIOD_MS,
     Automaton,
     Code,
     DictValue,
@@ -29,7 +30,6 @@ from hfsmc.ir import (
     Variable,
 )
 
-DEFAULT_ROOT_PERIOD_MS = 100
 _LITERAL_TYPES: dict[type, str] = {bool: "bool", int: "int", float: "float", str: "str", list: "list"}
 _PY_TYPES = {"bool": bool, "int": int, "float": float, "str": str, "list": list, "dict": dict}
 

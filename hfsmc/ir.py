@@ -25,6 +25,12 @@ class DictValue:
 Value: TypeAlias = bool | int | float | str | tuple["Value", ...] | DictValue | None
 
 SNIPPET_KINDS = ("entry", "during", "exit", "when", "do", "functions", "on_shutdown")
+# The functions every snippet may call (docs/interfaces.md lists them).
+HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
+# Generated components name their own symbols with this prefix; a model may not.
+RESERVED_PREFIX = "_hfsm"
+# The root automaton's period when a model does not give one.
+DEFAULT_ROOT_PERIOD_MS = 100
 
 
 @dataclass(frozen=True, slots=True)

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 from hfsmc.cppsnippets import check_cpp_snippets
 from hfsmc.errors import Diagnostics, Span, did_you_mean
-from hfsmc.ir import Automaton, Model, State, Transition
-from hfsmc.pycheck import HELPERS, check_python_snippets
+from hfsmc.ir import HELPERS, RESERVED_PREFIX, Automaton, Model, State, Transition
+from hfsmc.pycheck import check_python_snippets
 
 Pass = Callable[[Model, Diagnostics], Model]
 
@@ -151,7 +151,6 @@ def _check_interrupt_ends(model: Model, diags: Diagnostics) -> None:
                   start.span)
 
 
-RESERVED_PREFIX = "_hfsm"  # generated components name their own symbols with it
 # Words a variable, parameter or interface cannot be called in each snippet language.
 # C++: the keywords and alternative tokens of C++17/20, plus the namespaces that the
 # generated class names inside its own scope (a member `std` would hide `std::`).

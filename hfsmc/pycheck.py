@@ -23,9 +23,8 @@ from pyflakes import messages as pyflakes_messages
 from pyflakes.checker import Checker
 
 from hfsmc.errors import Diagnostics, Span, did_you_mean
-from hfsmc.ir import Code, Model
+from hfsmc.ir import HELPERS, Code, Model
 
-HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
 _DEFINED = re.compile(r"^(?:def|class)\s+([A-Za-z_]\w*)|^([A-Za-z_]\w*)\s*=", re.M)
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _INDENT = "    "

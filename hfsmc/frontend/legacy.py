@@ -28,7 +28,6 @@ from typing import Any
 
 from lxml import etree
 
-from hfsmc.builder import DEFAULT_ROOT_PERIOD_MS
 from hfsmc.errors import Diagnostics, Span
 from hfsmc.frontend.legacy_code import (
     Mapped,
@@ -38,6 +37,7 @@ from hfsmc.frontend.legacy_code import (
 )
 from hfsmc.frontend.source import Document
 from hfsmc.frontend.xmlsource import Element, XmlIndex, written_name
+from hfsmc.ir import DEFAULT_ROOT_PERIOD_MS
 
 DEFAULT_PERIOD_MS = DEFAULT_ROOT_PERIOD_MS
 _ENTITIES = {"&lt;": "<", "&gt;": ">", "&amp;": "&", "&quot;": '"', "&apos;": "'"}

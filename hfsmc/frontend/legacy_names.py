@@ -45,8 +45,7 @@ from hfsmc.frontend.legacy_code import (
     references,
     uses,
 )
-from hfsmc.lower import RESERVED_PREFIX
-from hfsmc.pycheck import HELPERS
+from hfsmc.ir import HELPERS, RESERVED_PREFIX
 
 
 class Names:
