@@ -251,7 +251,7 @@ def component_program(name: str, case: str, variant: str, command: list[str]) ->
 
 def check_trace(programs: list[Program]) -> None:
     """The generated components of one case, 10 ticks with ``--trace -``: 10 transitions,
-    and the C++ and Python traces byte-identical but for log records (SPEC 3.7)."""
+    and the C++ and Python traces byte-identical but for log records (docs/semantics.md §14)."""
     traces: dict[str, list[str]] = {}
     for prog in programs:
         if prog.name == "baseline":

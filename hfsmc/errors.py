@@ -70,7 +70,7 @@ CODES: dict[str, str] = {
     "W202": "state with no way out that is not final",
     "W203": "transition shadowed by an earlier one that always fires first",
     "W204": "on_interrupt state can never reach a final state",
-    # legacy VisualStates / VisualHFSM imports (SPEC 2.7)
+    # legacy VisualStates / VisualHFSM imports (docs/legacy.md)
     "W205": "legacy ROS topic or ICE interface kept as an interface components cannot drive",
     "W206": "legacy name changed to make it a unique identifier (references follow)",
     "W207": "legacy content not carried over",

@@ -1,4 +1,4 @@
-"""Behavioural conformance: one spec, every back end (SPEC 3, docs/runtime.md).
+"""Behavioural conformance: one spec, every back end (docs/semantics.md).
 
 Each model ``tests/conformance/NN_name.yaml`` runs under the virtual clock and
 must write ``NN_name.trace`` byte for byte, exit with the expected status and
@@ -35,7 +35,7 @@ REAL = CONFORMANCE / "real"
 TRACE_SCHEMA = ROOT / "schemas" / "trace.schema.json"
 TIMEOUT = 30.0  # seconds, for every subprocess
 
-# SPEC 3.7: the keys of each record, in order.
+# docs/semantics.md §13: the keys of each record, in order.
 RECORD_KEYS: dict[str, tuple[str, ...]] = {
     "start": ("t", "ev", "name"),
     "enter": ("t", "ev", "state"),
@@ -338,7 +338,7 @@ def test_real_clock_signal(backend: Backend, case: Case, components: Components)
 
 
 def trace_problems(data: bytes, with_t: bool = True) -> list[str]:
-    """What keeps ``data`` from being a trace as SPEC 3.7 writes it (compact JSON
+    """What keeps ``data`` from being a trace as docs/semantics.md §13 describes it (compact JSON
     lines, keys in order, whole-ms ``t`` never going back, start first, stop last)."""
     problems: list[str] = []
     if not data.endswith(b"\n"):

@@ -1,4 +1,4 @@
-"""The C++ component (SPEC 5): CMake projects that build with no other step, compile
+"""The C++ component (docs/cpp.md): CMake projects that build with no other step, compile
 errors at model positions, hostile names and strings, signals, the monitor, config.
 
 Behaviour is checked by the conformance suite (tests/test_conformance.py runs every
@@ -119,7 +119,7 @@ def test_examples_exist_in_cpp() -> None:
 
 @pytest.mark.parametrize("example", examples("cpp"), ids=lambda p: p.stem)
 def test_example_builds_with_plain_cmake_and_runs(example: Path, tmp_path: Path) -> None:
-    """SPEC 5: `cmake -S DIR -B DIR/build && cmake --build DIR/build`, nothing else."""
+    """docs/cpp.md: `cmake -S DIR -B DIR/build && cmake --build DIR/build`, nothing else."""
     need_toolchain()
     out = tmp_path / "component"
     generate(example, out)

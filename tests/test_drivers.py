@@ -1,4 +1,4 @@
-"""The drone and camera interfaces of Python components (SPEC 5.1), on loopback:
+"""The drone and camera interfaces of Python components (docs/interfaces.md), on loopback:
 a fake ArduPilot-like vehicle written here with pymavlink, a tiny MJPEG server,
 and a generated component flying the fake."""
 

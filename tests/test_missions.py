@@ -1,5 +1,5 @@
 """The paper's drone missions flown end to end: the component and `hfsmc sim` as real
-processes talking MAVLink over UDP and MJPEG over HTTP on 127.0.0.1 (SPEC 6, 7).
+processes talking MAVLink over UDP and MJPEG over HTTP on 127.0.0.1 (docs/worlds.md, examples/).
 
 follow_colors flies in Python and in C++ (examples/follow_colors_cpp, the same mission
 in the same world): the C++ component is compiled once per session."""

@@ -1,5 +1,5 @@
 """The paper's monitor-an-area mission flown end to end: the component and `hfsmc sim`
-as real processes on 127.0.0.1 (SPEC 6, 7), its report checked against the simulator's
+as real processes on 127.0.0.1 (docs/worlds.md, examples/), its report checked against the simulator's
 ground truth. It flies in Python and in C++ (examples/monitor_area_cpp, the same mission
 in the same world), the C++ component compiled once per session."""
 

@@ -1,5 +1,5 @@
 """The simulator's downward camera: rendering, the MJPEG stream, following another vehicle,
-and the example worlds (SPEC 6, 7). Real sockets on 127.0.0.1, every wait bounded."""
+and the example worlds (docs/worlds.md, examples/). Real sockets on 127.0.0.1, every wait bounded."""
 
 from __future__ import annotations
 

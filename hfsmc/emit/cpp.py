@@ -1,4 +1,4 @@
-"""The C++ back end: a model becomes a CMake project (SPEC 5).
+"""The C++ back end: a model becomes a CMake project (docs/cpp.md).
 
 The automaton is one class: parameters, variables and interfaces are its
 members, each snippet is a member function wrapped in ``try``, and each state

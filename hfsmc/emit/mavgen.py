@@ -1,4 +1,4 @@
-"""The MAVLink C headers a C++ component needs (SPEC 5), made by pymavlink's mavgen.
+"""The MAVLink C headers a C++ component needs (docs/cpp.md), made by pymavlink's mavgen.
 
 The ``mavlink`` interface of C++ components (``templates/cpp/hfsmc/mavlink.hpp``)
 includes ``mavlink/ardupilotmega/mavlink.h`` from the component's ``include/``.

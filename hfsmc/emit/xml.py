@@ -1,4 +1,4 @@
-"""The IR as an hfsm version-1 XML document (SPEC 2.6), for ``hfsmc convert``.
+"""The IR as an hfsm version-1 XML document (docs/model.md, XML), for ``hfsmc convert``.
 
 Written by hand rather than through lxml's serializer so that the layout is
 fixed (two-space indent, attributes in a set order) and code reads as code:

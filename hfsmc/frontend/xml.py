@@ -1,4 +1,4 @@
-"""XML front end: hfsm version-1 documents (SPEC 2.6) into the neutral Document.
+"""XML front end: hfsm version-1 documents (docs/model.md, XML) into the neutral Document.
 
 Four steps, each of which may stop with positioned diagnostics:
 
@@ -41,7 +41,7 @@ from hfsmc.frontend.xmlsource import (
 from hfsmc.resources import schema_file
 
 _XS = "{http://www.w3.org/2001/XMLSchema}"
-_LEGACY = ("VisualStates", "VisualHFSM")  # SPEC 2.7: read by hfsmc/frontend/legacy.py
+_LEGACY = ("VisualStates", "VisualHFSM")  # docs/legacy.md: read by the legacy front end
 _ROOT_TYPE = "hfsm"  # the XSD's type of the root element
 _MAX_XSD_ROUNDS = 20  # re-validations after dropping unexpected elements (see _validate)
 
@@ -70,7 +70,7 @@ def load_xml(file: str, text: str, diags: Diagnostics) -> Document:
 
 
 def _check_root(root: Element, index: XmlIndex, diags: Diagnostics) -> Document | None:
-    """None for an hfsm document; a legacy one is read by its own front end (SPEC 2.7)."""
+    """None for an hfsm document; a legacy one is read by its own front end (docs/legacy.md)."""
     name = etree.QName(root)
     if name.namespace is None and name.localname == "hfsm":
         return None

@@ -1,2 +1,2 @@
 """`hfsmc sim`: a simulated multicopter (MAVLink over UDP, like ArduPilot Copter in
-GUIDED mode) and its downward camera (MJPEG over HTTP), over a world (SPEC 6)."""
+GUIDED mode) and its downward camera (MJPEG over HTTP), over a world (docs/worlds.md)."""

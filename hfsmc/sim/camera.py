@@ -1,4 +1,4 @@
-"""The downward camera's picture of the world, drawn with OpenCV (SPEC 6).
+"""The downward camera's picture of the world, drawn with OpenCV (docs/worlds.md).
 
 A pinhole camera looks straight down from the vehicle (a gimbal keeps it level,
 so roll and pitch do not tilt the view); the top of the image is the vehicle's

@@ -1,4 +1,4 @@
-"""The simulator's world: ground, road, victims and moving coloured objects (SPEC 6).
+"""The simulator's world: ground, road, victims and moving coloured objects (docs/worlds.md).
 
 Coordinates are local NED metres from the home point (the take-off point):
 ``north``, ``east``, and ``down`` (negative above the ground). A world file is

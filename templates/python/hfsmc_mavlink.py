@@ -1,4 +1,4 @@
-"""The ``mavlink`` interface of Python components (SPEC 5.1): a vehicle flown
+"""The ``mavlink`` interface of Python components (docs/interfaces.md): a vehicle flown
 the ArduPilot Copter way (GUIDED mode), over pymavlink.
 
 Copied beside a generated component that declares an interface of type
@@ -35,7 +35,7 @@ from typing import Any
 from pymavlink import mavutil
 
 DEFAULT_URL = "udpin:127.0.0.1:14550"  # the vehicle sends there, as ArduPilot SITL does for a GCS
-LINK_TIMEOUT_S = 2.0  # no heartbeat for that long: the link is lost (SPEC 5.1)
+LINK_TIMEOUT_S = 2.0  # no heartbeat for that long: the link is lost (docs/interfaces.md)
 ACK_TIMEOUT_S = 3.0  # a command without COMMAND_ACK by then has failed; resent once halfway
 GCS_HEARTBEAT_S = 1.0  # our own heartbeat, so the vehicle sees a ground station
 POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
@@ -91,7 +91,7 @@ class _Pending:
 
 
 class Vehicle:
-    """A MAVLink vehicle with ArduPilot Copter conventions (SPEC 5.1)."""
+    """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str]) -> None:
         self.name = name
