@@ -36,7 +36,7 @@ from hfsmc.compiler import compile_file
 from hfsmc.convert import legacy_report, to_yaml
 from hfsmc.emit.xml import to_xml
 from hfsmc.errors import CODES, Diagnostic
-from hfsmc.frontend.legacy_code import Mapped, block, edit, guess_language
+from hfsmc.frontend.legacy.code import Mapped, block, edit, guess_language
 from hfsmc.ir import Model
 
 ROOT = Path(__file__).resolve().parent.parent

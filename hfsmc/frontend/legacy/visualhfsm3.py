@@ -25,17 +25,9 @@ import re
 from dataclasses import dataclass, field
 
 from hfsmc.errors import Span
-from hfsmc.frontend.legacy import (
-    Context,
-    Interface,
-    Legacy,
-    Level,
-    LState,
-    Reader,
-    Space,
-    Transition,
-)
-from hfsmc.frontend.legacy_code import Mapped, cpp_declaration, cpp_statements
+from hfsmc.frontend.legacy.code import Mapped, cpp_declaration, cpp_statements
+from hfsmc.frontend.legacy.form import Context, Interface, Legacy, Level, LState, Space, Transition
+from hfsmc.frontend.legacy.reader import Reader, norm_id
 from hfsmc.frontend.xmlsource import Element
 
 MAX_NESTING = 100
@@ -48,11 +40,6 @@ def is_visualhfsm3(root: Element) -> bool:
     """Whether a ``<VisualHFSM>`` root holds the 3.x layout (Spanish element names)."""
     return any(sub.find("idSub") is not None or sub.find("Estado") is not None
                for sub in root.iterchildren("SubAutomata"))
-
-
-def _norm(uid: str) -> str:
-    text = uid.strip()
-    return str(int(text)) if re.fullmatch(r"[+-]?\d{1,30}", text) else text
 
 
 @dataclass(eq=False)
@@ -83,9 +70,9 @@ def read(r: Reader, root: Element) -> Legacy | None:
         uid_el = r.required(g, "idSub", el, "this `<SubAutomata>`")
         if uid_el is None:
             continue
-        uid = _norm(r.value(uid_el)[0])
+        uid = norm_id(r.value(uid_el)[0])
         father_el = r.first(g, "idPadre")
-        sub = _Sub(el, uid, _norm(r.value(father_el)[0]) if father_el is not None else None, g,
+        sub = _Sub(el, uid, norm_id(r.value(father_el)[0]) if father_el is not None else None, g,
                    states=g.get("Estado", []))
         if uid in subs:
             r.error("E121", f"duplicate sub-automaton id {uid}", r.value(uid_el)[1],
@@ -195,7 +182,7 @@ class _Levels:
                     r.warn("W208", f"`{s.written}` is a second initial state of sub-automaton "
                            f"{sub.uid}: the first, `{level.initial.written}`, is kept", span)
             son_el = r.first(g, "hijo")
-            son = _norm(r.value(son_el)[0]) if son_el is not None else "0"
+            son = norm_id(r.value(son_el)[0]) if son_el is not None else "0"
             if son not in ("", "0"):
                 assert son_el is not None
                 self.child(s, son, r.value(son_el)[1], depth)
@@ -220,7 +207,7 @@ class _Levels:
         r = self.r
         g = r.children(el, ("id", "nombre", "hijo", "codigo", "transiciones"), (), _LAYOUT)
         uid_el = r.required(g, "id", el, "this `<Estado>`")
-        uid = _norm(r.value(uid_el)[0]) if uid_el is not None else ""
+        uid = norm_id(r.value(uid_el)[0]) if uid_el is not None else ""
         name_el = r.required(g, "nombre", el, "this `<Estado>`")
         written, span = r.value(name_el) if name_el is not None else ("", r.span(el))
         if not written:
@@ -259,7 +246,7 @@ class _Levels:
         if dest_el is None:
             return None
         dest, dest_span = r.value(dest_el)
-        target = states.get(_norm(dest))
+        target = states.get(norm_id(dest))
         if target is None:
             r.error("E132", f"transition of `{source.written}` to state {dest}: sub-automaton "
                     f"{sub.uid} has no state with that `<id>`", dest_span)

@@ -1,188 +1,25 @@
-"""Legacy VisualStates and VisualHFSM files as version-1 models (SPEC 2.7).
-
-A legacy file is told by its root element (``<VisualStates>``, ``<VisualHFSM>``)
-and read in two steps:
-
-1. a reader per format (:mod:`.legacy_visualstates`, :mod:`.legacy_visualhfsm`)
-   walks the tree, direct children only, and turns it into a small neutral
-   form (:class:`Legacy`: levels of states, namespaces, interfaces), reporting
-   everything broken with its position;
-2. :class:`~.legacy_map.Assembler` maps that form, the same way for both
-   formats, onto the version-1 data a YAML model gives (names from
-   :mod:`.legacy_names`, code rewritten by :mod:`.legacy_code`), with a span
-   for every value and key and the segments of every code text, so that the
-   ordinary pipeline (schema, builder, passes, back ends) runs unchanged and
-   every diagnostic or traceback lands in the legacy file.
-
-What the mapping did is written to ``Document.notes`` (the ``convert`` report);
-what matters to a user is a warning (W205-W208).  The decisions are listed in
-``docs/legacy.md``.
-"""
+"""Element access for the format readers: positions, texts, numbers, diagnostics."""
 
 from __future__ import annotations
 
 import re
 from collections.abc import Iterable
-from dataclasses import dataclass, field
-from typing import Any
 
 from lxml import etree
 
 from hfsmc.errors import Diagnostics, Span
-from hfsmc.frontend.legacy_code import (
-    Mapped,
-    Pos,
-    Ref,
-    edit,
-)
+from hfsmc.frontend.legacy.code import Mapped, Pos, edit
 from hfsmc.frontend.source import Document
 from hfsmc.frontend.xmlsource import Element, XmlIndex, written_name
-from hfsmc.ir import DEFAULT_ROOT_PERIOD_MS
 
-DEFAULT_PERIOD_MS = DEFAULT_ROOT_PERIOD_MS
 _ENTITIES = {"&lt;": "<", "&gt;": ">", "&amp;": "&", "&quot;": '"', "&apos;": "'"}
 _ESCAPED = re.compile("|".join(_ENTITIES))
 
 
-def load_legacy(root: Element, index: XmlIndex, diags: Diagnostics) -> Document:
-    """The version-1 model of a ``<VisualStates>`` or ``<VisualHFSM>`` document."""
-    kind = etree.QName(root).localname
-    doc = Document(index.src.file, "visualstates" if kind == "VisualStates" else "visualhfsm",
-                   index.src.lines())
-    doc.spans[()] = index.span(root)
-    doc.data = {}
-    reader = Reader(doc, index, diags, kind)
-    if kind == "VisualStates" and root.find("state") is None \
-            and root.find("SubAutomata") is not None:
-        # VisualStates' C++ editor (2016-2017) saved VisualHFSM 5's layout under this root
-        from hfsmc.frontend.legacy_visualhfsm import read
-    elif kind == "VisualStates":
-        from hfsmc.frontend.legacy_visualstates import read
-    else:
-        from hfsmc.frontend.legacy_visualhfsm3 import is_visualhfsm3
-        if is_visualhfsm3(root):
-            from hfsmc.frontend.legacy_visualhfsm3 import read
-        else:
-            from hfsmc.frontend.legacy_visualhfsm import read
-    legacy = read(reader, root)
-    if legacy is not None and not diags.has_errors:
-        from hfsmc.frontend.legacy_map import Assembler
-
-        doc.data = Assembler(reader, legacy).model()
-    return doc
-
-
-# ---------------------------------------------------------------------------
-# the neutral form the readers produce
-
-
-@dataclass(eq=False)
-class Member:
-    """A variable, function or interface of a legacy namespace."""
-
-    name: str  # as the legacy code names it
-    kind: str  # variable | function | interface | init (defined by a statement) | implicit
-    span: Span
-    value: Any = None  # a variable's value (data for the model's `variables`)
-    value_span: Span | None = None
-    final: str = ""  # its name in the model
-
-
-@dataclass(eq=False)
-class Space:
-    """A namespace: the global one (``self.globalNamespace``, VisualHFSM's automaton)
-    or the local one of a VisualStates level (``self.namespace``)."""
-
-    owner: str  # the owning state's name ("" for the global namespace): prefix of renamed members
-    where: str  # for messages
-    span: Span
-    functions: list[Mapped] = field(default_factory=list)
-    variables: list[Mapped] = field(default_factory=list)
-    members: dict[str, Member] = field(default_factory=dict)
-    inits: list[Mapped] = field(default_factory=list)  # statements that run at load
-    ctx: Context | None = None  # how its own functions name things
-
-
-@dataclass(eq=False)
-class Context:
-    """Where each kind of reference looks a name up, in order (see legacy_code.Ref)."""
-
-    scopes: dict[str, tuple[Space, ...]]
-    state: bool = False  # the code of a state or transition (not a namespace's functions)
-
-    def find(self, ref: Ref) -> Member | None:
-        for space in self.scopes.get(ref.scope, ()):
-            member = space.members.get(ref.name)
-            if member is not None:
-                return member
-        return None
-
-
-@dataclass(eq=False)
-class Interface:
-    candidates: tuple[str, ...]  # the names code may use for it, preferred first
-    type: str  # ros_topic | ice
-    url: str | None
-    options: dict[str, str]
-    span: Span
-    what: str  # "ROS topic `/odom`" (for messages)
-    msg_import: tuple[str, Span] | None = None  # the ROS message type's import
-    member: Member | None = None
-
-
-@dataclass(eq=False)
-class Transition:
-    span: Span
-    name: str | None
-    target: LState
-    target_span: Span
-    after_ms: int | None = None
-    after_span: Span | None = None
-    cond: Mapped | None = None
-    cond_is_body: bool = False  # VisualStates: the body of a function returning a bool
-    code: Mapped | None = None
-
-
-@dataclass(eq=False)
-class LState:
-    uid: str  # the legacy id
-    written: str  # the name as written
-    span: Span  # of the name
-    code: Mapped | None
-    ctx: Context
-    transitions: list[Transition] = field(default_factory=list)
-    child: Level | None = None
-    name: str = ""  # its name in the model
-
-
-@dataclass(eq=False)
-class Level:
-    """A sub-automaton: a VisualStates state's children, or a VisualHFSM SubAutomata."""
-
-    span: Span
-    states: list[LState] = field(default_factory=list)
-    initial: LState | None = None
-    initial_span: Span | None = None
-    period_ms: int | None = None  # None: the parent's
-    period_span: Span | None = None
-
-
-@dataclass(eq=False)
-class Legacy:
-    root: Level
-    spaces: list[Space]  # the global namespace first
-    interfaces: list[Interface]
-    libraries: list[tuple[str, Span]]
-    history: bool  # what re-entering a composite state does in the legacy tool
-    implicit_imports: tuple[str, ...]  # modules the legacy tool's generated code imported
-    dropped: list[tuple[Span, str]] = field(default_factory=list)  # for the report
-    language: str | None = None  # the code's language when the format fixes it
-    language_why: str = ""
-    ros_dependencies: list[tuple[str, Span]] = field(default_factory=list)  # ROS packages
-
-
-# ---------------------------------------------------------------------------
-# reading elements, with positions and diagnostics
+def norm_id(uid: str) -> str:
+    """An id as the legacy tools compared ids: as a number when it is one."""
+    text = uid.strip()
+    return str(int(text)) if re.fullmatch(r"[+-]?\d{1,30}", text) else text
 
 
 def _char_offsets(text: str, start: int, n: int) -> list[int]:

@@ -13,21 +13,20 @@ left when its state was entered again: ``history: true``.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 from hfsmc.errors import Span
-from hfsmc.frontend.legacy import (
+from hfsmc.frontend.legacy.form import (
     Context,
     Interface,
     Legacy,
     Level,
     LState,
-    Reader,
     Space,
     Transition,
+    ice_interface,
 )
-from hfsmc.frontend.legacy_visualstates import ice_interface
+from hfsmc.frontend.legacy.reader import Reader, norm_id
 from hfsmc.frontend.xmlsource import Element
 
 MAX_NESTING = 100  # sub-automata inside sub-automata: far beyond any real model
@@ -44,11 +43,6 @@ class _Sub:
     groups: dict[str, list[Element]]
     states: list[tuple[LState, Element]] = field(default_factory=list)
     owner: LState | None = None
-
-
-def _norm(uid: str) -> str:
-    text = uid.strip()
-    return str(int(text)) if re.fullmatch(r"[+-]?\d{1,30}", text) else text
 
 
 def read(r: Reader, root: Element) -> Legacy | None:
@@ -76,7 +70,7 @@ def read(r: Reader, root: Element) -> Legacy | None:
                 r.span(extra.el), f"the root is sub-automaton {roots[0].uid}")
     reader = _Levels(r, subs, glob)
     level = reader.level(roots[0], 0)
-    held = {_norm(son.text or "") for sub in order for st in sub.groups.get("state", [])
+    held = {norm_id(son.text or "") for sub in order for st in sub.groups.get("state", [])
             if (son := st.find("idSubautomataSon")) is not None}
     for sub in order:
         if sub is not roots[0] and sub.owner is None and sub.father != "0":
@@ -116,7 +110,7 @@ def _sub(r: Reader, el: Element, glob: Space) -> _Sub | None:
         found = r.first(groups, tag)
         if found is not None:
             (glob.functions if tag == "functions" else glob.variables).append(r.text(found))
-    return _Sub(el, _norm(uid), _norm(father), father_span, groups)
+    return _Sub(el, norm_id(uid), norm_id(father), father_span, groups)
 
 
 def _ice(r: Reader, el: Element) -> Interface | None:
@@ -145,7 +139,7 @@ class _Levels:
         self.where: dict[str, str] = {}  # state id -> id of its sub-automaton
         for sub in subs.values():
             for st in sub.groups.get("state", []):
-                self.where.setdefault(_norm(st.get("id", "")), sub.uid)
+                self.where.setdefault(norm_id(st.get("id", "")), sub.uid)
 
     def level(self, sub: _Sub, depth: int) -> Level:
         r = self.r
@@ -221,9 +215,9 @@ class _Levels:
         son_el = r.first(g, "idSubautomataSon")
         son, son_span = r.value(son_el) if son_el is not None else ("0", r.span(el))
         assert self.glob.ctx is not None
-        s = LState(_norm(uid or ""), written, name_span,
+        s = LState(norm_id(uid or ""), written, name_span,
                    r.text(code_el) if code_el is not None else None, self.glob.ctx)
-        return s, _norm(son), son_span
+        return s, norm_id(son), son_span
 
     def transition(self, el: Element, sub: _Sub,
                    states: dict[str, LState]) -> tuple[LState, Transition] | None:
@@ -235,15 +229,15 @@ class _Levels:
         if origin_el is None or dest_el is None or trans is None:
             return None
         origin, origin_span = r.value(origin_el)
-        source = states.get(_norm(origin))
+        source = states.get(norm_id(origin))
         if source is None:
             r.error("E103", f"transition from state {origin}, which is not a state of "
                     f"sub-automaton {sub.uid}", origin_span)
             return None
         dest, dest_span = r.value(dest_el)
-        target = states.get(_norm(dest))
+        target = states.get(norm_id(dest))
         if target is None:
-            elsewhere = self.where.get(_norm(dest))
+            elsewhere = self.where.get(norm_id(dest))
             if elsewhere is not None:
                 r.error("E133", f"transition of `{source.written}` to state {dest} of "
                         f"sub-automaton {elsewhere}: transitions join states of one "

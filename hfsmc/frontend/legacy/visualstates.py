@@ -14,21 +14,20 @@ none), and every missing or malformed element is reported where it is.
 
 from __future__ import annotations
 
-import re
-
 from hfsmc.errors import Span
-from hfsmc.frontend.legacy import (
+from hfsmc.frontend.legacy.code import identifier
+from hfsmc.frontend.legacy.form import (
     Context,
     Interface,
     Legacy,
     Level,
     LState,
     Member,
-    Reader,
     Space,
     Transition,
+    ice_interface,
 )
-from hfsmc.frontend.legacy_code import identifier
+from hfsmc.frontend.legacy.reader import Reader, norm_id
 from hfsmc.frontend.xmlsource import Element
 
 _STATE_SINGLE = ("name", "code", "timestep", "namespace", "functions", "variables")
@@ -130,12 +129,6 @@ def _libraries(r: Reader, el: Element | None) -> list[tuple[str, Span]]:
     return out
 
 
-def _norm(uid: str) -> str:
-    """Ids as VisualStates compared them: as numbers when they are numbers."""
-    text = uid.strip()
-    return str(int(text)) if re.fullmatch(r"[+-]?\d{1,30}", text) else text
-
-
 # ---------------------------------------------------------------------------
 # config: ROS topics, or JdeRobot interfaces
 
@@ -234,23 +227,6 @@ def _jderobot_interface(r: Reader, el: Element) -> Interface | None:
                          r.span(el))
 
 
-def ice_interface(name: str, server: str, proxy: str, ip: str, port: str, kind: str, topic: str,
-                  span: Span) -> Interface:
-    """A JdeRobot interface: served over ICE (server 1) or ROS (server 2)."""
-    ros = server.strip().lower() in ("2", "ros")
-    options = {k: v for k, v in (("interface", kind), ("server", server)) if v}
-    if ros:
-        return Interface((identifier(name, "interface"),), "ros_topic", topic or None, options,
-                         span, f"JdeRobot interface `{name}` over ROS")
-    endpoint = " ".join(p for p in ("default" if ip or port else "", f"-h {ip}" if ip else "",
-                                    f"-p {port}" if port else "") if p)
-    url = f"{proxy}:{endpoint}" if proxy and endpoint else (proxy or None)
-    if topic:
-        options["topic"] = topic
-    return Interface((identifier(name, "interface"),), "ice", url, options, span,
-                     f"ICE interface `{name}`" + (f" ({kind})" if kind else ""))
-
-
 # ---------------------------------------------------------------------------
 # states and transitions
 
@@ -268,7 +244,7 @@ class _States:
         # the first state of a level initial) have no <timestep> at all.
         self.timesteps = next(root.iter("timestep"), None) is not None
         for el in root.iter("state"):
-            uid = _norm(el.get("id", ""))
+            uid = norm_id(el.get("id", ""))
             name = el.find("name")
             self.everywhere.setdefault(uid, (name.text or "").strip() if name is not None else "")
 
@@ -385,7 +361,7 @@ class _States:
         # A bare `self.x` (the state object in VisualStates) looks in the namespaces too.
         ctx = Context({"local": (*chain, self.glob, own), "global": (self.glob, *chain, own),
                        "self": (*chain, self.glob, own)}, state=True)
-        s = LState(_norm(uid or ""), written, name_span, code, ctx)
+        s = LState(norm_id(uid or ""), written, name_span, code, ctx)
         if groups.get("state"):
             s.child = self.level(el, groups, (own, *chain), written)
         elif r.first(groups, "timestep") is not None:
@@ -404,9 +380,9 @@ class _States:
         if dest is None:
             return None
         uid, dest_span = r.value(dest)
-        target = siblings.get(_norm(uid))
+        target = siblings.get(norm_id(uid))
         if target is None:
-            elsewhere = self.everywhere.get(_norm(uid))
+            elsewhere = self.everywhere.get(norm_id(uid))
             if elsewhere is not None:
                 r.error("E133", f"transition of `{source.written}` to state {uid} "
                         f"(`{elsewhere}`), which is not a child of `{owner_name}`: transitions "
@@ -417,7 +393,7 @@ class _States:
                             f"{k} ({v.written})" for k, v in siblings.items()))
             return None
         origin = r.first(g, "originid")
-        if origin is not None and _norm(r.value(origin)[0]) != source.uid:
+        if origin is not None and norm_id(r.value(origin)[0]) != source.uid:
             r.warn("W208", f"originid {r.value(origin)[0]} is not the id of `{source.written}`, "
                    "the state this transition is written in: it leaves that state",
                    r.value(origin)[1])

@@ -19,16 +19,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from hfsmc.errors import Span
-from hfsmc.frontend.legacy import (
-    Context,
-    Legacy,
-    Level,
-    LState,
-    Member,
-    Reader,
-    Space,
-)
-from hfsmc.frontend.legacy_code import (
+from hfsmc.frontend.legacy.code import (
     PY_RESERVED,
     Language,
     Mapped,
@@ -45,6 +36,8 @@ from hfsmc.frontend.legacy_code import (
     references,
     uses,
 )
+from hfsmc.frontend.legacy.form import Context, Legacy, Level, LState, Member, Space
+from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.ir import HELPERS, RESERVED_PREFIX
 
 

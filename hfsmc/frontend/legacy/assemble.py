@@ -21,18 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from hfsmc.errors import Span
-from hfsmc.frontend.legacy import (
-    DEFAULT_PERIOD_MS,
-    Context,
-    Legacy,
-    Level,
-    LState,
-    Member,
-    Reader,
-    Space,
-    Transition,
-)
-from hfsmc.frontend.legacy_code import (
+from hfsmc.frontend.legacy.code import (
     WEAK_PREFIXES,
     Mapped,
     Pos,
@@ -51,8 +40,11 @@ from hfsmc.frontend.legacy_code import (
     references,
     single_return,
 )
-from hfsmc.frontend.legacy_names import Names
+from hfsmc.frontend.legacy.form import Context, Legacy, Level, LState, Member, Space, Transition
+from hfsmc.frontend.legacy.names import Names
+from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.frontend.source import PathKey
+from hfsmc.ir import DEFAULT_ROOT_PERIOD_MS
 
 
 @dataclass(frozen=True, slots=True)
@@ -369,7 +361,7 @@ class Assembler(Names):
         """A sub-automaton's keys in ``d`` (the model or a state); its number of states."""
         ms = level.period_ms
         if parent_ms is None:  # the root: always written, from the file or the default
-            ms = ms if ms is not None else DEFAULT_PERIOD_MS
+            ms = ms if ms is not None else DEFAULT_ROOT_PERIOD_MS
             self._put(d, (*path, "period"), ms, level.period_span or level.span)
         elif ms is not None and ms != parent_ms:
             self._put(d, (*path, "period"), ms, level.period_span or level.span)
@@ -427,7 +419,7 @@ class Assembler(Names):
         r.note(self.root_span, f"language: {self.language} ({self.why})")
         root_ms = lg.root.period_ms
         r.note(lg.root.period_span or self.root_span,
-               f"period: {root_ms if root_ms is not None else DEFAULT_PERIOD_MS}ms for the root"
+               f"period: {root_ms if root_ms is not None else DEFAULT_ROOT_PERIOD_MS}ms for the root"
                + ("" if root_ms is not None else " (none written: the default)")
                + "; a sub-automaton's is written where it differs from its parent's")
         if any(s.child is not None for s in self._states(lg.root)):
