@@ -3,13 +3,17 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import subprocess
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.support import ROOT, Client, Tmux, build_blinker, stop_processes
+
+__all__ = ["ROOT", "examples", "model_language"]
 
 
 @pytest.fixture(autouse=True, scope="session")
@@ -44,3 +48,45 @@ def model_language(model: Path) -> str:
     """The `language:` a model file declares (python when it says none)."""
     m = re.search(r"^language:\s*(\w+)", model.read_text("utf-8"), re.MULTILINE)
     return m.group(1) if m else "python"
+
+
+@pytest.fixture
+def processes() -> Iterator[list[subprocess.Popen[bytes]]]:
+    """Processes a test starts: those still running at its end are killed, all reaped."""
+    made: list[subprocess.Popen[bytes]] = []
+    yield made
+    stop_processes(made)
+
+
+@pytest.fixture
+def tmux() -> Iterator[Callable[..., Tmux]]:
+    """Starts commands in private tmux servers, each killed at the end of the test."""
+    made: list[Tmux] = []
+
+    def start(command: str, cwd: Path, after: str = "") -> Tmux:
+        made.append(Tmux(command, cwd, after))
+        return made[-1]
+
+    yield start
+    for t in made:
+        t.kill()
+
+
+@pytest.fixture
+def clients() -> Iterator[Callable[..., Client]]:
+    """Connects raw monitor clients, each closed at the end of the test."""
+    made: list[Client] = []
+
+    def connect(port: int, **kw: Any) -> Client:
+        made.append(Client(port, **kw))
+        return made[-1]
+
+    yield connect
+    for c in made:
+        c.close()
+
+
+@pytest.fixture(scope="session")
+def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The blinker example's Python component, built once: its main file."""
+    return build_blinker(tmp_path_factory.mktemp("component") / "blinker")

@@ -31,6 +31,7 @@ from pymavlink import mavutil
 
 from hfsmc.emit.mavgen import mavlink_headers
 from tests.conftest import ROOT
+from tests.support import free_port
 
 MAV = mavutil.mavlink
 pytestmark = pytest.mark.timeout(180)
@@ -44,13 +45,6 @@ SAN_ENV = {"ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0",
 
 def mavutil_version() -> str:
     return importlib.metadata.version("pymavlink")
-
-
-def free_port(kind: int = socket.SOCK_DGRAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
 
 
 def tool(name: str) -> str:
@@ -277,7 +271,7 @@ def test_headers_compile_clean_with_I_and_isystem(include: Path, tmp_path: Path)
 # -- the drivers ----------------------------------------------------------------------------
 def test_offline_answers_at_once_and_threads_leave_signals_alone(drivers: Path,
                                                                  tmp_path: Path) -> None:
-    with scenario(drivers, "offline", str(free_port()), tmp_path) as s:
+    with scenario(drivers, "offline", str(free_port(socket.SOCK_DGRAM)), tmp_path) as s:
         err = passed(s, 30)
     assert any(line.startswith("ok: close is prompt") for line in s.out)
     said = err.splitlines()  # the grabber's line comes when it comes
@@ -301,7 +295,7 @@ def test_a_taken_port_is_said_and_exits_1(drivers: Path, tmp_path: Path) -> None
 
 
 def test_flight_in_the_simulator(drivers: Path, tmp_path: Path) -> None:
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     with simulator(tmp_path, port, "--no-camera"), \
             scenario(drivers, "flight", str(port), tmp_path) as s:
         err = passed(s, 90)
@@ -315,7 +309,7 @@ def test_flight_in_the_simulator(drivers: Path, tmp_path: Path) -> None:
 
 
 def test_link_loss_is_seen_and_the_link_comes_back(drivers: Path, tmp_path: Path) -> None:
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     with simulator(tmp_path, port, "--no-camera", "--drop-link-after", "3",
                    "--drop-link-for", "4"), \
             scenario(drivers, "linkloss", str(port), tmp_path) as s:
@@ -325,7 +319,7 @@ def test_link_loss_is_seen_and_the_link_comes_back(drivers: Path, tmp_path: Path
 
 
 def test_garbage_datagrams_do_not_break_the_reader(drivers: Path, tmp_path: Path) -> None:
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     rng = np.random.default_rng(7)
     good = MAV.MAVLink_heartbeat_message(2, 3, 0, 0, 0, 3).pack(MAV.MAVLink(None, 1, 1))
     bad_crc = good[:-1] + bytes([good[-1] ^ 0xFF])
@@ -346,7 +340,7 @@ def test_garbage_datagrams_do_not_break_the_reader(drivers: Path, tmp_path: Path
 
 
 def test_camera_frames_and_recovery_after_a_drop(drivers: Path, tmp_path: Path) -> None:
-    port, camera_port = free_port(), free_port(socket.SOCK_STREAM)
+    port, camera_port = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     url = f"http://127.0.0.1:{camera_port}/bottom.mjpg"
     with simulator(tmp_path, port, "--camera-port", str(camera_port)) as sim, \
             scenario(drivers, "camera", url, tmp_path) as s:

@@ -2,7 +2,7 @@
 speaks the Python monitor's protocol, so `hfsmc view` watches a C++ component, and the
 display prints what the Python display prints.
 
-tests/cpp/observers_main.cpp plays a fixed run of the blinker of tests/test_view.py
+tests/cpp/observers_main.cpp plays a fixed run of the blinker of tests/support.py
 through the observers, as the runtime calls them; it is compiled once per session
 (plain and with ASan/UBSan). Everything on 127.0.0.1 with port 0, bounded in time."""
 
@@ -23,53 +23,20 @@ import socket
 import struct
 import subprocess
 import termios
-import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-import jsonschema
 import pytest
-from referencing import Registry, Resource
 
 from tests.conftest import ROOT
+from tests.support import STRUCTURE, Client
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
 
 pytestmark = pytest.mark.timeout(180)
-
-# The blinker's structure, as tests/cpp/observers_main.cpp gives it (tests/test_view.py's).
-STRUCTURE: dict[str, Any] = {
-    "name": "blinker",
-    "automata": [{"owner": "", "period_ms": 100, "initial": "Blinking", "history": False},
-                 {"owner": "Blinking", "period_ms": 50, "initial": "Lit", "history": True}],
-    "states": [{"path": "Blinking", "final": False, "composite": True},
-               {"path": "Blinking/Lit", "final": False, "composite": False},
-               {"path": "Blinking/Dark", "final": False, "composite": False},
-               {"path": "Paused", "final": False, "composite": False},
-               {"path": "Done", "final": True, "composite": False}],
-    "transitions": [{"from": "Blinking", "to": "Done", "index": 0, "name": "enough"},
-                    {"from": "Blinking", "to": "Paused", "index": 1, "name": "pause"},
-                    {"from": "Blinking/Lit", "to": "Blinking/Dark", "index": 0, "name": None},
-                    {"from": "Blinking/Dark", "to": "Blinking/Lit", "index": 0, "name": None},
-                    {"from": "Paused", "to": "Blinking", "index": 0, "name": "resume"}],
-    "variables": ["led", "count", "pauses"],
-    "parameters": {"blinks": "10"},
-}
-
-
-def _validator() -> Any:
-    schemas = {name: json.loads((ROOT / "schemas" / name).read_text())
-               for name in ("monitor.schema.json", "trace.schema.json")}
-    registry: Registry[Any] = Registry().with_resources(
-        (s["$id"], Resource.from_contents(s)) for s in schemas.values())
-    cls = jsonschema.validators.validator_for(schemas["monitor.schema.json"])
-    return cls(schemas["monitor.schema.json"], registry=registry)
-
-
-VALIDATOR = _validator()
 
 FLAGS = ["-std=c++17", "-Wall", "-Wextra", "-Werror", "-Wpedantic", "-pthread"]
 SANITIZERS = ["-fsanitize=address,undefined", "-fno-omit-frame-pointer", "-fno-sanitize-recover=all", "-g"]
@@ -183,87 +150,6 @@ def record_lines(r: Run, first: int = 0) -> list[bytes]:
             if line.startswith('{"record":')]
 
 
-class Client:
-    """A raw monitor client: JSON lines, each checked against the schema."""
-
-    def __init__(self, port: int, rcvbuf: int | None = None) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        if rcvbuf is not None:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-        self.sock.settimeout(20)
-        self.sock.connect(("127.0.0.1", port))
-        self.stream = self.sock.makefile("rb")
-        self.lines: list[bytes] = []
-        self._reader: threading.Thread | None = None
-
-    def message(self) -> dict[str, Any] | None:
-        line = self.stream.readline()
-        if not line:
-            return None
-        return self._parse(line)
-
-    def _parse(self, line: bytes, validate: bool = True) -> dict[str, Any]:
-        self.lines.append(line)
-        msg = json.loads(line)
-        if validate:
-            VALIDATOR.validate(msg)
-        assert isinstance(msg, dict)
-        return msg
-
-    def until_bye(self) -> list[dict[str, Any]]:
-        """The messages until ``bye``, after which the connection must close."""
-        out: list[dict[str, Any]] = []
-        while (msg := self.message()) is not None:
-            out.append(msg)
-            if msg["type"] == "bye":
-                assert self.stream.readline() == b"", "the connection closes after bye"
-                return out
-        raise AssertionError(f"connection closed without bye after {self.lines[-2:]}")
-
-    def read_fast(self) -> None:
-        """Read everything as fast as it comes, on a thread (checked by ``collected``)."""
-        self._data = b""
-
-        def pump() -> None:
-            with contextlib.suppress(OSError):
-                while chunk := self.stream.read1(1 << 20):
-                    self._data += chunk
-
-        self._reader = threading.Thread(target=pump, daemon=True)
-        self._reader.start()
-
-    def received(self, timeout: float = 30) -> bytes:
-        """What ``read_fast`` read until the connection ended (or ``timeout``)."""
-        assert self._reader is not None
-        self._reader.join(timeout)
-        return self._data
-
-    def collected(self) -> list[dict[str, Any]]:
-        self.received()
-        assert self._data.endswith(b'{"type":"bye","reason":"error"}\n'), self._data[-200:]
-        # Checking all of a burst against the schema would take long: one in a hundred will do.
-        return [self._parse(line, validate=k % 100 == 0 or b"burst " not in line)
-                for k, line in enumerate(self._data.splitlines(keepends=True))]
-
-    def close(self) -> None:
-        self.stream.close()
-        self.sock.close()
-
-
-@pytest.fixture
-def clients() -> Iterator[Callable[..., Client]]:
-    made: list[Client] = []
-
-    def connect(port: int, **kw: Any) -> Client:
-        made.append(Client(port, **kw))
-        return made[-1]
-
-    yield connect
-    for c in made:
-        c.close()
-
-
-# -- addresses ---------------------------------------------------------------------------
 @pytest.mark.parametrize("text", ["8765", "0", ":8765", "0.0.0.0:8765", "localhost:1", "[::1]:65535",
                                   " 80 ", "", "abc", "65536", "-1", "1:2:3", "[::1]8765", "host:",
                                   "\uff18\uff17", "[::1", "a'b", "x\ty"])

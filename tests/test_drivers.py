@@ -16,7 +16,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +26,7 @@ import pytest
 from pymavlink import mavutil
 
 from tests.conftest import ROOT
+from tests.support import free_port, wait_until
 
 hfsmc_mavlink = importlib.import_module("hfsmc.templates.python.hfsmc_mavlink")
 hfsmc_camera = importlib.import_module("hfsmc.templates.python.hfsmc_camera")
@@ -35,23 +36,6 @@ pytestmark = pytest.mark.timeout(60)
 
 GUIDED, LAND, RTL, STABILIZE = 4, 9, 6, 0  # ArduCopter custom modes
 READY_FLAGS = MAV.EKF_ATTITUDE | MAV.EKF_VELOCITY_HORIZ | MAV.EKF_POS_HORIZ_ABS
-
-
-def free_port(kind: int = socket.SOCK_DGRAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
-def wait_until(what: Callable[[], object], timeout: float, step: float = 0.01) -> bool:
-    """Poll until true; whether it became true in time."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if what():
-            return True
-        time.sleep(step)
-    return bool(what())
 
 
 # -- a fake vehicle ------------------------------------------------------------------------
@@ -167,7 +151,7 @@ class FakeVehicle:
 @pytest.fixture
 def link() -> Iterator[tuple[Any, FakeVehicle]]:
     """A vehicle interface connected to a fake vehicle."""
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
     fake = FakeVehicle(port)
     try:
@@ -180,7 +164,7 @@ def link() -> Iterator[tuple[Any, FakeVehicle]]:
 
 # -- the mavlink interface ------------------------------------------------------------------
 def test_before_any_vehicle_everything_answers_at_once(capsys: pytest.CaptureFixture[str]) -> None:
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port()}", {})
+    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port(socket.SOCK_DGRAM)}", {})
     try:
         assert not drone.connected() and not drone.ready() and not drone.armed()
         assert drone.heartbeat_age() == math.inf
@@ -400,7 +384,7 @@ def test_queries_and_commands_never_touch_the_socket(link: tuple[Any, FakeVehicl
 
 
 def test_gcs_heartbeats_do_not_count_as_the_vehicle() -> None:
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
     gcs: Any = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255)
     try:
@@ -414,7 +398,7 @@ def test_gcs_heartbeats_do_not_count_as_the_vehicle() -> None:
 
 
 def test_close_frees_the_port_and_a_taken_port_is_said(capsys: pytest.CaptureFixture[str]) -> None:
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {"rate": "50"})
     drone.close()
     assert not drone._thread.is_alive()
@@ -427,7 +411,7 @@ def test_close_frees_the_port_and_a_taken_port_is_said(capsys: pytest.CaptureFix
 
 
 def test_bad_options_are_said_and_replaced(capsys: pytest.CaptureFixture[str]) -> None:
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port()}",
+    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port(socket.SOCK_DGRAM)}",
                                   {"rate": "fast", "colour": "red"})
     drone.close()
     assert capsys.readouterr().err.splitlines() == [
@@ -617,7 +601,7 @@ def build_probe(tmp_path: Path, port: int) -> Path:
 
 
 def test_generated_component_waits_for_ready_then_takes_off(tmp_path: Path) -> None:
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     main = build_probe(tmp_path, port)
     fake = FakeVehicle(port, heartbeat_s=0.5, ekf_flags=MAV.EKF_ATTITUDE, ready_after=1.0)
     try:
@@ -658,7 +642,7 @@ def test_generated_component_waits_for_ready_then_takes_off(tmp_path: Path) -> N
 # -- against the simulator -------------------------------------------------------------------
 def test_takeoff_to_three_metres_and_land_in_the_simulator(tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]) -> None:
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     truth = tmp_path / "truth.json"
     drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
     with (tmp_path / "sim.log").open("w") as log:

@@ -42,6 +42,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from tests.conftest import ROOT
+from tests.support import free_port, wait_until
 from tests.test_cpp_drivers import FLAGS, SAN_ENV, SANITIZE, tool, write_include
 
 hfsmc_mavlink = importlib.import_module("hfsmc.templates.python.hfsmc_mavlink")
@@ -52,22 +53,6 @@ ARM, TAKEOFF = 400, 22  # MAV_CMD_COMPONENT_ARM_DISARM, MAV_CMD_NAV_TAKEOFF
 STABILIZE, GUIDED = 0, 4
 SAFETY_ARMED = 128
 FIGURES: list[str] = []  # printed at the end of each test (pytest -s shows them)
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
-def wait_until(what: Callable[[], object], timeout: float, step: float = 0.02) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if what():
-            return True
-        time.sleep(step)
-    return bool(what())
 
 
 def figure(text: str) -> None:
@@ -592,7 +577,7 @@ def test_a_flight_through_duplicating_and_reordering_links(
     """Every command and every acknowledgement duplicated, 15 % of the other
     datagrams too, 15 % of all held back behind the next one, both ways: each
     outcome is said once, state only goes forward, the vehicle flies once."""
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     drone = make_drone(which, port)
     with Proxy(port, seed=20261121, dup=0.15, swap=0.15,
                always_dup=("COMMAND_LONG", "COMMAND_ACK")) as proxy:
@@ -639,7 +624,7 @@ def test_late_duplicates_do_not_roll_state_or_acks_back(
     state back; a refusal of `arm` replayed after the next arm was sent must not
     become that command's answer (each datagram replayed is a copy of one the
     vehicle sent, same sequence number, within 128 messages of it)."""
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     drone = make_drone(which, port)
     wrong: list[str] = []
     with LateReplay(port) as proxy:
@@ -689,7 +674,7 @@ def test_a_restarted_simulator_is_taken_back_and_flown(
     on the same port, booting for 3 s: the link is said lost and back, the new
     vehicle is seen as it is (STABILIZE, disarmed, on the ground, not ready
     until it is), and flown: GUIDED, arm, take-off to 2 m, land."""
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     drone = make_drone(which, port)
     first = sims("first", port)
     first.wait_up()
@@ -750,7 +735,7 @@ def test_ready_waits_for_the_restarted_vehicles_own_status(
     """After a restart, ready() must stay false until the new vehicle says it is
     ready: its first GPS_RAW_INT and EKF_STATUS_REPORT come 1.5 s after its
     first HEARTBEAT (Withhold), and it boots for 3 s."""
-    port = free_port()
+    port = free_port(socket.SOCK_DGRAM)
     drone = make_drone(which, port)
     with Withhold(port, for_s=1.5) as proxy:
         first = sims("first", proxy.port)

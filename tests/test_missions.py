@@ -23,6 +23,7 @@ import pytest
 
 from tests.conftest import ROOT
 from tests.cppbuild import need_toolchain
+from tests.support import free_port
 
 HFSMC = [sys.executable, "-m", "hfsmc"]
 FOLLOW = ROOT / "examples/follow_colors"
@@ -30,12 +31,6 @@ FOLLOW_CPP = ROOT / "examples/follow_colors_cpp"
 CPP_BUILD_TIMEOUT = 900  # s: CMake and g++ on a loaded 2-core machine take 1-2 min, at times far more
 # The tests flown by both components; the first C++ one also waits for the compiler.
 LANGUAGES = ["python", pytest.param("cpp", marks=pytest.mark.timeout(CPP_BUILD_TIMEOUT + 300))]
-
-
-def free_port(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @dataclass

@@ -6,7 +6,6 @@ from __future__ import annotations
 import contextlib
 import importlib
 import io
-import json
 import os
 import re
 import signal
@@ -20,33 +19,18 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-import jsonschema
 import pytest
-from referencing import Registry, Resource
 
-from hfsmc.compiler import compile_file
+from hfsmc.pipeline import compile_file
 from hfsmc.viewer import structure_of, view
 from tests.conftest import ROOT
-from tests.test_view import GREEN, RECORDS, STRUCTURE, Tmux, build_blinker, py
+from tests.support import GREEN, RECORDS, STRUCTURE, Client, Tmux, py
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
 MonitorServer = hfsmc_monitor.MonitorServer
 
 pytestmark = pytest.mark.timeout(60)
-
-
-def _validator() -> jsonschema.protocols.Validator:
-    schemas = {name: json.loads((ROOT / "schemas" / name).read_text())
-               for name in ("monitor.schema.json", "trace.schema.json")}
-    registry: Registry[Any] = Registry().with_resources(
-        (s["$id"], Resource.from_contents(s)) for s in schemas.values())
-    cls = jsonschema.validators.validator_for(schemas["monitor.schema.json"])
-    cls.check_schema(schemas["monitor.schema.json"])
-    return cls(schemas["monitor.schema.json"], registry=registry)
-
-
-VALIDATOR = _validator()
 
 
 # -- addresses ---------------------------------------------------------------------------
@@ -75,49 +59,6 @@ def test_ipv6_addresses_are_written_in_brackets() -> None:
 
 
 # -- the server, driven like the runtime drives it -----------------------------------------
-class Client:
-    """A raw monitor client that checks every message against the schema."""
-
-    def __init__(self, port: int, rcvbuf: int | None = None) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        if rcvbuf is not None:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
-        self.sock.settimeout(10)
-        self.sock.connect(("127.0.0.1", port))
-        self.stream = self.sock.makefile("rb")
-
-    def message(self) -> dict[str, Any] | None:
-        line = self.stream.readline()
-        if not line:
-            return None
-        msg = json.loads(line)
-        VALIDATOR.validate(msg)
-        assert isinstance(msg, dict)
-        return msg
-
-    def until(self, last: Callable[[dict[str, Any]], bool]) -> list[dict[str, Any]]:
-        out: list[dict[str, Any]] = []
-        while True:
-            msg = self.message()
-            assert msg is not None, f"connection closed after {out[-3:]}"
-            out.append(msg)
-            if last(msg):
-                return out
-
-    def gone(self) -> bool:
-        """The server closed (or reset) the connection; data still queued is read first."""
-        try:
-            while self.stream.readline():
-                pass
-        except OSError:
-            pass
-        return True
-
-    def close(self) -> None:
-        self.stream.close()
-        self.sock.close()
-
-
 @pytest.fixture
 def server() -> Iterator[Callable[..., Any]]:
     made: list[Any] = []
@@ -129,19 +70,6 @@ def server() -> Iterator[Callable[..., Any]]:
     yield make
     for s in made:
         s.close()
-
-
-@pytest.fixture
-def clients() -> Iterator[Callable[..., Client]]:
-    made: list[Client] = []
-
-    def connect(port: int, **kw: Any) -> Client:
-        made.append(Client(port, **kw))
-        return made[-1]
-
-    yield connect
-    for c in made:
-        c.close()
 
 
 def is_record(ev: str) -> Callable[[dict[str, Any]], bool]:
@@ -458,24 +386,6 @@ def test_view_reports_a_refused_connection(capsys: pytest.CaptureFixture[str]) -
 
 
 # -- a real component ------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_blinker(tmp_path_factory.mktemp("component") / "blinker")
-
-
-@pytest.fixture
-def tmux() -> Iterator[Callable[..., Tmux]]:
-    made: list[Tmux] = []
-
-    def start(command: str, cwd: Path) -> Tmux:
-        made.append(Tmux(command, cwd))
-        return made[-1]
-
-    yield start
-    for t in made:
-        t.kill()
-
-
 class Component:
     """The blinker running with --monitor 0; its port read from its stderr."""
 

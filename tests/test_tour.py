@@ -45,7 +45,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import ROOT
-from tests.test_view import Tmux
+from tests.support import Tmux, free_port, wait_for_line
 
 ACTIVE = re.compile(r"● \w+")  # the live tree shows an active state
 # A state a --display run must reach before the test presses Ctrl+C, by model.
@@ -84,12 +84,6 @@ def test_the_tour_is_found() -> None:
     commands = [c for b in BLOCKS for c in b.commands]
     assert commands[0] == ". .venv/bin/activate"
     assert any(c.startswith("hfsmc view --replay") for c in commands)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def port_free(kind: str, port: int) -> bool:
@@ -157,18 +151,6 @@ def stop_background(copy: Copy) -> list[str]:
     return problems
 
 
-def wait_for(log: Path, pattern: re.Pattern[str], proc: subprocess.Popen[bytes],
-             timeout: float) -> str:
-    deadline = time.monotonic() + timeout
-    while True:
-        text = log.read_text("utf-8", errors="replace") if log.exists() else ""
-        if pattern.search(text):
-            return text
-        if proc.poll() is not None or time.monotonic() > deadline:
-            raise AssertionError(f"no {pattern.pattern!r} (exit {proc.poll()}):\n{text}")
-        time.sleep(0.1)
-
-
 # -- the runners -----------------------------------------------------------------------------
 
 def run_to_completion(copy: Copy, command: str) -> None:
@@ -197,7 +179,7 @@ def start_in_background(copy: Copy, command: str) -> None:
                                 start_new_session=True)
     copy.background.append((command, proc, log))
     if "--monitor" in command:  # a person types the next command slower than a test does
-        wait_for(log, re.compile(r"monitor: listening on"), proc, timeout=60)
+        wait_for_line(log, re.compile(r"monitor: listening on"), proc, timeout=60, step=0.1)
     time.sleep(1.0)
     assert proc.poll() is None, f"`{command}` ended at once:\n{log.read_text(errors='replace')}"
 
@@ -224,7 +206,8 @@ def attach_a_viewer(copy: Copy, command: str) -> None:
                                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=True)
     try:
-        text = wait_for(log, re.compile(r"^\s*[\d.]+\s+(start \w+ )?in \w", re.M), proc, timeout=60)
+        text = wait_for_line(log, re.compile(r"^\s*[\d.]+\s+(start \w+ )?in \w", re.M), proc,
+                             timeout=60, step=0.1).string
         assert "hfsmc view: connected to 127.0.0.1:" in text, text
     finally:
         if proc.poll() is None:
@@ -241,13 +224,15 @@ def serve_a_web_view(copy: Copy, command: str) -> None:
                                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=True)
     try:
-        text = wait_for(log, re.compile(r"web view on (http://127\.0\.0\.1:\d+/)"), proc, timeout=60)
+        text = wait_for_line(log, re.compile(r"web view on (http://127\.0\.0\.1:\d+/)"), proc,
+                             timeout=60, step=0.1).string
         url = re.search(r"web view on (http://\S+/)", text)
         assert url, text
         with urllib.request.urlopen(url.group(1), timeout=10) as page:
             assert page.status == 200 and b"<html" in page.read().lower()
         if "--replay" not in command:
-            wait_for(log, re.compile(r"hfsmc view: connected to 127\.0\.0\.1:"), proc, timeout=30)
+            wait_for_line(log, re.compile(r"hfsmc view: connected to 127\.0\.0\.1:"), proc,
+                          timeout=30, step=0.1)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGINT)

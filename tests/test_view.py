@@ -3,76 +3,28 @@ component's --display as a person sees it (run in tmux, read with capture-pane).
 
 from __future__ import annotations
 
-import contextlib
 import importlib
 import io
 import json
-import os
 import re
-import shlex
-import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
-from itertools import count
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
 from rich.console import Console
 
-from hfsmc.compiler import compile_file
+from hfsmc.pipeline import compile_file
 from hfsmc.viewer import structure_of, view
-from tests.conftest import ROOT
+from tests.support import BLINKER, GREEN, RECORDS, STRUCTURE, TRACE, Tmux, py
 
 # The component's own module, shipped in the data package hfsmc.templates.
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
 Display, PlainLines, ViewState, render = (hfsmc_view.Display, hfsmc_view.PlainLines,
                                           hfsmc_view.ViewState, hfsmc_view.render)
-
-BLINKER = "examples/blinker/blinker.yaml"
-
-STRUCTURE: dict[str, Any] = {
-    "name": "blinker",
-    "automata": [{"owner": "", "period_ms": 100, "initial": "Blinking", "history": False},
-                 {"owner": "Blinking", "period_ms": 50, "initial": "Lit", "history": True}],
-    "states": [{"path": "Blinking", "final": False, "composite": True},
-               {"path": "Blinking/Lit", "final": False, "composite": False},
-               {"path": "Blinking/Dark", "final": False, "composite": False},
-               {"path": "Paused", "final": False, "composite": False},
-               {"path": "Done", "final": True, "composite": False}],
-    "transitions": [{"from": "Blinking", "to": "Done", "index": 0, "name": "enough"},
-                    {"from": "Blinking", "to": "Paused", "index": 1, "name": "pause"},
-                    {"from": "Blinking/Lit", "to": "Blinking/Dark", "index": 0, "name": None},
-                    {"from": "Blinking/Dark", "to": "Blinking/Lit", "index": 0, "name": None},
-                    {"from": "Paused", "to": "Blinking", "index": 0, "name": "resume"}],
-    "variables": ["led", "count", "pauses"],
-    "parameters": {"blinks": "10"},
-}
-
-# The blinker's trace until it is interrupted while paused (SPEC 3.7 records).
-TRACE = """\
-{"t":0,"ev":"start","name":"blinker"}
-{"t":0,"ev":"enter","state":"Blinking"}
-{"t":0,"ev":"enter","state":"Blinking/Lit"}
-{"t":500,"ev":"fire","from":"Blinking/Lit","to":"Blinking/Dark","index":0}
-{"t":500,"ev":"exit","state":"Blinking/Lit"}
-{"t":500,"ev":"enter","state":"Blinking/Dark"}
-{"t":3000,"ev":"fire","from":"Blinking","to":"Paused","index":1}
-{"t":3000,"ev":"exit","state":"Blinking/Dark"}
-{"t":3000,"ev":"exit","state":"Blinking"}
-{"t":3000,"ev":"enter","state":"Paused"}
-{"t":3000,"ev":"log","state":"Paused","msg":"paused with the LED off"}
-{"t":3200,"ev":"interrupt","reason":"sigint","to":"Done"}
-{"t":3200,"ev":"exit","state":"Paused"}
-{"t":3200,"ev":"enter","state":"Done"}
-{"t":3200,"ev":"exit","state":"Done"}
-{"t":3200,"ev":"log","state":"","msg":"stopped after 1 blinks and 1 pauses"}
-{"t":3200,"ev":"stop","reason":"sigint"}
-"""
-RECORDS: list[dict[str, Any]] = [json.loads(line) for line in TRACE.splitlines()]
-
 
 def fed(records: list[dict[str, Any]], structure: dict[str, Any] | None = STRUCTURE) -> ViewState:
     v = ViewState(structure)
@@ -285,9 +237,6 @@ def test_display_calls_do_not_wait_for_a_blocked_stream() -> None:
 
 
 # -- the rich screen -----------------------------------------------------------------------
-GREEN = r"\x1b\[(?:[0-9;]*;)?32m(?:\x1b\[[0-9;]*m)*"  # green foreground, then maybe other SGRs
-
-
 def screen(v: ViewState, width: int = 120, color: bool = False, **kw: Any) -> str:
     console = Console(file=io.StringIO(), width=width, force_terminal=color,
                       color_system="standard" if color else None, legacy_windows=False)
@@ -472,78 +421,6 @@ def test_structure_of_a_model_matches_the_runtime_shape() -> None:
 
 
 # -- as a person sees it: tmux -----------------------------------------------------------------
-_sessions = count()
-
-
-class Tmux:
-    """A private tmux server (its own socket) running one command in a 120x40 pane."""
-
-    def __init__(self, command: str, cwd: Path, after: str = "") -> None:
-        self.socket = f"test-{os.getpid()}-{next(_sessions)}"
-        env = {k: v for k, v in os.environ.items() if k not in ("NO_COLOR", "TMUX")}
-        env["TERM"] = "xterm-256color"
-        self._run("-f", "/dev/null", "new-session", "-d", "-x", "120", "-y", "40",
-                  f"cd {shlex.quote(str(cwd))} && {command}; echo EXIT=$?; {after or ':'}; sleep 60",
-                  env=env)
-        self.path = self._run("display-message", "-p", "#{socket_path}").strip()
-
-    def _run(self, *args: str, env: dict[str, str] | None = None) -> str:
-        r = subprocess.run(["tmux", "-u", "-L", self.socket, *args], capture_output=True, text=True,
-                           timeout=10, env=env, stdin=subprocess.DEVNULL, check=True)
-        return r.stdout
-
-    def screen(self, colors: bool = False) -> str:
-        return self._run("capture-pane", "-p", *(["-e"] if colors else []))
-
-    def keys(self, *keys: str) -> None:
-        self._run("send-keys", *keys)
-
-    def wait(self, found: Callable[[str], bool], timeout: float = 15, colors: bool = False) -> str:
-        deadline = time.monotonic() + timeout
-        while True:
-            text = self.screen(colors)
-            if found(text):
-                return text
-            if time.monotonic() > deadline:
-                raise AssertionError(f"not on the screen after {timeout}s:\n{text}")
-            time.sleep(0.1)
-
-    def kill(self) -> None:
-        subprocess.run(["tmux", "-L", self.socket, "kill-server"], capture_output=True, timeout=10,
-                       stdin=subprocess.DEVNULL, check=False)
-        with contextlib.suppress(OSError):  # the server leaves its socket file behind
-            os.unlink(self.path)
-
-
-@pytest.fixture
-def tmux() -> Iterator[Callable[..., Tmux]]:
-    made: list[Tmux] = []
-
-    def start(command: str, cwd: Path, after: str = "") -> Tmux:
-        made.append(Tmux(command, cwd, after))
-        return made[-1]
-
-    yield start
-    for t in made:
-        t.kill()
-
-
-def build_blinker(out: Path) -> Path:
-    """The real blinker component, built with `hfsmc build`; its main file."""
-    subprocess.run([sys.executable, "-m", "hfsmc", "build", "-t", "python", BLINKER, "-o", str(out)],
-                   cwd=ROOT, check=True, capture_output=True, timeout=120, stdin=subprocess.DEVNULL)
-    return out / "blinker.py"
-
-
-@pytest.fixture(scope="module")
-def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_blinker(tmp_path_factory.mktemp("component") / "blinker")
-
-
-def py(*args: object) -> str:
-    return " ".join(shlex.quote(str(a)) for a in (sys.executable, *args))
-
-
 @pytest.mark.timeout(60)
 def test_component_display_in_a_terminal(tmux: Callable[..., Tmux], blinker: Path,
                                          tmp_path: Path) -> None:

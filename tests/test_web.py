@@ -23,14 +23,14 @@ from typing import Any
 
 import pytest
 
-from hfsmc.compiler import compile_file
+from hfsmc.pipeline import compile_file
 from hfsmc.viewer import structure_of, view
 from hfsmc.web.bridge import Bridge, Page, Picture
 from hfsmc.web.picture import model_from_structure, svg_of
 from hfsmc.web.replay import Replay, active_at
 from hfsmc.web.server import listen, make_app, painter
 from tests.conftest import ROOT
-from tests.test_view import BLINKER, RECORDS, STRUCTURE, build_blinker
+from tests.support import BLINKER, RECORDS, STRUCTURE, build_blinker
 
 monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 

@@ -1,4 +1,4 @@
-// Plays a fixed run of a small two-level automaton (the blinker of tests/test_view.py)
+// Plays a fixed run of a small two-level automaton (the blinker of tests/support.py)
 // through the C++ observers, as the runtime would call them, for tests/test_cpp_observers.py.
 //
 //   observers_main [--monitor ADDR] [--display] [--focus PATH] [--no-autofocus]

@@ -1,0 +1,313 @@
+"""Helpers the test files share: free ports, waiting, processes, a tmux screen, traces,
+the monitor's clients, and the blinker example's structure and trace.
+
+Fixtures built on them (``processes``, ``tmux``, ``clients``) are in tests/conftest.py.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import shlex
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from itertools import count
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+from referencing import Registry, Resource
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+# -- ports and waiting ------------------------------------------------------------------------
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    """A port of 127.0.0.1 that was free a moment ago (TCP, or UDP with SOCK_DGRAM)."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_until(what: Callable[[], object], timeout: float, step: float = 0.01) -> bool:
+    """Poll until true; whether it became true in time."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if what():
+            return True
+        time.sleep(step)
+    return bool(what())
+
+
+def wait_for_line(path: Path, pattern: str | re.Pattern[str], proc: subprocess.Popen[bytes],
+                  timeout: float = 60, step: float = 0.005) -> re.Match[str]:
+    """Poll a growing file (a process's log) until ``pattern`` matches in it, a line at a time
+    with a str pattern; fails when the process ends first or ``timeout`` seconds pass.
+    The match's ``.string`` is the whole text read."""
+    found = re.compile(pattern, re.M) if isinstance(pattern, str) else pattern
+    deadline = time.monotonic() + timeout
+    while True:
+        text = path.read_text("utf-8", "replace") if path.exists() else ""
+        m = found.search(text)
+        if m:
+            return m
+        if proc.poll() is not None or time.monotonic() > deadline:
+            raise AssertionError(f"no {found.pattern!r} (exit {proc.poll()}):\n{text[-3000:]}")
+        time.sleep(step)
+
+
+def stop_processes(made: list[subprocess.Popen[bytes]]) -> None:
+    """Kill what still runs of ``made`` and reap every one (bounded in time)."""
+    for p in made:
+        if p.poll() is None:
+            p.kill()
+        p.wait(10)
+
+
+def hfsmc(*args: str, cwd: Path = ROOT, timeout: float = 120,
+          ) -> subprocess.CompletedProcess[str]:
+    """`hfsmc ARGS` run by this interpreter, its output captured."""
+    return subprocess.run([sys.executable, "-m", "hfsmc", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+
+
+def py(*args: object) -> str:
+    """A shell command line running this interpreter with ``args``."""
+    return " ".join(shlex.quote(str(a)) for a in (sys.executable, *args))
+
+
+# -- traces -------------------------------------------------------------------------------------
+def records(trace: str) -> list[dict[str, Any]]:
+    """Every line of a trace is one JSON object (a line that is not fails the test)."""
+    out = []
+    for n, line in enumerate(trace.splitlines(), 1):
+        rec = json.loads(line)
+        assert isinstance(rec, dict) and "ev" in rec, f"trace line {n}: {line!r}"
+        out.append(rec)
+    return out
+
+
+def check_nesting(recs: list[dict[str, Any]]) -> None:
+    """Enters and exits nest (a state is entered inside an active parent, exited when
+    active and after its active children); times never go back; one `stop`, the last."""
+    assert recs and recs[0]["ev"] == "start", recs[:1]
+    assert recs[-1]["ev"] == "stop", recs[-1:]
+    assert [r["ev"] for r in recs].count("stop") == 1
+    assert [r["t"] for r in recs] == sorted(r["t"] for r in recs)
+    active: set[str] = set()
+    for r in recs:
+        path = r.get("state", "")
+        if r["ev"] == "enter":
+            parent = path.rpartition("/")[0]
+            assert path not in active and (not parent or parent in active), (r, active)
+            active.add(path)
+        elif r["ev"] == "exit":
+            assert path in active, (r, active)
+            assert not any(a.startswith(path + "/") for a in active), (r, active)
+            active.remove(path)
+
+
+# -- the blinker example: its structure and a trace ---------------------------------------------
+BLINKER = "examples/blinker/blinker.yaml"
+
+# The blinker's structure, as the monitor sends it (tests/cpp/observers_main.cpp gives the same).
+STRUCTURE: dict[str, Any] = {
+    "name": "blinker",
+    "automata": [{"owner": "", "period_ms": 100, "initial": "Blinking", "history": False},
+                 {"owner": "Blinking", "period_ms": 50, "initial": "Lit", "history": True}],
+    "states": [{"path": "Blinking", "final": False, "composite": True},
+               {"path": "Blinking/Lit", "final": False, "composite": False},
+               {"path": "Blinking/Dark", "final": False, "composite": False},
+               {"path": "Paused", "final": False, "composite": False},
+               {"path": "Done", "final": True, "composite": False}],
+    "transitions": [{"from": "Blinking", "to": "Done", "index": 0, "name": "enough"},
+                    {"from": "Blinking", "to": "Paused", "index": 1, "name": "pause"},
+                    {"from": "Blinking/Lit", "to": "Blinking/Dark", "index": 0, "name": None},
+                    {"from": "Blinking/Dark", "to": "Blinking/Lit", "index": 0, "name": None},
+                    {"from": "Paused", "to": "Blinking", "index": 0, "name": "resume"}],
+    "variables": ["led", "count", "pauses"],
+    "parameters": {"blinks": "10"},
+}
+
+# The blinker's trace until it is interrupted while paused (docs/semantics.md's records).
+TRACE = """\
+{"t":0,"ev":"start","name":"blinker"}
+{"t":0,"ev":"enter","state":"Blinking"}
+{"t":0,"ev":"enter","state":"Blinking/Lit"}
+{"t":500,"ev":"fire","from":"Blinking/Lit","to":"Blinking/Dark","index":0}
+{"t":500,"ev":"exit","state":"Blinking/Lit"}
+{"t":500,"ev":"enter","state":"Blinking/Dark"}
+{"t":3000,"ev":"fire","from":"Blinking","to":"Paused","index":1}
+{"t":3000,"ev":"exit","state":"Blinking/Dark"}
+{"t":3000,"ev":"exit","state":"Blinking"}
+{"t":3000,"ev":"enter","state":"Paused"}
+{"t":3000,"ev":"log","state":"Paused","msg":"paused with the LED off"}
+{"t":3200,"ev":"interrupt","reason":"sigint","to":"Done"}
+{"t":3200,"ev":"exit","state":"Paused"}
+{"t":3200,"ev":"enter","state":"Done"}
+{"t":3200,"ev":"exit","state":"Done"}
+{"t":3200,"ev":"log","state":"","msg":"stopped after 1 blinks and 1 pauses"}
+{"t":3200,"ev":"stop","reason":"sigint"}
+"""
+RECORDS: list[dict[str, Any]] = [json.loads(line) for line in TRACE.splitlines()]
+
+GREEN = r"\x1b\[(?:[0-9;]*;)?32m(?:\x1b\[[0-9;]*m)*"  # green foreground, then maybe other SGRs
+
+
+def build_blinker(out: Path) -> Path:
+    """The real blinker component, built with `hfsmc build`; its main file."""
+    subprocess.run([sys.executable, "-m", "hfsmc", "build", "-t", "python", BLINKER, "-o", str(out)],
+                   cwd=ROOT, check=True, capture_output=True, timeout=120, stdin=subprocess.DEVNULL)
+    return out / "blinker.py"
+
+
+# -- the monitor's protocol -----------------------------------------------------------------------
+def _monitor_validator() -> Any:
+    schemas = {name: json.loads((ROOT / "schemas" / name).read_text())
+               for name in ("monitor.schema.json", "trace.schema.json")}
+    registry: Registry[Any] = Registry().with_resources(
+        (s["$id"], Resource.from_contents(s)) for s in schemas.values())
+    cls = jsonschema.validators.validator_for(schemas["monitor.schema.json"])
+    cls.check_schema(schemas["monitor.schema.json"])
+    return cls(schemas["monitor.schema.json"], registry=registry)
+
+
+# Checks a monitor message (schemas/monitor.schema.json, which refers to the trace's schema).
+MONITOR_VALIDATOR = _monitor_validator()
+
+
+class Client:
+    """A raw monitor client: JSON lines, each checked against the schema."""
+
+    def __init__(self, port: int, rcvbuf: int | None = None, timeout: float = 20) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        if rcvbuf is not None:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        self.sock.settimeout(timeout)
+        self.sock.connect(("127.0.0.1", port))
+        self.stream = self.sock.makefile("rb")
+        self.lines: list[bytes] = []
+        self._reader: threading.Thread | None = None
+        self._data = b""
+
+    def message(self) -> dict[str, Any] | None:
+        line = self.stream.readline()
+        if not line:
+            return None
+        return self._parse(line)
+
+    def _parse(self, line: bytes, validate: bool = True) -> dict[str, Any]:
+        self.lines.append(line)
+        msg = json.loads(line)
+        if validate:
+            MONITOR_VALIDATOR.validate(msg)
+        assert isinstance(msg, dict)
+        return msg
+
+    def until(self, last: Callable[[dict[str, Any]], bool]) -> list[dict[str, Any]]:
+        """The messages up to the first for which ``last`` is true."""
+        out: list[dict[str, Any]] = []
+        while True:
+            msg = self.message()
+            assert msg is not None, f"connection closed after {out[-3:]}"
+            out.append(msg)
+            if last(msg):
+                return out
+
+    def until_bye(self) -> list[dict[str, Any]]:
+        """The messages until ``bye``, after which the connection must close."""
+        out: list[dict[str, Any]] = []
+        while (msg := self.message()) is not None:
+            out.append(msg)
+            if msg["type"] == "bye":
+                assert self.stream.readline() == b"", "the connection closes after bye"
+                return out
+        raise AssertionError(f"connection closed without bye after {self.lines[-2:]}")
+
+    def gone(self) -> bool:
+        """The server closed (or reset) the connection; data still queued is read first."""
+        try:
+            while self.stream.readline():
+                pass
+        except OSError:
+            pass
+        return True
+
+    def read_fast(self) -> None:
+        """Read everything as fast as it comes, on a thread (checked by ``collected``)."""
+        self._data = b""
+
+        def pump() -> None:
+            with contextlib.suppress(OSError):
+                while chunk := self.stream.read1(1 << 20):
+                    self._data += chunk
+
+        self._reader = threading.Thread(target=pump, daemon=True)
+        self._reader.start()
+
+    def received(self, timeout: float = 30) -> bytes:
+        """What ``read_fast`` read until the connection ended (or ``timeout``)."""
+        assert self._reader is not None
+        self._reader.join(timeout)
+        return self._data
+
+    def collected(self) -> list[dict[str, Any]]:
+        self.received()
+        assert self._data.endswith(b'{"type":"bye","reason":"error"}\n'), self._data[-200:]
+        # Checking all of a burst against the schema would take long: one in a hundred will do.
+        return [self._parse(line, validate=k % 100 == 0 or b"burst " not in line)
+                for k, line in enumerate(self._data.splitlines(keepends=True))]
+
+    def close(self) -> None:
+        self.stream.close()
+        self.sock.close()
+
+
+# -- as a person sees it: tmux ------------------------------------------------------------------
+_sessions = count()
+
+
+class Tmux:
+    """A private tmux server (its own socket) running one command in a 120x40 pane."""
+
+    def __init__(self, command: str, cwd: Path, after: str = "") -> None:
+        self.socket = f"test-{os.getpid()}-{next(_sessions)}"
+        env = {k: v for k, v in os.environ.items() if k not in ("NO_COLOR", "TMUX")}
+        env["TERM"] = "xterm-256color"
+        self._run("-f", "/dev/null", "new-session", "-d", "-x", "120", "-y", "40",
+                  f"cd {shlex.quote(str(cwd))} && {command}; echo EXIT=$?; {after or ':'}; sleep 60",
+                  env=env)
+        self.path = self._run("display-message", "-p", "#{socket_path}").strip()
+
+    def _run(self, *args: str, env: dict[str, str] | None = None) -> str:
+        r = subprocess.run(["tmux", "-u", "-L", self.socket, *args], capture_output=True, text=True,
+                           timeout=10, env=env, stdin=subprocess.DEVNULL, check=True)
+        return r.stdout
+
+    def screen(self, colors: bool = False) -> str:
+        return self._run("capture-pane", "-p", *(["-e"] if colors else []))
+
+    def keys(self, *keys: str) -> None:
+        self._run("send-keys", *keys)
+
+    def wait(self, found: Callable[[str], bool], timeout: float = 15, colors: bool = False) -> str:
+        deadline = time.monotonic() + timeout
+        while True:
+            text = self.screen(colors)
+            if found(text):
+                return text
+            if time.monotonic() > deadline:
+                raise AssertionError(f"not on the screen after {timeout}s:\n{text}")
+            time.sleep(0.1)
+
+    def kill(self) -> None:
+        subprocess.run(["tmux", "-L", self.socket, "kill-server"], capture_output=True, timeout=10,
+                       stdin=subprocess.DEVNULL, check=False)
+        with contextlib.suppress(OSError):  # the server leaves its socket file behind
+            os.unlink(self.path)
