@@ -7,7 +7,7 @@ with two transitions per state (one ``when``, one ``after``), code in ``entry``
 and ``during``, a few variables, parameters and a helper function, is written
 to ``bench/_work/``.  For each size the script times, best of k:
 
-* ``check``: :func:`hfsmc.compiler.compile_file` in this process (parse,
+* ``check``: :func:`hfsmc.pipeline.compile_file` in this process (parse,
   validate, build, lower and every check pass);
 * ``parse``: ``YAML(typ="rt").load(text)``, the bare ruamel.yaml round-trip
   load that hfsmc's YAML front end is built on;
@@ -17,7 +17,7 @@ to ``bench/_work/``.  For each size the script times, best of k:
 It reports check/parse (target <= 2.5x) and, between sizes, the growth of
 check's time against the growth of the model (target: 10x the states costs
 <= 10x the time).  For the first size it also times each stage of the
-pipeline separately, as :mod:`hfsmc.compiler` chains them, and prints the
+pipeline separately, as :mod:`hfsmc.pipeline` chains them, and prints the
 top functions of a cProfile run, to show where check's time goes.
 
 Usage::
@@ -51,12 +51,11 @@ import report
 from report import hfsmc_revision, loadavg, merge_json, table  # bench/report.py, beside this script
 from ruamel.yaml import YAML
 
-from hfsmc import schema
-from hfsmc.builder import build
-from hfsmc.compiler import compile_file
 from hfsmc.errors import Diagnostics
-from hfsmc.frontend import load, read_text
+from hfsmc.frontend import load, read_text, schema
+from hfsmc.ir_builder import build_ir
 from hfsmc.lower import PASSES
+from hfsmc.pipeline import compile_file
 
 HERE = Path(__file__).resolve().parent
 WORK = HERE / "_work"
@@ -410,8 +409,8 @@ def stage_times(path: Path, repeat: int) -> list[tuple[str, Timing]]:
     t, _ = best_of(repeat, lambda: schema.validate(doc, Diagnostics()))
     out.append(("schema.validate (jsonschema)", t))
 
-    t, model = best_of(repeat, lambda: build(doc, Diagnostics()))
-    out.append(("builder.build (-> IR)", t))
+    t, model = best_of(repeat, lambda: build_ir(doc, Diagnostics()))
+    out.append(("ir_builder.build_ir (-> IR)", t))
 
     rows: list[tuple[str, Timing]] = []
     for npass in PASSES:

@@ -16,10 +16,9 @@ from typing import Any, TypeVar
 
 import click
 
-from hfsmc import __version__
-from hfsmc import completion as complete
-from hfsmc.compiler import Result, compile_file
+from hfsmc import __version__, completion
 from hfsmc.errors import Diagnostic, HfsmcError, UsageError, render_json, render_text
+from hfsmc.pipeline import Result, compile_file
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -90,7 +89,7 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx
     The snippets of a `language: cpp` model are compiled too (g++ -fsyntax-only
     over the generated code; a cache in $HFSMC_CACHE_DIR or ~/.cache/hfsmc/cxx
     keeps that short), unless --no-cxx."""
-    from hfsmc.dump import dump
+    from hfsmc.emit.ir_text import dump
 
     results = [compile_file(m, cxx=not no_cxx) for m in models]
     for note in dict.fromkeys(n for r in results for n in r.notes):
@@ -115,7 +114,7 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="OUT.svg, OUT.png or OUT.dot (default: MODEL's name with .svg).")
 @click.option("--state", "state_path", metavar="PATH", help="Draw only this state's sub-automaton.",
-              shell_complete=complete.complete_state)
+              shell_complete=completion.complete_state)
 @click.option("--rankdir", type=click.Choice(["auto", "LR", "TB"], case_sensitive=False),
               default="auto", show_default=True,
               help="Arrows left to right (LR) or top to bottom (TB); auto: LR when that fits "
@@ -179,16 +178,16 @@ def convert(source: str, output: str, strict: bool) -> None:
 def build(model: str, target: str, output: str | None, compile_: bool, depfile: str | None,
           dump_ir: bool) -> None:
     """Write the component of MODEL: only files whose content changed are rewritten."""
-    from hfsmc import build as builder
+    from hfsmc.component import write_component
 
     result = _compile_or_exit(model)
     assert result.model is not None
     if dump_ir:
-        from hfsmc.dump import dump
+        from hfsmc.emit.ir_text import dump
 
         click.echo(dump(result.model), nl=False)
     folder = Path(output) if output else Path("build") / result.model.name
-    built = builder.build(result.model, target, folder, Path(depfile) if depfile else None)
+    built = write_component(result.model, target, folder, Path(depfile) if depfile else None)
     what = f"{len(built.changed)} of {len(built.files)} file(s) written" if built.changed \
         else "up to date"
     click.echo(f"{built.folder}: {what}; run {built.main}", err=True)
@@ -206,7 +205,7 @@ def build(model: str, target: str, output: str | None, compile_: bool, depfile: 
 
 @main.command(context_settings={"ignore_unknown_options": True})
 @click.argument("model", type=click.Path(dir_okay=False))
-@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=complete.complete_run_args)
+@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=completion.complete_run_args)
 @_guard
 def run(model: str, args: tuple[str, ...]) -> None:
     """Build MODEL's component into a cache and run it with ARGS (after --).
@@ -214,13 +213,13 @@ def run(model: str, args: tuple[str, ...]) -> None:
     A `language: cpp` model is compiled with CMake first (incrementally)."""
     import os
 
-    from hfsmc import build as builder
+    from hfsmc.component import cache_folder, write_component
 
     result = _compile_or_exit(model)
     assert result.model is not None
     target = "cpp" if result.model.language == "cpp" else "python"
-    folder = builder.cache_folder(model, result.model.name + ("-cpp" if target == "cpp" else ""))
-    built = builder.build(result.model, target, folder)
+    folder = cache_folder(model, result.model.name + ("-cpp" if target == "cpp" else ""))
+    built = write_component(result.model, target, folder)
     if target == "cpp":
         from hfsmc.cppcompile import compile_component
 
@@ -245,7 +244,7 @@ def run(model: str, args: tuple[str, ...]) -> None:
               help="With --replay: times real time; 0 shows the end at once. With --web "
                    "--replay: the speed the page starts with.")
 @click.option("--focus", metavar="PATH", help="Show only this state's sub-automaton.",
-              shell_complete=complete.complete_focus)
+              shell_complete=completion.complete_focus)
 @click.option("--no-autofocus", is_flag=True, help="Show every branch, not only the active ones.")
 @click.option("--web", metavar="[HOST:]PORT",
               help="Serve a web page that draws the component live (or plays --replay), on "
@@ -260,9 +259,9 @@ def view(target: str | None, replay: str | None, model: str | None, speed: float
                       model=model, web=web))
 
 
-@main.command(cls=complete.SimCommand,
+@main.command(cls=completion.SimCommand,
               context_settings={"ignore_unknown_options": True, "help_option_names": []})
-@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=complete.complete_sim_args)
+@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=completion.complete_sim_args)
 @_guard
 def sim(args: tuple[str, ...]) -> None:
     """Simulated multicopter (MAVLink over UDP) and its camera (MJPEG over HTTP).

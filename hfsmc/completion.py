@@ -37,7 +37,7 @@ def state_paths(model: str | None) -> list[str]:
     if not model:
         return []
     try:
-        from hfsmc.compiler import compile_file
+        from hfsmc.pipeline import compile_file
 
         result = compile_file(model, cxx=False)  # no g++ run for a Tab
         if result.model is None:

@@ -168,7 +168,7 @@ def _replay(path: str, focus: str | None, autofocus: bool, speed: float, model: 
 
 
 def load_trace(path: str) -> list[dict[str, Any]]:
-    """The records of a trace file (SPEC 3.7); _ViewError at the first bad line."""
+    """The records of a trace file (docs/semantics.md §13); _ViewError at the first bad line."""
     records: list[dict[str, Any]] = []
     try:
         with open(path, encoding="utf-8") as f:
@@ -212,8 +212,8 @@ def _model_structure(path: str) -> dict[str, Any]:
 
 
 def _load_model(path: str, what: str = "the component") -> Model:
-    from hfsmc.compiler import compile_file
     from hfsmc.errors import render_text
+    from hfsmc.pipeline import compile_file
 
     result = compile_file(path)
     if result.model is None or not result.ok:

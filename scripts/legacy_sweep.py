@@ -33,7 +33,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from hfsmc.compiler import Result, compile_file
+from hfsmc.pipeline import Result, compile_file
 
 STAGES = ("convert", "counts", "diagram", "build", "compile")
 

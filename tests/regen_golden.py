@@ -17,11 +17,11 @@ ROOT = Path(__file__).resolve().parent.parent
 GOLDEN = ROOT / "tests" / "golden"
 sys.path.insert(0, str(ROOT))
 
-from hfsmc.compiler import compile_file  # noqa: E402
-from hfsmc.dump import dump  # noqa: E402
 from hfsmc.emit import cpp, python  # noqa: E402
 from hfsmc.emit.dot import to_dot  # noqa: E402
+from hfsmc.emit.ir_text import dump  # noqa: E402
 from hfsmc.ir import Model  # noqa: E402
+from hfsmc.pipeline import compile_file  # noqa: E402
 from tests.conftest import examples, model_language  # noqa: E402
 
 

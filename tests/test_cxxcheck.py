@@ -17,10 +17,10 @@ from click.testing import CliRunner
 
 from hfsmc import cxxcheck
 from hfsmc.cli import main
-from hfsmc.compiler import compile_file
 from hfsmc.cppcompile import messages
 from hfsmc.cppsnippets import tokens
 from hfsmc.errors import Diagnostic
+from hfsmc.pipeline import compile_file
 
 # Each snippet misses its last `;`, or ends early: g++ sees it only at the generated
 # `}` or `)` after the snippet, and hfsmc places it at the end of the snippet's last line.

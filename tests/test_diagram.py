@@ -29,11 +29,11 @@ from click.testing import CliRunner
 from lxml import etree
 
 from hfsmc.cli import main
-from hfsmc.compiler import compile_file
 from hfsmc.durations import format_us
 from hfsmc.emit import dot, dot_layout, dot_text
 from hfsmc.errors import UsageError
 from hfsmc.ir import Automaton, Model, State
+from hfsmc.pipeline import compile_file
 from tests.conftest import examples
 
 ROOT = Path(__file__).resolve().parent.parent

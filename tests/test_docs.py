@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from hfsmc.compiler import compile_file
 from hfsmc.completion import component_flags
+from hfsmc.pipeline import compile_file
 from tests.conftest import ROOT
 
 DOCS = ROOT / "docs"

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from hfsmc.compiler import Result, compile_file
 from hfsmc.durations import format_us, parse_us
 from hfsmc.ir import Model
+from hfsmc.pipeline import Result, compile_file
 
 HEAD = "hfsm: 1\nname: m\n"
 

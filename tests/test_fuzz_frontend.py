@@ -3,7 +3,7 @@
 Two mutators start from the valid examples: (a) text edits (characters, lines,
 tokens, unicode, truncation, YAML tags, anchors and merge keys) and (b) edits
 of the model as data (keys, value types, state names, transition targets),
-dumped back to YAML.  Whatever comes out, :func:`hfsmc.compiler.compile_file`
+dumped back to YAML.  Whatever comes out, :func:`hfsmc.pipeline.compile_file`
 must return diagnostics, never raise; every diagnostic has a known code and a
 position inside the text, whose line is the one shown under it; and a result
 with errors has no model.
@@ -25,8 +25,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from ruamel.yaml import YAML
 
-from hfsmc.compiler import Result, compile_file
 from hfsmc.errors import CODES, render_json, render_text
+from hfsmc.pipeline import Result, compile_file
 from tests.conftest import examples
 
 ROOT = Path(__file__).resolve().parent.parent

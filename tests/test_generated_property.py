@@ -12,8 +12,8 @@ from typing import Any
 import jsonschema
 from hypothesis import HealthCheck, given, settings
 
-from hfsmc.build import build
-from hfsmc.compiler import compile_file
+from hfsmc.component import write_component
+from hfsmc.pipeline import compile_file
 from tests.conftest import ROOT
 from tests.test_roundtrip import dump_yaml, models
 

@@ -17,9 +17,9 @@ import pytest
 from click.testing import CliRunner, Result
 
 from hfsmc.cli import main
-from hfsmc.compiler import compile_file
 from hfsmc.errors import CODES, Diagnostic
 from hfsmc.frontend import is_xml
+from hfsmc.pipeline import compile_file
 
 INVALID = Path(__file__).resolve().parent / "invalid"
 EXPECTED_FILE = INVALID / "EXPECTED"

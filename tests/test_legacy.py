@@ -31,13 +31,14 @@ from hypothesis import strategies as st
 from lxml import etree
 
 from hfsmc.cli import main
-from hfsmc.compiler import Result as Compiled
-from hfsmc.compiler import compile_file
-from hfsmc.convert import legacy_report, to_yaml
+from hfsmc.convert import legacy_report
 from hfsmc.emit.xml import to_xml
+from hfsmc.emit.yaml import to_yaml
 from hfsmc.errors import CODES, Diagnostic
 from hfsmc.frontend.legacy.code import Mapped, block, edit, guess_language
 from hfsmc.ir import Model
+from hfsmc.pipeline import Result as Compiled
+from hfsmc.pipeline import compile_file
 
 ROOT = Path(__file__).resolve().parent.parent
 LEGACY = ROOT / "tests" / "legacy"

@@ -21,9 +21,9 @@ from click.testing import CliRunner, Result
 from lxml import etree
 
 from hfsmc.cli import main
-from hfsmc.compiler import compile_file
 from hfsmc.convert import compile_for_convert
 from hfsmc.ir import Model
+from hfsmc.pipeline import compile_file
 
 ROOT = Path(__file__).resolve().parent.parent
 HISTORY = ROOT / "tests" / "legacy" / "history"

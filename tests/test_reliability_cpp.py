@@ -29,7 +29,7 @@ from typing import Any
 
 import pytest
 
-from hfsmc.compiler import compile_file
+from hfsmc.pipeline import compile_file
 from tests.conftest import ROOT
 from tests.cppbuild import Superbuild, need_toolchain
 from tests.test_roundtrip import dump_yaml

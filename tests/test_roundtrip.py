@@ -9,9 +9,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from ruamel.yaml import YAML
 
-from hfsmc.compiler import compile_file
-from hfsmc.convert import _styled, to_yaml
 from hfsmc.emit.xml import to_xml
+from hfsmc.emit.yaml import _styled, to_yaml
+from hfsmc.pipeline import compile_file
 
 IDENT = st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,8}", fullmatch=True)
 # Printable text with quotes, markup characters and non-ASCII, as code may hold.

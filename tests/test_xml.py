@@ -8,15 +8,14 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from hfsmc import schema
-from hfsmc.builder import build
 from hfsmc.cli import main
-from hfsmc.compiler import Result, compile_file
 from hfsmc.emit.xml import to_xml
 from hfsmc.errors import Diagnostics, EmitError
-from hfsmc.frontend import load
+from hfsmc.frontend import load, schema
 from hfsmc.frontend.xmlsource import clean_text
 from hfsmc.ir import Code, Model
+from hfsmc.ir_builder import build_ir
+from hfsmc.pipeline import Result, compile_file
 from tests.conftest import examples
 
 ROOT = Path(__file__).resolve().parent.parent

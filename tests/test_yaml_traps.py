@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from hfsmc.builder import literal_traps
-from hfsmc.compiler import Result, compile_file
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend import load
+from hfsmc.ir_builder import literal_traps
+from hfsmc.pipeline import Result, compile_file
 
 HEAD = "hfsm: 1\nname: m\n"
 CPP = "hfsm: 1\nname: m\nlanguage: cpp\n"

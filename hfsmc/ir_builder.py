@@ -1,4 +1,4 @@
-"""The one builder: a schema-valid neutral :class:`Document` becomes the IR.
+"""The IR builder: a schema-valid neutral :class:`Document` becomes the IR.
 
 It turns data into frozen dataclasses with spans and reports what is local to
 one node (durations, duplicate names, value types).  Everything that needs
@@ -34,8 +34,8 @@ _LITERAL_TYPES: dict[type, str] = {bool: "bool", int: "int", float: "float", str
 _PY_TYPES = {"bool": bool, "int": int, "float": float, "str": str, "list": list, "dict": dict}
 
 
-def build(doc: Document, diags: Diagnostics) -> Model:
-    return _Builder(doc, diags).model()
+def build_ir(doc: Document, diags: Diagnostics) -> Model:
+    return _IrBuilder(doc, diags).model()
 
 
 def _freeze(v: Any) -> Value:
@@ -46,7 +46,7 @@ def _freeze(v: Any) -> Value:
     return v  # type: ignore[no-any-return]
 
 
-class _Builder:
+class _IrBuilder:
     def __init__(self, doc: Document, diags: Diagnostics) -> None:
         self.doc = doc
         self.diags = diags

@@ -15,7 +15,7 @@ TARGETS = ("python", "cpp")
 
 
 @dataclass(frozen=True)
-class Built:
+class WrittenComponent:
     folder: Path
     files: tuple[str, ...]  # every file of the component, relative to folder
     changed: tuple[str, ...]  # the ones this build rewrote
@@ -35,14 +35,15 @@ def component_files(model: Model, target: str) -> tuple[dict[str, bytes], frozen
     raise UsageError(f"unknown target `{target}`: python or cpp")
 
 
-def build(model: Model, target: str, folder: Path, depfile: Path | None = None) -> Built:
+def write_component(model: Model, target: str, folder: Path,
+                    depfile: Path | None = None) -> WrittenComponent:
     """Write the component (only files whose bytes changed) and, if asked, a make depfile."""
     files, executable, main = component_files(model, target)
     changed = write_tree(folder, files, executable)
     if depfile is not None:
         outputs = " ".join(_make_escape(str(folder / f)) for f in sorted(files))
         write_atomic(depfile, f"{outputs}: {_make_escape(model.file)}\n")
-    return Built(folder, tuple(sorted(files)), tuple(sorted(changed)), folder / main)
+    return WrittenComponent(folder, tuple(sorted(files)), tuple(sorted(changed)), folder / main)
 
 
 def _make_escape(path: str) -> str:

@@ -7,12 +7,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-from hfsmc import schema
-from hfsmc.builder import build
 from hfsmc.errors import Diagnostic, Diagnostics, HfsmcError
-from hfsmc.frontend import load
+from hfsmc.frontend import load, schema
 from hfsmc.frontend.source import Document, split_lines
 from hfsmc.ir import Model
+from hfsmc.ir_builder import build_ir
 from hfsmc.lower import lower
 
 # Errors inside snippet code (syntax, names, parameters assigned, imports, C++ keywords and
@@ -94,7 +93,7 @@ def _compile(path: str, text: str | None) -> Result:
             schema.validate(doc, diags)
         if diags.has_errors:
             return Result(path, None, diags.sorted(), doc.lines, doc)
-        model = lower(build(doc, diags), diags)
+        model = lower(build_ir(doc, diags), diags)
     except HfsmcError as e:
         diags.extend(e.diagnostics)
         return Result(path, None, diags.sorted(), doc.lines if doc else _lines(path, text), doc)
