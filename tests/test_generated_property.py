@@ -28,7 +28,7 @@ def test_any_valid_model_builds_and_runs(data: dict[str, Any]) -> None:
     result = compile_file("m.yaml", text=dump_yaml(data))
     assert result.model is not None, result.diagnostics
     with tempfile.TemporaryDirectory() as tmp:
-        built = build(result.model, "python", Path(tmp) / "c")
+        built = write_component(result.model, "python", Path(tmp) / "c")
         compile(built.main.read_text(), str(built.main), "exec")
         run = subprocess.run([sys.executable, "-I", "-S", str(built.main), "--clock", "virtual",
                               "--until", "2s", "--trace", "-"], capture_output=True, text=True,

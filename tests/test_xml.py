@@ -37,7 +37,7 @@ def built(path: str, text: str | None = None) -> Model:
     diags = Diagnostics()
     doc = load(path, diags, text)
     schema.validate(doc, diags)
-    model = build(doc, diags)
+    model = build_ir(doc, diags)
     assert not diags.has_errors, list(diags)
     return model
 
