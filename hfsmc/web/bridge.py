@@ -13,6 +13,11 @@ queue emptied and closed); it never holds up the bridge or the other pages.
 When the component stops or disappears the pages are told, and the bridge
 connects again with a growing delay (RETRY_FIRST_S .. RETRY_MAX_S) until the
 component is back.
+
+A component of monitor minor version 1 also sends its vehicles' state and, to
+a client that asked for them, its cameras' frames: the bridge asks for frames
+only while a page is open, keeps the latest of each for a late page and passes
+them on as ``vehicle`` and ``frame`` messages.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from typing import Any, TextIO
 from hfsmc.errors import UsageError
 from hfsmc.ir import Model
 
-# The component's own modules, shipped as the data package hfsmc.templates (see hfsmc/viewer.py).
+# The component's own modules, shipped as the data package hfsmc.templates (see hfsmc/commands/view.py).
 from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
 from hfsmc.templates.python import hfsmc_viewstate as viewstate
 from hfsmc.web.picture import svg_of
@@ -41,6 +46,7 @@ CONNECT_TIMEOUT_S = 3.0
 # Records that arrive this close together go to the pages in one delta: a transition's
 # fire, exits and entries come one by one, and a page should not draw the states between.
 COALESCE_S = 0.01
+FRAME_LIMIT = 1 << 20  # characters of base64 JPEG; a larger frame is not passed on
 
 
 @dataclass
@@ -119,6 +125,11 @@ class Bridge:
         self._said = ""  # the last status line written to the log
         self._subs_of: Picture | None = None  # the picture the sub-automata below were drawn for
         self._subs: dict[str, str | None] = {}
+        self.feeds: dict[str, list[str]] = {"vehicle": [], "camera": []}  # from the hello
+        self.vehicles: dict[str, dict[str, Any]] = {}  # the latest vehicle message of each
+        self.frames: dict[str, dict[str, Any]] = {}  # the latest frame of each camera
+        self._writer: asyncio.StreamWriter | None = None  # to the component, while connected
+        self._subscribed = False
 
     # -- sub-automata -----------------------------------------------------------------------
     async def sub_svg(self, path: str) -> str | None:
@@ -149,17 +160,31 @@ class Bridge:
         if self.structure is not None:
             page.offer(_dump(self.model_message()))
         page.offer(_dump(self.state_message()))
+        for msg in (*self.vehicles.values(), *self.frames.values()):
+            page.offer(_dump(msg))
         self.pages.add(page)
+        self._subscribe()
         return page
 
     def detach(self, page: Page) -> None:
         self.pages.discard(page)
+        self._subscribe()
+
+    def _subscribe(self) -> None:
+        """Ask the component for camera frames while a page is open, and no longer after."""
+        want = bool(self.pages) and bool(self.feeds["camera"])
+        if self._writer is None or want == self._subscribed:
+            return
+        self._subscribed = want
+        with contextlib.suppress(OSError, RuntimeError):
+            self._writer.write(b'{"type":"subscribe","frames":%s}\n' % (b"true" if want else b"false"))
 
     def command(self, text: str) -> None:
         """A page's command (a replay's controls, hfsmc/web/replay.py): a live view takes none."""
 
     def _broadcast(self, msg: dict[str, Any]) -> None:
         if not self.pages:
+            self._subscribe()
             return
         text = _dump(msg)
         for page in list(self.pages):
@@ -169,7 +194,8 @@ class Bridge:
     def model_message(self) -> dict[str, Any]:
         return {"type": "model", "target": self.label, "structure": self.structure,
                 "svg": self.picture.svg, "drawn_from": self.picture.drawn_from,
-                "problem": self.picture.problem, "autofocus": self.autofocus}
+                "problem": self.picture.problem, "autofocus": self.autofocus,
+                "feeds": self.feeds}
 
     def state_message(self) -> dict[str, Any]:
         v = self.view
@@ -265,12 +291,14 @@ class Bridge:
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, RETRY_MAX_S)
                 continue
+            self._writer, self._subscribed = writer, False
             try:
                 if await self._read(reader):
                     delay = RETRY_FIRST_S
                 elif self.status == "error":  # another protocol: it will not change soon
                     delay = RETRY_MAX_S
             finally:
+                self._writer = None
                 writer.close()
                 with contextlib.suppress(Exception):
                     await writer.wait_closed()
@@ -289,7 +317,10 @@ class Bridge:
             if not line or not line.endswith(b"\n"):
                 break
             try:
-                it = monitor.item(json.loads(line))
+                msg = json.loads(line)
+                if self._feed(msg):
+                    continue
+                it = monitor.item(msg)
             except ValueError:
                 continue
             if it is None:
@@ -322,6 +353,37 @@ class Bridge:
             self._set_status("disconnected", f"disconnected from {self.label}; trying again")
         return greeted
 
+    def _feed(self, msg: object) -> bool:
+        """A hello's feeds, a vehicle or a frame message (monitor minor version 1): whether
+        ``msg`` was one of the latter two, taken here."""
+        if not isinstance(msg, dict):
+            return False
+        kind = msg.get("type")
+        if kind == "hello":
+            given = msg.get("feeds")
+            feeds: dict[str, Any] = given if isinstance(given, dict) else {}
+            self.feeds = {k: [str(n) for n in feeds.get(k, ()) if isinstance(n, str)][:8]
+                          if isinstance(feeds.get(k), list) else [] for k in ("vehicle", "camera")}
+            self.vehicles, self.frames = {}, {}
+            self._subscribe()
+            return False
+        name = msg.get("name")
+        if kind == "vehicle" and isinstance(name, str):
+            rec = vehicle_record(msg)
+            self.vehicles[name] = rec
+            self._broadcast(rec)
+            return True
+        if kind == "frame" and isinstance(name, str):
+            jpeg, w, h = msg.get("jpeg"), msg.get("width"), msg.get("height")
+            if isinstance(jpeg, str) and len(jpeg) <= FRAME_LIMIT and isinstance(w, int) \
+                    and isinstance(h, int):
+                frame = {"type": "frame", "name": name, "t": _int(msg.get("t")), "width": w,
+                         "height": h, "jpeg": jpeg}
+                self.frames[name] = frame
+                self._broadcast(frame)
+            return True
+        return False
+
     def _log_status(self) -> None:
         line = f"hfsmc view: {self.note}"
         if line != self._said:
@@ -337,6 +399,27 @@ class Bridge:
             # Both at once: a page that attached while dot was drawing got the old pair.
             self.structure, self.picture = structure, picture
             self._broadcast(self.model_message())
+
+
+def _int(x: object) -> int:
+    return x if isinstance(x, int) and not isinstance(x, bool) else 0
+
+
+def _float(x: object) -> float | None:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+
+
+def vehicle_record(msg: dict[str, Any]) -> dict[str, Any]:
+    """A monitor ``vehicle`` message as the pages get it: the known members, checked."""
+    def triple(v: object) -> list[float | None] | None:
+        return [_float(x) for x in v] if isinstance(v, list) and len(v) == 3 else None
+    battery = msg.get("battery")
+    return {"type": "vehicle", "name": str(msg.get("name")), "t": _int(msg.get("t")),
+            "connected": msg.get("connected") is True, "mode": str(msg.get("mode") or "")[:40],
+            "armed": msg.get("armed") is True, "altitude": _float(msg.get("altitude")),
+            "position": triple(msg.get("position")), "velocity": triple(msg.get("velocity")),
+            "battery": battery if isinstance(battery, int) and not isinstance(battery, bool) else None,
+            "link_age": _float(msg.get("link_age"))}
 
 
 def _readable(values: dict[str, str]) -> dict[str, str]:

@@ -7,8 +7,10 @@ step to the next or previous transition, or seek. What is active at an instant
 is computed here, in ``view_at``, from the trace's ``enter`` and ``exit``
 records (and the others a viewer applies), never by the page.
 
-Traces hold no variable records yet: the variables stay empty in replay and
-the page says so.
+The variables come from the trace's ``variables`` records (a component's
+``--trace-variables``, docs/component.md): at an instant, the values the last
+records up to it gave. A trace without them shows no variables, and the page
+says so.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import math
 from collections.abc import Awaitable, Callable
 from typing import Any, TextIO
 
-# The component's own module, shipped as the data package hfsmc.templates (see hfsmc/viewer.py).
+# The component's own module, shipped as the data package hfsmc.templates (see hfsmc/commands/view.py).
 from hfsmc.templates.python import hfsmc_viewstate as viewstate  # type: ignore[import-not-found]
 from hfsmc.web.bridge import Bridge, Picture
 
@@ -68,16 +70,17 @@ class Replay(Bridge):
         self._next = 0  # index of the next record to apply while playing
         self._wake = asyncio.Event()
         self.status = "replay"
-        self.note = (f"replay of {name}: {len(self.records)} records, "
-                     f"{self.end / 1000:.3f} s; the trace has no variable records, so no "
-                     "variables are shown")
+        self.has_variables = any(r.get("ev") == "variables" for r in self.records)
+        self.note = (f"replay of {name}: {len(self.records)} records, {self.end / 1000:.3f} s"
+                     + ("" if self.has_variables else "; the trace has no variable records, so no "
+                        "variables are shown"))
         self.view = view_at(structure, [], 0)
 
     # -- what the pages are told ---------------------------------------------------------------
     def model_message(self) -> dict[str, Any]:
         msg = super().model_message()
         msg["replay"] = {"trace": self.label, "end": self.end, "fires": self.fires,
-                         "variables": False}
+                         "variables": self.has_variables}
         return msg
 
     def state_message(self) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""The ``camera`` interface of Python components (SPEC 5.1): the latest frame
+"""The ``camera`` interface of Python components (docs/interfaces.md): the latest frame
 of an OpenCV capture, without blocking the automaton.
 
 Copied beside a generated component that declares an interface of type
@@ -70,6 +70,7 @@ class Camera:
                 self._say(f"unknown option `{key}` ignored (options: size)")
         self._latest: tuple[Any, float] | None = None  # (frame, monotonic time), replaced whole
         self._count = 0
+        self._seen: Any = None  # the latest frame a snippet obtained
         self._down = False  # said on stderr that the stream is down
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"camera {name}", daemon=True)
@@ -83,7 +84,14 @@ class Camera:
         """The latest frame (an H x W x 3 BGR numpy array); None before the first.
         The same array until a newer one comes: copy it before drawing on it for keeps."""
         latest = self._latest
-        return None if latest is None else latest[0]
+        if latest is None:
+            return None
+        self._seen = latest[0]  # for the monitor's viewers (one assignment: no lock)
+        return latest[0]
+
+    def last_seen(self) -> Any:
+        """The latest frame a snippet obtained with ``frame()``; None before any."""
+        return self._seen
 
     def age(self) -> float:
         """Seconds since the latest frame arrived; inf before the first."""

@@ -8,13 +8,23 @@ TCP, read-only) is described in schemas/monitor.md and monitor.schema.json.
 a queue; one daemon thread owns the sockets and a ``ViewState``, from which a
 client that connects late gets the current state at once. A slow client never
 holds up the automaton or the other clients: each has a bounded buffer and is
-dropped when it overflows. What clients send is read and thrown away.
+dropped when it overflows. What clients send is read and thrown away, but
+for one request: ``{"type":"subscribe","frames":true}`` asks for camera frames.
+
+Minor version 1 adds two messages, for components with those interfaces: the
+``vehicle`` of a ``mavlink`` interface (what the driver already holds, a few
+times a second) and the ``frame`` of a ``camera`` interface (the latest frame a
+snippet obtained, downscaled JPEG), the frames only to clients that subscribed
+to them, so a component without such a viewer pays nothing for them.
 """
 
 from __future__ import annotations
 
+import base64
 import contextlib
+import importlib
 import json
+import math
 import queue
 import re
 import selectors
@@ -31,12 +41,20 @@ else:  # copied beside the generated component, where the modules are top level
     import hfsmc_view as _view  # type: ignore[import-not-found, no-redef]
 
 PROTOCOL = 1
+MINOR = 1  # additions old viewers ignore: feeds in hello, vehicle and frame messages
 MAX_CLIENTS = 16  # more connections at once are closed as soon as they are accepted
 BUFFER_LIMIT = 1 << 20  # bytes waiting for one client; beyond, the client is dropped
 INPUT_LIMIT = 1 << 20  # bytes one client may send (all ignored); beyond, it is dropped
 LINE_LIMIT = 1 << 24  # longest message a viewer reads
 SLICE = 1 << 16  # bytes of messages made before the sockets are served again
 FAREWELL_S = 0.5  # how long a stopping component tries to deliver the last messages
+FEED_EVERY_S = 0.25  # vehicle records and camera frames: at most 4 a second
+FRAME_WIDTH = 320  # frames sent are downscaled to at most that many pixels wide
+FRAME_QUALITY = 70  # JPEG quality of the frames sent
+FRAME_BACKLOG = 1 << 18  # a client with that many bytes still unsent gets no new frame
+REQUEST_LIMIT = 1024  # a client's request line longer than that is ignored
+VEHICLE_QUERIES = ("connected", "mode", "armed", "altitude", "position", "velocity", "battery",
+                   "heartbeat_age")
 
 
 def parse_address(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
@@ -77,8 +95,50 @@ def message(kind: str, payload: Any) -> dict[str, Any] | None:
     return None
 
 
+def _num(x: object, digits: int = 3) -> float | None:
+    """A finite float rounded for the wire; None for NaN, inf or what is not a number."""
+    try:
+        f = float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return None
+    return round(f, digits) if math.isfinite(f) else None
+
+
+def _triple(v: object) -> list[float | None] | None:
+    try:
+        xs = [_num(x) for x in v]  # type: ignore[attr-defined]
+    except TypeError:
+        return None
+    return xs if len(xs) == 3 and any(x is not None for x in xs) else None
+
+
+def vehicle_message(name: str, t_ms: int, vehicle: Any) -> dict[str, Any]:
+    """A ``vehicle`` message from what a mavlink driver holds (its queries never wait)."""
+    battery = vehicle.battery()
+    age = _num(vehicle.heartbeat_age(), 2)
+    return {"type": "vehicle", "t": t_ms, "name": name, "connected": bool(vehicle.connected()),
+            "mode": str(vehicle.mode()), "armed": bool(vehicle.armed()),
+            "altitude": _num(vehicle.altitude()), "position": _triple(vehicle.position()),
+            "velocity": _triple(vehicle.velocity()),
+            "battery": int(battery) if isinstance(battery, int) and battery >= 0 else None,
+            "link_age": age}
+
+
+def frame_message(name: str, t_ms: int, image: Any, cv2: Any) -> dict[str, Any] | None:
+    """A ``frame`` message: ``image`` (BGR) downscaled to FRAME_WIDTH at most, as JPEG."""
+    h, w = int(image.shape[0]), int(image.shape[1])
+    if w > FRAME_WIDTH:
+        h, w = max(1, round(h * FRAME_WIDTH / w)), FRAME_WIDTH
+        image = cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA)
+    ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, FRAME_QUALITY])
+    if not ok:
+        return None
+    return {"type": "frame", "t": t_ms, "name": name, "width": w, "height": h,
+            "jpeg": base64.b64encode(jpeg.tobytes()).decode("ascii")}
+
+
 class _Client:
-    __slots__ = ("events", "out", "reading", "received", "sock")
+    __slots__ = ("events", "frames", "inbuf", "out", "reading", "received", "sock")
 
     def __init__(self, sock: socket.socket) -> None:
         self.sock = sock
@@ -86,6 +146,8 @@ class _Client:
         self.reading = True  # until the client shuts its side down
         self.received = 0
         self.events = 0  # what the selector watches for it
+        self.inbuf = b""  # the start of a request line
+        self.frames = False  # it asked for camera frames
 
 
 class MonitorServer:
@@ -114,8 +176,26 @@ class MonitorServer:
         self._structure: dict[str, Any] = {}
         self._clients: dict[int, _Client] = {}
         self._sel = selectors.DefaultSelector()
+        self._vehicles: dict[str, Any] = {}
+        self._cameras: dict[str, Any] = {}
+        self._sent_frame: dict[str, Any] = {}  # per camera, the last frame encoded
+        self._next_feed = 0.0
+        self._cv2: Any = None
         print(f"monitor: listening on {format_address(self.host, self.port)}",
               file=announce if announce is not None else sys.stderr, flush=True)
+
+    def watch(self, interfaces: dict[str, Any]) -> None:
+        """The component's interface objects (before ``start``): a mavlink vehicle's state
+        and a camera's latest frame are then sent to viewers (monitor.md, minor version 1)."""
+        for name, obj in interfaces.items():
+            try:  # an interface the component cannot drive raises on any use
+                if all(callable(getattr(obj, a, None)) for a in VEHICLE_QUERIES):
+                    self._vehicles[name] = obj
+                elif callable(getattr(obj, "last_seen", None)):
+                    self._cv2 = importlib.import_module("cv2")  # the camera driver has it
+                    self._cameras[name] = obj
+            except Exception:
+                continue
 
     # -- observer calls (automaton thread): queue and wake, never block ---------------------
     def start(self, structure: dict[str, Any]) -> None:
@@ -156,7 +236,10 @@ class MonitorServer:
             ended, more = self._pump(view)
             while not ended:
                 # A burst is sent a slice at a time, the sockets served in between.
-                for key, mask in self._sel.select(0 if more else 0.5):
+                wait = 0.0 if more else 0.5
+                if self._clients and (self._vehicles or self._cameras):
+                    wait = min(wait, max(self._next_feed - time.monotonic(), 0.0))
+                for key, mask in self._sel.select(wait):
                     if key.data == "listen":
                         self._accept(view)
                     elif key.data == "wake":
@@ -167,6 +250,8 @@ class MonitorServer:
                         if mask & selectors.EVENT_WRITE and self._alive(key.data):
                             self._flush(key.data)
                 ended, more = self._pump(view)
+                if not ended and self._clients and time.monotonic() >= self._next_feed:
+                    self._feeds(view)
             self._farewell()
         finally:
             for c in list(self._clients.values()):
@@ -217,6 +302,38 @@ class MonitorServer:
             self._send_all(b"".join(chunks))
         return ended, not ended and size >= SLICE
 
+    def _feeds(self, view: _view.ViewState) -> None:
+        """The vehicles' state to every client, a camera's new frame to those that asked."""
+        self._next_feed = time.monotonic() + FEED_EVERY_S
+        chunks = []
+        for name, vehicle in self._vehicles.items():
+            try:
+                chunks.append(encode(vehicle_message(name, view.t_ms, vehicle)))
+            except Exception:  # a driver's trouble must not stop the monitor
+                continue
+        if chunks:
+            self._send_all(b"".join(chunks))
+        takers = [c for c in self._clients.values() if c.frames]
+        if not takers:
+            return
+        for name, camera in self._cameras.items():
+            try:
+                image = camera.last_seen()
+                if image is None or image is self._sent_frame.get(name):
+                    continue
+                self._sent_frame[name] = image
+                msg = frame_message(name, view.t_ms, image, self._cv2)
+            except Exception:
+                continue
+            if msg is None:
+                continue
+            data = encode(msg)
+            for c in takers:
+                # Frames are skipped, never queued without bound: the client is not dropped.
+                if self._alive(c) and len(c.out) + len(data) <= min(FRAME_BACKLOG, self._buffer_limit):
+                    c.out += data
+                    self._flush(c)
+
     def _send_all(self, data: bytes) -> None:
         for c in list(self._clients.values()):
             if len(c.out) + len(data) > self._buffer_limit:
@@ -239,7 +356,9 @@ class MonitorServer:
                 sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             c = _Client(sock)
             self._clients[sock.fileno()] = c
-            hello = {"type": "hello", "protocol": PROTOCOL, "structure": self._structure}
+            hello = {"type": "hello", "protocol": PROTOCOL, "minor": MINOR,
+                     "structure": self._structure,
+                     "feeds": {"vehicle": list(self._vehicles), "camera": list(self._cameras)}}
             c.out += encode(hello) + encode(view.snapshot())
             self._flush(c)
 
@@ -258,6 +377,27 @@ class MonitorServer:
         c.received += len(data)
         if c.received > self._input_limit:
             self._drop(c)
+            return
+        if self._cameras:  # the one request a client may make: frames, or no more frames
+            lines = (c.inbuf + data).split(b"\n")
+            c.inbuf = lines.pop()
+            if len(c.inbuf) > REQUEST_LIMIT:
+                c.inbuf = b""
+            for line in lines:
+                self._request(c, line)
+
+    def _request(self, c: _Client, line: bytes) -> None:
+        if len(line) > REQUEST_LIMIT:
+            return
+        try:
+            msg = json.loads(line)
+        except ValueError:
+            return
+        if isinstance(msg, dict) and msg.get("type") == "subscribe" and isinstance(msg.get("frames"), bool):
+            c.frames = msg["frames"]
+            if c.frames:
+                self._sent_frame.clear()  # the newcomer gets the latest frame at once
+                self._next_feed = 0.0
 
     def _flush(self, c: _Client) -> None:
         try:

@@ -5,7 +5,7 @@
 The generated module holds the automaton as straight code (one function per
 state to enter, exit and tick); this module runs it: one thread, absolute
 deadlines per active sub-automaton, parents before children at the same
-instant, stop requests acted on at tick boundaries (SPEC 3, docs/runtime.md).
+instant, stop requests acted on at tick boundaries (docs/semantics.md).
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def make_interface(name: str, kind: str, url: str | None, options: dict[str, str
 
 
 class Trace:
-    """JSON lines (SPEC 3.7). A failing write (a full disk) is said once, then ignored."""
+    """JSON lines (docs/semantics.md §13). A failing write (a full disk) is said once, then ignored."""
 
     def __init__(self, target: str) -> None:
         self.target = target
@@ -147,6 +147,8 @@ class Engine:
         self.owner = 0  # state whose snippet runs (index into paths; the last one is the root)
         self.recording = False  # a trace or an observer wants records
         self.trace: Trace | None = None
+        self.trace_variables = False  # --trace-variables: `variables` records in the trace
+        self.traced_values: dict[str, str] = {}
         self.observers: list[Any] = []
         self.request: str | None = None  # shutdown / error / final, acted on at the boundary
         self.signal_reason: str | None = None
@@ -226,7 +228,7 @@ class Engine:
         else:
             self.request = "error"
 
-    # --- the helpers of SPEC 2.3 -------------------------------------------------------
+    # --- the helpers of docs/semantics.md §8 ---------------------------------------------
     def log(self, msg: object) -> None:
         text = str(msg)
         path = self.paths[self.owner]
@@ -277,6 +279,8 @@ class Engine:
         self.deadline[0] = 0
         self.owner = self.root
         self.ENTER[self.m["initial"][0]]()
+        if self.trace_variables:
+            self.trace_values()
         self.set_limit()
         while not self.stopping:
             if self.boundary():
@@ -317,8 +321,12 @@ class Engine:
                         self.ticks += 1
                         self.skip_missed(a)
                     if self.request is not None or self.signal_reason is not None:
+                        if self.trace_variables:
+                            self.trace_values()
                         return
                 k += 1
+            if self.trace_variables:
+                self.trace_values()
             if self.observers:
                 self.sample()
 
@@ -429,6 +437,8 @@ class Engine:
                 self.log(f"{name}: {text}")
 
     def finish(self, reason: str) -> None:
+        if self.trace_variables:
+            self.trace_values()
         if self.recording:
             self.emit({"t": self.t // 1000, "ev": "stop", "reason": reason})
         if self.trace is not None:
@@ -439,6 +449,18 @@ class Engine:
                 o.close()
             except Exception as e:  # a viewer's trouble must not change the exit status
                 sys.stderr.write(f"observer: {e}\n")
+
+    def trace_values(self) -> None:
+        """A `variables` record of the values changed since the last one (all of them in
+        the first), written to the trace only: docs/component.md#--trace-variables."""
+        if self.trace is None:
+            return
+        ns = self.m["namespace"]
+        values = {v: _short(ns.get(v)) for v in self.m["variables"]}
+        changed = {k: v for k, v in values.items() if self.traced_values.get(k) != v}
+        if changed:
+            self.traced_values = values
+            self.trace.write({"t": self.t // 1000, "ev": "variables", "values": changed})
 
     def sample(self) -> None:
         clock = time.monotonic()
@@ -515,7 +537,7 @@ def _short(value: object) -> str:
 
 def reporter(file: str, gen_file: str, snippets: Sequence[tuple[Any, ...]],
              lines: Sequence[int], paths: Sequence[str]) -> Callable[[BaseException, int], str]:
-    """The function that writes a snippet error as model positions (docs/runtime.md).
+    """The function that writes a snippet error as model positions (docs/semantics.md §9).
 
     ``snippets[sid]`` = (kind, state, first generated line, rows) with rows =
     ((model line, model col, generated indent), ...) for each line of the snippet;
@@ -612,6 +634,8 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
     p.add_argument("--monitor", metavar="[HOST:]PORT",
                    help="serve the live state to `hfsmc view` (loopback unless a host is named)")
     p.add_argument("--trace", metavar="FILE", help="write the trace (JSON lines); - for stdout")
+    p.add_argument("--trace-variables", action="store_true",
+                   help="add to the trace a `variables` record whenever a variable changes")
     p.add_argument("--clock", choices=["real", "virtual"], default="real")
     p.add_argument("--until", metavar="DURATION", help="stop after that much time (e.g. 10s)")
     p.add_argument("--time-limit", metavar="DURATION",
@@ -750,18 +774,21 @@ def _configure(engine: Engine, args: argparse.Namespace, here: str) -> None:
 
 
 def main(engine: Engine, argv: Sequence[str], here: str) -> int:
-    """Parse flags, wire interfaces and observers, run; the exit status of SPEC 3.6."""
+    """Parse flags, wire interfaces and observers, run; the exit status of docs/semantics.md §10."""
     try:
         args = _arguments(engine.name, argv, engine.m)
         until = parse_duration_us(args.until) if args.until else None
         time_limit = parse_duration_us(args.time_limit) if args.time_limit else None
         _check_focus(engine, args.focus)
         _configure(engine, args, here)
+        if args.trace_variables and not args.trace:
+            raise UsageError("--trace-variables needs --trace FILE")
         if args.trace:
             try:
                 engine.trace = Trace(args.trace)
             except OSError as e:
                 raise UsageError(f"--trace {args.trace}: {e.strerror}") from None
+            engine.trace_variables = args.trace_variables
         _observers(engine, args)
     except UsageError as e:
         sys.stderr.write(f"{engine.name}: {e}\n")
@@ -797,9 +824,12 @@ def _observers(engine: Engine, args: argparse.Namespace) -> None:
         import hfsmc_monitor  # type: ignore[import-not-found]  # beside the component
         try:
             host, port = hfsmc_monitor.parse_address(args.monitor)
-            engine.observers.append(hfsmc_monitor.MonitorServer(host, port))
+            server = hfsmc_monitor.MonitorServer(host, port)
         except (OSError, ValueError) as e:
             raise UsageError(f"--monitor {args.monitor}: {e}") from None
+        ns = engine.m["namespace"]
+        server.watch({name: ns.get(name) for name, *_ in engine.m["interfaces"]})
+        engine.observers.append(server)
     if engine.observers:
         structure = engine.structure()
         for o in engine.observers:

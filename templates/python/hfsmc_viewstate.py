@@ -91,7 +91,7 @@ def _short_float(token: str) -> str:
 
 
 def check_record(rec: object) -> str | None:
-    """Why ``rec`` is not a trace record (SPEC 3.7), or None when it is one."""
+    """Why ``rec`` is not a trace record (docs/semantics.md §13), or None when it is one."""
     if not isinstance(rec, dict):
         return "not a JSON object"
     t = rec.get("t")
@@ -196,7 +196,7 @@ class ViewState:
         self.parameters = {str(k): str(v) for k, v in dict(s.get("parameters", {})).items()}
 
     def apply_record(self, rec: dict[str, Any]) -> None:
-        """Apply one trace record (SPEC 3.7); unknown events only move the time."""
+        """Apply one trace record (docs/semantics.md §13); unknown events only move the time."""
         ev, t = rec.get("ev"), int(rec.get("t", self.t_ms))
         if ev == "start":
             self.active.clear()
@@ -230,6 +230,8 @@ class ViewState:
         elif ev == "interrupt":
             self.interrupt = {"t": t, "reason": str(rec["reason"]), "to": str(rec["to"])}
             self._exited.clear()
+        elif ev == "variables" and isinstance(rec.get("values"), dict):  # --trace-variables
+            self.values.update({str(k): str(v) for k, v in rec["values"].items()})
         elif ev == "stop":
             self.stop_reason = str(rec["reason"])
             # Exits come innermost first: reversed, the stopped states are outermost first.

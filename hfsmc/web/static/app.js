@@ -66,6 +66,7 @@
     $("hv-replay").hidden = !view.replay;
     if (view.replay) $("hv-timeline").max = String(view.replay.end);
     showVariables({});
+    showFeeds(msg.feeds || {});
   }
 
   function drawPicture(svgText, problem) {
@@ -297,6 +298,67 @@
   }
 
   // The clock and the times in state run on between messages.
+  // -- the vehicle panel and the camera's frames (monitor minor version 1) ---------------
+  function showFeeds(feeds) {
+    const vehicles = feeds.vehicle || [], cameras = feeds.camera || [];
+    const vbox = $("hv-vehicles"), cbox = $("hv-cameras");
+    vbox.hidden = vehicles.length === 0;
+    cbox.hidden = cameras.length === 0;
+    for (const t of [...vbox.querySelectorAll("table")]) t.remove();
+    for (const f of [...cbox.querySelectorAll("figure")]) f.remove();
+    for (const name of vehicles) {
+      const table = el("table", "hv-vehicle");
+      table.dataset.name = name;
+      if (vehicles.length > 1) table.appendChild(el("caption", "", name));
+      const body = table.appendChild(el("tbody"));
+      for (const [key, label] of [["mode", "mode"], ["armed", "armed"], ["altitude", "altitude"],
+                                  ["position", "position"], ["velocity", "velocity"],
+                                  ["battery", "battery"], ["link", "link"]]) {
+        const tr = el("tr");
+        tr.dataset.key = key;
+        tr.append(el("th", "", label), el("td", "", "–"));
+        body.appendChild(tr);
+      }
+      vbox.appendChild(table);
+    }
+    for (const name of cameras) {
+      const fig = el("figure", "hv-camera");
+      fig.dataset.name = name;
+      const img = el("img");
+      img.alt = "the latest frame of " + name;
+      fig.append(img, el("figcaption", "", name + ": no frame yet (a snippet has not read one)"));
+      cbox.appendChild(fig);
+    }
+  }
+
+  function fixed(x, digits) { return typeof x === "number" ? x.toFixed(digits) : "–"; }
+  function onVehicle(msg) {
+    const table = [...document.querySelectorAll("#hv-vehicles table")].find((t) => t.dataset.name === msg.name);
+    if (!table) return;
+    const cell = (key) => table.querySelector('tr[data-key="' + key + '"] td');
+    const three = (v, unit) => v ? "N " + fixed(v[0], 2) + "  E " + fixed(v[1], 2) + "  D " + fixed(v[2], 2) + " " + unit : "–";
+    cell("mode").textContent = msg.mode || "–";
+    cell("armed").textContent = msg.armed ? "ARMED" : "disarmed";
+    cell("armed").className = msg.armed ? "hv-armed" : "";
+    cell("altitude").textContent = typeof msg.altitude === "number" ? fixed(msg.altitude, 2) + " m" : "–";
+    cell("altitude").dataset.value = typeof msg.altitude === "number" ? String(msg.altitude) : "";
+    cell("position").textContent = three(msg.position, "m");
+    cell("velocity").textContent = three(msg.velocity, "m/s");
+    cell("battery").textContent = typeof msg.battery === "number" ? msg.battery + " %" : "–";
+    const age = typeof msg.link_age === "number" ? fixed(msg.link_age, 1) + " s ago" : "never";
+    cell("link").textContent = msg.connected ? "heartbeat " + age : "lost (heartbeat " + age + ")";
+    cell("link").className = msg.connected ? "" : "hv-lost";
+  }
+
+  function onFrame(msg) {
+    const fig = [...document.querySelectorAll("#hv-cameras figure")].find((f) => f.dataset.name === msg.name);
+    if (!fig || typeof msg.jpeg !== "string") return;
+    fig.querySelector("img").src = "data:image/jpeg;base64," + msg.jpeg;
+    fig.dataset.t = String(msg.t);
+    fig.querySelector("figcaption").textContent =
+      msg.name + ": t " + seconds(msg.t) + " s, " + msg.width + "×" + msg.height;
+  }
+
   function tick() {
     const t = now();
     $("hv-clock").textContent = "t " + seconds(t) + " s";
@@ -387,6 +449,8 @@
     else if (msg.type === "state") onState(msg);
     else if (msg.type === "delta") onDelta(msg);
     else if (msg.type === "replay") onReplay(msg);
+    else if (msg.type === "vehicle") onVehicle(msg);
+    else if (msg.type === "frame") onFrame(msg);
     else if (msg.type === "status") {
       setTime(msg.t);
       showStatus(msg.status, msg.note);

@@ -1,4 +1,4 @@
-// hfsmc: the `camera` interface of C++ components (SPEC 5.1): the latest
+// hfsmc: the `camera` interface of C++ components (docs/interfaces.md): the latest
 // frame of an OpenCV capture, without blocking the automaton.
 //
 // The C++ twin of templates/python/hfsmc_camera.py: the same behaviour, the
@@ -41,14 +41,17 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>  // linked through videoio, which depends on it
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "json.hpp"
+#include "observer.hpp"
 #include "thread.hpp"
 
 namespace hfsmc {
 
-class Camera {
+class Camera : public Feed {
  public:
   static constexpr const char* kDefaultUrl = "0";  // the first video device
   static constexpr double kBackoffMinS = 0.2;
@@ -57,6 +60,8 @@ class Camera {
   static constexpr int kOpenTimeoutMs = 3000;      // a network stream that does not answer
   static constexpr int kReadTimeoutMs = 2000;      // a network stream that stops sending
   static constexpr double kCloseWaitS = 1.0;       // the destructor waits that long at most
+  static constexpr int kFrameWidth = 320;          // frames sent to viewers: at most that wide
+  static constexpr int kFrameQuality = 70;         // their JPEG quality
 #ifdef __linux__
   static constexpr int kDeviceApi = cv::CAP_V4L2;
 #else
@@ -89,9 +94,44 @@ class Camera {
       g->finished = true;
       g->wake.notify_all();
     });
+    register_feed(this);
   }
 
-  ~Camera() { close(); }
+  ~Camera() override {
+    unregister_feed(this);
+    close();
+  }
+
+  // -- for the monitor's viewers (Feed) ------------------------------------------------
+  const char* feed_kind() const override { return "camera"; }
+  std::string feed_name() const override { return g_->name; }
+  /// A `frame` message (schemas/monitor.md): the latest frame a snippet obtained with
+  /// frame(), downscaled to 320 px wide at most, as base64 JPEG; "" when none is new.
+  std::string feed_message(long long t_ms) override {
+    cv::Mat image;
+    {
+      std::lock_guard<std::mutex> lock(g_->mutex);
+      if (g_->seen_count == feed_sent_ || g_->seen.empty()) return "";
+      feed_sent_ = g_->seen_count;
+      image = g_->seen;
+    }
+    if (image.cols > kFrameWidth) {
+      const int h = std::max(1, static_cast<int>(std::lround(
+                                    image.rows * static_cast<double>(kFrameWidth) / image.cols)));
+      cv::resize(image, image, cv::Size(kFrameWidth, h), 0, 0, cv::INTER_AREA);
+    }
+    std::vector<uchar> jpeg;
+    try {
+      if (!cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, kFrameQuality})) return "";
+    } catch (const cv::Exception&) {
+      return "";
+    }
+    return "{\"type\":\"frame\",\"t\":" + std::to_string(t_ms) + ",\"name\":" +
+           json_string(g_->name) + ",\"width\":" + std::to_string(image.cols) +
+           ",\"height\":" + std::to_string(image.rows) + ",\"jpeg\":\"" + base64(jpeg) + "\"}";
+  }
+  /// Forget which frame was sent: the next feed_message() sends the latest again.
+  void feed_reset() override { feed_sent_ = -1; }
   Camera(const Camera&) = delete;
   Camera& operator=(const Camera&) = delete;
 
@@ -102,6 +142,8 @@ class Camera {
   /// same pixels until a newer frame comes: clone it before drawing on it for keeps.
   cv::Mat frame() const {
     std::lock_guard<std::mutex> lock(g_->mutex);
+    g_->seen = g_->latest;  // for the monitor's viewers: a header copy
+    g_->seen_count = g_->count;
     return g_->latest;
   }
 
@@ -140,6 +182,26 @@ class Camera {
  private:
   using Clock = std::chrono::steady_clock;
 
+  static std::string base64(const std::vector<uchar>& data) {
+    static const char digits[] =
+        "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string out;
+    out.reserve((data.size() + 2) / 3 * 4);
+    std::size_t i = 0;
+    for (; i + 2 < data.size(); i += 3) {
+      const unsigned v = (data[i] << 16) | (data[i + 1] << 8) | data[i + 2];
+      out += {digits[v >> 18], digits[(v >> 12) & 63], digits[(v >> 6) & 63], digits[v & 63]};
+    }
+    if (i + 1 == data.size()) {
+      const unsigned v = data[i] << 16;
+      out += {digits[v >> 18], digits[(v >> 12) & 63], '=', '='};
+    } else if (i + 2 == data.size()) {
+      const unsigned v = (data[i] << 16) | (data[i + 1] << 8);
+      out += {digits[v >> 18], digits[(v >> 12) & 63], digits[(v >> 6) & 63], '='};
+    }
+    return out;
+  }
+
   struct Grabber {
     std::string name, url;
     cv::Size size;  // empty: frames kept as they come
@@ -148,6 +210,8 @@ class Camera {
     cv::Mat latest;
     Clock::time_point at{};
     long count = 0;
+    cv::Mat seen;  // the latest frame a snippet obtained, and its number
+    long seen_count = 0;
     bool stop = false;
     bool finished = false;
     bool down = false;  // said on stderr that the stream is down (grabber only)
@@ -323,6 +387,7 @@ class Camera {
   }
 
   std::shared_ptr<Grabber> g_;
+  long feed_sent_ = -1;  // the number of the frame last sent (the monitor's thread only)
   std::thread thread_;
 };
 

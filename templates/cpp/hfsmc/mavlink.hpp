@@ -1,4 +1,4 @@
-// hfsmc: the `mavlink` interface of C++ components (SPEC 5.1): a vehicle flown
+// hfsmc: the `mavlink` interface of C++ components (docs/interfaces.md): a vehicle flown
 // the ArduPilot Copter way (GUIDED mode), over UDP with mavgen's C headers.
 //
 // The C++ twin of templates/python/hfsmc_mavlink.py: the same queries and
@@ -66,11 +66,13 @@
 #include "mavlink/ardupilotmega/mavlink.h"
 #pragma GCC diagnostic pop
 
+#include "json.hpp"
+#include "observer.hpp"
 #include "thread.hpp"
 
 namespace hfsmc {
 
-class Mavlink {
+class Mavlink : public Feed {
  public:
   static constexpr const char* kDefaultUrl = "udpin:127.0.0.1:14550";
   static constexpr double kLinkTimeoutS = 2.0;   // no heartbeat for that long: link lost
@@ -105,9 +107,38 @@ class Mavlink {
       std::exit(1);
     }
     reader_ = quiet_thread([this] { run(); });
+    register_feed(this);
   }
 
-  ~Mavlink() { close(); }
+  ~Mavlink() override {
+    unregister_feed(this);
+    close();
+  }
+
+  // -- for the monitor's viewers (Feed) ------------------------------------------------
+  const char* feed_kind() const override { return "vehicle"; }
+  std::string feed_name() const override { return name_; }
+  /// A `vehicle` message (schemas/monitor.md) from the state at hand: no request is sent.
+  std::string feed_message(long long t_ms) override {
+    auto num = [](double x, const char* format) {
+      if (!std::isfinite(x)) return std::string("null");
+      char b[64];
+      std::snprintf(b, sizeof b, format, x);
+      return std::string(b);
+    };
+    auto triple = [&num](const Eigen::Vector3d& v) {
+      if (!std::isfinite(v.x()) && !std::isfinite(v.y()) && !std::isfinite(v.z()))
+        return std::string("null");
+      return "[" + num(v.x(), "%.3f") + "," + num(v.y(), "%.3f") + "," + num(v.z(), "%.3f") + "]";
+    };
+    const int percent = battery();
+    return "{\"type\":\"vehicle\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
+           ",\"connected\":" + (connected() ? "true" : "false") + ",\"mode\":" + json_string(mode()) +
+           ",\"armed\":" + (armed() ? "true" : "false") + ",\"altitude\":" + num(altitude(), "%.3f") +
+           ",\"position\":" + triple(position()) + ",\"velocity\":" + triple(velocity()) +
+           ",\"battery\":" + (percent >= 0 ? std::to_string(percent) : std::string("null")) +
+           ",\"link_age\":" + num(heartbeat_age(), "%.2f") + "}";
+  }
 
   /// What the component says when it stops with the vehicle still armed (then nothing
   /// lands it: --until, an error without on_interrupt...); "" when disarmed.

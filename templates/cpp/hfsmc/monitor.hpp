@@ -3,6 +3,9 @@
 // hfsmc_monitor.py, speaking the protocol of schemas/monitor.md (JSON lines over TCP,
 // read-only). The automaton's calls only queue; one thread owns the sockets and a
 // ViewState, from which a client that connects late gets the current state at once.
+// Minor version 1: the registered Feeds (observer.hpp: a `mavlink` vehicle, a `camera`)
+// are sent too, a vehicle's state to every client a few times a second, a camera's frames
+// only to the clients that asked for them with {"type":"subscribe","frames":true}.
 #pragma once
 
 #include <arpa/inet.h>
@@ -15,6 +18,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -84,6 +88,10 @@ inline std::string format_monitor_address(const std::string& host, int port) {
 class MonitorServer : public Observer {
 public:
     static constexpr int PROTOCOL = 1;
+    static constexpr int MINOR = 1;  // feeds in hello, vehicle and frame messages
+    static constexpr int FEED_EVERY_MS = 250;  // vehicle records and frames: at most 4 a second
+    static constexpr std::size_t FRAME_BACKLOG = 1 << 18;  // more unsent bytes: no new frame
+    static constexpr std::size_t REQUEST_LIMIT = 1024;  // a longer request line is ignored
     static constexpr std::size_t MAX_CLIENTS = 16;  // more are closed as soon as accepted
     static constexpr std::size_t BUFFER_LIMIT = 1 << 20;  // bytes waiting for one client
     static constexpr std::size_t INPUT_LIMIT = 1 << 20;  // bytes one client may send (ignored)
@@ -188,6 +196,8 @@ private:
         std::size_t sent = 0;
         bool reading = true;  // until the client shuts its side down
         std::size_t received = 0;
+        bool frames = false;  // it asked for camera frames
+        std::string inbuf;  // the start of a request line
         std::size_t pending() const { return out.size() - sent; }
     };
 
@@ -204,6 +214,8 @@ private:
     std::deque<Item> taken_;
     std::vector<std::unique_ptr<Client>> clients_;
     ViewState view_;
+    bool has_feeds_ = false, has_cameras_ = false;
+    std::chrono::steady_clock::time_point next_feed_{};
 
     void push(Item&& item) {
         {
@@ -228,7 +240,13 @@ private:
             // A burst is sent a slice at a time, the sockets served in between.
             fds.assign({{listener_, POLLIN, 0}, {wake_r_, POLLIN, 0}});
             for (const auto& c : clients_) fds.push_back({c->fd, events(*c), 0});
-            if (::poll(fds.data(), fds.size(), more ? 0 : 500) <= 0) {
+            int wait = more ? 0 : 500;
+            if (has_feeds_ && !clients_.empty()) {
+                const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+                    next_feed_ - std::chrono::steady_clock::now()).count();
+                wait = static_cast<int>(std::max<long long>(0, std::min<long long>(wait, left)));
+            }
+            if (::poll(fds.data(), fds.size(), wait) <= 0) {
                 fds[0].revents = 0;
             } else {
                 if (fds[1].revents) drain_wake();
@@ -242,6 +260,9 @@ private:
                 }
             }
             pump(ended, more);
+            if (!ended && has_feeds_ && !clients_.empty() &&
+                std::chrono::steady_clock::now() >= next_feed_)
+                send_feeds();
             // After the pump: a new client's snapshot holds everything queued so far.
             if (!ended && (fds[0].revents & POLLIN)) accept(hello);
         }
@@ -299,10 +320,81 @@ private:
         more = !ended && !taken_.empty();
     }
 
-    std::string hello_json() const {
+    // The vehicles' state to every client, a camera's new frame to those that asked.
+    void send_feeds() {
+        next_feed_ = std::chrono::steady_clock::now() + std::chrono::milliseconds(FEED_EVERY_MS);
+        bool takers = false;
+        for (const auto& c : clients_) takers = takers || c->frames;
+        std::string vehicles;
+        std::vector<std::string> frames;
+        {
+            std::lock_guard<std::mutex> lock(feeds_mutex());
+            for (Feed* f : feeds()) {
+                const bool camera = std::strcmp(f->feed_kind(), "camera") == 0;
+                if (camera && !takers) continue;
+                std::string msg;
+                try {
+                    msg = f->feed_message(view_.t_ms);
+                } catch (...) {  // a driver's trouble must not stop the monitor
+                    continue;
+                }
+                if (msg.empty()) continue;
+                if (camera) {
+                    frames.push_back(msg + "\n");
+                } else {
+                    vehicles += msg + "\n";
+                }
+            }
+        }
+        if (!vehicles.empty()) send_all(vehicles);
+        for (const std::string& frame : frames) {
+            // Frames are skipped, never queued without bound: the client is not dropped.
+            for (std::size_t i = 0; i < clients_.size();) {
+                Client& c = *clients_[i];
+                if (!c.frames || c.pending() + frame.size() > std::min(FRAME_BACKLOG, BUFFER_LIMIT)) {
+                    ++i;
+                    continue;
+                }
+                c.out.append(frame);
+                if (flush(c)) ++i;
+            }
+        }
+    }
+
+    // A client's request: {"type":"subscribe","frames":true|false}; anything else is ignored.
+    void request(Client& c, const std::string& line) {
+        const auto has = [&line](const char* text) { return line.find(text) != std::string::npos; };
+        if (line.size() > REQUEST_LIMIT || !has("\"type\"") || !has("\"subscribe\"")) return;
+        std::string compact;
+        for (char ch : line)
+            if (ch != ' ' && ch != '\t' && ch != '\r') compact += ch;
+        if (compact.find("\"frames\":true") != std::string::npos) {
+            c.frames = true;
+            next_feed_ = std::chrono::steady_clock::now();
+            std::lock_guard<std::mutex> lock(feeds_mutex());
+            for (Feed* f : feeds()) f->feed_reset();  // the newcomer gets the latest frame at once
+        } else if (compact.find("\"frames\":false") != std::string::npos) {
+            c.frames = false;
+        }
+    }
+
+    std::string feeds_json() {
+        std::string vehicle, camera;
+        std::lock_guard<std::mutex> lock(feeds_mutex());
+        for (Feed* f : feeds()) {
+            const bool is_camera = std::strcmp(f->feed_kind(), "camera") == 0;
+            std::string& list = is_camera ? camera : vehicle;
+            list += (list.empty() ? "" : ",") + json_string(f->feed_name());
+            has_feeds_ = true;
+            has_cameras_ = has_cameras_ || is_camera;
+        }
+        return "{\"vehicle\":[" + vehicle + "],\"camera\":[" + camera + "]}";
+    }
+
+    std::string hello_json() {
         const Structure& s = structure_;
         std::string o = "{\"type\":\"hello\",\"protocol\":" + std::to_string(PROTOCOL) +
-                        ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
+                        ",\"minor\":" + std::to_string(MINOR) + ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
         for (const auto& a : s.automata) {
             if (o.back() != '[') o += ',';
             o += "{\"owner\":" + json_string(a.owner) + ",\"period_ms\":" + std::to_string(a.period_ms) +
@@ -326,7 +418,8 @@ private:
             if (o.back() != '[') o += ',';
             o += json_string(v);
         }
-        return o + "],\"parameters\":" + ViewState::values_json(s.parameters) + "}}\n";
+        return o + "],\"parameters\":" + ViewState::values_json(s.parameters) +
+               "},\"feeds\":" + feeds_json() + "}\n";
     }
 
     void send_all(const std::string& data) {
@@ -366,7 +459,16 @@ private:
             return true;
         }
         c.received += static_cast<std::size_t>(n);
-        return c.received <= INPUT_LIMIT || drop(c);
+        if (c.received > INPUT_LIMIT) return drop(c);
+        if (has_cameras_) {  // the one request a client may make: frames, or no more frames
+            c.inbuf.append(buf, static_cast<std::size_t>(n));
+            std::size_t start = 0;
+            for (std::size_t nl; (nl = c.inbuf.find('\n', start)) != std::string::npos; start = nl + 1)
+                request(c, c.inbuf.substr(start, nl - start));
+            c.inbuf.erase(0, start);
+            if (c.inbuf.size() > REQUEST_LIMIT) c.inbuf.clear();
+        }
+        return true;
     }
 
     bool flush(Client& c) {
