@@ -50,6 +50,9 @@ from typing import Any
 
 from report import hfsmc_revision, loadavg, machine, merge_json, table  # bench/report.py
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from tests.support import many_states  # the model tests/test_web.py opens too
+
 KEY = "web"
 ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "bench" / "_work" / "web"
@@ -96,24 +99,6 @@ def two_states() -> dict[str, Any]:
             "states": [{"path": p, "final": False, "composite": False} for p in ("A", "B")],
             "transitions": [{"from": "A", "to": "B", "index": 0, "name": None},
                             {"from": "B", "to": "A", "index": 0, "name": None}],
-            "variables": [], "parameters": {}}
-
-
-def many_states(groups: int = 20, per: int = 24) -> dict[str, Any]:
-    """``groups`` composite states of ``per`` leaves each, in a ring: 500 states by default."""
-    states: list[dict[str, Any]] = []
-    automata = [{"owner": "", "period_ms": 100, "initial": "G0", "history": False}]
-    transitions: list[dict[str, Any]] = []
-    for g in range(groups):
-        states.append({"path": f"G{g}", "final": False, "composite": True})
-        automata.append({"owner": f"G{g}", "period_ms": 10, "initial": "S0", "history": False})
-        for i in range(per):
-            states.append({"path": f"G{g}/S{i}", "final": False, "composite": False})
-            transitions.append({"from": f"G{g}/S{i}", "to": f"G{g}/S{(i + 1) % per}",
-                                "index": 0, "name": None})
-        transitions.append({"from": f"G{g}", "to": f"G{(g + 1) % groups}", "index": 0,
-                            "name": None})
-    return {"name": "many", "automata": automata, "states": states, "transitions": transitions,
             "variables": [], "parameters": {}}
 
 

@@ -311,3 +311,23 @@ class Tmux:
                        stdin=subprocess.DEVNULL, check=False)
         with contextlib.suppress(OSError):  # the server leaves its socket file behind
             os.unlink(self.path)
+
+
+# -- a large structure (the web view's 500-state model) ------------------------------------------
+def many_states(groups: int = 20, per: int = 24) -> dict[str, Any]:
+    """``groups`` composite states of ``per`` leaves each, in a ring: 500 states by default
+    (tests/test_web.py and bench/web.py)."""
+    states: list[dict[str, Any]] = []
+    automata = [{"owner": "", "period_ms": 100, "initial": "G0", "history": False}]
+    transitions: list[dict[str, Any]] = []
+    for g in range(groups):
+        states.append({"path": f"G{g}", "final": False, "composite": True})
+        automata.append({"owner": f"G{g}", "period_ms": 10, "initial": "S0", "history": False})
+        for i in range(per):
+            states.append({"path": f"G{g}/S{i}", "final": False, "composite": False})
+            transitions.append({"from": f"G{g}/S{i}", "to": f"G{g}/S{(i + 1) % per}",
+                                "index": 0, "name": None})
+        transitions.append({"from": f"G{g}", "to": f"G{(g + 1) % groups}", "index": 0,
+                            "name": None})
+    return {"name": "many", "automata": automata, "states": states, "transitions": transitions,
+            "variables": [], "parameters": {}}
