@@ -5,6 +5,7 @@ against the blinker running on the real clock."""
 from __future__ import annotations
 
 import asyncio
+import base64
 import contextlib
 import importlib
 import io
@@ -23,14 +24,15 @@ from typing import Any
 
 import pytest
 
+from hfsmc.commands.view import view
+from hfsmc.emit.structure import structure_of
 from hfsmc.pipeline import compile_file
-from hfsmc.viewer import structure_of, view
 from hfsmc.web.bridge import Bridge, Page, Picture
 from hfsmc.web.picture import model_from_structure, svg_of
-from hfsmc.web.replay import Replay, active_at
+from hfsmc.web.replay import Replay, active_at, view_at
 from hfsmc.web.server import listen, make_app, painter
 from tests.conftest import ROOT
-from tests.support import BLINKER, RECORDS, STRUCTURE, build_blinker
+from tests.support import BLINKER, MONITOR_VALIDATOR, RECORDS, STRUCTURE, build_blinker, many_states
 
 monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 
@@ -309,6 +311,198 @@ async def _replay_story() -> None:
 
 def test_a_replay_seeks_steps_and_plays_as_the_pages_say() -> None:
     asyncio.run(asyncio.wait_for(_replay_story(), 20))
+
+
+# -- vehicles, camera frames and variables in replay (monitor minor version 1) ----------------
+class FakeVehicle:
+    """What a mavlink driver answers (hfsmc_mavlink.Vehicle's queries)."""
+
+    def __init__(self) -> None:
+        self.alt = 2.345678
+
+    def connected(self) -> bool:
+        return True
+
+    def mode(self) -> str:
+        return "GUIDED"
+
+    def armed(self) -> bool:
+        return True
+
+    def altitude(self) -> float:
+        return self.alt
+
+    def position(self) -> tuple[float, float, float]:
+        return (1.0, -2.5, -self.alt)
+
+    def velocity(self) -> tuple[float, float, float]:
+        return (float("nan"),) * 3
+
+    def battery(self) -> int:
+        return 87
+
+    def heartbeat_age(self) -> float:
+        return 0.25
+
+
+class FakeCamera:
+    """A camera driver whose snippet read a 640x480 frame (hfsmc_camera.Camera.last_seen)."""
+
+    def __init__(self) -> None:
+        import numpy as np
+
+        self.image = np.zeros((480, 640, 3), np.uint8)
+        self.image[:, 320:] = (0, 0, 255)  # right half red (BGR)
+
+    def last_seen(self) -> Any:
+        return self.image
+
+
+class Unusable:
+    """An interface the component cannot drive: any use raises (runtime's Unavailable)."""
+
+    def __getattr__(self, name: str) -> Any:
+        raise RuntimeError("cannot be used")
+
+
+def read_messages(sock: socket.socket, seconds: float) -> list[dict[str, Any]]:
+    got: list[dict[str, Any]] = []
+    buf = b""
+    deadline = time.monotonic() + seconds
+    while (left := deadline - time.monotonic()) > 0:
+        sock.settimeout(left)
+        try:
+            data = sock.recv(1 << 16)
+        except TimeoutError:
+            break
+        if not data:
+            break
+        buf += data
+        *lines, buf = buf.split(b"\n")
+        got.extend(json.loads(line) for line in lines)
+    return got
+
+
+def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_that_ask() -> None:
+    import cv2
+    import numpy as np
+
+    camera = FakeCamera()
+    srv = monitor.MonitorServer(port=0, announce=io.StringIO())
+    srv.watch({"drone": FakeVehicle(), "camera": camera, "ros": Unusable(), "none": None})
+    srv.start(STRUCTURE)
+    try:
+        asks = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+        quiet = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+        asks.sendall(b'junk\n{"type":"subscribe","frames":"yes"}\n' + b"x" * 5000 + b"\n"
+                     b'{"type":"subscribe",\n"frames":true}\n{"type": "subscribe", "frames": true}\n')
+        got, other = read_messages(asks, 1.2), read_messages(quiet, 0.3)
+        for msgs in (got, other):
+            for m in msgs:
+                MONITOR_VALIDATOR.validate(m)
+            assert msgs[0]["minor"] == 1 and msgs[0]["feeds"] == {"vehicle": ["drone"],
+                                                                  "camera": ["camera"]}
+        vehicles = [m for m in got if m["type"] == "vehicle"]
+        assert 3 <= len(vehicles) <= 6, len(vehicles)  # about 4 a second
+        assert vehicles[0] == {"type": "vehicle", "t": 0, "name": "drone", "connected": True,
+                               "mode": "GUIDED", "armed": True, "altitude": 2.346,
+                               "position": [1.0, -2.5, -2.346], "velocity": None, "battery": 87,
+                               "link_age": 0.25}
+        frames = [m for m in got if m["type"] == "frame"]
+        assert len(frames) == 1, frames  # the frame did not change: sent once
+        assert (frames[0]["name"], frames[0]["width"], frames[0]["height"]) == ("camera", 320, 240)
+        jpeg = base64.b64decode(frames[0]["jpeg"])
+        image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+        assert image.shape == (240, 320, 3)
+        assert image[120, 300][2] > 200 and image[120, 20][2] < 50  # the red half is on the right
+        assert [m["type"] for m in other].count("vehicle") >= 1 and "frame" not in {
+            m["type"] for m in read_messages(quiet, 0.6)}
+        camera.image = camera.image.copy()  # a snippet obtained a new frame
+        assert [m["type"] for m in read_messages(asks, 0.6)].count("frame") == 1
+        asks.sendall(b'{"type":"subscribe","frames":false}\n')
+        time.sleep(0.1)
+        camera.image = camera.image.copy()
+        assert "frame" not in {m["type"] for m in read_messages(asks, 0.6)}
+        asks.close()
+        quiet.close()
+    finally:
+        srv.close()
+
+
+async def _feeds_story() -> None:
+    camera = FakeCamera()
+    vehicle = FakeVehicle()
+    srv = monitor.MonitorServer(port=0, announce=io.StringIO())
+    srv.watch({"drone": vehicle, "camera": camera})
+    srv.start(STRUCTURE)
+
+    async def paint(structure: dict[str, Any]) -> Picture:
+        return Picture("<svg/>", "structure")
+
+    bridge = Bridge("127.0.0.1", srv.port, paint, log=io.StringIO())
+    task = asyncio.create_task(bridge.run())
+    try:
+        while bridge.status != "connected" or "drone" not in bridge.vehicles:
+            await asyncio.sleep(0.02)
+        await asyncio.sleep(0.6)
+        assert bridge.frames == {}  # no page: no frames asked for
+        page = bridge.attach()
+        kinds: dict[str, dict[str, Any]] = {}
+        while "frame" not in kinds or "model" not in kinds:
+            msg = await next_message(page)
+            kinds[msg["type"]] = msg
+        assert kinds["model"]["feeds"] == {"vehicle": ["drone"], "camera": ["camera"]}
+        assert kinds["vehicle"]["altitude"] == 2.346 and kinds["vehicle"]["battery"] == 87
+        assert kinds["frame"]["width"] == 320 and kinds["frame"]["jpeg"]
+        vehicle.alt = 7.5
+        late = bridge.attach()  # gets the latest vehicle and frame at once
+        first = [json.loads(t) for t in [late.queue.get_nowait() for _ in range(late.queue.qsize())]
+                 if t is not None]
+        assert [m["type"] for m in first] == ["model", "state", "vehicle", "frame"]
+        while (await next_message(late)).get("altitude") != 7.5:
+            pass
+        bridge.detach(page)
+        bridge.detach(late)
+        assert not bridge._subscribed
+        while any(c.frames for c in srv._clients.values()):
+            await asyncio.sleep(0.02)
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+        srv.close()
+
+
+def test_the_bridge_passes_vehicles_and_frames_on_and_asks_for_frames_only_while_a_page_is_open(
+        ) -> None:
+    asyncio.run(asyncio.wait_for(_feeds_story(), 20))
+
+
+def test_trace_variables_adds_variable_records_and_nothing_else(blinker: Path, tmp_path: Path) -> None:
+    def run(*flags: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, str(blinker), "--clock", "virtual", "--until", "4s",
+                               *flags], capture_output=True, text=True, timeout=60,
+                              stdin=subprocess.DEVNULL)
+
+    assert run("--trace", str(tmp_path / "plain.trace")).returncode == 0
+    assert run("--trace", str(tmp_path / "vars.trace"), "--trace-variables").returncode == 0
+    plain = [json.loads(x) for x in (tmp_path / "plain.trace").read_text().splitlines()]
+    both = [json.loads(x) for x in (tmp_path / "vars.trace").read_text().splitlines()]
+    assert [r for r in both if r["ev"] != "variables"] == plain
+    for rec in both:
+        MONITOR_VALIDATOR.validate({"type": "record", "record": rec})  # the trace's schema
+    values = [r for r in both if r["ev"] == "variables"]
+    assert values[0] == {"t": 0, "ev": "variables",
+                         "values": {"led": "True", "count": "1", "pauses": "0"}}
+    assert {"t": 500, "ev": "variables", "values": {"led": "False"}} in values
+    assert all(r["values"] for r in values)  # only records of a change
+    # What the replay shows at an instant: the values the records up to it gave.
+    for t, led, count in ((250, "True", "1"), (750, "False", "1"), (1000, "True", "2")):
+        view = view_at(STRUCTURE, both, t)
+        assert (view.values["led"], view.values["count"]) == (led, count), t
+    assert view_at(STRUCTURE, plain, 750).values == {}
+    bad = run("--trace-variables")
+    assert bad.returncode == 2 and bad.stderr == "blinker: --trace-variables needs --trace FILE\n"
 
 
 def test_web_usage_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -694,24 +888,6 @@ def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Proces
     assert set(shown_at(before)["svg"]) == trace_active(records, before)
     assert web.kill(signal.SIGTERM) == 0
     assert "Traceback" not in web.err_path.read_text()
-
-
-def many_states(groups: int = 20, per: int = 24) -> dict[str, Any]:
-    """``groups`` composite states of ``per`` leaves each: 500 states (bench/web.py's model)."""
-    states: list[dict[str, Any]] = []
-    automata = [{"owner": "", "period_ms": 100, "initial": "G0", "history": False}]
-    transitions: list[dict[str, Any]] = []
-    for g in range(groups):
-        states.append({"path": f"G{g}", "final": False, "composite": True})
-        automata.append({"owner": f"G{g}", "period_ms": 10, "initial": "S0", "history": False})
-        for i in range(per):
-            states.append({"path": f"G{g}/S{i}", "final": False, "composite": False})
-            transitions.append({"from": f"G{g}/S{i}", "to": f"G{g}/S{(i + 1) % per}",
-                                "index": 0, "name": None})
-        transitions.append({"from": f"G{g}", "to": f"G{(g + 1) % groups}", "index": 0,
-                            "name": None})
-    return {"name": "many", "automata": automata, "states": states, "transitions": transitions,
-            "variables": [], "parameters": {}}
 
 
 BIG_JS = r"""
