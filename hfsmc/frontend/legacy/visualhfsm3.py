@@ -22,15 +22,14 @@ first state, a transition with neither time nor condition never fires.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
 
 from hfsmc.errors import Span
 from hfsmc.frontend.legacy.code import Mapped, cpp_declaration, cpp_statements
 from hfsmc.frontend.legacy.form import Context, Interface, Legacy, Level, LState, Space, Transition
+from hfsmc.frontend.legacy.levels import Sub, SubAutomata, find_target
 from hfsmc.frontend.legacy.reader import Reader, norm_id
 from hfsmc.frontend.xmlsource import Element
 
-MAX_NESTING = 100
 _LAYOUT = ("origenX", "origenY", "destinoX", "destinoY", "box", "posx", "posy")
 _SUB_TAGS = ("idSub", "idPadre", "tiempoIteracion", "Librerias", "variables_aux",
              "funciones_aux")
@@ -40,16 +39,6 @@ def is_visualhfsm3(root: Element) -> bool:
     """Whether a ``<VisualHFSM>`` root holds the 3.x layout (Spanish element names)."""
     return any(sub.find("idSub") is not None or sub.find("Estado") is not None
                for sub in root.iterchildren("SubAutomata"))
-
-
-@dataclass(eq=False)
-class _Sub:
-    el: Element
-    uid: str
-    father: str | None
-    groups: dict[str, list[Element]]
-    owner: LState | None = None
-    states: list[Element] = field(default_factory=list)
 
 
 def read(r: Reader, root: Element) -> Legacy | None:
@@ -62,24 +51,19 @@ def read(r: Reader, root: Element) -> Legacy | None:
     if schema is not None and r.value(schema)[0]:
         dropped.append((r.value(schema)[1], f"`<nombreEsquema>` {r.value(schema)[0]} (where "
                         "VisualHFSM wrote the generated component)"))
-    subs: dict[str, _Sub] = {}
-    order: list[_Sub] = []
+    levels = _Levels(r, glob)
     libraries: dict[str, Span] = {}
     for el in groups.get("SubAutomata", []):
         g = r.children(el, _SUB_TAGS, ("Estado",), _LAYOUT)
         uid_el = r.required(g, "idSub", el, "this `<SubAutomata>`")
         if uid_el is None:
             continue
-        uid = norm_id(r.value(uid_el)[0])
         father_el = r.first(g, "idPadre")
-        sub = _Sub(el, uid, norm_id(r.value(father_el)[0]) if father_el is not None else None, g,
-                   states=g.get("Estado", []))
-        if uid in subs:
-            r.error("E121", f"duplicate sub-automaton id {uid}", r.value(uid_el)[1],
-                    f"the first is on line {r.span(subs[uid].el).line}")
+        sub = Sub(el, norm_id(r.value(uid_el)[0]),
+                  norm_id(r.value(father_el)[0]) if father_el is not None else None, g,
+                  g.get("Estado", []))
+        if not levels.add(sub, r.value(uid_el)[1]):
             continue
-        subs[uid] = sub
-        order.append(sub)
         funcs, variables = r.first(g, "funciones_aux"), r.first(g, "variables_aux")
         if funcs is not None:
             glob.functions.append(r.text(funcs))
@@ -91,29 +75,27 @@ def read(r: Reader, root: Element) -> Legacy | None:
                 name, span = r.value(lib)
                 if name:
                     libraries.setdefault(name, span)
+    order = levels.order
     if not order:
         if not groups.get("SubAutomata"):
             r.error("E102", "this VisualHFSM file has no `<SubAutomata>`", r.span(root))
         return None
     roots = [s for s in order if s.father == "0"]
     if not roots:
-        first = subs.get("1", order[0])
+        first = levels.subs.get("1", order[0])
         r.warn("W208", f"no `<SubAutomata>` says `<idPadre>0</idPadre>`: sub-automaton "
                f"{first.uid} is read as the root, the others hang from the states that name "
                "them in `<hijo>`", r.span(first.el))
         roots = [first]
-    for extra in roots[1:]:
-        r.error("E003", f"a second root sub-automaton (id {extra.uid}, idPadre 0)",
-                r.span(extra.el), f"the root is sub-automaton {roots[0].uid}")
-    levels = _Levels(r, subs, glob)
+    top = levels.one_root(roots, "idPadre 0")
     for sub in order:  # VisualHFSM's generator numbered unnamed states through the file
         for el in sub.states:
             name_el = el.find("nombre")
             if name_el is not None and not (name_el.text or "").strip():
                 levels.unnamed[el] = f"default_{len(levels.unnamed)}"
-    level = levels.level(roots[0], 0)
+    level = levels.level(top, 0)
     for sub in order:
-        if sub is not roots[0] and sub.owner is None:
+        if sub is not top and sub.owner is None:
             r.error("E103", f"sub-automaton {sub.uid} is not reached from the root "
                     f"sub-automaton: no reached state names it in `<hijo>`", r.span(sub.el))
     interfaces: list[Interface] = []
@@ -144,66 +126,19 @@ def _declarations(r: Reader, m: Mapped) -> list[Mapped]:
     return out
 
 
-class _Levels:
+class _Levels(SubAutomata):
     """The tree of sub-automata, from the root, through each state's ``<hijo>``."""
 
-    def __init__(self, r: Reader, subs: dict[str, _Sub], glob: Space) -> None:
-        self.r = r
-        self.subs = subs
-        self.glob = glob
+    period_tag = "tiempoIteracion"
+    initial_attr = "estado_inicial"
+
+    def __init__(self, r: Reader, glob: Space) -> None:
+        super().__init__(r, glob)
         self.unnamed: dict[Element, str] = {}  # an unnamed state -> default_N
         self.uses_control = False
+        self.groups: dict[LState, dict[str, list[Element]]] = {}  # a state's elements
 
-    def level(self, sub: _Sub, depth: int) -> Level:
-        r = self.r
-        level = Level(r.span(sub.el))
-        step = r.first(sub.groups, "tiempoIteracion")
-        if step is not None:
-            level.period_ms, level.period_span = r.milliseconds(step, "tiempoIteracion")
-            if level.period_ms == 0:
-                r.error("E111", "tiempoIteracion 0: a period is at least 1 ms", level.period_span)
-                level.period_ms = None
-        by_id: dict[str, LState] = {}
-        pending: list[tuple[LState, dict[str, list[Element]]]] = []
-        for el in sub.states:
-            s, g = self.state(el, sub)
-            if s.uid in by_id:
-                r.error("E121", f"duplicate state id {s.uid} in sub-automaton {sub.uid}",
-                        s.span)
-            else:
-                by_id[s.uid] = s
-            level.states.append(s)
-            pending.append((s, g))
-            value, span = r.attr(el, "estado_inicial")
-            if value is not None and r.flag(el, "estado_inicial"):
-                if level.initial is None:
-                    level.initial, level.initial_span = s, span
-                else:
-                    r.warn("W208", f"`{s.written}` is a second initial state of sub-automaton "
-                           f"{sub.uid}: the first, `{level.initial.written}`, is kept", span)
-            son_el = r.first(g, "hijo")
-            son = norm_id(r.value(son_el)[0]) if son_el is not None else "0"
-            if son not in ("", "0"):
-                assert son_el is not None
-                self.child(s, son, r.value(son_el)[1], depth)
-        for s, g in pending:
-            trans = r.first(g, "transiciones")
-            if trans is None:
-                continue
-            for t_el in r.children(trans, (), ("transicion",)).get("transicion", []):
-                t = self.transition(t_el, s, by_id, sub)
-                if t is not None:
-                    s.transitions.append(t)
-        if not level.states:
-            r.error("E102", f"sub-automaton {sub.uid} has no `<Estado>`", r.span(sub.el))
-        elif level.initial is None:
-            level.initial, level.initial_span = level.states[0], r.span(sub.el)
-            r.warn("W208", f"no state of sub-automaton {sub.uid} is initial: it starts at its "
-                   f"first state, `{level.states[0].written}` (VisualHFSM's generated code named "
-                   "no state to start in)", r.span(sub.el))
-        return level
-
-    def state(self, el: Element, sub: _Sub) -> tuple[LState, dict[str, list[Element]]]:
+    def state(self, el: Element, sub: Sub) -> tuple[LState, Span, tuple[str, Span] | None]:
         r = self.r
         g = r.children(el, ("id", "nombre", "hijo", "codigo", "transiciones"), (), _LAYOUT)
         uid_el = r.required(g, "id", el, "this `<Estado>`")
@@ -219,37 +154,47 @@ class _Levels:
         if code is not None and re.search(r"\bcontrol\s*->", code.text):
             self.uses_control = True
         assert self.glob.ctx is not None
-        return LState(uid, written, span, code, self.glob.ctx), g
+        s = LState(uid, written, span, code, self.glob.ctx)
+        self.groups[s] = g
+        son_el = r.first(g, "hijo")
+        son = norm_id(r.value(son_el)[0]) if son_el is not None else "0"
+        if son in ("", "0"):
+            return s, span, None
+        assert son_el is not None
+        return s, span, (son, r.value(son_el)[1])
 
-    def child(self, s: LState, son: str, son_span: Span, depth: int) -> None:
+    def transitions(self, sub: Sub, level: Level, states: dict[str, LState]) -> None:
         r = self.r
-        child = self.subs.get(son)
-        if child is None:
-            r.error("E103", f"state `{s.written}` holds sub-automaton {son}, which does not "
-                    "exist", son_span)
-        elif child.owner is not None:
-            r.error("E103", f"sub-automaton {son} is already held by state "
-                    f"`{child.owner.written}`", son_span)
-        elif child.father == "0":
-            r.error("E103", f"state `{s.written}` holds the root sub-automaton {son}", son_span)
-        elif depth >= MAX_NESTING:
-            r.error("E006", f"sub-automata nest deeper than {MAX_NESTING} levels", son_span)
-        else:
-            child.owner = s
-            s.child = self.level(child, depth + 1)
+        for s in level.states:
+            trans = r.first(self.groups[s], "transiciones")
+            if trans is None:
+                continue
+            for t_el in r.children(trans, (), ("transicion",)).get("transicion", []):
+                t = self.transition(t_el, s, states, sub)
+                if t is not None:
+                    s.transitions.append(t)
+
+    def finish(self, sub: Sub, level: Level) -> None:
+        r = self.r
+        if not level.states:
+            r.error("E102", f"sub-automaton {sub.uid} has no `<Estado>`", r.span(sub.el))
+        elif level.initial is None:
+            level.initial, level.initial_span = level.states[0], r.span(sub.el)
+            r.warn("W208", f"no state of sub-automaton {sub.uid} is initial: it starts at its "
+                   f"first state, `{level.states[0].written}` (VisualHFSM's generated code named "
+                   "no state to start in)", r.span(sub.el))
 
     def transition(self, el: Element, source: LState, states: dict[str, LState],
-                   sub: _Sub) -> Transition | None:
+                   sub: Sub) -> Transition | None:
         r = self.r
         g = r.children(el, ("nombre", "destino", "tiempo", "codigo"), (), _LAYOUT)
         dest_el = r.required(g, "destino", el, "this `<transicion>`")
         if dest_el is None:
             return None
         dest, dest_span = r.value(dest_el)
-        target = states.get(norm_id(dest))
+        target = find_target(r, source, dest, dest_span, states, unknown=f"to state {dest}: "
+                             f"sub-automaton {sub.uid} has no state with that `<id>`")
         if target is None:
-            r.error("E132", f"transition of `{source.written}` to state {dest}: sub-automaton "
-                    f"{sub.uid} has no state with that `<id>`", dest_span)
             return None
         name_el = r.first(g, "nombre")
         t = Transition(r.span(el), (r.value(name_el)[0] or None) if name_el is not None else None,

@@ -27,6 +27,7 @@ from hfsmc.frontend.legacy.form import (
     Transition,
     ice_interface,
 )
+from hfsmc.frontend.legacy.levels import LevelStates, find_target, read_period
 from hfsmc.frontend.legacy.reader import Reader, norm_id
 from hfsmc.frontend.xmlsource import Element
 
@@ -302,33 +303,19 @@ class _States:
         level = Level(r.span(owner))
         step = r.required(groups, "timestep", owner, f"state `{owner_name}`") \
             if self.timesteps else None
-        if step is not None:
-            level.period_ms, level.period_span = r.milliseconds(step, "timestep", "E110")
-            if level.period_ms == 0:
-                r.error("E111", "timestep 0: a period is at least 1 ms", level.period_span)
-                level.period_ms = None
-        by_id: dict[str, LState] = {}
+        read_period(r, level, step, "timestep")
+        states = LevelStates(r, level, f"among the children of `{owner_name}`",
+                             f"`{owner_name}`", ", as VisualStates did")
         pending: list[tuple[LState, list[Element]]] = []
         for kid in groups.get("state", []):
             s, transitions = self.state(kid, chain)
-            uid_span = r.attr(kid, "id")[1]
-            if s.uid in by_id:
-                r.error("E121", f"duplicate state id {s.uid} among the children of "
-                        f"`{owner_name}`", uid_span, f"`{by_id[s.uid].written}` has it too")
-            else:
-                by_id[s.uid] = s
-            level.states.append(s)
+            first = states.by_id.get(s.uid)
+            states.add(s, r.attr(kid, "id")[1], kid, "initial",
+                       *([f"`{first.written}` has it too"] if first is not None else []))
             pending.append((s, transitions))
-            if r.flag(kid, "initial"):
-                if level.initial is None:
-                    level.initial, level.initial_span = s, r.attr(kid, "initial")[1]
-                else:
-                    r.warn("W208", f"`{s.written}` is a second initial state of `{owner_name}`: "
-                           f"the first, `{level.initial.written}`, is kept, as VisualStates did",
-                           r.attr(kid, "initial")[1])
         for s, transitions in pending:
             for t in transitions:
-                found = self.transition(t, s, by_id, owner_name)
+                found = self.transition(t, s, states.by_id, owner_name)
                 if found is not None:
                     s.transitions.append(found)
         if level.states and level.initial is None and not self.timesteps:
@@ -380,17 +367,11 @@ class _States:
         if dest is None:
             return None
         uid, dest_span = r.value(dest)
-        target = siblings.get(norm_id(uid))
+        target = find_target(r, source, uid, dest_span, siblings, self.everywhere,
+                             lambda other: f" (`{other}`), which is not a child of "
+                             f"`{owner_name}`: transitions join siblings only",
+                             list_states=True)
         if target is None:
-            elsewhere = self.everywhere.get(norm_id(uid))
-            if elsewhere is not None:
-                r.error("E133", f"transition of `{source.written}` to state {uid} "
-                        f"(`{elsewhere}`), which is not a child of `{owner_name}`: transitions "
-                        "join siblings only", dest_span)
-            else:
-                r.error("E132", f"transition of `{source.written}` to id {uid}: no state has "
-                        "that id", dest_span, "siblings: " + ", ".join(
-                            f"{k} ({v.written})" for k, v in siblings.items()))
             return None
         origin = r.first(g, "originid")
         if origin is not None and norm_id(r.value(origin)[0]) != source.uid:
