@@ -16,7 +16,8 @@ from typing import Any, TypeVar
 
 import click
 
-from hfsmc import __version__, completion
+from hfsmc import __version__
+from hfsmc.commands import completion
 from hfsmc.errors import Diagnostic, HfsmcError, UsageError, render_json, render_text
 from hfsmc.pipeline import Result, compile_file
 
@@ -153,7 +154,7 @@ def diagram(model: str, output: str | None, state_path: str | None, rankdir: str
 @_guard
 def convert(source: str, output: str, strict: bool) -> None:
     """Convert SOURCE between YAML and XML (and legacy XML to version 1)."""
-    from hfsmc.convert import compile_for_convert, convert_model
+    from hfsmc.commands.convert import compile_for_convert, convert_model
 
     result = compile_for_convert(source, strict)
     _print(result.diagnostics, {source: result.lines}, "text")
@@ -253,7 +254,7 @@ def run(model: str, args: tuple[str, ...]) -> None:
 def view(target: str | None, replay: str | None, model: str | None, speed: float,
          focus: str | None, no_autofocus: bool, web: str | None) -> None:
     """Watch a component started with --monitor [HOST:]PORT, or replay a trace."""
-    from hfsmc.viewer import view as run_view
+    from hfsmc.commands.view import view as run_view
 
     sys.exit(run_view(target, replay, focus=focus, autofocus=not no_autofocus, speed=speed,
                       model=model, web=web))

@@ -80,7 +80,7 @@ def _cpp_check(yaml: Path, here: Path) -> str:
 def _converted_model(path: Path) -> Result:
     """What `convert` compiled the file to (its model even when the file's code has errors)."""
     try:
-        from hfsmc.convert import compile_for_convert
+        from hfsmc.commands.convert import compile_for_convert
     except ImportError:  # an hfsmc older than convert's W220 (to measure "before")
         return compile_file(str(path))
     return compile_for_convert(str(path))

@@ -14,7 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from hfsmc.cli import main
-from hfsmc.completion import component_flags
+from hfsmc.commands.completion import component_flags
 from tests.conftest import ROOT
 
 HFSMC = Path(sys.executable).parent / "hfsmc"  # the console script: its name sets the variable

@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from hfsmc import cli
-from hfsmc.convert import yaml_comments
+from hfsmc.commands.convert import yaml_comments
 from hfsmc.fsutil import write_atomic
 
 MODEL = """\

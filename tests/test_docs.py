@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from hfsmc.completion import component_flags
+from hfsmc.commands.completion import component_flags
 from hfsmc.pipeline import compile_file
 from tests.conftest import ROOT
 

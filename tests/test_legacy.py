@@ -31,7 +31,7 @@ from hypothesis import strategies as st
 from lxml import etree
 
 from hfsmc.cli import main
-from hfsmc.convert import legacy_report
+from hfsmc.commands.convert import legacy_report
 from hfsmc.emit.xml import to_xml
 from hfsmc.emit.yaml import to_yaml
 from hfsmc.errors import CODES, Diagnostic

@@ -21,7 +21,7 @@ from click.testing import CliRunner, Result
 from lxml import etree
 
 from hfsmc.cli import main
-from hfsmc.convert import compile_for_convert
+from hfsmc.commands.convert import compile_for_convert
 from hfsmc.ir import Model
 from hfsmc.pipeline import compile_file
 

@@ -21,8 +21,9 @@ from typing import Any
 
 import pytest
 
+from hfsmc.commands.view import view
+from hfsmc.emit.structure import structure_of
 from hfsmc.pipeline import compile_file
-from hfsmc.viewer import structure_of, view
 from tests.conftest import ROOT
 from tests.support import GREEN, RECORDS, STRUCTURE, Client, Tmux, py
 

@@ -17,8 +17,9 @@ from typing import Any
 import pytest
 from rich.console import Console
 
+from hfsmc.commands.view import view
+from hfsmc.emit.structure import structure_of
 from hfsmc.pipeline import compile_file
-from hfsmc.viewer import structure_of, view
 from tests.support import BLINKER, GREEN, RECORDS, STRUCTURE, TRACE, Tmux, py
 
 # The component's own module, shipped in the data package hfsmc.templates.

@@ -11,6 +11,7 @@ import asyncio
 import socket
 from typing import Any, TextIO
 
+from hfsmc.emit.structure import structure_of
 from hfsmc.ir import Model
 
 
@@ -22,7 +23,6 @@ def watch(sock: socket.socket, host: str, port: int, model: Model | None, *,
     model's; without it the picture is drawn from the component's structure.
     Raises UsageError when ``dot`` cannot draw the model. Returns the exit status.
     """
-    from hfsmc.viewer import structure_of
     from hfsmc.web.bridge import Bridge, Picture
     from hfsmc.web.picture import svg_of
     from hfsmc.web.server import painter, serve
@@ -42,7 +42,6 @@ def replay(sock: socket.socket, path: str, records: list[dict[str, Any]], model:
     the trace. Raises UsageError when ``dot`` cannot draw the model.
     """
     from hfsmc.templates.python import hfsmc_viewstate  # type: ignore[import-not-found]
-    from hfsmc.viewer import structure_of
     from hfsmc.web.bridge import Picture
     from hfsmc.web.picture import svg_of
     from hfsmc.web.replay import Replay

@@ -16,7 +16,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-from hfsmc.emit.data import thaw
+from hfsmc.emit.structure import structure_of
 from hfsmc.ir import Model
 
 # The component's own modules, shipped as the data package hfsmc.templates (mapped
@@ -221,23 +221,3 @@ def _load_model(path: str, what: str = "the component") -> Model:
                                      color=sys.stderr.isatty()))
         raise _ViewError(f"{path} has errors; {what} cannot be shown with it")
     return result.model
-
-
-def structure_of(model: Model) -> dict[str, Any]:
-    """The structure a component gives its observers (``Observer.start``), from its model."""
-
-    def sibling(path: str, name: str) -> str:
-        parent = path.rpartition("/")[0]
-        return f"{parent}/{name}" if parent else name
-
-    return {
-        "name": model.name,
-        "automata": [{"owner": a.owner, "period_ms": a.period_ms, "initial": a.initial,
-                      "history": a.history} for a in model.automata()],
-        "states": [{"path": s.path, "final": s.final, "composite": s.composite}
-                   for s in model.states()],
-        "transitions": [{"from": s.path, "to": sibling(s.path, t.target), "index": t.index,
-                         "name": t.name} for s in model.states() for t in s.transitions],
-        "variables": [v.name for v in model.variables],
-        "parameters": {p.name: repr(thaw(p.default)) for p in model.parameters},
-    }
