@@ -3,7 +3,7 @@
 :class:`Assembler` writes the keys a YAML model would have (imports,
 interfaces, variables, functions, period, initial, states...) with a span
 for every value and key, and each code text with the
-:meth:`~.legacy_code.Mapped.segments` that put any of its characters back in
+:meth:`~.code.Mapped.segments` that put any of its characters back in
 the legacy file.  Code is converted on the way: namespace prefixes dropped,
 members renamed, ``self`` parameters dropped, ``global`` declared where a
 function assigns a module-level name, and conditions written as function

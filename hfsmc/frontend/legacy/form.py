@@ -43,7 +43,7 @@ class Space:
 
 @dataclass(eq=False)
 class Context:
-    """Where each kind of reference looks a name up, in order (see legacy_code.Ref)."""
+    """Where each kind of reference looks a name up, in order (see code.Ref)."""
 
     scopes: dict[str, tuple[Space, ...]]
     state: bool = False  # the code of a state or transition (not a namespace's functions)
