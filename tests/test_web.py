@@ -32,7 +32,16 @@ from hfsmc.web.picture import model_from_structure, svg_of
 from hfsmc.web.replay import Replay, active_at, view_at
 from hfsmc.web.server import listen, make_app, painter
 from tests.conftest import ROOT
-from tests.support import BLINKER, MONITOR_VALIDATOR, RECORDS, STRUCTURE, build_blinker, many_states
+from tests.cppbuild import need_toolchain
+from tests.support import (
+    BLINKER,
+    MONITOR_VALIDATOR,
+    RECORDS,
+    STRUCTURE,
+    build_blinker,
+    many_states,
+    wait_until,
+)
 
 monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 
@@ -413,7 +422,7 @@ def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_tha
         assert (frames[0]["name"], frames[0]["width"], frames[0]["height"]) == ("camera", 320, 240)
         jpeg = base64.b64decode(frames[0]["jpeg"])
         image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
-        assert image.shape == (240, 320, 3)
+        assert image is not None and image.shape == (240, 320, 3)
         assert image[120, 300][2] > 200 and image[120, 20][2] < 50  # the red half is on the right
         assert [m["type"] for m in other].count("vehicle") >= 1 and "frame" not in {
             m["type"] for m in read_messages(quiet, 0.6)}
@@ -537,6 +546,13 @@ def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def free_port() -> int:
     with socket.create_server(("127.0.0.1", 0)) as s:
+        port: int = s.getsockname()[1]
+        return port
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
         port: int = s.getsockname()[1]
         return port
 
@@ -842,6 +858,12 @@ line.dispatchEvent(new Event('input', {bubbles: true}));
 """
 
 
+VARS_JS = """
+return Object.fromEntries([...document.querySelectorAll('#hv-vars tr[data-name]')]
+  .map((tr) => [tr.dataset.name, tr.cells[1].textContent]));
+"""
+
+
 @needs_browser
 def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Process],
                                   browsers: Callable[[], Any], tmp_path: Path) -> None:
@@ -875,8 +897,6 @@ def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Proces
         assert set(shown["svg"]) == set(shown["tree"]) == trace_active(records, t), (t, shown)
         for leaf in (*LEAVES, "Paused"):
             assert shown["fills"][leaf] == (GREEN if leaf in shown["svg"] else WHITE), (t, shown)
-        if t == 3500:
-            screenshot(driver, "web-replay", tmp_path)
     # The buttons: previous and next go from one transition to the other.
     driver.execute_script(SEEK_JS, 2600)
     shown_at(2600)
@@ -888,6 +908,27 @@ def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Proces
     assert set(shown_at(before)["svg"]) == trace_active(records, before)
     assert web.kill(signal.SIGTERM) == 0
     assert "Traceback" not in web.err_path.read_text()
+    # A trace with variable records (--trace-variables): the variables at the sought instant.
+    subprocess.run([sys.executable, str(blinker), "--clock", "virtual", "--until", "12s",
+                    "--trace", str(trace), "--trace-variables"], check=True, capture_output=True,
+                   timeout=60, stdin=subprocess.DEVNULL)
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", "--replay", str(trace),
+                     "--model", str(ROOT / BLINKER)], "web")
+    url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) \(replay of ", where="out").group(1)
+    driver.get(url)
+    shown_at(0)
+    assert not driver.find_elements("css selector", "#hv-vars tr.hv-hint")
+    for t in (3500, 1250, fires[3], fires[3] - 1, 12000):
+        driver.execute_script(SEEK_JS, t)
+        shown_at(t)
+        values = {k: v for r in records if r["ev"] == "variables" and r["t"] <= t
+                  for k, v in r["values"].items()}
+        assert values and wait_until(lambda v=values: driver.execute_script(VARS_JS) == v, 5), \
+            (t, values, driver.execute_script(VARS_JS))
+        if t == 3500:
+            screenshot(driver, "web-replay", tmp_path)
+    assert web.kill(signal.SIGTERM) == 0
 
 
 BIG_JS = r"""
@@ -938,3 +979,91 @@ def test_a_500_state_model_opens_and_colours_its_active_state(
         assert sorted(s["tree"]) == ["G8", "G8/S0"]
     finally:
         srv.close()
+
+
+# -- a C++ component in flight: the picture, the vehicle panel and the camera's frame ----------
+FOLLOW_CPP = ROOT / "examples" / "follow_colors_cpp" / "follow_colors_cpp.yaml"
+CPP_BUILD_TIMEOUT = 900  # s: CMake and g++ on a loaded 2-core machine take 1-2 min, at times more
+
+
+@pytest.fixture(scope="module")
+def follow_colors_cpp(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """examples/follow_colors_cpp compiled once for the module (`hfsmc build -t cpp --compile`)."""
+    need_toolchain()
+    out = tmp_path_factory.mktemp("follow_colors_cpp") / "component"
+    r = subprocess.run([sys.executable, "-m", "hfsmc", "build", "-t", "cpp", str(FOLLOW_CPP),
+                        "-o", str(out), "--compile"], capture_output=True, text=True,
+                       timeout=CPP_BUILD_TIMEOUT, stdin=subprocess.DEVNULL, cwd=ROOT)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return out / "build" / "follow_colors_cpp"
+
+
+FLIGHT_JS = """
+const cell = (k) => { const e = document.querySelector('#hv-vehicles tr[data-key="' + k + '"] td');
+                      return e ? e.textContent : null; };
+const alt = document.querySelector('#hv-vehicles tr[data-key="altitude"] td');
+const img = document.querySelector('#hv-cameras figure img');
+const filled = (g) => [...g.querySelectorAll('ellipse, polygon')].find((s) => s.getAttribute('fill') !== 'none');
+return {
+  status: document.body.dataset.status,
+  panels: [!document.getElementById('hv-vehicles').hidden, !document.getElementById('hv-cameras').hidden],
+  altitude: alt && alt.dataset.value ? Number(alt.dataset.value) : null,
+  shown: alt ? alt.textContent : null, mode: cell('mode'), armed: cell('armed'),
+  frame: img ? [img.naturalWidth, img.naturalHeight] : null,
+  svg: [...document.querySelectorAll('#hv-diagram g.hv-active')].map((g) => g.id),
+  tree: [...document.querySelectorAll('#hv-tree li.hv-active')].map((li) => li.dataset.path),
+  green: [...document.querySelectorAll('#hv-diagram g.node.hv-active')]
+    .filter((g) => filled(g) && getComputedStyle(filled(g)).fill === arguments[0]).map((g) => g.id),
+};
+"""
+
+
+@needs_browser
+@pytest.mark.timeout(CPP_BUILD_TIMEOUT + 240)
+def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
+        follow_colors_cpp: Path, processes: Callable[..., Process], browsers: Callable[[], Any],
+        tmp_path: Path) -> None:
+    udp, http = free_udp_port(), free_port()
+    config = {"parameters": {"report": str(tmp_path / "report.json")},
+              "interfaces": {"drone": {"type": "mavlink", "url": f"udpin:127.0.0.1:{udp}"},
+                             "camera": {"type": "camera",
+                                        "url": f"http://127.0.0.1:{http}/bottom.mjpg"}}}
+    (tmp_path / "config.yaml").write_text(json.dumps(config))
+    truth = tmp_path / "truth.json"
+    processes([sys.executable, "-m", "hfsmc", "sim", "--world",
+               str(ROOT / "examples" / "follow_colors" / "world.yaml"), "--mavlink",
+               f"udpout:127.0.0.1:{udp}", "--camera-port", str(http), "--truth", str(truth)], "sim")
+    comp = processes([str(follow_colors_cpp), "--config", str(tmp_path / "config.yaml"),
+                      "--monitor", "0", "--until", "90s"], "component")
+    port = int(comp.wait_for(r"monitor: listening on 127\.0\.0\.1:(\d+)").group(1))
+    web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
+                     "--model", str(FOLLOW_CPP)], "web")
+    url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+    driver = browsers()
+    driver.set_window_size(1280, 900)
+    driver.get(url)
+    greens: list[str] = []  # the innermost green state, each time it changed
+    deadline = time.monotonic() + 60
+    while True:
+        s = driver.execute_script(FLIGHT_JS, GREEN)
+        if s["status"] == "connected" and s["svg"] and sorted(s["svg"]) == sorted(s["tree"]):
+            leaf = max(s["green"], key=lambda p: p.count("/"), default=None)
+            assert leaf is not None and set(s["green"]) <= set(s["svg"]), s
+            if not greens or greens[-1] != leaf:
+                greens.append(leaf)
+        # Hovering at the mission's 4 m, the camera's frame shown: the mission has begun.
+        if s["altitude"] is not None and s["altitude"] > 3.7 and s["frame"] == [320, 240] \
+                and any(p.startswith("Mission/") for p in s["svg"]):
+            break
+        assert time.monotonic() < deadline, (s, greens, comp.err_path.read_text()[-2000:])
+        time.sleep(0.1)
+    assert s["panels"] == [True, True] and s["mode"] == "GUIDED" and s["armed"] == "ARMED", s
+    assert re.fullmatch(r"\d+\.\d\d m", s["shown"] or ""), s  # readable: centimetres
+    # The green moved with the component's transitions (the page opened before the mission).
+    assert len(greens) >= 2 and greens[-1].startswith("Mission/"), greens
+    # The panel shows the simulator's altitude (its truth, written every second).
+    true_alt = json.loads(truth.read_text())["altitude"]
+    assert abs(s["altitude"] - true_alt) < 0.5, (s["altitude"], true_alt)
+    screenshot(driver, "web-follow_colors_cpp", tmp_path)
+    assert web.kill(signal.SIGTERM) == 0
+    assert "Traceback" not in web.err_path.read_text()
