@@ -218,7 +218,7 @@ def test_caret_sits_on_the_named_thing(case: Expected) -> None:
 
 
 def test_all_problems_reported_in_one_run() -> None:
-    """SPEC 4: every problem of a model in one run, not only the first."""
+    """docs/commands.md: every problem of a model in one run, not only the first."""
     result = compile_file("tests/invalid/several_problems.yaml")
     codes = {d.code for d in result.diagnostics if d.severity == "error"}
     assert {"E111", "E132", "E134", "E141"} <= codes, short(result.diagnostics)

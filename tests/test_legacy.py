@@ -1,4 +1,4 @@
-"""Legacy VisualStates / VisualHFSM files (SPEC 2.7): import, positions, bad input, fuzz.
+"""Legacy VisualStates / VisualHFSM files (docs/legacy.md): import, positions, bad input, fuzz.
 
 The corpus (``tests/legacy/corpus/``, copies of ``../shared/corpus/``) are real
 files written by the JdeRobot tools.  Each converts; its state and transition

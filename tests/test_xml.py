@@ -1,4 +1,4 @@
-"""The XML form (SPEC 2.6): front end, XSD, writer, positions and safety."""
+"""The XML form (docs/model.md, XML): front end, XSD, writer, positions and safety."""
 
 from __future__ import annotations
 

@@ -110,7 +110,7 @@ def compile_for_convert(path: str, strict: bool = False) -> Result:
 
 
 def legacy_report(result: Result) -> list[str]:
-    """What the import of a legacy file mapped, and how (SPEC 2.7); nothing for other files."""
+    """What the import of a legacy file mapped, and how (docs/legacy.md); nothing for other files."""
     doc = result.document
     if doc is None or not doc.notes:
         return []
