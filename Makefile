@@ -39,6 +39,7 @@ lint: setup
 	$(BIN)/ruff check hfsmc tests bench templates/python scripts
 	$(BIN)/mypy
 	$(BIN)/mypy --strict $(wildcard templates/python/hfsmc_*.py)
+	$(BIN)/lint-imports --no-cache
 
 test: lint
 	$(BIN)/pytest $(PYTEST_ARGS)

@@ -11,15 +11,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from hfsmc.sim.vehicle import wrap_pi
-from hfsmc.sim.world import Home
+from hfsmc.sim.vehicle import Body, wrap_pi
+from hfsmc.sim.world import Home, World
 
-if TYPE_CHECKING:
-    from hfsmc.sim.autopilot import Autopilot
+
+class Source(Protocol):
+    """What the streams read of the autopilot that sends them (hfsmc/sim/autopilot.py):
+    the telemetry is written against this, so it does not import the autopilot back."""
+
+    mav: Any  # the MAVLink encoder, whose ``*_send`` methods write to the link
+    body: Body
+    world: World
+    mode: int
+    ready: bool
+
+    @property
+    def navigating(self) -> bool: ...
 
 EARTH_RADIUS = 6378137.0
 EKF_READY = (M.EKF_ATTITUDE | M.EKF_VELOCITY_HORIZ | M.EKF_VELOCITY_VERT | M.EKF_POS_HORIZ_REL
@@ -65,7 +76,7 @@ def ned(home: Home, lat_e7: int, lon_e7: int) -> tuple[float, float]:
 class Telemetry:
     """The autopilot's message streams: which are due at a step, and their rates."""
 
-    def __init__(self, ap: Autopilot) -> None:
+    def __init__(self, ap: Source) -> None:
         self.ap = ap
         self.intervals = {name: self.steps(hz) for name, hz in DEFAULT_RATES.items()}
         self._senders: dict[str, Callable[[], None]] = {
