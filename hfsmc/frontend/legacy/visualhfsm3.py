@@ -58,11 +58,12 @@ def read(r: Reader, root: Element) -> Legacy | None:
         uid_el = r.required(g, "idSub", el, "this `<SubAutomata>`")
         if uid_el is None:
             continue
+        uid, uid_span = r.value(uid_el)
         father_el = r.first(g, "idPadre")
-        sub = Sub(el, norm_id(r.value(uid_el)[0]),
+        sub = Sub(el, norm_id(uid),
                   norm_id(r.value(father_el)[0]) if father_el is not None else None, g,
                   g.get("Estado", []))
-        if not levels.add(sub, r.value(uid_el)[1]):
+        if not levels.add(sub, uid_span):
             continue
         funcs, variables = r.first(g, "funciones_aux"), r.first(g, "variables_aux")
         if funcs is not None:
