@@ -1,4 +1,4 @@
-"""The YAML front end, the builder and the passes, through compile_file."""
+"""The YAML front end, the IR builder and the passes, through compile_file."""
 
 from __future__ import annotations
 

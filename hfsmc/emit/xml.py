@@ -73,7 +73,7 @@ def _duration(us: int | None) -> str | None:
 
 
 def _literal(v: Value) -> str:
-    """A parameter default or variable init as the attribute text the builder reads back."""
+    """A parameter default or variable init as the attribute text the IR builder reads back."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, (int, float)):

@@ -69,7 +69,7 @@ def _merge(old: Any, new: Any) -> Any:
 
 
 def _bare_type(value: Any) -> str | None:
-    """The type a variable written as this bare literal has (the builder's inference)."""
+    """The type a variable written as this bare literal has (the IR builder's inference)."""
     kind = {bool: "bool", int: "int", float: "float", str: "str", list: "list"}
     return next((k for t, k in kind.items() if isinstance(value, t)), None)
 

@@ -1,11 +1,11 @@
-"""The neutral form both front ends hand to the builder.
+"""The neutral form the front ends hand to the IR builder (hfsmc/ir_builder.py).
 
 A :class:`Document` is the model as plain data (dicts, lists, str, int, float,
 bool, None) shaped like the YAML format, plus the source position of every
 value and every mapping key, addressed by its path from the root
 (``("states", "Follow", "transitions", 0, "when")``).  The JSON Schema
-validator and the builder only ever see this form, so YAML, XML and legacy
-files share one validation and one builder.
+validator and the IR builder only ever see this form, so YAML, XML and legacy
+files share one validation and one IR builder.
 """
 
 from __future__ import annotations
