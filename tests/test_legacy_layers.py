@@ -1,29 +1,35 @@
 """The legacy package's imports go one way (docs/legacy.md, "The code").
 
-Read from the sources (nothing is imported): each module of
-``hfsmc/frontend/legacy/`` imports only modules of a lower layer, within the package
-and in hfsmc, and none imports the package's ``__init__``.
+Read from the sources (nothing is imported), against the package's layers contract in
+pyproject.toml (which lint-imports enforces, see test_layers.py): each module of
+``hfsmc/frontend/legacy/`` imports only modules of a lower layer, none imports the
+package's ``__init__``, and outside the package only the bottom of hfsmc.
 """
 
 from __future__ import annotations
 
 import ast
+import tomllib
 from pathlib import Path
 
-import pytest
-
-PACKAGE = Path(__file__).resolve().parent.parent / "hfsmc" / "frontend" / "legacy"
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "hfsmc" / "frontend" / "legacy"
 PREFIX = "hfsmc.frontend.legacy"
-# Top first; the modules of one line do not import each other.
-LAYERS = (("load",), ("assemble",), ("names", "visualstates", "visualhfsm", "visualhfsm3"),
-          ("levels",), ("reader",), ("form",), ("code",))
 # What the package may import from the rest of hfsmc: nothing of a later stage.
 OUTSIDE = {"hfsmc.errors", "hfsmc.ir", "hfsmc.frontend.source", "hfsmc.frontend.xmlsource"}
-RANK = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
 
-def hfsmc_imports(path: Path) -> set[str]:
-    out: set[str] = set()
+def layers() -> dict[str, int]:
+    """Module -> its layer (0 the top), from the contract in pyproject.toml."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text("utf-8"))
+    contract, = (c for c in config["tool"]["importlinter"]["contracts"]
+                 if c.get("containers") == [PREFIX])
+    return {name.strip(): i for i, layer in enumerate(contract["layers"])
+            for name in layer.split("|")}
+
+
+def hfsmc_imports(path: Path) -> list[tuple[int, str]]:
+    out: list[tuple[int, str]] = []
     for node in ast.walk(ast.parse(path.read_text("utf-8"))):
         if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             names = [node.module]  # `from hfsmc.frontend.legacy import x`: the __init__
@@ -31,21 +37,24 @@ def hfsmc_imports(path: Path) -> set[str]:
             names = [a.name for a in node.names]
         else:
             continue
-        out.update(n for n in names if n == "hfsmc" or n.startswith("hfsmc."))
+        out += [(node.lineno, n) for n in names if n == "hfsmc" or n.startswith("hfsmc.")]
     return out
 
 
 def test_every_module_has_a_layer() -> None:
-    modules = {p.stem for p in PACKAGE.glob("*.py")} - {"__init__"}
-    assert modules == set(RANK)
+    assert {p.stem for p in PACKAGE.glob("*.py")} - {"__init__"} == set(layers())
 
 
-@pytest.mark.parametrize("module", sorted(RANK))
-def test_imports_go_down(module: str) -> None:
-    for name in sorted(hfsmc_imports(PACKAGE / f"{module}.py")):
-        assert name != PREFIX, f"{module} imports the package's __init__"
-        if name.startswith(PREFIX + "."):
+def test_imports_go_down() -> None:
+    rank = layers()
+    wrong: list[str] = []
+    for module in sorted(rank):
+        for line, name in hfsmc_imports(PACKAGE / f"{module}.py"):
             other = name.removeprefix(PREFIX + ".")
-            assert RANK[other] > RANK[module], f"{module} imports {other}, which is not below it"
-        else:
-            assert name in OUTSIDE, f"{module} imports {name}"
+            if name == PREFIX:
+                wrong.append(f"{module}.py:{line}: imports the package's __init__")
+            elif name.startswith(PREFIX + ".") and rank[other] <= rank[module]:
+                wrong.append(f"{module}.py:{line}: imports {other}, which is not below it")
+            elif not name.startswith(PREFIX + ".") and name not in OUTSIDE:
+                wrong.append(f"{module}.py:{line}: imports {name}")
+    assert wrong == []
