@@ -17,17 +17,16 @@ import selectors
 import shlex
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import jsonschema
 import pytest
 
-from tests.cppbuild import CppBuildError, Superbuild
+from tests.backends import SANITIZER_REPORT, Backend, BuildError, CppBackend, PythonBackend
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFORMANCE = ROOT / "tests" / "conformance"
@@ -57,75 +56,16 @@ META = re.compile(r"# (args|exit|stderr|wait-for|signal): (.*)")
 # Back ends
 
 
-class BuildError(Exception):
-    """A back end could not build a component: the message holds its output."""
-
-
-class Backend(Protocol):
-    """Builds the component of a model and says how to run it."""
-
-    @property
-    def name(self) -> str:
-        """Shown in test ids."""
-        ...
-
-    @property
-    def model_suffix(self) -> str:
-        """A case has a model for this back end when ``NN_name`` + this suffix exists."""
-        ...
-
-    def build(self, model: Path, out: Path) -> list[str]:
-        """Build ``model`` into ``out``; return the command line that runs it."""
-        ...
-
-
-@dataclass(frozen=True)
-class PythonBackend:
-    name: str = "python"
-    model_suffix: str = ".yaml"
-
-    def build(self, model: Path, out: Path) -> list[str]:
-        cmd = [sys.executable, "-m", "hfsmc", "build", "-t", "python",
-               str(model.relative_to(ROOT)), "-o", str(out)]
-        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=TIMEOUT)
-        if proc.returncode != 0:
-            raise BuildError(f"{shlex.join(cmd)} exited {proc.returncode}\n{proc.stderr}")
-        return [sys.executable, str(out / f"{component_name(model)}.py")]
-
-
-class CppBackend:
-    """The C++ component: every twin (``NN_name.cpp.yaml``) generated and compiled in one
-    CMake project the first time one is asked for (warnings are errors), then reused."""
-
-    model_suffix = ".cpp.yaml"
-
-    def __init__(self, name: str, sanitize: bool) -> None:
-        self.name = name
-        self.sanitize = sanitize
-        self._projects: dict[Path, Superbuild] = {}
-
-    def build(self, model: Path, out: Path) -> list[str]:
-        base = out.parent
-        if base not in self._projects:
-            twins = sorted(CONFORMANCE.glob("*.cpp.yaml")) + sorted(REAL.glob("*.cpp.yaml"))
-            self._projects[base] = Superbuild(base, twins, sanitize=self.sanitize)
-        try:
-            return [str(self._projects[base].executable(model))]
-        except CppBuildError as e:
-            raise BuildError(str(e)) from None
+def conformance_twins() -> list[Path]:
+    """The C++ twins (``NN_name.cpp.yaml``) of both folders: one CMake project."""
+    return sorted(CONFORMANCE.glob("*.cpp.yaml")) + sorted(REAL.glob("*.cpp.yaml"))
 
 
 # The back ends this suite runs. The C++ component runs twice: as built, and with
 # AddressSanitizer + UndefinedBehaviorSanitizer (any report fails the case).
-BACKENDS: tuple[Backend, ...] = (PythonBackend(), CppBackend("cpp", sanitize=False),
-                                 CppBackend("cpp-asan", sanitize=True))
-SANITIZER_REPORT = re.compile(r"ERROR: (AddressSanitizer|LeakSanitizer)|runtime error: ")
-
-
-def component_name(model: Path) -> str:
-    found = re.search(r"^name:\s*([A-Za-z_]\w*)\s*$", model.read_text("utf-8"), re.MULTILINE)
-    assert found, f"{model}: no `name:` line"
-    return found.group(1)
+BACKENDS: tuple[Backend, ...] = (PythonBackend(),
+                                 CppBackend("cpp", sanitize=False, twins=conformance_twins),
+                                 CppBackend("cpp-asan", sanitize=True, twins=conformance_twins))
 
 
 class Components:
