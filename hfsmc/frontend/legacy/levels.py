@@ -15,12 +15,11 @@ from hfsmc.frontend.xmlsource import Element
 MAX_NESTING = 100  # sub-automata inside sub-automata: far beyond any real model
 
 
-def read_period(r: Reader, level: Level, step: Element | None, tag: str,
-                code: str = "E110") -> None:
+def read_period(r: Reader, level: Level, step: Element | None, tag: str) -> None:
     """The level's cycle written in ``step`` (whole milliseconds, at least 1)."""
     if step is None:
         return
-    level.period_ms, level.period_span = r.milliseconds(step, tag, code)
+    level.period_ms, level.period_span = r.milliseconds(step, tag)
     if level.period_ms == 0:
         r.error("E111", f"{tag} 0: a period is at least 1 ms", level.period_span)
         level.period_ms = None
