@@ -27,10 +27,9 @@ TIMEOUT = 60.0
 # Names and strings that could break generated C++: keywords as state names, comment
 # and directive look-alikes, quotes, backslashes, non-ASCII, NUL.
 HOSTILE_SNIPPET_TEXT = 'x */ #line 1 "evil.h" \\" """ é 😀 \\\\'
-HOSTILE = {
-    "python": '''hfsm: 1
+HOSTILE_MODEL = '''hfsm: 1
 name: hostile_{lang}
-language: python
+language: {lang}
 description: "ends with a backslash \\\\ and holds */ and #line 3"
 parameters:
   greeting: {{type: str, default: "nul\\0 and \\"quotes\\" é"}}
@@ -40,45 +39,25 @@ period: 10ms
 initial: class
 states:
   class:
-    entry: log(greeting)
+    entry: log(greeting){semi}
     transitions:
       - name: "*/ weird \\" name é \\\\"
         to: int
         after: 20ms
   int:
     entry: |
-      n += 1
-      log({text!r})
+      n += 1{semi}
+      log({text}){semi}
     transitions:
       - {{to: delete, when: n >= 1}}
   delete: {{final: true}}
-''',
-    "cpp": '''hfsm: 1
-name: hostile_{lang}
-language: cpp
-description: "ends with a backslash \\\\ and holds */ and #line 3"
-parameters:
-  greeting: {{type: str, default: "nul\\0 and \\"quotes\\" é"}}
-variables:
-  n: 0
-period: 10ms
-initial: class
-states:
-  class:
-    entry: log(greeting);
-    transitions:
-      - name: "*/ weird \\" name é \\\\"
-        to: int
-        after: 20ms
-  int:
-    entry: |
-      n += 1;
-      log({ctext});
-    transitions:
-      - {{to: delete, when: n >= 1}}
-  delete: {{final: true}}
-''',
-}
+'''
+
+
+def hostile_model(lang: str) -> str:
+    """The hostile model with its snippets in ``lang`` (python or cpp)."""
+    text = repr(HOSTILE_SNIPPET_TEXT) if lang == "python" else cpp_literal(HOSTILE_SNIPPET_TEXT)
+    return HOSTILE_MODEL.format(lang=lang, semi=";" if lang == "cpp" else "", text=text)
 
 
 def cpp_literal(text: str) -> str:
@@ -92,7 +71,7 @@ def project(tmp_path_factory: pytest.TempPathFactory) -> Superbuild:
     need_toolchain()
     models = tmp_path_factory.mktemp("models")
     hostile = models / "hostile_cpp.yaml"
-    hostile.write_text(HOSTILE["cpp"].format(lang="cpp", ctext=cpp_literal(HOSTILE_SNIPPET_TEXT)),
+    hostile.write_text(hostile_model("cpp"),
                        "utf-8")
     return Superbuild(tmp_path_factory.mktemp("cpp"), [*examples("cpp"), hostile])
 
@@ -151,7 +130,7 @@ def test_hostile_names_and_strings_compile_and_trace_like_python(project: Superb
     cpp = run([str(project.executable(hostile)), "--clock", "virtual", "--trace", "-"])
     assert cpp.returncode == 0, cpp.stderr
     py_model = tmp_path / "hostile_python.yaml"
-    py_model.write_text(HOSTILE["python"].format(lang="python", text=HOSTILE_SNIPPET_TEXT), "utf-8")
+    py_model.write_text(hostile_model("python"), "utf-8")
     py = python_trace(py_model, tmp_path)
     assert cpp.stdout.replace("hostile_cpp", "hostile_python") == py
     logs = [json.loads(line)["msg"] for line in py.splitlines() if '"ev":"log"' in line]

@@ -701,10 +701,12 @@ def test_random_twins_trace_the_same_in_python_and_cpp(
 # ---------------------------------------------------------------------------
 # Runtime faults, in both back ends: the same models with Python and with C++ snippets
 
-SLOW_PY = """\
+# Each fault model is written once for both languages: `<;>` ends a C++ statement, `<...>`
+# stands for the pieces of each language in LANGUAGE_PIECES (C++ names end in `_cpp`).
+SLOW_MODEL = """\
 hfsm: 1
-name: slow
-imports: [time]
+name: slow<lang>
+<head>imports: <sleep imports>
 period: 100ms
 variables:
   n: 0
@@ -713,149 +715,89 @@ on_interrupt: Stopped
 states:
   Busy:
     during: |
-      n += 1
-      log("sleep " + str(n))
-      time.sleep(0.35)
-      log("woke " + str(n))
+      n += 1<;>
+      log("sleep " + str(n))<;>
+      <sleep 350 ms><;>
+      log("woke " + str(n))<;>
     transitions: [{to: Done, when: n >= 40}]
   Done: {final: true}
-  Stopped: {entry: 'log("interrupted")', final: true}
-"""
-
-SLOW_CPP = """\
-hfsm: 1
-name: slow_cpp
-language: cpp
-imports: ["<thread>", "<chrono>"]
-period: 100ms
-variables:
-  n: 0
-initial: Busy
-on_interrupt: Stopped
-states:
-  Busy:
-    during: |
-      n += 1;
-      log("sleep " + str(n));
-      std::this_thread::sleep_for(std::chrono::milliseconds(350));
-      log("woke " + str(n));
-    transitions: [{to: Done, when: n >= 40}]
-  Done: {final: true}
-  Stopped: {entry: 'log("interrupted");', final: true}
+  Stopped: {entry: 'log("interrupted")<;>', final: true}
 """
 
 # Work (about a millisecond) in every entry, exit, during, do and on_shutdown, so that
 # signals land inside snippets of every kind, and inside the interrupt and the stop.
-SIGNALS_PY = """\
+SIGNALS_MODEL = """\
 hfsm: 1
-name: sigs
-period: 20ms
+name: sigs<lang>
+<head>period: 20ms
 variables:
   n: 0
   junk: 0
 functions: |
-  def work():
-      global junk
-      junk = sum(range(30000))
-initial: Work
+<work>initial: Work
 on_interrupt: Closing
-on_shutdown: 'work(); log("shutdown")'
+on_shutdown: 'work(); log("shutdown")<;>'
 states:
   Work:
     period: 10ms
     initial: A
-    entry: 'work(); log("work in")'
-    exit: 'work(); log("work out")'
+    entry: 'work(); log("work in")<;>'
+    exit: 'work(); log("work out")<;>'
     states:
       A:
-        entry: 'n += 1; work()'
-        during: work()
-        exit: 'work(); log("a out")'
+        entry: 'n += 1; work()<;>'
+        during: work()<;>
+        exit: 'work(); log("a out")<;>'
         transitions: [{to: B, after: 30ms}]
       B:
-        entry: 'work(); log("b in")'
-        exit: work()
-        transitions: [{to: A, after: 30ms, do: work()}]
+        entry: 'work(); log("b in")<;>'
+        exit: work()<;>
+        transitions: [{to: A, after: 30ms, do: work()<;>}]
     transitions: [{to: Done, when: n >= 12}]
   Closing:
-    entry: 'work(); log("closing")'
-    during: work()
-    exit: 'work(); log("closing out")'
+    entry: 'work(); log("closing")<;>'
+    during: work()<;>
+    exit: 'work(); log("closing out")<;>'
     transitions: [{to: Bye, after: 60ms}]
-  Bye: {final: true, entry: 'work(); log("bye")'}
-  Done: {final: true}
-"""
-
-SIGNALS_CPP = """\
-hfsm: 1
-name: sigs_cpp
-language: cpp
-period: 20ms
-variables:
-  n: 0
-  junk: 0
-functions: |
-  void work() {
-      volatile long long sum = 0;
-      for (long long i = 0; i < 300000; ++i) sum = sum + i;
-      junk = sum;
-  }
-initial: Work
-on_interrupt: Closing
-on_shutdown: 'work(); log("shutdown");'
-states:
-  Work:
-    period: 10ms
-    initial: A
-    entry: 'work(); log("work in");'
-    exit: 'work(); log("work out");'
-    states:
-      A:
-        entry: 'n += 1; work();'
-        during: work();
-        exit: 'work(); log("a out");'
-        transitions: [{to: B, after: 30ms}]
-      B:
-        entry: 'work(); log("b in");'
-        exit: work();
-        transitions: [{to: A, after: 30ms, do: work();}]
-    transitions: [{to: Done, when: n >= 12}]
-  Closing:
-    entry: 'work(); log("closing");'
-    during: work();
-    exit: 'work(); log("closing out");'
-    transitions: [{to: Bye, after: 60ms}]
-  Bye: {final: true, entry: 'work(); log("bye");'}
+  Bye: {final: true, entry: 'work(); log("bye")<;>'}
   Done: {final: true}
 """
 
 # 1 ms ticks that log: about 120 KiB of trace in 2 s, more than the 64 KiB buffer.
-FULL_PY = """\
+FULL_MODEL = """\
 hfsm: 1
-name: full
-period: 1ms
+name: full<lang>
+<head>period: 1ms
 variables:
   n: 0
-on_shutdown: 'log("on_shutdown after " + str(n) + " ticks */")'
+on_shutdown: 'log("on_shutdown after " + str(n) + " ticks */")<;>'
 initial: A
 states:
   A:
-    during: 'n += 1; log("tick " + str(n) + " \\\\ \\" */")'
+    during: 'n += 1; log("tick " + str(n) + " \\\\ \\" */")<;>'
 """
 
-FULL_CPP = """\
-hfsm: 1
-name: full_cpp
-language: cpp
-period: 1ms
-variables:
-  n: 0
-on_shutdown: 'log("on_shutdown after " + str(n) + " ticks */");'
-initial: A
-states:
-  A:
-    during: 'n += 1; log("tick " + str(n) + " \\\\ \\" */");'
-"""
+LANGUAGE_PIECES = {
+    "python": {
+        "<lang>": "", "<head>": "", "<;>": "",
+        "<sleep imports>": "[time]", "<sleep 350 ms>": "time.sleep(0.35)",
+        "<work>": "  def work():\n      global junk\n      junk = sum(range(30000))\n",
+    },
+    "cpp": {
+        "<lang>": "_cpp", "<head>": "language: cpp\n", "<;>": ";",
+        "<sleep imports>": '["<thread>", "<chrono>"]',
+        "<sleep 350 ms>": "std::this_thread::sleep_for(std::chrono::milliseconds(350))",
+        "<work>": ("  void work() {\n      volatile long long sum = 0;\n"
+                   "      for (long long i = 0; i < 300000; ++i) sum = sum + i;\n"
+                   "      junk = sum;\n  }\n"),
+    },
+}
+
+
+def fault_model(model: str, language: str) -> str:
+    for piece, text in LANGUAGE_PIECES[language].items():
+        model = model.replace(piece, text)
+    return model
 
 
 @dataclass(frozen=True)
@@ -878,8 +820,11 @@ class Faults:
         return proc
 
 
-FAULT_MODELS = {"python": {"slow": SLOW_PY, "sigs": SIGNALS_PY, "full": FULL_PY},
-                "cpp-asan": {"slow": SLOW_CPP, "sigs": SIGNALS_CPP, "full": FULL_CPP}}
+FAULT_MODELS = {
+    backend: {kind: fault_model(model, language)
+              for kind, model in (("slow", SLOW_MODEL), ("sigs", SIGNALS_MODEL),
+                                  ("full", FULL_MODEL))}
+    for backend, language in (("python", "python"), ("cpp-asan", "cpp"))}
 FULL_DISK = "trace: cannot write to /dev/full: {}No space left on device; " \
             "the component goes on without its trace"
 

@@ -171,12 +171,32 @@ def run_to_completion(copy: Copy, command: str) -> None:
         assert re.search(r"^\s*[\d.]+\s+stop \(", proc.stdout, re.M), said
 
 
-def start_in_background(copy: Copy, command: str) -> None:
-    log = copy.log("background")
+def spawn(copy: Copy, command: str, log: Path) -> subprocess.Popen[bytes]:
+    """``command`` started in the copy's shell, in its own session, its output in ``log``."""
     with log.open("wb") as out:
-        proc = subprocess.Popen(copy.shell("exec " + command), cwd=copy.root, env=copy.env,
+        return subprocess.Popen(copy.shell("exec " + command), cwd=copy.root, env=copy.env,
                                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=True)
+
+
+@contextlib.contextmanager
+def interrupted_at_the_end(copy: Copy, command: str, log: Path,
+                           ) -> Iterator[subprocess.Popen[bytes]]:
+    """``command`` running for the body of the ``with``, then stopped as Ctrl+C stops it: it
+    must end with status 0 or 130."""
+    proc = spawn(copy, command, log)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+        status = proc.wait(timeout=30)
+    assert status in (0, 130), log.read_text(errors="replace")
+
+
+def start_in_background(copy: Copy, command: str) -> None:
+    log = copy.log("background")
+    proc = spawn(copy, command, log)
     copy.background.append((command, proc, log))
     if "--monitor" in command:  # a person types the next command slower than a test does
         wait_for_line(log, re.compile(r"monitor: listening on"), proc, timeout=60, step=0.1)
@@ -201,29 +221,16 @@ def run_display_in_a_terminal(copy: Copy, command: str) -> None:
 
 def attach_a_viewer(copy: Copy, command: str) -> None:
     log = copy.log("view")
-    with log.open("wb") as out:
-        proc = subprocess.Popen(copy.shell("exec " + command), cwd=copy.root, env=copy.env,
-                                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                start_new_session=True)
-    try:
+    with interrupted_at_the_end(copy, command, log) as proc:
         text = wait_for_line(log, re.compile(r"^\s*[\d.]+\s+(start \w+ )?in \w", re.M), proc,
                              timeout=60, step=0.1).string
         assert "hfsmc view: connected to 127.0.0.1:" in text, text
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGINT)
-        status = proc.wait(timeout=30)
-    assert status in (0, 130), log.read_text(errors="replace")
 
 
 def serve_a_web_view(copy: Copy, command: str) -> None:
     """`hfsmc view --web`: it says where it serves, the page loads, Ctrl+C stops it."""
     log = copy.log("web")
-    with log.open("wb") as out:
-        proc = subprocess.Popen(copy.shell("exec " + command), cwd=copy.root, env=copy.env,
-                                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                start_new_session=True)
-    try:
+    with interrupted_at_the_end(copy, command, log) as proc:
         text = wait_for_line(log, re.compile(r"web view on (http://127\.0\.0\.1:\d+/)"), proc,
                              timeout=60, step=0.1).string
         url = re.search(r"web view on (http://\S+/)", text)
@@ -233,11 +240,6 @@ def serve_a_web_view(copy: Copy, command: str) -> None:
         if "--replay" not in command:
             wait_for_line(log, re.compile(r"hfsmc view: connected to 127\.0\.0\.1:"), proc,
                           timeout=30, step=0.1)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGINT)
-        status = proc.wait(timeout=30)
-    assert status in (0, 130), log.read_text(errors="replace")
 
 
 def run(copy: Copy, command: str) -> None:
