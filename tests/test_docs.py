@@ -108,7 +108,7 @@ def cpp_methods(header: str, cls: str) -> set[str]:
     """Public member functions of ``class cls`` in a driver header (members are indented
     by two spaces in the project's style; bodies deeper)."""
     text = (ROOT / "templates/cpp/hfsmc" / header).read_text("utf-8")
-    body = text[text.index(f"class {cls} {{"):]
+    body = text[re.search(rf"class {cls}\b[^;{{]*{{", text).start():]  # type: ignore[union-attr]
     public = body[body.index(" public:"):body.index(" private:")]
     found = set()
     for m in re.finditer(r"^  (?![ /#])[^;{}()]*?\b([A-Za-z_]\w*)\(", public, re.M):

@@ -355,7 +355,7 @@ class FakeVehicle:
 
 
 class FakeCamera:
-    """A camera driver whose snippet read a 640x480 frame (hfsmc_camera.Camera.last_seen)."""
+    """A camera driver whose snippet read a 640x480 frame (hfsmc_camera.Camera._last_seen)."""
 
     def __init__(self) -> None:
         import numpy as np
@@ -363,7 +363,7 @@ class FakeCamera:
         self.image = np.zeros((480, 640, 3), np.uint8)
         self.image[:, 320:] = (0, 0, 255)  # right half red (BGR)
 
-    def last_seen(self) -> Any:
+    def _last_seen(self) -> Any:
         return self.image
 
 

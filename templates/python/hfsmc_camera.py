@@ -89,8 +89,9 @@ class Camera:
         self._seen = latest[0]  # for the monitor's viewers (one assignment: no lock)
         return latest[0]
 
-    def last_seen(self) -> Any:
-        """The latest frame a snippet obtained with ``frame()``; None before any."""
+    def _last_seen(self) -> Any:
+        """The latest frame a snippet obtained with ``frame()``; None before any. For the
+        monitor (hfsmc_monitor.py), which sends it to the viewers that ask for frames."""
         return self._seen
 
     def age(self) -> float:

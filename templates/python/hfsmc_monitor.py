@@ -191,7 +191,7 @@ class MonitorServer:
             try:  # an interface the component cannot drive raises on any use
                 if all(callable(getattr(obj, a, None)) for a in VEHICLE_QUERIES):
                     self._vehicles[name] = obj
-                elif callable(getattr(obj, "last_seen", None)):
+                elif callable(getattr(obj, "_last_seen", None)):
                     self._cv2 = importlib.import_module("cv2")  # the camera driver has it
                     self._cameras[name] = obj
             except Exception:
@@ -318,7 +318,7 @@ class MonitorServer:
             return
         for name, camera in self._cameras.items():
             try:
-                image = camera.last_seen()
+                image = camera._last_seen()
                 if image is None or image is self._sent_frame.get(name):
                     continue
                 self._sent_frame[name] = image

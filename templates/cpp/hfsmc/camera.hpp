@@ -102,36 +102,6 @@ class Camera : public Feed {
     close();
   }
 
-  // -- for the monitor's viewers (Feed) ------------------------------------------------
-  const char* feed_kind() const override { return "camera"; }
-  std::string feed_name() const override { return g_->name; }
-  /// A `frame` message (schemas/monitor.md): the latest frame a snippet obtained with
-  /// frame(), downscaled to 320 px wide at most, as base64 JPEG; "" when none is new.
-  std::string feed_message(long long t_ms) override {
-    cv::Mat image;
-    {
-      std::lock_guard<std::mutex> lock(g_->mutex);
-      if (g_->seen_count == feed_sent_ || g_->seen.empty()) return "";
-      feed_sent_ = g_->seen_count;
-      image = g_->seen;
-    }
-    if (image.cols > kFrameWidth) {
-      const int h = std::max(1, static_cast<int>(std::lround(
-                                    image.rows * static_cast<double>(kFrameWidth) / image.cols)));
-      cv::resize(image, image, cv::Size(kFrameWidth, h), 0, 0, cv::INTER_AREA);
-    }
-    std::vector<uchar> jpeg;
-    try {
-      if (!cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, kFrameQuality})) return "";
-    } catch (const cv::Exception&) {
-      return "";
-    }
-    return "{\"type\":\"frame\",\"t\":" + std::to_string(t_ms) + ",\"name\":" +
-           json_string(g_->name) + ",\"width\":" + std::to_string(image.cols) +
-           ",\"height\":" + std::to_string(image.rows) + ",\"jpeg\":\"" + base64(jpeg) + "\"}";
-  }
-  /// Forget which frame was sent: the next feed_message() sends the latest again.
-  void feed_reset() override { feed_sent_ = -1; }
   Camera(const Camera&) = delete;
   Camera& operator=(const Camera&) = delete;
 
@@ -180,6 +150,37 @@ class Camera : public Feed {
   }
 
  private:
+  // -- for the monitor's viewers (Feed: private here, called through the base) -------
+  const char* feed_kind() const override { return "camera"; }
+  std::string feed_name() const override { return g_->name; }
+  /// A `frame` message (schemas/monitor.md): the latest frame a snippet obtained with
+  /// frame(), downscaled to 320 px wide at most, as base64 JPEG; "" when none is new.
+  std::string feed_message(long long t_ms) override {
+    cv::Mat image;
+    {
+      std::lock_guard<std::mutex> lock(g_->mutex);
+      if (g_->seen_count == feed_sent_ || g_->seen.empty()) return "";
+      feed_sent_ = g_->seen_count;
+      image = g_->seen;
+    }
+    if (image.cols > kFrameWidth) {
+      const int h = std::max(1, static_cast<int>(std::lround(
+                                    image.rows * static_cast<double>(kFrameWidth) / image.cols)));
+      cv::resize(image, image, cv::Size(kFrameWidth, h), 0, 0, cv::INTER_AREA);
+    }
+    std::vector<uchar> jpeg;
+    try {
+      if (!cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, kFrameQuality})) return "";
+    } catch (const cv::Exception&) {
+      return "";
+    }
+    return "{\"type\":\"frame\",\"t\":" + std::to_string(t_ms) + ",\"name\":" +
+           json_string(g_->name) + ",\"width\":" + std::to_string(image.cols) +
+           ",\"height\":" + std::to_string(image.rows) + ",\"jpeg\":\"" + base64(jpeg) + "\"}";
+  }
+  /// Forget which frame was sent: the next feed_message() sends the latest again.
+  void feed_reset() override { feed_sent_ = -1; }
+
   using Clock = std::chrono::steady_clock;
 
   static std::string base64(const std::vector<uchar>& data) {

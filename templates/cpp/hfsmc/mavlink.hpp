@@ -115,31 +115,6 @@ class Mavlink : public Feed {
     close();
   }
 
-  // -- for the monitor's viewers (Feed) ------------------------------------------------
-  const char* feed_kind() const override { return "vehicle"; }
-  std::string feed_name() const override { return name_; }
-  /// A `vehicle` message (schemas/monitor.md) from the state at hand: no request is sent.
-  std::string feed_message(long long t_ms) override {
-    auto num = [](double x, const char* format) {
-      if (!std::isfinite(x)) return std::string("null");
-      char b[64];
-      std::snprintf(b, sizeof b, format, x);
-      return std::string(b);
-    };
-    auto triple = [&num](const Eigen::Vector3d& v) {
-      if (!std::isfinite(v.x()) && !std::isfinite(v.y()) && !std::isfinite(v.z()))
-        return std::string("null");
-      return "[" + num(v.x(), "%.3f") + "," + num(v.y(), "%.3f") + "," + num(v.z(), "%.3f") + "]";
-    };
-    const int percent = battery();
-    return "{\"type\":\"vehicle\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
-           ",\"connected\":" + (connected() ? "true" : "false") + ",\"mode\":" + json_string(mode()) +
-           ",\"armed\":" + (armed() ? "true" : "false") + ",\"altitude\":" + num(altitude(), "%.3f") +
-           ",\"position\":" + triple(position()) + ",\"velocity\":" + triple(velocity()) +
-           ",\"battery\":" + (percent >= 0 ? std::to_string(percent) : std::string("null")) +
-           ",\"link_age\":" + num(heartbeat_age(), "%.2f") + "}";
-  }
-
   /// What the component says when it stops with the vehicle still armed (then nothing
   /// lands it: --until, an error without on_interrupt...); "" when disarmed.
   std::string warning_at_stop() const {
@@ -302,6 +277,31 @@ class Mavlink : public Feed {
   }
 
  private:
+  // -- for the monitor's viewers (Feed: private here, called through the base) -------
+  const char* feed_kind() const override { return "vehicle"; }
+  std::string feed_name() const override { return name_; }
+  /// A `vehicle` message (schemas/monitor.md) from the state at hand: no request is sent.
+  std::string feed_message(long long t_ms) override {
+    auto num = [](double x, const char* format) {
+      if (!std::isfinite(x)) return std::string("null");
+      char b[64];
+      std::snprintf(b, sizeof b, format, x);
+      return std::string(b);
+    };
+    auto triple = [&num](const Eigen::Vector3d& v) {
+      if (!std::isfinite(v.x()) && !std::isfinite(v.y()) && !std::isfinite(v.z()))
+        return std::string("null");
+      return "[" + num(v.x(), "%.3f") + "," + num(v.y(), "%.3f") + "," + num(v.z(), "%.3f") + "]";
+    };
+    const int percent = battery();
+    return "{\"type\":\"vehicle\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
+           ",\"connected\":" + (connected() ? "true" : "false") + ",\"mode\":" + json_string(mode()) +
+           ",\"armed\":" + (armed() ? "true" : "false") + ",\"altitude\":" + num(altitude(), "%.3f") +
+           ",\"position\":" + triple(position()) + ",\"velocity\":" + triple(velocity()) +
+           ",\"battery\":" + (percent >= 0 ? std::to_string(percent) : std::string("null")) +
+           ",\"link_age\":" + num(heartbeat_age(), "%.2f") + "}";
+  }
+
   using Clock = std::chrono::steady_clock;
   static constexpr double kInf = std::numeric_limits<double>::infinity();
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
