@@ -206,7 +206,8 @@ def build(model: str, target: str, output: str | None, compile_: bool, depfile: 
 
 @main.command(context_settings={"ignore_unknown_options": True})
 @click.argument("model", type=click.Path(dir_okay=False))
-@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=completion.complete_run_args)
+@click.argument("args", nargs=-1, type=click.UNPROCESSED,
+                shell_complete=completion.complete_run_args)
 @_guard
 def run(model: str, args: tuple[str, ...]) -> None:
     """Build MODEL's component into a cache and run it with ARGS (after --).
@@ -262,7 +263,8 @@ def view(target: str | None, replay: str | None, model: str | None, speed: float
 
 @main.command(cls=completion.SimCommand,
               context_settings={"ignore_unknown_options": True, "help_option_names": []})
-@click.argument("args", nargs=-1, type=click.UNPROCESSED, shell_complete=completion.complete_sim_args)
+@click.argument("args", nargs=-1, type=click.UNPROCESSED,
+                shell_complete=completion.complete_sim_args)
 @_guard
 def sim(args: tuple[str, ...]) -> None:
     """Simulated multicopter (MAVLink over UDP) and its camera (MJPEG over HTTP).

@@ -19,8 +19,9 @@ LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
 
 def lint_imports(cwd: Path) -> subprocess.CompletedProcess[str]:
     """lint-imports over the package hfsmc/ found in ``cwd``, with the project's contracts."""
-    return subprocess.run([str(LINT_IMPORTS), "--no-cache", "--config", str(ROOT / "pyproject.toml")],
-                          cwd=cwd, capture_output=True, text=True, timeout=120)
+    config = str(ROOT / "pyproject.toml")
+    return subprocess.run([str(LINT_IMPORTS), "--no-cache", "--config", config], cwd=cwd,
+                          capture_output=True, text=True, timeout=120)
 
 
 def test_the_import_contracts_are_kept() -> None:

@@ -21,8 +21,7 @@ from hfsmc.ir import Model
 
 # The component's own modules, shipped as the data package hfsmc.templates (mapped
 # from templates/ by setuptools, a mapping mypy does not follow: they are typed Any here).
-from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
-from hfsmc.templates.python import hfsmc_view as screen
+from hfsmc.templates.python import hfsmc_monitor, hfsmc_view  # type: ignore[import-not-found]
 
 Item = tuple[str, Any]
 
@@ -71,14 +70,14 @@ def view(target: str | None, replay: str | None, focus: str | None = None,
 
 def _attach(target: str, focus: str | None, autofocus: bool) -> int:
     try:
-        host, port = monitor.parse_address(target)
+        host, port = hfsmc_monitor.parse_address(target)
     except ValueError as e:
         raise _ViewError(str(e), 2) from None
     if port == 0:
         raise _ViewError(f"bad address {target!r}: port 0 is not a component's port", 2)
-    label = monitor.format_address(host, port)
+    label = hfsmc_monitor.format_address(host, port)
     try:
-        sock = monitor.connect(host, port)
+        sock = hfsmc_monitor.connect(host, port)
     except OSError as e:
         raise _ViewError(f"cannot connect to {label}: {e.strerror or e}") from None
 
@@ -87,7 +86,8 @@ def _attach(target: str, focus: str | None, autofocus: bool) -> int:
             sock.close()
 
     print(f"hfsmc view: connected to {label}", file=sys.stderr, flush=True)
-    return int(screen.run_viewer(monitor.client_items(sock, label), focus, autofocus, stop=hang_up))
+    items = hfsmc_monitor.client_items(sock, label)
+    return int(hfsmc_view.run_viewer(items, focus, autofocus, stop=hang_up))
 
 
 def _web_listen(web: str) -> Any:
@@ -98,13 +98,13 @@ def _web_listen(web: str) -> Any:
         raise _ViewError(f"the web view needs {e.name or 'aiohttp'}: reinstall hfsmc "
                          "(pip install aiohttp)") from None
     try:
-        web_host, web_port = monitor.parse_address(web)
+        web_host, web_port = hfsmc_monitor.parse_address(web)
     except ValueError as e:
         raise _ViewError(str(e), 2) from None
     try:
         return listen(web_host, web_port)
     except OSError as e:
-        where = monitor.format_address(web_host, web_port)
+        where = hfsmc_monitor.format_address(web_host, web_port)
         why = os.strerror(e.errno) if e.errno else str(e)
         raise _ViewError(f"cannot serve the web view on {where}: {why}") from None
 
@@ -117,7 +117,7 @@ def _web_replay(web: str, path: str, model_path: str | None, autofocus: bool,
         raise _ViewError(f"bad --speed {speed}: the web view plays from more than 0 to 1000 "
                          "times real time", 2)
     try:
-        monitor.parse_address(web)
+        hfsmc_monitor.parse_address(web)
     except ValueError as e:
         raise _ViewError(str(e), 2) from None
     records = load_trace(path)
@@ -138,8 +138,8 @@ def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
     from hfsmc.web import watch
 
     try:
-        host, port = monitor.parse_address(target)
-        monitor.parse_address(web)
+        host, port = hfsmc_monitor.parse_address(target)
+        hfsmc_monitor.parse_address(web)
     except ValueError as e:
         raise _ViewError(str(e), 2) from None
     if port == 0:
@@ -158,13 +158,14 @@ def _replay(path: str, focus: str | None, autofocus: bool, speed: float, model: 
     if not speed >= 0:  # also refuses NaN
         raise _ViewError(f"bad --speed {speed}: expected 0 (as fast as possible) or more", 2)
     records = load_trace(path)
-    structure = screen.infer_structure(records) if model is None else _model_structure(model)
-    state = screen.ViewState(structure)
+    structure = hfsmc_view.infer_structure(records) if model is None else _model_structure(model)
+    state = hfsmc_view.ViewState(structure)
     wanted = (focus or "").strip("/")
     if wanted and wanted not in state.children:
         where = model if model is not None else path
         raise _ViewError(f"--focus {focus}: no state of that path in {where}", 2)
-    return int(screen.run_viewer(_replay_items(records, structure, speed, path), focus, autofocus))
+    items = _replay_items(records, structure, speed, path)
+    return int(hfsmc_view.run_viewer(items, focus, autofocus))
 
 
 def load_trace(path: str) -> list[dict[str, Any]]:
@@ -179,7 +180,7 @@ def load_trace(path: str) -> list[dict[str, Any]]:
                     rec = json.loads(line)
                 except ValueError as e:
                     raise _ViewError(f"{path}:{n}: bad trace record: {getattr(e, 'msg', e)}") from None
-                why: str | None = screen.check_record(rec)
+                why: str | None = hfsmc_view.check_record(rec)
                 if why is not None:
                     raise _ViewError(f"{path}:{n}: bad trace record: {why}")
                 records.append(rec)
