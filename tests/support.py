@@ -11,12 +11,13 @@ import json
 import os
 import re
 import shlex
+import signal
 import socket
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from itertools import count
 from pathlib import Path
 from typing import Any
@@ -68,6 +69,65 @@ def stop_processes(made: list[subprocess.Popen[bytes]]) -> None:
         if p.poll() is None:
             p.kill()
         p.wait(10)
+
+
+def interrupt(proc: subprocess.Popen[Any], timeout: float = 10) -> int:
+    """Stop a process as Ctrl+C does (SIGINT); killed if it has not ended within ``timeout``
+    seconds. Its exit status."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+    return proc.returncode
+
+
+def close_pipes(proc: subprocess.Popen[Any], reader: threading.Thread) -> None:
+    """After a process ended: the thread reading its output joined, its pipes closed."""
+    reader.join(timeout=5)
+    for stream in (proc.stdin, proc.stdout):
+        if stream is not None:
+            with contextlib.suppress(OSError):
+                stream.close()
+
+
+class Worker:
+    """Runs ``self._run`` on a daemon thread from ``start_worker`` until ``stop_worker``, which
+    sets ``self._stop`` (the loop must look at it); ``self._lock`` guards what it shares."""
+
+    def start_worker(self) -> None:
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def stop_worker(self, timeout: float) -> None:
+        self._stop.set()
+        self._thread.join(timeout=timeout)
+
+    def _run(self) -> None:
+        raise NotImplementedError
+
+
+@contextlib.contextmanager
+def simulator(tmp: Path, port: int, *args: str) -> Iterator[subprocess.Popen[bytes]]:
+    """`hfsmc sim` sending to udp PORT, started and ready to serve (its first line said)."""
+    log_path = tmp / "sim.log"
+    with log_path.open("w") as log:
+        sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--mavlink",
+                                f"udpout:127.0.0.1:{port}", "--boot-time", "1", *args],
+                               cwd=ROOT, stdout=log, stderr=log, stdin=subprocess.DEVNULL)
+    try:
+        end = time.monotonic() + 30
+        while "sim: MAVLink to" not in log_path.read_text():
+            assert sim.poll() is None and time.monotonic() < end, log_path.read_text()
+            time.sleep(0.05)
+        yield sim
+    finally:
+        interrupt(sim)
+    assert sim.returncode == 0, log_path.read_text()
 
 
 def hfsmc(*args: str, cwd: Path = ROOT, timeout: float = 120,

@@ -133,15 +133,20 @@ def test_config_that_is_a_directory_or_empty(component: tuple[list[str], str],
     assert r.returncode == 0, r.stderr
 
 
+def build_with_a_drone(tmp_path: Path, name: str, url: str) -> None:
+    """The Python model NAME with a MAVLink interface at ``url``, built into tmp_path/c."""
+    model = tmp_path / f"{name}.yaml"
+    model.write_text(MODEL.format(suffix="", lang="python").replace("name: flags", f"name: {name}")
+                     .replace("parameters:", "interfaces:\n  drone: {type: mavlink, url: "
+                              f"\"{url}\"}}\nparameters:"))
+    r = run([sys.executable, "-m", "hfsmc", "build", str(model), "-o", str(tmp_path / "c")])
+    assert r.returncode == 0, r.stderr
+
+
 def test_missing_interface_library_is_reported_at_start(tmp_path: Path) -> None:
     """Without pymavlink the Python component stops at start, saying what to install
     (the C++ component's libraries are found by CMake at build time, docs/runtime.md)."""
-    model = tmp_path / "needs.yaml"
-    model.write_text(MODEL.format(suffix="", lang="python").replace("name: flags", "name: needs")
-                     .replace("parameters:", "interfaces:\n  drone: {type: mavlink, url: "
-                              "\"udpin:127.0.0.1:14550\"}\nparameters:"))
-    r = run([sys.executable, "-m", "hfsmc", "build", str(model), "-o", str(tmp_path / "c")])
-    assert r.returncode == 0, r.stderr
+    build_with_a_drone(tmp_path, "needs", "udpin:127.0.0.1:14550")
     # -I -S: no site-packages, so no pymavlink
     r = run([sys.executable, "-I", "-S", str(tmp_path / "c" / "needs.py"), "--clock", "virtual"])
     assert r.returncode == 1
@@ -151,12 +156,7 @@ def test_missing_interface_library_is_reported_at_start(tmp_path: Path) -> None:
 
 def test_a_url_the_driver_refuses_stops_at_start_without_traceback(tmp_path: Path) -> None:
     pytest.importorskip("pymavlink")
-    model = tmp_path / "url.yaml"
-    model.write_text(MODEL.format(suffix="", lang="python").replace("name: flags", "name: url")
-                     .replace("parameters:", "interfaces:\n  drone: {type: mavlink, url: "
-                              "\"udpin:127.0.0.1:99999\"}\nparameters:"))
-    r = run([sys.executable, "-m", "hfsmc", "build", str(model), "-o", str(tmp_path / "c")])
-    assert r.returncode == 0, r.stderr
+    build_with_a_drone(tmp_path, "url", "udpin:127.0.0.1:99999")
     r = run([sys.executable, str(tmp_path / "c" / "url.py"), "--clock", "virtual"])
     assert r.returncode == 1
     assert r.stderr.startswith("url: error: cannot start: interface `drone` (mavlink): cannot "

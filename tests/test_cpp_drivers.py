@@ -31,7 +31,7 @@ from pymavlink import mavutil
 
 from hfsmc.emit.mavgen import mavlink_headers
 from tests.conftest import ROOT
-from tests.support import free_port
+from tests.support import close_pipes, free_port, simulator
 
 MAV = mavutil.mavlink
 pytestmark = pytest.mark.timeout(180)
@@ -152,11 +152,7 @@ class Scenario:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait()
-        self._reader.join(timeout=5)
-        for stream in (self.proc.stdin, self.proc.stdout):
-            if stream is not None:
-                with contextlib.suppress(OSError):
-                    stream.close()
+        close_pipes(self.proc, self._reader)
 
 
 @contextlib.contextmanager
@@ -176,31 +172,6 @@ def passed(s: Scenario, timeout: float) -> str:
     assert not any(line.startswith("FAIL") for line in s.out)
     assert "Sanitizer" not in err and "runtime error" not in err, err
     return err
-
-
-@contextlib.contextmanager
-def simulator(tmp: Path, port: int, *args: str) -> Iterator[subprocess.Popen[bytes]]:
-    """`hfsmc sim` sending to udp PORT, started and ready to serve (its first line said)."""
-    log_path = tmp / "sim.log"
-    with log_path.open("w") as log:
-        sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--mavlink",
-                                f"udpout:127.0.0.1:{port}", "--boot-time", "1", *args],
-                               cwd=ROOT, stdout=log, stderr=log, stdin=subprocess.DEVNULL)
-    try:
-        end = time.monotonic() + 30
-        while "sim: MAVLink to" not in log_path.read_text():
-            assert sim.poll() is None and time.monotonic() < end, log_path.read_text()
-            time.sleep(0.05)
-        yield sim
-    finally:
-        sim.send_signal(signal.SIGINT)
-        try:
-            sim.wait(timeout=10)
-        finally:
-            if sim.poll() is None:
-                sim.kill()
-                sim.wait()
-    assert sim.returncode == 0, log_path.read_text()
 
 
 # -- the MAVLink C headers ----------------------------------------------------------------

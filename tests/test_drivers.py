@@ -10,7 +10,6 @@ import importlib
 import json
 import math
 import re
-import signal
 import socket
 import subprocess
 import sys
@@ -26,7 +25,7 @@ import pytest
 from pymavlink import mavutil
 
 from tests.conftest import ROOT
-from tests.support import free_port, wait_until
+from tests.support import Worker, free_port, simulator, wait_until
 
 hfsmc_mavlink = importlib.import_module("hfsmc.templates.python.hfsmc_mavlink")
 hfsmc_camera = importlib.import_module("hfsmc.templates.python.hfsmc_camera")
@@ -39,7 +38,7 @@ READY_FLAGS = MAV.EKF_ATTITUDE | MAV.EKF_VELOCITY_HORIZ | MAV.EKF_POS_HORIZ_ABS
 
 
 # -- a fake vehicle ------------------------------------------------------------------------
-class FakeVehicle:
+class FakeVehicle(Worker):
     """ArduPilot Copter as a ground station sees it, reduced: it sends to the
     component's port (udpout), heartbeats and telemetry, answers COMMAND_LONG
     with COMMAND_ACK the way Copter would (or as `answers` says: a MAV_RESULT,
@@ -62,14 +61,10 @@ class FakeVehicle:
         self.alt = 0.0
         self.target_alt = 0.0
         self.battery = 87
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
+        self.start_worker()
 
     def close(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=2)
+        self.stop_worker(timeout=2)
         self.conn.close()
 
     def messages(self, kind: str) -> list[Any]:
@@ -645,43 +640,31 @@ def test_takeoff_to_three_metres_and_land_in_the_simulator(tmp_path: Path,
     port = free_port(socket.SOCK_DGRAM)
     truth = tmp_path / "truth.json"
     drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
-    with (tmp_path / "sim.log").open("w") as log:
-        sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--mavlink",
-                                f"udpout:127.0.0.1:{port}", "--boot-time", "1", "--no-camera",
-                                "--truth", str(truth)], cwd=ROOT, stdout=log, stderr=log,
-                               stdin=subprocess.DEVNULL)
     try:
-        assert wait_until(drone.connected, 10)
-        assert wait_until(drone.ready, 10)
-        drone.arm()  # in STABILIZE: refused, as the vehicle only arms in GUIDED
-        assert wait_until(lambda: drone.last_ack("arm") in ("failed", "denied"), 5)
-        assert not drone.armed()
-        drone.set_mode("GUIDED")
-        assert wait_until(lambda: drone.mode() == "GUIDED", 5)
-        drone.arm()
-        assert wait_until(drone.armed, 5)
-        drone.takeoff(3.0)
-        assert wait_until(lambda: drone.altitude() > 2.8, 15)
-        time.sleep(1.0)
-        assert 2.7 < drone.altitude() < 3.3 and abs(drone.position()[2] + 3.0) < 0.4
-        warning = drone.warning_at_stop()
-        assert warning is not None and re.fullmatch(
-            r"WARNING: ARMED in GUIDED at (2\.9|3\.0|3\.1) m "
-            r"as the component stops: nothing lands the vehicle now", warning), warning
-        drone.land()
-        assert wait_until(lambda: not drone.armed(), 25, step=0.1)  # landed, disarmed by itself
-        assert drone.mode() == "LAND" and drone.altitude() < 0.3
-        assert drone.warning_at_stop() is None
+        with simulator(tmp_path, port, "--no-camera", "--truth", str(truth)):
+            assert wait_until(drone.connected, 10)
+            assert wait_until(drone.ready, 10)
+            drone.arm()  # in STABILIZE: refused, as the vehicle only arms in GUIDED
+            assert wait_until(lambda: drone.last_ack("arm") in ("failed", "denied"), 5)
+            assert not drone.armed()
+            drone.set_mode("GUIDED")
+            assert wait_until(lambda: drone.mode() == "GUIDED", 5)
+            drone.arm()
+            assert wait_until(drone.armed, 5)
+            drone.takeoff(3.0)
+            assert wait_until(lambda: drone.altitude() > 2.8, 15)
+            time.sleep(1.0)
+            assert 2.7 < drone.altitude() < 3.3 and abs(drone.position()[2] + 3.0) < 0.4
+            warning = drone.warning_at_stop()
+            assert warning is not None and re.fullmatch(
+                r"WARNING: ARMED in GUIDED at (2\.9|3\.0|3\.1) m "
+                r"as the component stops: nothing lands the vehicle now", warning), warning
+            drone.land()
+            assert wait_until(lambda: not drone.armed(), 25, step=0.1)  # landed, disarmed by itself
+            assert drone.mode() == "LAND" and drone.altitude() < 0.3
+            assert drone.warning_at_stop() is None
     finally:
-        sim.send_signal(signal.SIGINT)
-        try:
-            sim.wait(timeout=10)
-        finally:
-            if sim.poll() is None:
-                sim.kill()
-                sim.wait()
         drone.close()
-    assert sim.returncode == 0, (tmp_path / "sim.log").read_text()
     said = capsys.readouterr().err.splitlines()
     for line in ("drone: set_mode GUIDED accepted", "drone: arm accepted",
                  "drone: takeoff accepted", "drone: land accepted"):

@@ -27,7 +27,6 @@ import os
 import queue
 import random
 import select
-import signal
 import socket
 import subprocess
 import sys
@@ -42,7 +41,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from tests.conftest import ROOT
-from tests.support import free_port, wait_until
+from tests.support import Worker, close_pipes, free_port, interrupt, wait_until
 from tests.test_cpp_drivers import FLAGS, SAN_ENV, SANITIZE, tool, write_include
 
 hfsmc_mavlink = importlib.import_module("hfsmc.templates.python.hfsmc_mavlink")
@@ -130,7 +129,7 @@ class Way:
         return []
 
 
-class Proxy:
+class Proxy(Worker):
     """sim --udpout--> front (self.port) ... back --> driver (udpin:driver_port), and
     the driver's answers back the same way. ``inspect`` may add datagrams before
     one (see LateReplay)."""
@@ -151,14 +150,10 @@ class Proxy:
         self.ways = {"up": Way(random.Random(seed), dup, swap, set(always_dup), hold_s),  # sim -> driver
                      "down": Way(random.Random(seed + 1), dup, swap, set(always_dup),
                                  max(hold_s, 1.5))}  # driver -> sim
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
+        self.start_worker()
 
     def close(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=5)
+        self.stop_worker(timeout=5)
         self.front.close()
         self.back.close()
 
@@ -300,14 +295,7 @@ class Sim:
         self.proc.wait(timeout=10)
 
     def stop(self) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.returncode
+        return interrupt(self.proc, timeout=15)
 
 
 @pytest.fixture
@@ -484,11 +472,7 @@ class CppDrone:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
-        self._reader.join(timeout=5)
-        for stream in (self.proc.stdin, self.proc.stdout):
-            if stream is not None:
-                with contextlib.suppress(OSError):
-                    stream.close()
+        close_pipes(self.proc, self._reader)
         err = self.err_path.read_text()
         assert "Sanitizer" not in err and "runtime error" not in err, err
 
