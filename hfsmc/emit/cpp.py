@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from importlib.resources import files
 
 import jinja2
 
 from hfsmc.emit.comments import comment_text
 from hfsmc.emit.data import component_config
-from hfsmc.emit.walk import Walk
+from hfsmc.emit.templating import environment, runtime_files, template_folder
+from hfsmc.emit.walk import AutomatonView, StateView, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, Value
 
@@ -37,7 +37,7 @@ _BACK = "#line @HFSMC_BACK@ HFSMC_SOURCE"  # the line number is filled in after 
 
 
 @dataclass(frozen=True, slots=True)
-class SnippetView:
+class CppSnippet:
     sid: int
     kind: str  # entry | during | exit | when | do | functions | on_shutdown
     owner: int  # state index; len(states) for the root's snippets
@@ -106,8 +106,63 @@ def _include(text: str) -> str:
     return t if t.startswith(("<", '"')) else f"<{t}>"
 
 
-class _Builder(Walk[SnippetView]):
-    """Walks the IR once and makes the view model of the template."""
+@dataclass(frozen=True, slots=True)
+class IncludeView:
+    header: str  # <name> or "name"
+    line_directive: str
+
+
+@dataclass(frozen=True, slots=True)
+class ParameterHelpView:
+    """A parameter for the component's --help, every field a C++ string literal."""
+
+    name: str
+    type: str
+    default: str  # as Python writes it
+    description: str
+
+
+@dataclass(frozen=True, slots=True)
+class TransitionIndices:
+    """A row of the component's transition table: states by index."""
+
+    source: int
+    target: int
+    index: int
+    name_literal: str  # C++ string literal ("" if unnamed)
+
+
+@dataclass(frozen=True, slots=True)
+class CppComponentView:
+    """Everything ``component.cpp.j2``, ``CMakeLists.txt.j2`` and ``config.yaml.j2`` print,
+    computed."""
+
+    name: str  # the component's name, as an identifier
+    name_literal: str  # and as a C++ string literal
+    base: str  # the model's file name, for the headers
+    file_literal: str  # the model's path as a C++ string literal, for error messages
+    source_literal: str  # "src/NAME.cpp" as a C++ string literal
+    description_lines: tuple[str, ...]  # comment text
+    includes: tuple[IncludeView, ...]
+    driver_headers: tuple[str, ...]  # "hfsmc/mavlink.hpp", ...
+    parameters: tuple[MemberView, ...]
+    parameter_help: tuple[ParameterHelpView, ...]
+    variables: tuple[MemberView, ...]
+    interfaces: tuple[InterfaceView, ...]
+    functions: CppSnippet | None
+    on_shutdown: CppSnippet | None
+    states: tuple[StateView[CppSnippet], ...]
+    automata: tuple[AutomatonView, ...]
+    snippets: tuple[CppSnippet, ...]  # in sid order
+    on_interrupt: int  # index of the state to go to on an interrupt, or -1
+    interrupt_timeout_us: int  # -1 without one
+    transition_indices: tuple[TransitionIndices, ...]
+    line_back: str  # a #line back into the generated file (numbered after rendering)
+    config: str  # the body of NAME.yaml
+
+
+class CppWalk(Walk[CppSnippet]):
+    """Walks the IR once and makes the view of the templates."""
 
     def __init__(self, model: Model) -> None:
         super().__init__(model)
@@ -131,11 +186,12 @@ class _Builder(Walk[SnippetView]):
             continued = row.endswith("\\")
         return "\n".join(out), first.line, first.col
 
-    def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> SnippetView:
+    def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> CppSnippet:
         body, line, col = self.lines(code)
-        return SnippetView(sid, kind, owner, where, body, line, col)
+        return CppSnippet(sid, kind, owner, where, body, line, col)
 
-    def members(self) -> tuple[list[MemberView], list[MemberView], list[InterfaceView]]:
+    def members(self) -> tuple[tuple[MemberView, ...], tuple[MemberView, ...],
+                               tuple[InterfaceView, ...]]:
         m = self.model
         params = []
         for p in m.parameters:
@@ -160,52 +216,58 @@ class _Builder(Walk[SnippetView]):
             interfaces.append(InterfaceView(
                 i.name, INTERFACE_CLASSES.get(i.type, "hfsmc::Unavailable"),
                 cpp_string(i.url or ""), "{" + options + "}", _line(self.file, i.span.line)))
-        return params, variables, interfaces
+        return tuple(params), tuple(variables), tuple(interfaces)
 
-    def build(self) -> dict[str, object]:
+    def view(self) -> CppComponentView:
         m = self.model
         functions = self.snippet("functions", self.root, m.functions)
-        views = self.state_views()
+        states = tuple(self.state_views())
         on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
         params, variables, interfaces = self.members()
         kinds = {i.type for i in m.interfaces}
-        return {
-            "model": m,
-            "base": self.base,
-            "source": cpp_string(f"src/{m.name}.cpp"),
-            "description": [comment_text(ln) for ln in (m.description or "").strip().splitlines()],
-            "includes": [(_include(i.text), _line(self.file, i.span.line)) for i in m.imports],
-            "drivers": [f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds) if k in INTERFACE_FILES],
-            "parameters": params,
-            # For the component's --help: name, type, default (as Python writes it), description.
-            "parameter_help": [(cpp_string(p.name), cpp_string(p.type), cpp_string(repr(p.default)),
-                                cpp_string(p.description or "")) for p in m.parameters],
-            "variables": variables,
-            "interfaces": interfaces,
-            "functions": functions,
-            "on_shutdown": on_shutdown,
-            "states": views,
-            "automata": self.automata,
-            "snippets": self.snippets,
-            "on_interrupt": self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
-            "interrupt_timeout_us": m.interrupt_timeout_us if m.interrupt_timeout_us is not None else -1,
-            "root": self.root,
-            "transitions": [(self.index[s.path], self.target(s, t.target), t.index,
-                             cpp_string(t.name or "")) for s in self.states for t in s.transitions],
-            "file": cpp_string(m.file),
-            "name": cpp_string(m.name),
-        }
+        return CppComponentView(
+            name=m.name,
+            name_literal=cpp_string(m.name),
+            base=self.base,
+            file_literal=cpp_string(m.file),
+            source_literal=cpp_string(f"src/{m.name}.cpp"),
+            description_lines=tuple(comment_text(ln)
+                                    for ln in (m.description or "").strip().splitlines()),
+            includes=tuple(IncludeView(_include(i.text), _line(self.file, i.span.line))
+                           for i in m.imports),
+            driver_headers=tuple(f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds)
+                                 if k in INTERFACE_FILES),
+            parameters=params,
+            parameter_help=tuple(
+                ParameterHelpView(cpp_string(p.name), cpp_string(p.type),
+                                  cpp_string(repr(p.default)), cpp_string(p.description or ""))
+                for p in m.parameters),
+            variables=variables,
+            interfaces=interfaces,
+            functions=functions,
+            on_shutdown=on_shutdown,
+            states=states,
+            automata=tuple(self.automata),
+            snippets=tuple(self.snippets),
+            on_interrupt=self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
+            interrupt_timeout_us=(m.interrupt_timeout_us if m.interrupt_timeout_us is not None
+                                  else -1),
+            transition_indices=tuple(
+                TransitionIndices(self.index[s.path], self.target(s, t.target), t.index,
+                                  cpp_string(t.name or ""))
+                for s in self.states for t in s.transitions),
+            line_back=_BACK,
+            config=component_config(m),
+        )
+
+
+def component_view(model: Model) -> CppComponentView:
+    """What the C++ templates print for ``model``."""
+    return CppWalk(model).view()
 
 
 def _environment() -> jinja2.Environment:
-    source = files("hfsmc.templates").joinpath("cpp")
-    loader = jinja2.FunctionLoader(lambda name: source.joinpath(name).read_text("utf-8"))
-    env = jinja2.Environment(loader=loader, undefined=jinja2.StrictUndefined,
-                             keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True,
-                             autoescape=False)
-    env.filters["cstr"] = cpp_string
-    env.filters["bool"] = lambda b: "true" if b else "false"
-    return env
+    return environment("cpp", {"cstr": cpp_string, "bool": lambda b: "true" if b else "false"})
 
 
 def _fill_back_lines(text: str) -> str:
@@ -217,14 +279,14 @@ def _fill_back_lines(text: str) -> str:
     return "\n".join(lines)
 
 
-def _render_source(env: jinja2.Environment, view: dict[str, object]) -> str:
-    return _fill_back_lines(env.get_template("component.cpp.j2").render(**view, back=_BACK))
+def _render_source(env: jinja2.Environment, view: CppComponentView) -> str:
+    return _fill_back_lines(env.get_template("component.cpp.j2").render(view=view))
 
 
 def source_file(model: Model) -> str:
     """The component's translation unit (``src/NAME.cpp``) alone: what ``hfsmc check``
     hands to g++, without the MAVLink headers and the rest of the folder."""
-    return _render_source(_environment(), _Builder(model).build())
+    return _render_source(_environment(), component_view(model))
 
 
 def component_files(model: Model) -> dict[str, bytes]:
@@ -232,24 +294,18 @@ def component_files(model: Model) -> dict[str, bytes]:
     if model.language != "cpp":
         fail(EmitError, "E150", f"`{model.name}` is a {model.language} model: build it "
              "with -t python", model.span)
-    view = _Builder(model).build()
+    view = component_view(model)
     env = _environment()
     main = _render_source(env, view)
-    cmake = env.get_template("CMakeLists.txt.j2").render(**view)
-    config = env.get_template("config.yaml.j2").render(**view, config=component_config(model))
+    cmake = env.get_template("CMakeLists.txt.j2").render(view=view)
+    config = env.get_template("config.yaml.j2").render(view=view)
     out = {f"src/{model.name}.cpp": main.encode("utf-8"),
            "CMakeLists.txt": cmake.encode("utf-8"),
            f"{model.name}.yaml": config.encode("utf-8")}
-    runtime = files("hfsmc.templates").joinpath("cpp").joinpath("hfsmc")
-    needed = list(RUNTIME_FILES)
-    for i in model.interfaces:
-        needed += [f for f in INTERFACE_FILES.get(i.type, ()) if f not in needed]
-    for name in needed:
-        res = runtime.joinpath(name)
-        if res.is_file():
-            out[f"include/hfsmc/{name}"] = res.read_bytes()
-    out[f"src/{RUNTIME_SOURCE}"] = files("hfsmc.templates").joinpath("cpp").joinpath(
-        RUNTIME_SOURCE).read_bytes()
+    folder = template_folder("cpp")
+    out.update(runtime_files(folder.joinpath("hfsmc"), RUNTIME_FILES, INTERFACE_FILES,
+                             (i.type for i in model.interfaces), into="include/hfsmc/"))
+    out.update(runtime_files(folder, (RUNTIME_SOURCE,), {}, (), into="src/"))
     if any(i.type == "mavlink" for i in model.interfaces):
         from hfsmc.emit.mavgen import MavgenError, mavlink_headers
 

@@ -13,16 +13,13 @@ from __future__ import annotations
 
 import ast
 import io
-import json
 import re
 import tokenize
 from dataclasses import dataclass
-from importlib.resources import files
-
-import jinja2
 
 from hfsmc.emit.data import component_config
-from hfsmc.emit.walk import Walk
+from hfsmc.emit.templating import environment, runtime_files, template_folder
+from hfsmc.emit.walk import AutomatonView, StateView, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, DictValue, Model, Value
 from hfsmc.pycheck import import_statement
@@ -32,10 +29,11 @@ INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py",), "camera": ("hfsmc_camera.py
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
 _TRY_MARK = re.compile(r"^\s*try:  # s(\d+)$")
+_EMPTY_TABLE = "_hfsm_SNIPPETS = ()"  # the template's placeholder for the line table
 
 
 @dataclass(frozen=True, slots=True)
-class SnippetView:
+class PythonSnippet:
     sid: int
     kind: str  # entry | during | exit | when | do | functions | on_shutdown
     owner: int  # state index; len(states) for the root's snippets
@@ -87,14 +85,76 @@ def _assigned(code: Code, mode: str, variables: frozenset[str]) -> tuple[str, ..
     return tuple(sorted(names & variables))
 
 
-class _Builder(Walk[SnippetView]):
-    """Walks the IR once and makes the view model of the template."""
+@dataclass(frozen=True, slots=True)
+class ImportView:
+    statement: str  # the Python statement that imports it
+    text: str  # as the model writes it
+    line: int  # its model line
+
+
+@dataclass(frozen=True, slots=True)
+class ParameterView:
+    name: str
+    type: str  # bool int float str list dict
+    literal: str  # its default as Python source
+
+
+@dataclass(frozen=True, slots=True)
+class VariableView:
+    name: str
+    literal: str  # its initial value as Python source
+
+
+@dataclass(frozen=True, slots=True)
+class InterfaceView:
+    name: str
+    type: str
+    url: str | None
+    options_literal: str  # a Python dict literal
+
+
+@dataclass(frozen=True, slots=True)
+class TransitionPaths:
+    """A row of the component's transition table: states by path (the trace's names)."""
+
+    source: str
+    target: str
+    index: int
+    name: str | None
+
+
+@dataclass(frozen=True, slots=True)
+class PythonComponentView:
+    """Everything ``component.py.j2`` and ``config.yaml.j2`` print, computed."""
+
+    name: str
+    base: str  # the model's file name, for the header
+    file: str  # the model's path, for error messages
+    docstring: str  # the module's docstring as a Python literal: any description compiles
+    imports: tuple[ImportView, ...]
+    parameters: tuple[ParameterView, ...]
+    descriptions_literal: str  # a dict literal of the parameters' descriptions ("" if none)
+    variables: tuple[VariableView, ...]
+    interfaces: tuple[InterfaceView, ...]
+    functions: PythonSnippet | None
+    on_shutdown: PythonSnippet | None
+    states: tuple[StateView[PythonSnippet], ...]
+    automata: tuple[AutomatonView, ...]
+    snippets: tuple[PythonSnippet, ...]  # in sid order
+    on_interrupt: int  # index of the state to go to on an interrupt, or -1
+    interrupt_timeout_us: int | None
+    transition_paths: tuple[TransitionPaths, ...]
+    config: str  # the body of NAME.yaml
+
+
+class PythonWalk(Walk[PythonSnippet]):
+    """Walks the IR once and makes the view of the templates."""
 
     def __init__(self, model: Model) -> None:
         super().__init__(model)
         self.variables = frozenset(v.name for v in model.variables)
 
-    def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> SnippetView:
+    def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> PythonSnippet:
         mode = "eval" if kind == "when" else "exec"
         indent = _EXPRESSION_INDENT if kind == "when" else _STATEMENT_INDENT
         if kind == "functions":
@@ -109,56 +169,50 @@ class _Builder(Walk[SnippetView]):
             pos: Span = code.position(k + 1, 1)
             rows.append((pos.line, pos.col, pad))
             out.append(" " * pad + line if line.strip() or k in strings else "")
-        return SnippetView(sid, kind, owner, where, _assigned(code, mode, self.variables),
-                           "\n".join(out), tuple(rows), code)
+        return PythonSnippet(sid, kind, owner, where, _assigned(code, mode, self.variables),
+                             "\n".join(out), tuple(rows), code)
 
-    def build(self) -> dict[str, object]:
+    def view(self) -> PythonComponentView:
         m = self.model
         functions = self.snippet("functions", self.root, m.functions)
-        views = self.state_views()
+        states = tuple(self.state_views())
         on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
-        on_interrupt = -1
-        if m.on_interrupt is not None:
-            on_interrupt = self.index[m.on_interrupt]
-        return {
-            "model": m,
-            "base": self.base,
-            "file": m.file,
-            "description": (m.description or "").strip(),
-            # The module's docstring as a Python literal: any description compiles.
-            "docstring": _docstring(m.name, (m.description or "").strip()),
-            "imports": [(import_statement(i.text), i.text, i.span.line) for i in m.imports],
-            "parameters": [(p.name, _py_literal(p.default), p.type) for p in m.parameters],
-            # For the component's --help.
-            "descriptions": {p.name: p.description for p in m.parameters if p.description},
-            "variables": [(v.name, _py_literal(v.init)) for v in m.variables],
-            "interfaces": [(i.name, i.type, i.url, dict(i.options)) for i in m.interfaces],
-            "functions": functions,
-            "on_shutdown": on_shutdown,
-            "states": views,
-            "automata": self.automata,
-            "snippets": self.snippets,
-            "on_interrupt": on_interrupt,
-            "interrupt_timeout_us": m.interrupt_timeout_us,
-            "root": self.root,
-            "transitions": [(s.path, f"{s.path.rpartition('/')[0]}/{t.target}".lstrip("/"),
-                             t.index, t.name) for s in self.states for t in s.transitions],
-        }
+        # For the component's --help.
+        descriptions = {p.name: p.description for p in m.parameters if p.description}
+        return PythonComponentView(
+            name=m.name,
+            base=self.base,
+            file=m.file,
+            docstring=_docstring(m.name, (m.description or "").strip()),
+            imports=tuple(ImportView(import_statement(i.text), i.text, i.span.line)
+                          for i in m.imports),
+            parameters=tuple(ParameterView(p.name, p.type, _py_literal(p.default))
+                             for p in m.parameters),
+            descriptions_literal=repr(descriptions) if descriptions else "",
+            variables=tuple(VariableView(v.name, _py_literal(v.init)) for v in m.variables),
+            interfaces=tuple(InterfaceView(i.name, i.type, i.url, repr(dict(i.options)))
+                             for i in m.interfaces),
+            functions=functions,
+            on_shutdown=on_shutdown,
+            states=states,
+            automata=tuple(self.automata),
+            snippets=tuple(self.snippets),
+            on_interrupt=self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
+            interrupt_timeout_us=m.interrupt_timeout_us,
+            transition_paths=tuple(
+                TransitionPaths(s.path, f"{s.path.rpartition('/')[0]}/{t.target}".lstrip("/"),
+                                t.index, t.name)
+                for s in self.states for t in s.transitions),
+            config=component_config(m),
+        )
 
 
-def _environment() -> jinja2.Environment:
-    source = files("hfsmc.templates").joinpath("python")
-    loader = jinja2.FunctionLoader(
-        lambda name: source.joinpath(name).read_text("utf-8"))
-    env = jinja2.Environment(loader=loader, undefined=jinja2.StrictUndefined,
-                             keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True,
-                             autoescape=False)
-    env.filters["py"] = repr
-    env.filters["json"] = lambda v: json.dumps(v, ensure_ascii=True)
-    return env
+def component_view(model: Model) -> PythonComponentView:
+    """What the Python templates print for ``model``."""
+    return PythonWalk(model).view()
 
 
-def _line_table(text: str, snippets: list[SnippetView]) -> str:
+def _line_table(text: str, snippets: tuple[PythonSnippet, ...]) -> str:
     """Read back where each snippet landed; write the table the error reporter uses."""
     by_id = {s.sid: s for s in snippets}
     first: dict[int, int] = {}
@@ -187,21 +241,14 @@ def component_files(model: Model) -> dict[str, bytes]:
     if model.language != "python":
         fail(EmitError, "E150", f"`{model.name}` is a {model.language} model: build it "
              "with -t cpp", model.span)
-    view = _Builder(model).build()
-    env = _environment()
-    main = env.get_template("component.py.j2").render(**view)
-    table_at = main.rfind("_hfsm_SNIPPETS = ()")
-    snippets = view["snippets"]
-    assert isinstance(snippets, list)
-    main = main[:table_at] + _line_table(main, snippets) + main[table_at + len("_hfsm_SNIPPETS = ()"):]
-    config = env.get_template("config.yaml.j2").render(**view, config=component_config(model))
+    view = component_view(model)
+    env = environment("python", {"py": repr})
+    main = env.get_template("component.py.j2").render(view=view)
+    table_at = main.rfind(_EMPTY_TABLE)
+    main = (main[:table_at] + _line_table(main, view.snippets)
+            + main[table_at + len(_EMPTY_TABLE):])
+    config = env.get_template("config.yaml.j2").render(view=view)
     out = {f"{model.name}.py": main.encode("utf-8"), f"{model.name}.yaml": config.encode("utf-8")}
-    runtime = files("hfsmc.templates").joinpath("python")
-    needed = list(RUNTIME_FILES)
-    for i in model.interfaces:
-        needed += [f for f in INTERFACE_FILES.get(i.type, ()) if f not in needed]
-    for name in needed:
-        res = runtime.joinpath(name)
-        if res.is_file():
-            out[name] = res.read_bytes()
+    out.update(runtime_files(template_folder("python"), RUNTIME_FILES, INTERFACE_FILES,
+                             (i.type for i in model.interfaces)))
     return out

@@ -21,6 +21,14 @@ S = TypeVar("S")  # a back end's snippet view
 
 
 @dataclass(frozen=True, slots=True)
+class AutomatonView:
+    owner: int  # index of the composite state holding it; -1 for the root
+    period_ms: int
+    initial: int  # index of its initial state
+    history: bool
+
+
+@dataclass(frozen=True, slots=True)
 class TransitionView(Generic[S]):
     index: int
     target: int
@@ -60,13 +68,13 @@ class Walk(ABC, Generic[S]):
         self.root = len(self.states)  # the owner of the root's snippets
         self.snippets: list[S] = []
         # Sub-automata numbered parents first, as the scheduler walks them.
-        self.automata: list[tuple[int, int, int, bool]] = []  # owner, period, initial, history
+        self.automata: list[AutomatonView] = []
         self.auto_of: dict[str, int] = {}
         for auto in model.automata():
             self.auto_of[auto.owner] = len(self.automata)
             owner = self.index[auto.owner] if auto.owner else -1
             initial = self.index[f"{auto.owner}/{auto.initial}" if auto.owner else auto.initial]
-            self.automata.append((owner, auto.period_ms, initial, auto.history))
+            self.automata.append(AutomatonView(owner, auto.period_ms, initial, auto.history))
 
     @abstractmethod
     def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> S:
@@ -99,7 +107,7 @@ class Walk(ABC, Generic[S]):
         child, initial, history = -1, -1, False
         if s.automaton is not None:
             child = self.auto_of[s.path]
-            initial = self.automata[child][2]
+            initial = self.automata[child].initial
             history = s.automaton.history
         return (child, initial, history, self.snippet("entry", i, s.entry),
                 self.snippet("during", i, s.during), self.snippet("exit", i, s.exit))
