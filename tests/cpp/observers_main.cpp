@@ -108,6 +108,13 @@ hfsmc::Record log(long long t, const std::string& state, const std::string& msg)
     return r;
 }
 
+// The blinker's leaf transition at t: fired, the leaf left, the other entered.
+void blink(long long t, const std::string& from, const std::string& to) {
+    emit(fire(t, from, to, 0));
+    emit(at(t, "exit", from));
+    emit(at(t, "enter", to));
+}
+
 void sample(long long t, const std::vector<std::string>& values, long long overruns) {
     if (calls.is_open()) {
         calls << "{\"sample\":{\"t\":" << t << ",\"variables\":{";
@@ -208,17 +215,13 @@ int main(int argc, char** argv) {
     emit(at(0, "enter", "Blinking"));
     emit(at(0, "enter", "Blinking/Lit"));
     sample(0, {"True", "0", "0"}, 0);
-    emit(fire(500, "Blinking/Lit", "Blinking/Dark", 0));
-    emit(at(500, "exit", "Blinking/Lit"));
-    emit(at(500, "enter", "Blinking/Dark"));
+    blink(500, "Blinking/Lit", "Blinking/Dark");
     emit(log(500, "Blinking/Dark", "dark \"now\" \\ caf\xc3\xa9 \xe2\x9c\x93 \xf0\x9f\x9a\x81 \x1b[2J\ttab"));
     sample(600, {"False", "1", "0"}, 2);
     if (masks) print_masks();
     std::string filler(80, 'x');
     for (int k = 0; k < burst; ++k) emit(log(700, "Blinking/Dark", "burst " + std::to_string(k) + " " + filler));
-    emit(fire(1000, "Blinking/Dark", "Blinking/Lit", 0));
-    emit(at(1000, "exit", "Blinking/Dark"));
-    emit(at(1000, "enter", "Blinking/Lit"));
+    blink(1000, "Blinking/Dark", "Blinking/Lit");
     sample(1100, {"True", "2", "0"}, 2);
     emit(fire(3000, "Blinking", "Paused", 1));
     emit(at(3000, "exit", "Blinking/Lit"));
