@@ -5,8 +5,8 @@ members, each snippet is a member function wrapped in ``try``, and each state
 has an enter, an exit and a tick function, dispatched through a ``switch``.
 The runtime (``templates/cpp/hfsmc/*.hpp``) is copied into ``include/``.
 
-This module computes everything the template prints (the view model); the
-template only loops and prints.  Every snippet line is preceded by a
+This module computes everything the templates print (``CppComponentView``);
+the templates only loop and print.  Every snippet line is preceded by a
 ``#line`` directive naming its model line and padded to its model column, so
 that g++'s errors and gdb point into the model, column included.  After
 rendering, the ``#line`` directives that return to the generated file get

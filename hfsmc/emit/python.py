@@ -2,11 +2,11 @@
 
 The automaton is straight code: one function per state to enter, exit and
 tick, one per snippet (so each snippet sits at a fixed indentation inside its
-own ``try``).  This module computes everything the template prints (the
-"view model": names, tables, indented snippet text); the template only loops
-and prints.  After rendering, the first generated line of every snippet is
-read back from the text to make the line map that turns tracebacks into model
-positions.
+own ``try``).  This module computes everything the templates print
+(``PythonComponentView``: names, tables, indented snippet text); the templates
+only loop and print.  After rendering, the first generated line of every
+snippet is read back from the text to make the line map that turns tracebacks
+into model positions.
 """
 
 from __future__ import annotations
