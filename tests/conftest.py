@@ -11,7 +11,15 @@ from typing import Any
 
 import pytest
 
-from tests.support import ROOT, Client, Tmux, build_blinker, stop_processes
+from tests.support import (
+    ROOT,
+    SANITIZERS,
+    Client,
+    Tmux,
+    build_blinker,
+    compile_observers,
+    stop_processes,
+)
 
 __all__ = ["ROOT", "examples", "model_language"]
 
@@ -90,3 +98,16 @@ def clients() -> Iterator[Callable[..., Client]]:
 def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The blinker example's Python component, built once: its main file."""
     return build_blinker(tmp_path_factory.mktemp("component") / "blinker")
+
+
+@pytest.fixture(scope="session")
+def observers_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """tests/cpp/observers_main.cpp, compiled once."""
+    return compile_observers(tmp_path_factory.mktemp("observers") / "observers_main", ["-O1"])
+
+
+@pytest.fixture(scope="session")
+def observers_asan_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """tests/cpp/observers_main.cpp with ASan and UBSan, compiled once."""
+    return compile_observers(tmp_path_factory.mktemp("observers_asan") / "observers_main",
+                             SANITIZERS)

@@ -11,6 +11,7 @@ import json
 import os
 import re
 import shlex
+import shutil
 import signal
 import socket
 import subprocess
@@ -391,3 +392,20 @@ def many_states(groups: int = 20, per: int = 24) -> dict[str, Any]:
                             "name": None})
     return {"name": "many", "automata": automata, "states": states, "transitions": transitions,
             "variables": [], "parameters": {}}
+
+
+# -- tests/cpp/observers_main.cpp: the C++ observers played a fixed run of the blinker --------
+OBSERVERS_FLAGS = ["-std=c++17", "-Wall", "-Wextra", "-Werror", "-Wpedantic", "-pthread"]
+SANITIZERS = ["-fsanitize=address,undefined", "-fno-omit-frame-pointer", "-fno-sanitize-recover=all",
+              "-g"]
+
+
+def compile_observers(out: Path, extra: list[str]) -> Path:
+    """tests/cpp/observers_main.cpp compiled with the component's headers into ``out``."""
+    gxx = shutil.which("g++")
+    assert gxx is not None, "g++ is needed to test the C++ observers"
+    cmd = [gxx, *OBSERVERS_FLAGS, *extra, "-I", str(ROOT / "templates" / "cpp"),
+           str(ROOT / "tests" / "cpp" / "observers_main.cpp"), "-o", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=240, check=False)
+    assert done.returncode == 0, done.stderr
+    return out

@@ -38,39 +38,17 @@ hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
 
 pytestmark = pytest.mark.timeout(180)
 
-FLAGS = ["-std=c++17", "-Wall", "-Wextra", "-Werror", "-Wpedantic", "-pthread"]
-SANITIZERS = ["-fsanitize=address,undefined", "-fno-omit-frame-pointer", "-fno-sanitize-recover=all", "-g"]
 SANITIZER_ENV = {"ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0:exitcode=99",
                  "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1:exitcode=99"}
 SANITIZER_ERRORS = re.compile(r"AddressSanitizer|ThreadSanitizer|LeakSanitizer|runtime error:|UndefinedBehaviorSanitizer")
-
-
-def _compile(out: Path, extra: list[str]) -> Path:
-    gxx = shutil.which("g++")
-    assert gxx is not None, "g++ is needed to test the C++ observers"
-    cmd = [gxx, *FLAGS, *extra, "-I", str(ROOT / "templates" / "cpp"),
-           str(ROOT / "tests" / "cpp" / "observers_main.cpp"), "-o", str(out)]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=240, check=False)
-    assert done.returncode == 0, done.stderr
-    return out
-
-
-@pytest.fixture(scope="session")
-def program(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _compile(tmp_path_factory.mktemp("observers") / "observers_main", ["-O1"])
-
-
-@pytest.fixture(scope="session")
-def asan_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _compile(tmp_path_factory.mktemp("observers_asan") / "observers_main", SANITIZERS)
 
 
 @pytest.fixture(params=["plain", "asan"])
 def build(request: pytest.FixtureRequest) -> tuple[Path, dict[str, str]]:
     """The program and its environment, in both builds."""
     if request.param == "plain":
-        return request.getfixturevalue("program"), {}
-    return request.getfixturevalue("asan_program"), SANITIZER_ENV
+        return request.getfixturevalue("observers_program"), {}
+    return request.getfixturevalue("observers_asan_program"), SANITIZER_ENV
 
 
 class Run:
@@ -150,32 +128,18 @@ def record_lines(r: Run, first: int = 0) -> list[bytes]:
             if line.startswith('{"record":')]
 
 
-@pytest.mark.parametrize("text", ["8765", "0", ":8765", "0.0.0.0:8765", "localhost:1", "[::1]:65535",
-                                  " 80 ", "", "abc", "65536", "-1", "1:2:3", "[::1]8765", "host:",
-                                  "\uff18\uff17", "[::1", "a'b", "x\ty"])
-def test_addresses_are_read_as_the_python_monitor_reads_them(program: Path, text: str) -> None:
-    done = subprocess.run([str(program), "--parse", text], capture_output=True, text=True, timeout=10,
-                          check=False)
-    try:
-        host, port = hfsmc_monitor.parse_address(text)
-    except ValueError as e:
-        assert (done.returncode, done.stderr) == (2, f"error: {e}\n")
-    else:
-        assert (done.returncode, done.stdout) == (0, f"{host} {port}\n")
-
-
-def test_an_address_in_use_is_a_clear_error(program: Path) -> None:
+def test_an_address_in_use_is_a_clear_error(observers_program: Path) -> None:
     with socket.create_server(("127.0.0.1", 0)) as busy:
         port = busy.getsockname()[1]
-        done = subprocess.run([str(program), "--monitor", str(port)], capture_output=True, text=True,
+        done = subprocess.run([str(observers_program), "--monitor", str(port)], capture_output=True, text=True,
                               timeout=10, check=False)
     assert done.returncode == 2
     assert done.stderr == "error: [Errno 98] Address already in use\n"
 
 
 # -- the monitor -------------------------------------------------------------------------
-def test_python_viewer_attaches_late_and_sees_the_current_state(program: Path, run: Any) -> None:
-    r = run(program, "--monitor", "0", "--pause-ms", "20")
+def test_python_viewer_attaches_late_and_sees_the_current_state(observers_program: Path, run: Any) -> None:
+    r = run(observers_program, "--monitor", "0", "--pause-ms", "20")
     viewer = subprocess.Popen([str(ROOT / ".venv" / "bin" / "python"), "-m", "hfsmc", "view",
                                f"127.0.0.1:{r.port}"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                               text=True)
@@ -239,9 +203,9 @@ def test_raw_client_gets_the_protocol_of_the_python_monitor(build: tuple[Path, d
     assert all(line.isascii() for line in c.lines)
 
 
-def test_strings_are_escaped_as_json_dumps_does(program: Path, run: Callable[..., Run],
+def test_strings_are_escaped_as_json_dumps_does(observers_program: Path, run: Callable[..., Run],
                                                 clients: Callable[..., Client]) -> None:
-    r = run(program, "--monitor", "0", "--gate-at", "26")
+    r = run(observers_program, "--monitor", "0", "--gate-at", "26")
     r.at_gate()
     c = clients(r.port)
     snapshot = c.message() and c.message()
@@ -304,9 +268,9 @@ def test_misbehaving_clients_change_nothing(build: tuple[Path, dict[str, str]], 
         assert len(logs) == burst
 
 
-def test_too_many_clients_are_turned_away(program: Path, run: Callable[..., Run],
+def test_too_many_clients_are_turned_away(observers_program: Path, run: Callable[..., Run],
                                           clients: Callable[..., Client]) -> None:
-    r = run(program, "--monitor", "0")
+    r = run(observers_program, "--monitor", "0")
     served = [clients(r.port) for _ in range(16)]
     for c in served:
         assert c.message() is not None
@@ -318,17 +282,17 @@ def test_too_many_clients_are_turned_away(program: Path, run: Callable[..., Run]
     r.finish()
 
 
-def test_close_is_quick_with_a_stuck_client(program: Path, run: Callable[..., Run],
+def test_close_is_quick_with_a_stuck_client(observers_program: Path, run: Callable[..., Run],
                                             clients: Callable[..., Client]) -> None:
-    r = run(program, "--monitor", "0", "--burst", "3000")
+    r = run(observers_program, "--monitor", "0", "--burst", "3000")
     clients(r.port, rcvbuf=4096)
     _, err = r.finish()
     ms = int(re.findall(r"closed in (\d+) ms", err)[0])
     assert ms < 900
 
 
-def test_threads_block_sigint_and_sigterm(program: Path, run: Callable[..., Run]) -> None:
-    r = run(program, "--monitor", "0", "--display", "--masks")
+def test_threads_block_sigint_and_sigterm(observers_program: Path, run: Callable[..., Run]) -> None:
+    r = run(observers_program, "--monitor", "0", "--display", "--masks")
     out, _ = r.finish()
     text = out.decode()
     main = int(re.findall(r"^main (\d+)$", text, re.M)[0])
@@ -360,8 +324,8 @@ def test_display_plain_lines_are_the_python_ones(build: tuple[Path, dict[str, st
     assert out.decode().startswith("  0.000  start blinker in Blinking/Lit\n")
 
 
-def test_display_plain_lines_reach_a_closed_pipe_without_harm(program: Path, run: Callable[..., Run]) -> None:
-    r = run(program, "--display", "--burst", "3000")
+def test_display_plain_lines_reach_a_closed_pipe_without_harm(observers_program: Path, run: Callable[..., Run]) -> None:
+    r = run(observers_program, "--display", "--burst", "3000")
     assert r.proc.stdout is not None
     r.proc.stdout.close()
     r.finish()
@@ -418,13 +382,13 @@ def test_display_on_a_terminal(build: tuple[Path, dict[str, str]], run: Callable
         tty.close()
 
 
-def test_display_fits_80x24_and_says_when_keys_are_not_read(program: Path,
+def test_display_fits_80x24_and_says_when_keys_are_not_read(observers_program: Path,
                                                              run: Callable[..., Run]) -> None:
     """30 log lines and 8 transitions on an 80x24 terminal: every frame is at most 23
     lines of at most 80 columns; stdin is not the terminal, and the panel says so."""
     tty = Terminal(24, 80)
     try:
-        r = run(program, "--display", "--burst", "30", stdin=subprocess.DEVNULL,
+        r = run(observers_program, "--display", "--burst", "30", stdin=subprocess.DEVNULL,
                 stdout=tty.slave, stderr=tty.slave)
         tty.read_until(b"no keys: stdin is not a terminal")
         r.release()
@@ -452,8 +416,8 @@ READABLE = ["0.30000000000000004", "[1.2345678, 'x1.2345678', -2.000000000000000
             "[nan, inf, -inf]", "0.1234565", "2.5000005", "'unterminated 1.23456789"]
 
 
-def test_readable_values_and_panel_fit_are_the_python_ones(program: Path) -> None:
-    r = subprocess.run([str(program), "--readable"], input="\n".join(READABLE) + "\n",
+def test_readable_values_and_panel_fit_are_the_python_ones(observers_program: Path) -> None:
+    r = subprocess.run([str(observers_program), "--readable"], input="\n".join(READABLE) + "\n",
                        capture_output=True, text=True, timeout=30, check=False)
     assert r.returncode == 0, r.stderr
     hfsmc_viewstate = importlib.import_module("hfsmc.templates.python.hfsmc_viewstate")
@@ -461,7 +425,7 @@ def test_readable_values_and_panel_fit_are_the_python_ones(program: Path) -> Non
     assert hfsmc_viewstate.readable("0.30000000000000004") == "0.3"
     cases = [(free, t, lg, v) for free in (-3, 0, 3, 7, 12, 40) for t in (0, 1, 8)
              for lg in (0, 2, 8) for v in (0, 1, 5)]
-    r = subprocess.run([str(program), "--fit"], input="".join(f"{c[0]} {c[1]} {c[2]} {c[3]}\n"
+    r = subprocess.run([str(observers_program), "--fit"], input="".join(f"{c[0]} {c[1]} {c[2]} {c[3]}\n"
                                                              for c in cases),
                        capture_output=True, text=True, timeout=30, check=False)
     want = [hfsmc_view.fit(free, {"transitions": t, "logs": lg, "variables": v})

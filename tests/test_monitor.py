@@ -35,23 +35,45 @@ pytestmark = pytest.mark.timeout(60)
 
 
 # -- addresses ---------------------------------------------------------------------------
-@pytest.mark.parametrize(("text", "address"), [
+PORT_WORDS = "expected [HOST:]PORT with a port from 0 to 65535"
+# What `--monitor TEXT` means: (host, port), or the message of the error it is.
+ADDRESSES: list[tuple[str, tuple[str, int] | str]] = [
     ("8765", ("127.0.0.1", 8765)),
     ("0", ("127.0.0.1", 0)),
     (":8765", ("127.0.0.1", 8765)),
     ("0.0.0.0:8765", ("0.0.0.0", 8765)),
     ("localhost:1", ("localhost", 1)),
     ("[::1]:65535", ("::1", 65535)),
-])
-def test_addresses(text: str, address: tuple[str, int]) -> None:
-    assert hfsmc_monitor.parse_address(text) == address
+    (" 80 ", ("127.0.0.1", 80)),
+    *((text, f"bad address {text!r}: {PORT_WORDS}")
+      for text in ("", "abc", "65536", "-1", "host:", "\uff18\uff17", "a'b", "x\ty")),
+    ("1:2:3", "bad address '1:2:3': write an IPv6 address in brackets, [::1]:PORT"),
+    ("[::1]8765", "bad address '[::1]8765': expected [HOST]:PORT"),
+    ("[::1", "bad address '[::1': expected [HOST]:PORT"),
+]
 
 
-@pytest.mark.parametrize("text", ["", "abc", "65536", "-1", "1:2:3", "[::1]8765", "host:",
-                                  "\uff18\uff17", "[::1"])
-def test_bad_addresses(text: str) -> None:
-    with pytest.raises(ValueError, match="bad address"):
-        hfsmc_monitor.parse_address(text)
+@pytest.mark.parametrize("backend", ["python", "cpp"])
+@pytest.mark.parametrize(("text", "meaning"), ADDRESSES, ids=[repr(t) for t, _ in ADDRESSES])
+def test_addresses(backend: str, text: str, meaning: tuple[str, int] | str,
+                   request: pytest.FixtureRequest) -> None:
+    """The Python monitor and the C++ one (tests/cpp/observers_main.cpp --parse) read an
+    address alike."""
+    if backend == "python":
+        if isinstance(meaning, str):
+            with pytest.raises(ValueError) as e:
+                hfsmc_monitor.parse_address(text)
+            assert str(e.value) == meaning
+        else:
+            assert hfsmc_monitor.parse_address(text) == meaning
+        return
+    program = request.getfixturevalue("observers_program")
+    done = subprocess.run([str(program), "--parse", text], capture_output=True, text=True,
+                          timeout=10, check=False)
+    if isinstance(meaning, str):
+        assert (done.returncode, done.stderr) == (2, f"error: {meaning}\n")
+    else:
+        assert (done.returncode, done.stdout) == (0, f"{meaning[0]} {meaning[1]}\n")
 
 
 def test_ipv6_addresses_are_written_in_brackets() -> None:
@@ -319,7 +341,8 @@ def items_from(lines: list[bytes], close: bool = True) -> list[tuple[str, Any]]:
 
 
 def line(msg: dict[str, Any]) -> bytes:
-    return hfsmc_monitor.encode(msg)
+    data: bytes = hfsmc_monitor.encode(msg)
+    return data
 
 
 def test_the_client_keeps_what_it_understands() -> None:
