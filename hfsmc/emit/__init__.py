@@ -1,1 +1,2 @@
-"""Back ends: code, diagrams and model files written from the IR."""
+"""Back ends: everything written from the IR: components, diagrams, the model as YAML or XML,
+the IR as text, and the structure a component tells its observers."""

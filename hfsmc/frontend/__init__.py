@@ -2,7 +2,8 @@
 
 The format is told by the content, not the file name: a document whose first
 non-blank character is ``<`` is XML (hfsm version 1, or a legacy VisualStates /
-VisualHFSM file, by root element); anything else is YAML.
+VisualHFSM file, by root element); anything else is YAML. ``schema.py``
+then validates the Document against the JSON Schema, for every format alike.
 """
 
 from __future__ import annotations
