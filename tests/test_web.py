@@ -420,6 +420,9 @@ def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_tha
         frames = [m for m in got if m["type"] == "frame"]
         assert len(frames) == 1, frames  # the frame did not change: sent once
         assert (frames[0]["name"], frames[0]["width"], frames[0]["height"]) == ("camera", 320, 240)
+        # The terminal viewer (and any viewer of minor version 0) ignores both.
+        assert monitor.item(vehicles[0]) is None and monitor.item(frames[0]) is None
+        assert monitor.item(got[0]) == ("structure", STRUCTURE)
         jpeg = base64.b64decode(frames[0]["jpeg"])
         image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
         assert image is not None and image.shape == (240, 320, 3)
@@ -1033,8 +1036,14 @@ def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
     processes([sys.executable, "-m", "hfsmc", "sim", "--world",
                str(ROOT / "examples" / "follow_colors" / "world.yaml"), "--mavlink",
                f"udpout:127.0.0.1:{udp}", "--camera-port", str(http), "--truth", str(truth)], "sim")
+    bad = subprocess.run([str(follow_colors_cpp), "--trace-variables"], capture_output=True,
+                         text=True, timeout=30, stdin=subprocess.DEVNULL)
+    assert (bad.returncode, bad.stderr) == (
+        2, "follow_colors_cpp: --trace-variables needs --trace FILE\n")
+    trace = tmp_path / "trace.jsonl"
     comp = processes([str(follow_colors_cpp), "--config", str(tmp_path / "config.yaml"),
-                      "--monitor", "0", "--until", "90s"], "component")
+                      "--monitor", "0", "--until", "90s", "--trace", str(trace),
+                      "--trace-variables"], "component")
     port = int(comp.wait_for(r"monitor: listening on 127\.0\.0\.1:(\d+)").group(1))
     web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
                      "--model", str(FOLLOW_CPP)], "web")
@@ -1065,5 +1074,13 @@ def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
     true_alt = json.loads(truth.read_text())["altitude"]
     assert abs(s["altitude"] - true_alt) < 0.5, (s["altitude"], true_alt)
     screenshot(driver, "web-follow_colors_cpp", tmp_path)
+    # The C++ component's variables records (--trace-variables), by the trace's schema.
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    for rec in records:
+        MONITOR_VALIDATOR.validate({"type": "record", "record": rec})
+    values = [r for r in records if r["ev"] == "variables"]
+    assert values[0] == {"t": 0, "ev": "variables",
+                         "values": {"seen": "[]", "stages": "[]", "frames": "0"}}, values[:2]
+    assert any(r["values"].get("stages") == "['green']" for r in values), values[-3:]
     assert web.kill(signal.SIGTERM) == 0
     assert "Traceback" not in web.err_path.read_text()
