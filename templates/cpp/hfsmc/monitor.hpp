@@ -197,7 +197,7 @@ private:
         bool reading = true;  // until the client shuts its side down
         std::size_t received = 0;
         bool frames = false;  // it asked for camera frames
-        std::string inbuf;  // the start of a request line
+        std::string inbuf{};  // the start of a request line
         std::size_t pending() const { return out.size() - sent; }
     };
 
