@@ -184,7 +184,8 @@ def test_raw_client_gets_the_protocol_of_the_python_monitor(build: tuple[Path, d
     r.release()
     rest = c.until_bye()
     r.finish()
-    assert hello == {"type": "hello", "protocol": 1, "structure": STRUCTURE}
+    assert hello == {"type": "hello", "protocol": 1, "minor": 1, "structure": STRUCTURE,
+                     "feeds": {"vehicle": [], "camera": []}}
     assert snapshot is not None and snapshot["type"] == "snapshot"
     assert rest[-1] == {"type": "bye", "reason": "error"}
     # What followed the snapshot is the tail of the run, and the snapshot is the Python
