@@ -513,6 +513,12 @@ def test_trace_variables_adds_variable_records_and_nothing_else(blinker: Path, t
         view = view_at(STRUCTURE, both, t)
         assert (view.values["led"], view.values["count"]) == (led, count), t
     assert view_at(STRUCTURE, plain, 750).values == {}
+    # The terminal viewer replays such a trace too (its screen shows the variables).
+    shown = subprocess.run([sys.executable, "-m", "hfsmc", "view", "--replay",
+                            str(tmp_path / "vars.trace"), "--speed", "0"], capture_output=True,
+                           text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=ROOT)
+    assert shown.returncode == 0 and shown.stderr.strip().endswith(
+        f"replayed {len(both)} records of {tmp_path / 'vars.trace'}"), shown.stderr
     bad = run("--trace-variables")
     assert bad.returncode == 2 and bad.stderr == "blinker: --trace-variables needs --trace FILE\n"
 
