@@ -31,7 +31,7 @@ from typing import Any
 import pytest
 
 from tests.conftest import ROOT
-from tests.support import STRUCTURE, Client
+from tests.support import MONITOR_VALIDATOR, STRUCTURE, Client
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
@@ -433,3 +433,52 @@ def test_readable_values_and_panel_fit_are_the_python_ones(observers_program: Pa
             for free, t, lg, v in cases]
     assert r.stdout.splitlines() == [f"{w['transitions']} {w['logs']} {w['variables']}"
                                      for w in want]
+
+
+def _lines(sock: socket.socket, seconds: float) -> list[dict[str, Any]]:
+    """The messages read from a raw monitor connection for ``seconds``."""
+    got: list[dict[str, Any]] = []
+    buf = b""
+    deadline = time.monotonic() + seconds
+    while (left := deadline - time.monotonic()) > 0:
+        sock.settimeout(left)
+        try:
+            data = sock.recv(1 << 16)
+        except TimeoutError:
+            break
+        if not data:
+            break
+        buf += data
+        *lines, buf = buf.split(b"\n")
+        got.extend(json.loads(line) for line in lines)
+    return got
+
+
+def test_feeds_go_to_every_client_and_frames_only_to_those_that_subscribe(
+        observers_program: Path, run: Callable[..., Run]) -> None:
+    """Minor version 1 in C++: the registered feeds (stand-ins for mavlink.hpp and camera.hpp)."""
+    r = run(observers_program, "--monitor", "0", "--feeds", "--gate-at", "9")
+    r.at_gate()
+    asks = socket.create_connection(("127.0.0.1", r.port), timeout=5)
+    quiet = socket.create_connection(("127.0.0.1", r.port), timeout=5)
+    try:
+        asks.sendall(b'junk\n{"type":"subscribe","frames":1}\n' + b"y" * 3000 + b"\n"
+                     b'{"type": "subscribe", "frames": true}\n')
+        got, other = _lines(asks, 1.2), _lines(quiet, 1.2)
+        for msgs in (got, other):
+            for m in msgs:
+                MONITOR_VALIDATOR.validate(m)
+            assert msgs[0] == {"type": "hello", "protocol": 1, "minor": 1, "structure": STRUCTURE,
+                               "feeds": {"vehicle": ["drone"], "camera": ["camera"]}}
+        # About 4 a second (a subscription sends at once): 1.2 s for one, 2.4 s for the other.
+        assert 3 <= [m["type"] for m in got].count("vehicle") <= 8, got
+        assert 6 <= [m["type"] for m in other].count("vehicle") <= 13, other
+        frames = [m for m in got if m["type"] == "frame"]
+        assert 3 <= len(frames) <= 8 and "frame" not in {m["type"] for m in other}, got
+        asks.sendall(b'{"type":"subscribe","frames":false}\n')
+        _lines(asks, 0.3)
+        assert "frame" not in {m["type"] for m in _lines(asks, 0.6)}
+    finally:
+        asks.close()
+        quiet.close()
+    r.finish()

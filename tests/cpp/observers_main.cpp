@@ -3,6 +3,7 @@
 //
 //   observers_main [--monitor ADDR] [--display] [--focus PATH] [--no-autofocus]
 //                  [--calls FILE] [--gate FILE] [--gate-at N] [--burst N] [--pause-ms N] [--masks]
+//                  [--feeds]
 //   observers_main --parse ADDR      prints HOST PORT, or the error and exits 2
 //   observers_main --readable        prints hfsmc::readable of each line of stdin
 //   observers_main --fit             prints view_detail::fit's T L V for each FREE T L V of stdin
@@ -11,7 +12,9 @@
 // --gate waits (up to 20 s) for FILE to exist after the first N calls (--gate-at, 9 by
 // default: the run is then in Blinking/Dark), saying so on stderr; a second --gate-at
 // waits for FILE.1, and so on. --burst adds N log records after the 9th call; --masks
-// prints each thread's blocked signals there.
+// prints each thread's blocked signals there. --feeds registers a stand-in vehicle and
+// camera (hfsmc::Feed, as mavlink.hpp and camera.hpp do): the camera has a new frame at
+// every call.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -33,6 +36,31 @@
 namespace {
 
 std::vector<std::unique_ptr<hfsmc::Observer>> observers;
+
+class FakeVehicle : public hfsmc::Feed {
+public:
+    const char* feed_kind() const override { return "vehicle"; }
+    std::string feed_name() const override { return "drone"; }
+    std::string feed_message(long long t_ms) override {
+        return "{\"type\":\"vehicle\",\"t\":" + std::to_string(t_ms) +
+               ",\"name\":\"drone\",\"connected\":true,\"mode\":\"GUIDED\",\"armed\":true,"
+               "\"altitude\":2.346,\"position\":[1.000,-2.500,-2.346],\"velocity\":null,"
+               "\"battery\":87,\"link_age\":0.25}";
+    }
+};
+
+class FakeCamera : public hfsmc::Feed {
+public:
+    const char* feed_kind() const override { return "camera"; }
+    std::string feed_name() const override { return "camera"; }
+    std::string feed_message(long long t_ms) override {
+        ++frames;
+        return "{\"type\":\"frame\",\"t\":" + std::to_string(t_ms) +
+               ",\"name\":\"camera\",\"width\":1,\"height\":1,\"jpeg\":\"" + std::to_string(frames) + "\"}";
+    }
+    void feed_reset() override { ++resets; }
+    long frames = 0, resets = 0;
+};
 std::ofstream calls;
 int pause_ms = 0;
 std::string gate;
@@ -198,6 +226,11 @@ int main(int argc, char** argv) {
                 pause_ms = std::stoi(value());
             } else if (a == "--masks") {
                 masks = true;
+            } else if (a == "--feeds") {
+                static FakeVehicle vehicle;
+                static FakeCamera camera;
+                hfsmc::register_feed(&vehicle);
+                hfsmc::register_feed(&camera);
             } else {
                 throw std::invalid_argument("unknown argument " + a);
             }
