@@ -48,19 +48,19 @@ def lamp(language: str) -> Model:
 
 def test_the_python_view_names_transitions_by_path() -> None:
     view = python.component_view(lamp("python"))
-    assert [s.path for s in view.states] == ["Off", "On", "On/Dim", "On/Bright"]
-    assert view.automata == AUTOMATA
+    assert [s.path for s in view.machine.states] == ["Off", "On", "On/Dim", "On/Bright"]
+    assert view.machine.automata == AUTOMATA
     assert view.transition_paths == (
         python.TransitionPaths("Off", "On", 0, "switch"),
         python.TransitionPaths("On", "Off", 0, None),
         python.TransitionPaths("On/Dim", "On/Bright", 0, None))
-    assert [(s.sid, s.kind, s.owner) for s in view.snippets] == [(0, "when", 0)]
+    assert [(s.sid, s.kind, s.owner) for s in view.machine.snippets] == [(0, "when", 0)]
 
 
 def test_the_cpp_view_numbers_transitions_by_index() -> None:
     view = cpp.component_view(lamp("cpp"))
-    assert [s.path for s in view.states] == ["Off", "On", "On/Dim", "On/Bright"]
-    assert view.automata == AUTOMATA
+    assert [s.path for s in view.machine.states] == ["Off", "On", "On/Dim", "On/Bright"]
+    assert view.machine.automata == AUTOMATA
     assert view.transition_indices == (
         cpp.TransitionIndices(0, 1, 0, '"switch"'),
         cpp.TransitionIndices(1, 0, 0, '""'),
@@ -73,14 +73,14 @@ def test_views_are_frozen() -> None:
     with pytest.raises(dataclasses.FrozenInstanceError):
         view.name = "other"  # type: ignore[misc]
     with pytest.raises(dataclasses.FrozenInstanceError):
-        view.states[0].path = "Elsewhere"  # type: ignore[misc]
+        view.machine.states[0].path = "Elsewhere"  # type: ignore[misc]
 
 
 def test_a_template_reading_a_field_the_view_lacks_fails() -> None:
     view = cpp.component_view(lamp("cpp"))
     env = environment("cpp", {})
-    assert env.from_string("{{ view.name }}:{{ view.automata | length }}").render(view=view) \
-        == "lamp:2"
+    template = env.from_string("{{ view.name }}:{{ view.machine.automata | length }}")
+    assert template.render(view=view) == "lamp:2"
     with pytest.raises(jinja2.UndefinedError, match="transitions"):
         env.from_string("{{ view.transitions }}").render(view=view)
 

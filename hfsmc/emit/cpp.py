@@ -23,7 +23,7 @@ import jinja2
 from hfsmc.emit.comments import comment_text
 from hfsmc.emit.data import component_config
 from hfsmc.emit.templating import environment, runtime_files, template_folder
-from hfsmc.emit.walk import AutomatonView, StateView, Walk
+from hfsmc.emit.walk import MachineView, Snippet, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, Value
 
@@ -37,11 +37,7 @@ _BACK = "#line @HFSMC_BACK@ HFSMC_SOURCE"  # the line number is filled in after 
 
 
 @dataclass(frozen=True, slots=True)
-class CppSnippet:
-    sid: int
-    kind: str  # entry | during | exit | when | do | functions | on_shutdown
-    owner: int  # state index; len(states) for the root's snippets
-    where: str  # comment text: "blinker.yaml:31 entry of Blinking/Lit"
+class CppSnippet(Snippet):
     body: str  # the code with its #line directives
     line: int  # model line and column of its first line
     col: int
@@ -149,12 +145,7 @@ class CppComponentView:
     parameter_help: tuple[ParameterHelpView, ...]
     variables: tuple[MemberView, ...]
     interfaces: tuple[InterfaceView, ...]
-    functions: CppSnippet | None
-    on_shutdown: CppSnippet | None
-    states: tuple[StateView[CppSnippet], ...]
-    automata: tuple[AutomatonView, ...]
-    snippets: tuple[CppSnippet, ...]  # in sid order
-    on_interrupt: int  # index of the state to go to on an interrupt, or -1
+    machine: MachineView[CppSnippet]
     interrupt_timeout_us: int  # -1 without one
     transition_indices: tuple[TransitionIndices, ...]
     line_back: str  # a #line back into the generated file (numbered after rendering)
@@ -220,9 +211,7 @@ class CppWalk(Walk[CppSnippet]):
 
     def view(self) -> CppComponentView:
         m = self.model
-        functions = self.snippet("functions", self.root, m.functions)
-        states = tuple(self.state_views())
-        on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
+        machine = self.machine()
         params, variables, interfaces = self.members()
         kinds = {i.type for i in m.interfaces}
         return CppComponentView(
@@ -244,12 +233,7 @@ class CppWalk(Walk[CppSnippet]):
                 for p in m.parameters),
             variables=variables,
             interfaces=interfaces,
-            functions=functions,
-            on_shutdown=on_shutdown,
-            states=states,
-            automata=tuple(self.automata),
-            snippets=tuple(self.snippets),
-            on_interrupt=self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
+            machine=machine,
             interrupt_timeout_us=(m.interrupt_timeout_us if m.interrupt_timeout_us is not None
                                   else -1),
             transition_indices=tuple(

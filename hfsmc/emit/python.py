@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from hfsmc.emit.data import component_config
 from hfsmc.emit.templating import environment, runtime_files, template_folder
-from hfsmc.emit.walk import AutomatonView, StateView, Walk
+from hfsmc.emit.walk import MachineView, Snippet, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, DictValue, Model, Value
 from hfsmc.pycheck import import_statement
@@ -33,11 +33,7 @@ _EMPTY_TABLE = "_hfsm_SNIPPETS = ()"  # the template's placeholder for the line 
 
 
 @dataclass(frozen=True, slots=True)
-class PythonSnippet:
-    sid: int
-    kind: str  # entry | during | exit | when | do | functions | on_shutdown
-    owner: int  # state index; len(states) for the root's snippets
-    where: str  # comment text: "blinker.yaml:31 entry of Blinking/Lit"
+class PythonSnippet(Snippet):
     assigns: tuple[str, ...]  # model variables it assigns (declared global)
     body: str  # the code, indented for its place in the template
     rows: tuple[tuple[int, int, int], ...]  # per line: model line, model col, generated indent
@@ -136,12 +132,7 @@ class PythonComponentView:
     descriptions_literal: str  # a dict literal of the parameters' descriptions ("" if none)
     variables: tuple[VariableView, ...]
     interfaces: tuple[InterfaceView, ...]
-    functions: PythonSnippet | None
-    on_shutdown: PythonSnippet | None
-    states: tuple[StateView[PythonSnippet], ...]
-    automata: tuple[AutomatonView, ...]
-    snippets: tuple[PythonSnippet, ...]  # in sid order
-    on_interrupt: int  # index of the state to go to on an interrupt, or -1
+    machine: MachineView[PythonSnippet]
     interrupt_timeout_us: int | None
     transition_paths: tuple[TransitionPaths, ...]
     config: str  # the body of NAME.yaml
@@ -174,9 +165,7 @@ class PythonWalk(Walk[PythonSnippet]):
 
     def view(self) -> PythonComponentView:
         m = self.model
-        functions = self.snippet("functions", self.root, m.functions)
-        states = tuple(self.state_views())
-        on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
+        machine = self.machine()
         # For the component's --help.
         descriptions = {p.name: p.description for p in m.parameters if p.description}
         return PythonComponentView(
@@ -192,12 +181,7 @@ class PythonWalk(Walk[PythonSnippet]):
             variables=tuple(VariableView(v.name, _py_literal(v.init)) for v in m.variables),
             interfaces=tuple(InterfaceView(i.name, i.type, i.url, repr(dict(i.options)))
                              for i in m.interfaces),
-            functions=functions,
-            on_shutdown=on_shutdown,
-            states=states,
-            automata=tuple(self.automata),
-            snippets=tuple(self.snippets),
-            on_interrupt=self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
+            machine=machine,
             interrupt_timeout_us=m.interrupt_timeout_us,
             transition_paths=tuple(
                 TransitionPaths(s.path, f"{s.path.rpartition('/')[0]}/{t.target}".lstrip("/"),
@@ -245,7 +229,7 @@ def component_files(model: Model) -> dict[str, bytes]:
     env = environment("python", {"py": repr})
     main = env.get_template("component.py.j2").render(view=view)
     table_at = main.rfind(_EMPTY_TABLE)
-    main = (main[:table_at] + _line_table(main, view.snippets)
+    main = (main[:table_at] + _line_table(main, view.machine.snippets)
             + main[table_at + len(_EMPTY_TABLE):])
     config = env.get_template("config.yaml.j2").render(view=view)
     out = {f"{model.name}.py": main.encode("utf-8"), f"{model.name}.yaml": config.encode("utf-8")}

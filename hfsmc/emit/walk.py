@@ -1,9 +1,11 @@
 """The structure both back ends print, computed once: states and sub-automata numbered
 as the schedulers walk them, and per state its snippets and transitions.
 
-A back end subclasses ``Walk`` and says how one snippet becomes text in its language
-(``make_snippet``); everything else (numbering, owners, comments, the target's
-``during`` that runs after a transition) is the same for Python and C++.
+A back end subclasses ``Walk`` and ``Snippet`` and says how one snippet becomes text in
+its language (``make_snippet``); everything else (numbering, owners, comments, the
+target's ``during`` that runs after a transition) is the same for Python and C++ and
+comes back from ``Walk.machine()`` as a ``MachineView``, which each back end's
+component view holds as ``machine``.
 """
 
 from __future__ import annotations
@@ -17,7 +19,18 @@ from hfsmc.durations import format_us
 from hfsmc.emit.comments import comment_text
 from hfsmc.ir import Code, Model, State
 
-S = TypeVar("S")  # a back end's snippet view
+
+@dataclass(frozen=True, slots=True)
+class Snippet:
+    """One snippet of the model as a back end prints it (subclassed per back end)."""
+
+    sid: int  # its number, in the order of the generated code
+    kind: str  # entry | during | exit | when | do | functions | on_shutdown
+    owner: int  # state index; len(states) for the root's snippets
+    where: str  # comment text: "blinker.yaml:31 entry of Blinking/Lit"
+
+
+S = TypeVar("S", bound=Snippet)  # a back end's snippet view
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,6 +68,18 @@ class StateView(Generic[S]):
     comment: str
 
 
+@dataclass(frozen=True, slots=True)
+class MachineView(Generic[S]):
+    """The state machine as both back ends print it: states, sub-automata, snippets."""
+
+    functions: S | None
+    on_shutdown: S | None
+    states: tuple[StateView[S], ...]
+    automata: tuple[AutomatonView, ...]
+    snippets: tuple[S, ...]  # in sid order
+    on_interrupt: int  # index of the state to go to on an interrupt, or -1
+
+
 class Walk(ABC, Generic[S]):
     """One pass over the IR. Snippets are numbered in the order they are made:
     ``functions``, then entry/during/exit of every state, then the transitions'
@@ -88,6 +113,16 @@ class Walk(ABC, Generic[S]):
         view = self.make_snippet(len(self.snippets), kind, owner, code, comment_text(where))
         self.snippets.append(view)
         return view
+
+    def machine(self) -> MachineView[S]:
+        """Every snippet made, in the order of the generated code, and the tables."""
+        m = self.model
+        functions = self.snippet("functions", self.root, m.functions)
+        states = tuple(self.state_views())
+        on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
+        return MachineView(functions, on_shutdown, states, tuple(self.automata),
+                           tuple(self.snippets),
+                           self.index[m.on_interrupt] if m.on_interrupt is not None else -1)
 
     def target(self, s: State, name: str) -> int:
         """Index of the sibling ``name`` of state ``s``."""
