@@ -38,13 +38,16 @@ def runtime_files(folder: Traversable, always: Sequence[str],
                   into: str = "") -> dict[str, bytes]:
     """The runtime files a component needs, read from ``folder``, by path in the component
     (``into`` + name): the ``always`` ones, then those of each interface type it uses, once
-    each and in that order."""
+    each and in that order. A listed file that is missing is a broken installation:
+    FileNotFoundError (the command line reports it as an internal error)."""
     needed = list(always)
     for kind in interface_types:
         needed += [name for name in by_interface.get(kind, ()) if name not in needed]
     out: dict[str, bytes] = {}
     for name in needed:
         source = folder.joinpath(name)
-        if source.is_file():
-            out[into + name] = source.read_bytes()
+        if not source.is_file():
+            raise FileNotFoundError(f"runtime file {name} missing from {folder} "
+                                    "(reinstall hfsmc)")
+        out[into + name] = source.read_bytes()
     return out
