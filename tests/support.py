@@ -330,6 +330,25 @@ class Client:
         self.sock.close()
 
 
+def read_messages(sock: socket.socket, seconds: float) -> list[dict[str, Any]]:
+    """The JSON lines read from a raw monitor connection for ``seconds`` (or until it closes)."""
+    got: list[dict[str, Any]] = []
+    buf = b""
+    deadline = time.monotonic() + seconds
+    while (left := deadline - time.monotonic()) > 0:
+        sock.settimeout(left)
+        try:
+            data = sock.recv(1 << 16)
+        except TimeoutError:
+            break
+        if not data:
+            break
+        buf += data
+        *lines, buf = buf.split(b"\n")
+        got.extend(json.loads(line) for line in lines)
+    return got
+
+
 # -- as a person sees it: tmux ------------------------------------------------------------------
 _sessions = count()
 

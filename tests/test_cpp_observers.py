@@ -31,7 +31,7 @@ from typing import Any
 import pytest
 
 from tests.conftest import ROOT
-from tests.support import MONITOR_VALIDATOR, STRUCTURE, Client
+from tests.support import MONITOR_VALIDATOR, STRUCTURE, Client, read_messages
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
@@ -435,25 +435,6 @@ def test_readable_values_and_panel_fit_are_the_python_ones(observers_program: Pa
                                      for w in want]
 
 
-def _lines(sock: socket.socket, seconds: float) -> list[dict[str, Any]]:
-    """The messages read from a raw monitor connection for ``seconds``."""
-    got: list[dict[str, Any]] = []
-    buf = b""
-    deadline = time.monotonic() + seconds
-    while (left := deadline - time.monotonic()) > 0:
-        sock.settimeout(left)
-        try:
-            data = sock.recv(1 << 16)
-        except TimeoutError:
-            break
-        if not data:
-            break
-        buf += data
-        *lines, buf = buf.split(b"\n")
-        got.extend(json.loads(line) for line in lines)
-    return got
-
-
 def test_feeds_go_to_every_client_and_frames_only_to_those_that_subscribe(
         observers_program: Path, run: Callable[..., Run]) -> None:
     """Minor version 1 in C++: the registered feeds (stand-ins for mavlink.hpp and camera.hpp)."""
@@ -464,7 +445,7 @@ def test_feeds_go_to_every_client_and_frames_only_to_those_that_subscribe(
     try:
         asks.sendall(b'junk\n{"type":"subscribe","frames":1}\n' + b"y" * 3000 + b"\n"
                      b'{"type": "subscribe", "frames": true}\n')
-        got, other = _lines(asks, 1.2), _lines(quiet, 1.2)
+        got, other = read_messages(asks, 1.2), read_messages(quiet, 1.2)
         for msgs in (got, other):
             for m in msgs:
                 MONITOR_VALIDATOR.validate(m)
@@ -476,8 +457,8 @@ def test_feeds_go_to_every_client_and_frames_only_to_those_that_subscribe(
         frames = [m for m in got if m["type"] == "frame"]
         assert 3 <= len(frames) <= 8 and "frame" not in {m["type"] for m in other}, got
         asks.sendall(b'{"type":"subscribe","frames":false}\n')
-        _lines(asks, 0.3)
-        assert "frame" not in {m["type"] for m in _lines(asks, 0.6)}
+        read_messages(asks, 0.3)
+        assert "frame" not in {m["type"] for m in read_messages(asks, 0.6)}
     finally:
         asks.close()
         quiet.close()
