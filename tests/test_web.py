@@ -39,7 +39,9 @@ from tests.support import (
     RECORDS,
     STRUCTURE,
     build_blinker,
+    free_port,
     many_states,
+    read_messages,
     wait_until,
 )
 
@@ -374,24 +376,6 @@ class Unusable:
         raise RuntimeError("cannot be used")
 
 
-def read_messages(sock: socket.socket, seconds: float) -> list[dict[str, Any]]:
-    got: list[dict[str, Any]] = []
-    buf = b""
-    deadline = time.monotonic() + seconds
-    while (left := deadline - time.monotonic()) > 0:
-        sock.settimeout(left)
-        try:
-            data = sock.recv(1 << 16)
-        except TimeoutError:
-            break
-        if not data:
-            break
-        buf += data
-        *lines, buf = buf.split(b"\n")
-        got.extend(json.loads(line) for line in lines)
-    return got
-
-
 def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_that_ask() -> None:
     import cv2
     import numpy as np
@@ -553,17 +537,8 @@ def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_blinker(tmp_path_factory.mktemp("component") / "blinker")
 
 
-def free_port() -> int:
-    with socket.create_server(("127.0.0.1", 0)) as s:
-        port: int = s.getsockname()[1]
-        return port
-
-
 def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
+    return free_port(socket.SOCK_DGRAM)
 
 
 class Process:
