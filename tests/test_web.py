@@ -425,6 +425,60 @@ def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_tha
         srv.close()
 
 
+class NoisyCamera:
+    """A camera whose snippet reads a new frame of noise each time (large JPEGs, 4 a second)."""
+
+    def __init__(self) -> None:
+        import numpy as np
+
+        self.image = np.random.default_rng(17).integers(0, 256, (480, 640, 3), dtype=np.uint8)
+        self.frozen = False
+
+    def _last_seen(self) -> Any:
+        return self.image if self.frozen else self.image[:]  # a new object: a new frame
+
+
+def test_a_viewer_that_does_not_read_its_frames_is_skipped_for_frames_and_not_dropped() -> None:
+    # The frames' backlog (FRAME_BACKLOG, 256 KiB) is below the client's buffer, so the
+    # stalled viewer's frames stop before the buffer overflows and the records still fit.
+    srv = monitor.MonitorServer(port=0, announce=io.StringIO(), buffer_limit=300_000)
+    camera = NoisyCamera()
+    srv.watch({"drone": FakeVehicle(), "camera": camera})
+    srv.start(STRUCTURE)
+    stalled = socket.socket()
+    try:
+        stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # a small window
+        stalled.connect(("127.0.0.1", srv.port))
+        reader = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+        # The kernel's buffers made small (it would otherwise hold megabytes), so that
+        # the monitor's own limits are what this tests.
+        deadline = time.monotonic() + 5
+        while len(srv._clients) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        for c in list(srv._clients.values()):
+            if c.sock.getpeername() == stalled.getsockname():
+                c.sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        for s in (stalled, reader):
+            s.sendall(b'{"type":"subscribe","frames":true}\n')
+        read = [m["type"] for m in read_messages(reader, 3.0)]
+        camera.frozen = True  # no new frame from now on
+        read += [m["type"] for m in read_messages(reader, 0.5)]
+        assert read.count("frame") >= 6, read.count("frame")  # about 4 a second, each new
+        late = [m["type"] for m in read_messages(stalled, 1.0)]
+        # It was sent the frames that fitted, then none: fewer than the reader, whole lines.
+        assert late[0] == "hello" and 1 <= late.count("frame") < read.count("frame") - 2, late
+        assert "vehicle" in late
+        # Not dropped: reading again, it gets the records and the frames as they come.
+        camera.frozen = False
+        again = [m["type"] for m in read_messages(stalled, 1.0)]
+        assert "vehicle" in again and "frame" in again, again
+        assert "frame" in {m["type"] for m in read_messages(reader, 0.6)}
+        reader.close()
+    finally:
+        stalled.close()
+        srv.close()
+
+
 async def _feeds_story() -> None:
     camera = FakeCamera()
     vehicle = FakeVehicle()

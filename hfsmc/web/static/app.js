@@ -31,8 +31,38 @@
     dragged: false,        // the last mouse press panned (then it is no click)
     replay: null,          // a replay's trace: {trace, end, fires, variables}
     playing: false,
+    order: new Map(),      // state path -> its place in the structure (outermost first)
+    shown: new Set(),      // paths drawn active now (the DOM), against view.active (the data)
+    lit: new Map(),        // transition elements highlighted now -> when the highlight ends
+    varRows: new Map(),    // variable name -> its row's value cell
   };
   let socket = null;
+
+  // -- one DOM pass per animation frame ------------------------------------------------
+  // Messages only change `view` and note what is to redraw; the page is redrawn at most
+  // once per frame, whatever number of deltas arrived in it (docs/web.md, "Speed").
+  const dirty = {active: false, focus: false, full: false, transitions: false, logs: false,
+                 variables: false, changed: {}, fired: []};
+  let frame = 0, fallback = 0;
+  function later() {
+    if (frame) return;
+    frame = requestAnimationFrame(flush);
+    // A hidden tab gets no frames: draw anyway, seldom.
+    fallback = setTimeout(flush, 250);
+  }
+  function flush() {
+    if (frame) cancelAnimationFrame(frame);
+    clearTimeout(fallback);
+    frame = 0;
+    if (dirty.active) showActive(dirty.focus, dirty.full);
+    if (dirty.transitions) showTransitions();
+    if (dirty.logs) showLogs();
+    if (dirty.variables) updateVariables(dirty.changed);
+    if (dirty.fired.length) fired(dirty.fired);
+    Object.assign(dirty, {active: false, focus: false, full: false, transitions: false, logs: false,
+                          variables: false, changed: {}, fired: []});
+    tick();
+  }
 
   // -- text helpers ------------------------------------------------------------------
   function seconds(ms) { return (ms / 1000).toFixed(3); }
@@ -55,17 +85,18 @@
     document.title = (view.structure.name || "component") + " · hfsmc view";
     $("hv-autofocus").checked = msg.autofocus !== false;
     view.composites = new Set(view.structure.states.filter((st) => st.composite).map((st) => st.path));
+    view.order = new Map(view.structure.states.map((s, i) => [s.path, i]));
     view.pictures = new Map([["", msg.svg]]);
     view.tab = "";
     view.problem = msg.problem;
     drawPicture(msg.svg, msg.problem);
     showTabs();
     buildTree();
-    showActive(true);
+    showActive(true, true);
     view.replay = msg.replay || null;
     $("hv-replay").hidden = !view.replay;
     if (view.replay) $("hv-timeline").max = String(view.replay.end);
-    showVariables({});
+    showVariablesAll({});
     showFeeds(msg.feeds || {});
   }
 
@@ -73,6 +104,7 @@
     const pane = $("hv-diagram");
     pane.replaceChildren();
     view.elements.clear();
+    view.lit.clear();
     view.svg = null;
     if (problem) pane.appendChild(el("p", "hv-hint", problem));
     if (!svgText) return;
@@ -126,7 +158,7 @@
     view.tab = path;
     drawPicture(view.pictures.get(path), path ? null : view.problem);
     showTabs();
-    showActive(true);
+    showActive(true, true);
   }
 
   function closeTab(path) {
@@ -199,7 +231,7 @@
         open.addEventListener("click", () => openSub(st.path));
         li.append(open);
       }
-      li.append(el("span", "hv-time"));
+      li._hvTime = li.appendChild(el("span", "hv-time"));
       tree.appendChild(li);
       view.rows.set(st.path, li);
     }
@@ -208,37 +240,57 @@
   }
 
   // -- what is active ------------------------------------------------------------------
-  function showActive(focus) {
-    for (const [path, g] of view.elements) {
-      if (g.classList.contains("edge")) continue;
-      g.classList.toggle("hv-active", view.active.has(path));
+  // Touch only the elements and rows whose state changed since the last pass; `full`
+  // after a new drawing or tree, whose elements know nothing yet.
+  function showActive(focus, full) {
+    const mark = (path, on) => {
+      const g = view.elements.get(path);
+      if (g && !g.classList.contains("edge")) g.classList.toggle("hv-active", on);
+      const li = view.rows.get(path);
+      if (li) {
+        li.classList.toggle("hv-active", on);
+        if (!on) li._hvTime.textContent = "";
+      }
+    };
+    if (full) {
+      for (const g of view.elements.values()) g.classList.remove("hv-active");
+      for (const li of view.rows.values()) { li.classList.remove("hv-active"); li._hvTime.textContent = ""; }
+      view.shown.clear();
     }
-    for (const [path, li] of view.rows) {
-      const on = view.active.has(path);
-      li.classList.toggle("hv-active", on);
-      if (!on) li.querySelector(".hv-time").textContent = "";
+    for (const path of view.shown) {
+      if (!view.active.has(path)) { mark(path, false); view.shown.delete(path); }
+    }
+    for (const path of view.active.keys()) {
+      if (!view.shown.has(path)) { mark(path, true); view.shown.add(path); }
     }
     tick();
     if (focus && $("hv-autofocus").checked) autofocus();
   }
 
+  // The highlight is a plain style (no animation), so taking a transition again only
+  // pushes its end back; the clock's pass (tick) ends the highlights that are due.
   function fired(list) {
+    const until = performance.now() + FIRED_MS;
     for (const tr of list) {
       const id = tr.from + "#" + tr.index;
       for (const key of [id, id + ":head", id + ":label"]) {
         const g = view.elements.get(key);
         if (!g) continue;
-        g.classList.remove("hv-fired");
-        void g.getBoundingClientRect();  // restart the highlight when it is taken again
-        g.classList.add("hv-fired");
-        clearTimeout(g._hvTimer);
-        g._hvTimer = setTimeout(() => g.classList.remove("hv-fired"), FIRED_MS);
+        if (!view.lit.has(g)) g.classList.add("hv-fired");
+        view.lit.set(g, until);
       }
     }
   }
 
+  function unlight() {
+    const t = performance.now();
+    for (const [g, until] of view.lit) {
+      if (until <= t) { g.classList.remove("hv-fired"); view.lit.delete(g); }
+    }
+  }
+
   // -- the lists beside the picture -----------------------------------------------------
-  function showVariables(changed) {
+  function showVariablesAll(changed) {
     const body = $("hv-vars").tBodies[0];
     body.replaceChildren();
     if (view.replay && !view.replay.variables) {
@@ -250,12 +302,30 @@
     }
     const names = (view.structure && view.structure.variables) || [];
     const all = [...names, ...Object.keys(view.variables).filter((n) => !names.includes(n))];
+    view.varRows.clear();
     for (const name of all) {
       const tr = el("tr");
       tr.dataset.name = name;
       if (name in changed) tr.classList.add("hv-changed");
-      tr.append(el("td", "", name), el("td", "", name in view.variables ? view.variables[name] : "–"));
+      const value = el("td", "", name in view.variables ? view.variables[name] : "–");
+      tr.append(el("td", "", name), value);
       body.appendChild(tr);
+      view.varRows.set(name, value);
+    }
+  }
+
+  // The same names as drawn: only the values that changed are written.
+  function updateVariables(changed) {
+    const names = (view.structure && view.structure.variables) || [];
+    const all = [...names, ...Object.keys(view.variables).filter((n) => !names.includes(n))];
+    if (all.length !== view.varRows.size || !all.every((n) => view.varRows.has(n))) {
+      showVariablesAll(changed);
+      return;
+    }
+    for (const [name, cell] of view.varRows) {
+      const on = name in changed;
+      if (on) cell.textContent = name in view.variables ? view.variables[name] : "–";
+      cell.parentNode.classList.toggle("hv-changed", on);
     }
   }
 
@@ -293,6 +363,7 @@
 
   function showOverruns(n) {
     const o = $("hv-overruns");
+    if (o.textContent === "overruns " + n) return;
     o.textContent = "overruns " + n;
     o.classList.toggle("hv-some", n > 0);
   }
@@ -364,8 +435,9 @@
     $("hv-clock").textContent = "t " + seconds(t) + " s";
     for (const [path, since] of view.active) {
       const li = view.rows.get(path);
-      if (li) li.querySelector(".hv-time").textContent = seconds(Math.max(t - since, 0)) + " s";
+      if (li) li._hvTime.textContent = seconds(Math.max(t - since, 0)) + " s";
     }
+    if (view.lit.size) unlight();
   }
 
   // -- messages ------------------------------------------------------------------------
@@ -379,7 +451,7 @@
     showStatus(msg.status, msg.note);
     showOverruns(msg.overruns || 0);
     showActive(true);
-    showVariables({});
+    showVariablesAll({});
     showTransitions();
     showLogs();
     if (msg.replay) onReplay(msg.replay);
@@ -414,31 +486,30 @@
     for (const a of msg.enter || []) { view.active.set(a.state, a.since); moved = true; }
     // Keep the active states outermost first, as the structure lists them.
     if (moved && view.structure) {
-      const order = new Map(view.structure.states.map((s, i) => [s.path, i]));
+      const order = view.order;
       view.active = new Map([...view.active].sort((a, b) =>
         (order.get(a[0]) ?? 1e9) - (order.get(b[0]) ?? 1e9)));
     }
     if (msg.fired) {
       view.transitions = view.transitions.concat(msg.fired).slice(-8);
-      showTransitions();
+      dirty.transitions = true;
+      dirty.fired = dirty.fired.concat(msg.fired);
     }
     if (msg.logs) {
       view.logs = view.logs.concat(msg.logs).slice(-8);
-      showLogs();
+      dirty.logs = true;
     }
     if (msg.variables) {
-      const changed = {};
       for (const k of Object.keys(msg.variables)) {
-        if (view.variables[k] !== msg.variables[k]) changed[k] = true;
+        if (view.variables[k] !== msg.variables[k]) dirty.changed[k] = true;
       }
       view.variables = msg.variables;
-      showVariables(changed);
+      dirty.variables = true;
     }
     if ("overruns" in msg) showOverruns(msg.overruns);
     if ("stop" in msg) view.stopped = !!msg.stop;
-    if (moved) showActive(true);
-    if (msg.fired) fired(msg.fired);
-    tick();
+    if (moved) { dirty.active = true; dirty.focus = true; }
+    later();
   }
 
   function onMessage(ev) {
@@ -530,9 +601,9 @@
       if (!deepest || path.split("/").length > deepest.split("/").length) deepest = path;
     }
     if (!deepest) return;
-    const r = view.elements.get(deepest).getBoundingClientRect();
-    if (!r.width && !r.height) return;
-    const a = toSvg(r.left, r.top), b = toSvg(r.right, r.bottom);
+    const box = svgBox(view.elements.get(deepest));
+    if (!box) return;
+    const [a, b] = box;
     const [x, y, w, h] = view.box;
     const m = Math.min(Math.max(b.x - a.x, b.y - a.y) * 0.25, Math.min(w, h) * 0.05);
     const inside = a.x - m >= x && a.y - m >= y && b.x + m <= x + w && b.y + m <= y + h;
@@ -540,6 +611,18 @@
     const k = Math.max(1, (b.x - a.x + 2 * m) / w, (b.y - a.y + 2 * m) / h);
     const nw = w * k, nh = h * k;
     setBox([(a.x + b.x) / 2 - nw / 2, (a.y + b.y) / 2 - nh / 2, nw, nh]);
+  }
+
+  // An element's box in the drawing's own (viewBox) coordinates. Those never change for
+  // a drawing, so each element is measured once (one layout) and remembered: following
+  // the active state then reads no layout at all.
+  function svgBox(g) {
+    if (g._hvBox) return g._hvBox;
+    const r = g.getBoundingClientRect();
+    if (!r.width && !r.height) return null;
+    const a = toSvg(r.left, r.top), b = toSvg(r.right, r.bottom);
+    g._hvBox = [{x: a.x, y: a.y}, {x: b.x, y: b.y}];
+    return g._hvBox;
   }
 
   function fit() {
