@@ -983,7 +983,7 @@ return {status: document.body.dataset.status,
 
 @needs_browser
 def test_a_500_state_model_opens_and_colours_its_active_state(
-        processes: Callable[..., Process], browsers: Callable[[], Any]) -> None:
+        processes: Callable[..., Process], browsers: Callable[[], Any], tmp_path: Path) -> None:
     structure = many_states()
     assert len(structure["states"]) == 500
     srv = monitor.MonitorServer(port=0, announce=io.StringIO())
@@ -1015,6 +1015,7 @@ def test_a_500_state_model_opens_and_colours_its_active_state(
             srv.record(rec)
         s = shown(lambda s: sorted(s["svg"]) == ["G8", "G8/S0"] and s["fills"][0] == GREEN, "G8/S0")
         assert sorted(s["tree"]) == ["G8", "G8/S0"]
+        screenshot(driver, "web-500-states", tmp_path)
     finally:
         srv.close()
 
