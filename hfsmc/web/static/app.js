@@ -40,7 +40,7 @@
 
   // -- one DOM pass per animation frame ------------------------------------------------
   // Messages only change `view` and note what is to redraw; the page is redrawn at most
-  // once per frame, whatever number of deltas arrived in it (docs/web.md, "Speed").
+  // once per frame, whatever number of deltas arrived in it (docs/web.md, "Figures").
   const dirty = {active: false, focus: false, full: false, transitions: false, logs: false,
                  variables: false, changed: {}, fired: []};
   let frame = 0, fallback = 0;
