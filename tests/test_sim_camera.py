@@ -185,15 +185,19 @@ def test_texture_changes_brightness_not_colour() -> None:
     assert (np.abs(hsv[:, :, 0].astype(int) - int(ground_hue)) <= 3).mean() > 0.99
 
 
-def test_a_frame_costs_under_5_ms() -> None:
+def test_frames_along_a_flight_over_monitor_area() -> None:
+    """Descending and turning over the road (what a frame costs is bench/vision.py's figure,
+    5 ms its target): every frame is drawn, whole, and the same when drawn again."""
     w = load_world(ROOT / "examples/monitor_area/world.yaml")
+    poses = [(i / 15, 40 + i * 0.3, i * 0.2, -6 - i * 0.05, i * 0.05) for i in range(60)]
     r = Renderer(w)
-    costs = []
-    for i in range(60):
-        t0 = time.perf_counter()
-        r.render(i / 15, 40 + i * 0.3, i * 0.2, -6 - i * 0.05, i * 0.05)
-        costs.append(time.perf_counter() - t0)
-    assert sorted(costs)[len(costs) // 2] < 0.005
+    frames = [r.render(*p) for p in poses]
+    assert all(f.shape == (w.camera.height, w.camera.width, 3) and f.dtype == np.uint8
+               for f in frames)
+    assert len({f.tobytes() for f in frames}) == len(frames)  # it moved at every frame
+    assert all(r.render(*p).tobytes() == f.tobytes() for p, f in zip(poses[::10], frames[::10],
+                                                                      strict=True))
+    assert grey(frames[0]).any()  # over the road at the start
 
 
 def test_world_values_are_checked() -> None:

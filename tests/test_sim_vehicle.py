@@ -8,7 +8,6 @@ Every wait has a timeout; processes are stopped (SIGINT, then kill) by the fixtu
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import json
 import math
 import os
@@ -320,21 +319,40 @@ def test_set_message_interval_changes_a_rate(sims: Callable[..., Sim]) -> None:
 
 
 def test_link_drop_stops_heartbeats_for_its_window(sims: Callable[..., Sim]) -> None:
+    """The window is in the simulator's own time (the messages' time_boot_ms), not the test's
+    wall clock: a loaded machine that starts or steps the simulator late changes nothing."""
     sim = sims("--drop-link-after", "0.5", "--drop-link-for", "1.6")
-    arrivals: list[float] = []
-    end = time.monotonic() + 3.6
-    while (left := end - time.monotonic()) > 0:
-        if sim.gs.recv_match(type="HEARTBEAT", blocking=True, timeout=left) is not None:
-            arrivals.append(time.monotonic())
-    gaps = [b - a for a, b in itertools.pairwise(arrivals)]
-    assert gaps and 1.5 < max(gaps) < 3.1, gaps  # heartbeats before, none within, then back
-    # SIGUSR1 toggles the link at run time.
+    stamped = ["ATTITUDE", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT"]  # sent with heartbeats
+    stamps: list[int] = []  # time_boot_ms of the stamped messages, as they arrive
+    heartbeats: list[int] = []  # a heartbeat's instant: that of the stamped message after it
+    waiting = 0  # heartbeats before any stamped message of their step has come
+    deadline = time.monotonic() + 30
+    while (not stamps or stamps[-1] < 3600) and (left := deadline - time.monotonic()) > 0:
+        m = sim.gs.recv_match(type=["HEARTBEAT", *stamped], blocking=True, timeout=min(left, 1))
+        if m is None:
+            continue
+        if m.get_type() == "HEARTBEAT":
+            waiting += 1
+        else:
+            stamps.append(m.time_boot_ms)
+            heartbeats += [m.time_boot_ms] * waiting
+            waiting = 0
+    assert stamps and stamps[-1] >= 3600, stamps  # the simulator ran 3.6 s of its time
+    assert [t for t in stamps if 500 <= t < 2100] == [], stamps  # nothing within the window
+    assert min(stamps) < 500 and min(t for t in stamps if t >= 2100) < 2200, stamps
+    # Heartbeats (1 Hz, at whole seconds) before, none within, then back.
+    assert heartbeats == [0, 3000], heartbeats
+    # SIGUSR1 toggles the link at run time: once the simulator says it is down (its truth
+    # file, written after the link went down), what it sent before is drained.
     sim.proc.send_signal(signal.SIGUSR1)
-    time.sleep(0.1)
+    deadline = time.monotonic() + 15
+    while sim.truth()["link"] != "down" and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert sim.truth()["link"] == "down"
     sim.drain()
     assert sim.collect("HEARTBEAT", 1.3) == []
     sim.proc.send_signal(signal.SIGUSR1)
-    sim.heartbeat(timeout=2.5)
+    sim.heartbeat(timeout=10)
     rc, err = sim.close()
     assert rc == 0 and "link dropped (SIGUSR1)" in err and "link restored (SIGUSR1)" in err
 
