@@ -12,6 +12,12 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEB_PACKAGES := graphviz tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev chromium chromium-driver
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=
+# `make test` runs the tests on parallel workers (pytest-xdist): the suite mostly waits on
+# real time (flights, real-clock runs, terminals, a browser), not on the cores, so one worker
+# more than the cores (3 on 2 cores, at most 8). Each test file is one group on one worker
+# (its C++ builds and other module fixtures made once); the longest files start first
+# (tests/conftest.py: LONGEST_FIRST, SPREAD). PYTEST_JOBS=0 runs serially.
+PYTEST_JOBS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); echo $$(( n + 1 > 8 ? 8 : n + 1 )))
 
 .PHONY: all setup deps test demo bench golden lint examples clean fuzz soak
 
@@ -42,7 +48,7 @@ lint: setup
 	$(BIN)/lint-imports --no-cache
 
 test: lint
-	$(BIN)/pytest $(PYTEST_ARGS)
+	$(BIN)/pytest -n $(PYTEST_JOBS) --dist loadgroup --no-loadscope-reorder $(PYTEST_ARGS)
 
 # The demo flies the paper's follow_colors mission: it starts the simulator,
 # builds the Python component and runs it with the live view (about 2.5 min),

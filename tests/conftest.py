@@ -111,3 +111,38 @@ def observers_asan_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """tests/cpp/observers_main.cpp with ASan and UBSan, compiled once."""
     return compile_observers(tmp_path_factory.mktemp("observers_asan") / "observers_main",
                              SANITIZERS)
+
+
+# --- parallel runs (`make test`: pytest-xdist, --dist loadgroup --no-loadscope-reorder) ------
+#
+# The suite mostly waits on real time (flights, real-clock runs, terminals, a browser), so
+# `make test` runs it on more workers than cores. Each test file is one group, run on one
+# worker, so its module fixtures (C++ builds, copies of the repository) are made once (a
+# session fixture: once per worker that needs it); the files of SPREAD are flights that share nothing costly, so each of their tests is a
+# group of its own (their C++ ones together: they share one build). xdist hands the groups
+# out in collection order, so the longest files (measured, longest first) are collected
+# first: the short ones fill the workers at the end instead of a long one starting last.
+LONGEST_FIRST = (
+    "test_missions.py", "test_tour.py", "test_reliability_cpp.py", "test_monitor_area.py",
+    "test_conformance.py", "test_cpp.py", "test_drone_faults.py", "test_cxxcheck.py",
+    "test_component_flags.py", "test_web.py", "test_cpp_drivers.py", "test_view.py",
+    "test_cpp_observers.py", "test_build.py", "test_reliability.py", "test_sim_vehicle.py",
+    "test_wheel.py", "test_drivers.py", "test_sim_camera.py", "test_monitor.py",
+)
+SPREAD = {"test_missions.py", "test_monitor_area.py"}
+
+
+def xdist_group(item: pytest.Item) -> str:
+    """The group a test runs in under `make test` (one worker runs a group's tests in order)."""
+    name = item.path.name
+    if name not in SPREAD:
+        return name
+    return f"{name}::{'cpp' if 'cpp' in item.name else item.name}"
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    for item in items:
+        item.add_marker(pytest.mark.xdist_group(xdist_group(item)))
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
