@@ -113,15 +113,18 @@ def observers_asan_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
                              SANITIZERS)
 
 
-# --- parallel runs (`make test`: pytest-xdist, --dist loadgroup --no-loadscope-reorder) ------
+# --- parallel runs (`make test`: pytest-xdist, --dist loadfile --no-loadscope-reorder) ------
 #
 # The suite mostly waits on real time (flights, real-clock runs, terminals, a browser), so
 # `make test` runs it on more workers than cores. Each test file is one group, run on one
 # worker, so its module fixtures (C++ builds, copies of the repository) are made once (a
-# session fixture: once per worker that needs it); the files of SPREAD are flights that share nothing costly, so each of their tests is a
-# group of its own (their C++ ones together: they share one build). xdist hands the groups
-# out in collection order, so the longest files (measured, longest first) are collected
+# session fixture: once per worker that needs it); the files of SPREAD are flights that share
+# nothing costly, so each of their tests is a group of its own (their C++ ones together: they
+# share one build). The groups are handed out in collection order, so the longest files come
 # first: the short ones fill the workers at the end instead of a long one starting last.
+# (The groups are given by a scheduler, not by `xdist_group` marks: pytest-xdist 3.8 renames
+# a marked test's node id, which pytest 9.2 no longer lets it do, so --dist loadgroup spreads
+# every test.)
 LONGEST_FIRST = (
     "test_missions.py", "test_tour.py", "test_reliability_cpp.py", "test_monitor_area.py",
     "test_conformance.py", "test_cpp.py", "test_drone_faults.py", "test_cxxcheck.py",
@@ -132,17 +135,26 @@ LONGEST_FIRST = (
 SPREAD = {"test_missions.py", "test_monitor_area.py"}
 
 
-def xdist_group(item: pytest.Item) -> str:
-    """The group a test runs in under `make test` (one worker runs a group's tests in order)."""
-    name = item.path.name
-    if name not in SPREAD:
-        return name
-    return f"{name}::{'cpp' if 'cpp' in item.name else item.name}"
+def xdist_group(nodeid: str) -> str:
+    """The group of a test (by its node id) under `make test`: one worker runs a group's tests,
+    in order."""
+    path, _, name = nodeid.partition("::")
+    if Path(path).name not in SPREAD:
+        return path
+    return f"{path}::{'cpp' if 'cpp' in name else name}"
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
-    for item in items:
-        item.add_marker(pytest.mark.xdist_group(xdist_group(item)))
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    from xdist.scheduler import LoadScopeScheduling  # type: ignore[import-untyped]
+
+    class ByGroup(LoadScopeScheduling):  # type: ignore[misc]
+        def _split_scope(self, nodeid: str) -> str:
+            return xdist_group(nodeid)
+
+    return ByGroup(config, log)
