@@ -33,7 +33,7 @@ states:
   Done: {{final: true}}
 """
 
-BAD_INPUTS: list[tuple[list[str], str | None, str]] = [
+BAD_INPUTS: list[tuple[list[str], bytes | None, str]] = [
     # (flags, config file text or None, the message after "NAME: ")
     (["--param", "altitud=3"], None,
      "unknown parameter `altitud`; did you mean `altitude`? (parameters: altitude, count)"),

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.regen_golden import GENERATORS, applies, examples, golden_path, render
+from tests.conftest import examples
+from tests.regen_golden import GENERATORS, applies, golden_path, render
 
 CASES = [(ex, suffix) for ex in examples() for suffix in GENERATORS if applies(ex, suffix)]
 

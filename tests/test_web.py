@@ -962,7 +962,11 @@ def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Proces
         shown_at(t)
         values = {k: v for r in records if r["ev"] == "variables" and r["t"] <= t
                   for k, v in r["values"].items()}
-        assert values and wait_until(lambda v=values: driver.execute_script(VARS_JS) == v, 5), \
+
+        def shows(v: dict[str, Any] = values) -> bool:
+            return bool(driver.execute_script(VARS_JS) == v)
+
+        assert values and wait_until(shows, 5), \
             (t, values, driver.execute_script(VARS_JS))
         if t == 3500:
             screenshot(driver, "web-replay", tmp_path)
@@ -999,9 +1003,14 @@ def test_a_500_state_model_opens_and_colours_its_active_state(
         driver = browsers()
         driver.get(url)
 
+        def state(leaf: str) -> dict[str, Any]:
+            s = driver.execute_script(BIG_JS, leaf, "G0/S0")
+            assert isinstance(s, dict)
+            return s
+
         def shown(ok: Callable[[dict[str, Any]], bool], leaf: str) -> dict[str, Any]:
             deadline = time.monotonic() + 30
-            while not ok(s := driver.execute_script(BIG_JS, leaf, "G0/S0")):
+            while not ok(s := state(leaf)):
                 assert time.monotonic() < deadline, s
                 time.sleep(0.1)
             return s

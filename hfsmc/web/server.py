@@ -15,7 +15,7 @@ import contextlib
 import signal
 import socket
 import sys
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Coroutine
 from importlib import resources
 from typing import Any, TextIO
 
@@ -155,7 +155,7 @@ async def serve(sock: socket.socket, bridge: Bridge, out: TextIO | None = None,
 
 
 def painter(drawn: Picture | None, model_structure: dict[str, Any] | None,
-            ) -> Callable[[dict[str, Any]], Awaitable[Picture]]:
+            ) -> Callable[[dict[str, Any]], Coroutine[Any, Any, Picture]]:
     """The bridge's ``paint``: the model's picture while the component is that model's,
     else a drawing from the component's own structure."""
     from hfsmc.web.picture import model_from_structure, svg_of
