@@ -57,7 +57,7 @@ from typing import Any
 from report import hfsmc_revision, loadavg, machine, merge_json, table  # bench/report.py
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from tests.support import many_states  # the model tests/test_web.py opens too
+from tests.support import interrupt, many_states  # many_states: tests/test_web.py opens it too
 
 KEY = "web"
 ROOT = Path(__file__).resolve().parent.parent
@@ -165,12 +165,7 @@ def web_view(port: int, tmp: Path) -> Iterator[str]:
             time.sleep(0.05)
         yield m.group(1)
     finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        interrupt(proc, signum=signal.SIGTERM)
 
 
 @contextlib.contextmanager
@@ -425,12 +420,7 @@ def feeds_cpu(seconds: float, repeat: int, tmp: Path) -> dict[str, Any]:
                 frames += int(driver.execute_script("return window.__frames || 0"))
                 watched.append(result["cpu"])
     finally:
-        sim.send_signal(signal.SIGTERM)
-        try:
-            sim.wait(10)
-        except subprocess.TimeoutExpired:
-            sim.kill()
-            sim.wait()
+        interrupt(sim, signum=signal.SIGTERM)
     a, w = statistics.median(alone), statistics.median(watched)
     return {"seconds": seconds, "runs": repeat, "alone_cpu_s": [round(x, 3) for x in alone],
             "web_cpu_s": [round(x, 3) for x in watched],

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import threading
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from itertools import count
 from pathlib import Path
@@ -72,11 +73,12 @@ def stop_processes(made: list[subprocess.Popen[bytes]]) -> None:
         p.wait(10)
 
 
-def interrupt(proc: subprocess.Popen[Any], timeout: float = 10) -> int:
-    """Stop a process as Ctrl+C does (SIGINT); killed if it has not ended within ``timeout``
-    seconds. Its exit status."""
+def interrupt(proc: subprocess.Popen[Any], timeout: float = 10,
+              signum: int = signal.SIGINT) -> int:
+    """Stop a process with ``signum`` (SIGINT: as Ctrl+C does); killed if it has not ended
+    within ``timeout`` seconds. Its exit status."""
     if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signum)
         try:
             proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -94,7 +96,7 @@ def close_pipes(proc: subprocess.Popen[Any], reader: threading.Thread) -> None:
                 stream.close()
 
 
-class Worker:
+class Worker(ABC):
     """Runs ``self._run`` on a daemon thread from ``start_worker`` until ``stop_worker``, which
     sets ``self._stop`` (the loop must look at it); ``self._lock`` guards what it shares."""
 
@@ -108,8 +110,8 @@ class Worker:
         self._stop.set()
         self._thread.join(timeout=timeout)
 
-    def _run(self) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def _run(self) -> None: ...
 
 
 @contextlib.contextmanager

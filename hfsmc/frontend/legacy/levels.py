@@ -4,6 +4,7 @@ sub-automata flat) the tree of sub-automata that states hold by id (docs/legacy.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -88,7 +89,7 @@ class Sub:
     owner: LState | None = None  # the state that holds it, once reached
 
 
-class SubAutomata:
+class SubAutomata(ABC):
     """A flat list of sub-automata as a tree of levels, from the root, through the id of the
     sub-automaton each state holds.  A format says how it reads a state and the
     transitions of a level, and what a level without an initial state is."""
@@ -154,17 +155,21 @@ class SubAutomata:
             s.child = self.level(child, depth + 1)
 
     # -- what a format says ----------------------------------------------------
+    @abstractmethod
     def state(self, el: Element, sub: Sub) -> tuple[LState, Span, tuple[str, Span] | None]:
         """A state, where its id is written, and the id of the sub-automaton it holds and
         where, or None when it holds none."""
-        raise NotImplementedError
+        ...
 
+    @abstractmethod
     def transitions(self, sub: Sub, level: Level, states: dict[str, LState]) -> None:
-        raise NotImplementedError
+        ...
 
+    @abstractmethod
     def finish(self, sub: Sub, level: Level) -> None:
         """What a level without states or without an initial state is."""
-        raise NotImplementedError
+        ...
 
+    @abstractmethod
     def adopted(self, s: LState, child: Sub, sub: Sub) -> None:
         """``child`` is now held by state ``s`` of ``sub`` (before its level is read)."""

@@ -175,6 +175,9 @@ class _Levels(SubAutomata):
                 if t is not None:
                     s.transitions.append(t)
 
+    def adopted(self, s: LState, child: Sub, sub: Sub) -> None:
+        """Nothing: a VisualHFSM 3 sub-automaton takes nothing from the state that holds it."""
+
     def finish(self, sub: Sub, level: Level) -> None:
         r = self.r
         if not level.states:
