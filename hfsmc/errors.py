@@ -54,6 +54,10 @@ CODES: dict[str, str] = {
     "E137": "transition without `when` or `after`",
     "E138": "initial, period or history without states",
     "E139": "interrupt_timeout without on_interrupt",
+    # parallel regions (docs/semantics.md: regions)
+    "E160": "a state with both `states` and `regions`",
+    "E161": "a state with a single region",
+    "E162": "transition from one region to another",
     # snippets
     "E140": "syntax error in a Python snippet",
     "E141": "undefined name in a Python snippet",

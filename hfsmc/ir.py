@@ -84,19 +84,32 @@ class State:
     exit: Code | None
     transitions: tuple[Transition, ...]
     final: bool
-    automaton: Automaton | None
+    # Its sub-automaton (one), its parallel regions (two or more, in the order written), or none.
+    automata: tuple[Automaton, ...]
     span: Span = field(compare=False)
 
     @property
     def composite(self) -> bool:
-        return self.automaton is not None
+        return bool(self.automata)
+
+    @property
+    def parallel(self) -> bool:
+        """The state holds regions (docs/semantics.md: regions)."""
+        return bool(self.automata) and self.automata[0].region is not None
+
+    @property
+    def automaton(self) -> Automaton | None:
+        """Its one sub-automaton; None for a leaf and for a state with regions."""
+        return self.automata[0] if len(self.automata) == 1 and self.automata[0].region is None \
+            else None
 
 
 @dataclass(frozen=True, slots=True)
 class Automaton:
-    """The sub-automaton held by a composite state (or the root)."""
+    """The sub-automaton held by a composite state (or the root), or one of its regions."""
 
     owner: str  # path of the owning state ("" for the root)
+    region: str | None  # the region's name; None for a state's one sub-automaton and the root
     period_ms: int  # resolved: inherited from the parent when not written
     period_written: bool  # whether the model wrote it (for round trips)
     initial: str
@@ -104,6 +117,13 @@ class Automaton:
     states: tuple[State, ...]
     span: Span = field(compare=False)
     initial_span: Span = field(compare=False)
+
+    @property
+    def path(self) -> str:
+        """The prefix of its states' paths: the owner's path, and the region's name if any."""
+        if self.region is None:
+            return self.owner
+        return f"{self.owner}/{self.region}" if self.owner else self.region
 
     def state(self, name: str) -> State | None:
         for s in self.states:
@@ -165,29 +185,49 @@ class Model:
     interrupt_timeout_span: Span | None = field(default=None, compare=False)
 
     def states(self) -> Iterator[State]:
-        """Every state, depth first, parents before children, in model order."""
+        """Every state, depth first, parents before children, in model order (a state's
+        regions in the order written)."""
         stack = list(reversed(self.root.states))
         while stack:
             s = stack.pop()
             yield s
-            if s.automaton is not None:
-                stack.extend(reversed(s.automaton.states))
+            for a in reversed(s.automata):
+                stack.extend(reversed(a.states))
 
     def automata(self) -> Iterator[Automaton]:
-        """The root sub-automaton, then every nested one, parents first."""
-        yield self.root
-        for s in self.states():
-            if s.automaton is not None:
-                yield s.automaton
+        """Every sub-automaton and region in pre-order: each one, then those inside its
+        states, before its next sibling (the order ticks due together run in)."""
+        stack = [self.root]
+        while stack:
+            a = stack.pop()
+            yield a
+            for s in reversed(a.states):
+                stack.extend(reversed(s.automata))
 
     def find(self, path: str) -> State | None:
-        auto: Automaton | None = self.root
+        """The state at ``path`` (region names included: ``Mission/Watch/Ok``)."""
+        autos: tuple[Automaton, ...] = (self.root,)
         state: State | None = None
-        for part in path.split("/"):
-            if auto is None:
+        parts = path.split("/")
+        k = 0
+        while k < len(parts):
+            if len(autos) > 1 or (autos and autos[0].region is not None):
+                autos = tuple(a for a in autos if a.region == parts[k])
+                k += 1
+                if not autos or k == len(parts):
+                    return None
+            if not autos:
                 return None
-            state = auto.state(part)
+            state = autos[0].state(parts[k])
             if state is None:
                 return None
-            auto = state.automaton
+            autos = state.automata
+            k += 1
         return state
+
+    def automaton_at(self, path: str) -> Automaton | None:
+        """The sub-automaton or region whose states' paths start with ``path``."""
+        for a in self.automata():
+            if a.path == path:
+                return a
+        return None

@@ -179,38 +179,66 @@ class _IrBuilder:
         return _freeze(value)
 
     # -- states ------------------------------------------------------------
-    def automaton(self, node: dict[str, Any], path: PathKey, owner: str, parent_ms: int) -> Automaton:
+    def automaton(self, node: dict[str, Any], path: PathKey, owner: str, parent_ms: int,
+                  region: str | None = None) -> Automaton:
         written = self.period(node, path)
         period_ms = written if written is not None else parent_ms
+        prefix = owner if region is None else (f"{owner}/{region}" if owner else region)
         states = tuple(
-            self.state(name, spec or {}, (*path, "states", name), owner, period_ms)
+            self.state(name, spec or {}, (*path, "states", name), prefix, period_ms)
             for name, spec in (node.get("states") or {}).items()
         )
         initial = node.get("initial", "")
         return Automaton(
             owner=owner,
+            region=region,
             period_ms=period_ms,
             period_written=written is not None,
             initial=initial,
             history=bool(node.get("history", False)),
             states=states,
-            span=self.doc.key_span((*path, "states")),
+            span=self.doc.key_span((*path, "states")) if "states" in node else self.doc.key_span(path),
             initial_span=self.doc.span((*path, "initial")) if "initial" in node else self.doc.key_span(path),
         )
+
+    def regions(self, node: dict[str, Any], path: PathKey, spath: str,
+                period_ms: int) -> tuple[Automaton, ...]:
+        """A state's parallel regions (docs/semantics.md: regions), in the order written."""
+        regions: dict[str, Any] = node.get("regions") or {}
+        rpath: PathKey = (*path, "regions")
+        if "states" in node:
+            self.diags.error("E160", f"state `{spath}` has both `states` and `regions`: a state "
+                             "holds one sub-automaton or parallel regions, not both",
+                             self.doc.key_span(rpath),
+                             "move the states into a region, or drop `regions`")
+        if len(regions) == 1:
+            name = next(iter(regions))
+            self.diags.error("E161", f"state `{spath}` has a single region `{name}`: regions run "
+                             "side by side, so a state needs two or more",
+                             self.doc.key_span(rpath),
+                             f"write the region's `initial` and `states` on `{spath}` itself")
+        for key in ("initial", "period", "history"):
+            if key in node and "states" not in node:
+                self.diags.error("E138", f"`{key}` of state `{spath}` belongs to one of its "
+                                 "regions: each region has its own", self.doc.key_span((*path, key)))
+        return tuple(self.automaton(spec or {}, (*rpath, name), spath, period_ms, name)
+                     for name, spec in regions.items())
 
     def state(self, name: str, node: dict[str, Any], path: PathKey, parent: str, period_ms: int) -> State:
         spath = f"{parent}/{name}" if parent else name
         span = self.doc.key_span(path)
-        auto = None
-        if "states" in node:
-            auto = self.automaton(node, path, spath, period_ms)
+        autos: tuple[Automaton, ...] = ()
+        if "regions" in node:
+            autos = self.regions(node, path, spath, period_ms)
+        elif "states" in node:
+            autos = (self.automaton(node, path, spath, period_ms),)
         else:
             for key in ("initial", "period", "history"):
                 if key in node:
                     self.diags.error("E138", f"`{key}` needs a sub-automaton: state `{spath}` has no "
                                      "`states`", self.doc.key_span((*path, key)))
         final = bool(node.get("final", False))
-        if final and auto is not None:
+        if final and autos:
             self.diags.error("E135", f"final state `{spath}` cannot hold a sub-automaton",
                              self.doc.key_span((*path, "final")))
         trans = tuple(self.transition(i, t, (*path, "transitions", i), spath)
@@ -219,7 +247,7 @@ class _IrBuilder:
             self.diags.error("E134", f"final state `{spath}` cannot have transitions",
                              self.doc.key_span((*path, "transitions")))
         return State(name, spath, self.code(node, path, "entry"), self.code(node, path, "during"),
-                     self.code(node, path, "exit"), trans, final, auto, span)
+                     self.code(node, path, "exit"), trans, final, autos, span)
 
     def transition(self, index: int, node: dict[str, Any], path: PathKey, source: str) -> Transition:
         after = self.duration(node, path, "after")

@@ -27,15 +27,24 @@ class NamedPass:
 
 
 def _walk_autos(model: Model) -> Iterator[tuple[Automaton, State | None]]:
+    """Every sub-automaton and region with its owning state (None for the root)."""
     yield model.root, None
     for s in model.states():
-        if s.automaton is not None:
-            yield s.automaton, s
+        for a in s.automata:
+            yield a, s
+
+
+def _where(auto: Automaton, owner: State | None) -> str:
+    if owner is None:
+        return "the root"
+    if auto.region is not None:
+        return f"region `{auto.region}` of state `{owner.path}`"
+    return f"state `{owner.path}`"
 
 
 def resolve_initials(model: Model, diags: Diagnostics) -> Model:
     for auto, owner in _walk_autos(model):
-        where = f"state `{owner.path}`" if owner else "the root"
+        where = _where(auto, owner)
         if not auto.initial:
             diags.error("E130", f"the sub-automaton of {where} has no `initial` state",
                         auto.initial_span, f"its states: {', '.join(s.name for s in auto.states)}")
@@ -52,12 +61,22 @@ def resolve_initials(model: Model, diags: Diagnostics) -> Model:
 
 
 def resolve_targets(model: Model, diags: Diagnostics) -> Model:
-    for auto, _owner in _walk_autos(model):
+    for auto, owner in _walk_autos(model):
         names = [s.name for s in auto.states]
         siblings = set(names)  # a set: sub-automata may have hundreds of states
+        others = [a for a in owner.automata if a is not auto] if owner is not None else []
         for state in auto.states:
             for t in state.transitions:
                 if t.target in siblings:
+                    continue
+                across = [a for a in others if a.state(t.target) is not None]
+                if across and owner is not None:
+                    diags.error("E162", f"`{state.path}` -> `{t.target}`: `{t.target}` is in region "
+                                f"`{across[0].region}`, and nothing crosses from one region of "
+                                f"`{owner.path}` to another", t.target_span,
+                                "regions run side by side; to coordinate them, test "
+                                f"active(\"{across[0].path}/{t.target}\") or a variable, or leave "
+                                f"`{owner.path}` with a transition of its own")
                     continue
                 elsewhere = [s.path for s in model.states() if s.name == t.target]
                 if elsewhere:
@@ -198,8 +217,10 @@ def check_names(model: Model, diags: Diagnostics) -> Model:
 def _leavable(model: Model) -> dict[str, bool]:
     """For each state path: whether it or one of its ancestors has a transition out."""
     out: dict[str, bool] = {}
-    for s in model.states():  # parents before children
-        out[s.path] = bool(s.transitions) or out.get(s.path.rpartition("/")[0], False)
+    for auto in model.automata():  # parents before children
+        above = out.get(auto.owner, False)
+        for s in auto.states:
+            out[s.path] = bool(s.transitions) or above
     return out
 
 

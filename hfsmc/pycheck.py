@@ -269,10 +269,11 @@ def check_done(model: Model, sn: Snippet, where: Span, diags: Diagnostics) -> No
     if not sn.where:
         return  # functions and on_shutdown: the caller's state decides
     state = model.find(sn.where)
-    if state is not None and state.automaton is None:
+    if state is not None and not state.automata:
         diags.warning("W215", f"done() in {sn.kind} of `{sn.where}` is always false: the state "
                       "has no sub-automaton", where,
-                      "done() says whether the owning state's sub-automaton is in a final state")
+                      "done() says whether the owning state's sub-automaton (every one of its "
+                      "regions) is in a final state")
 
 
 def _check_helper_calls(model: Model, sn: Snippet, tree: ast.AST, diags: Diagnostics) -> None:

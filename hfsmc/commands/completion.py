@@ -42,7 +42,7 @@ def state_paths(model: str | None) -> list[str]:
         result = compile_file(model, cxx=False)  # no g++ run for a Tab
         if result.model is None:
             return []
-        return [s.path for s in result.model.states() if s.automaton is not None]
+        return [s.path for s in result.model.states() if s.automata]
     except Exception:  # completion must never show a traceback
         return []
 

@@ -148,6 +148,7 @@ class CppComponentView:
     machine: MachineView[CppSnippet]
     interrupt_timeout_us: int  # -1 without one
     transition_indices: tuple[TransitionIndices, ...]
+    first_child: tuple[int, ...]  # per state: where its sub-automata start in _hfsm_CHILDREN
     line_back: str  # a #line back into the generated file (numbered after rendering)
     config: str  # the body of NAME.yaml
 
@@ -240,9 +241,19 @@ class CppWalk(Walk[CppSnippet]):
                 TransitionIndices(self.index[s.path], self.target(s, t.target), t.index,
                                   cpp_string(t.name or ""))
                 for s in self.states for t in s.transitions),
+            first_child=_offsets([len(st.children) for st in machine.states]),
             line_back=_BACK,
             config=component_config(m),
         )
+
+
+def _offsets(counts: list[int]) -> tuple[int, ...]:
+    """Where each run of ``counts`` starts in their concatenation."""
+    out, at = [], 0
+    for n in counts:
+        out.append(at)
+        at += n
+    return tuple(out)
 
 
 def component_view(model: Model) -> CppComponentView:

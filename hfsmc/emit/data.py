@@ -77,7 +77,9 @@ def _state(s: State) -> dict[str, Any]:
         d["final"] = True
     if s.transitions:
         d["transitions"] = [_transition(t) for t in s.transitions]
-    if s.automaton is not None:
+    if s.parallel:
+        d["regions"] = {a.region: _automaton(a) for a in s.automata}
+    elif s.automaton is not None:
         d.update(_automaton(s.automaton))
     return d
 

@@ -45,7 +45,8 @@ def dump(model: Model) -> str:
 
 
 def _automaton(auto: Automaton, indent: str) -> list[str]:
-    head = f"{indent}automaton {auto.owner or '(root)'} period {auto.period_ms}ms"
+    kind = f"region {auto.region} of" if auto.region is not None else "automaton"
+    head = f"{indent}{kind} {auto.owner or '(root)'} period {auto.period_ms}ms"
     head += "" if auto.period_written else " (inherited)"
     head += f" initial {auto.initial}" + (" history" if auto.history else "")
     out = [head]
@@ -62,8 +63,8 @@ def _state(s: State, indent: str) -> list[str]:
         out += _code(kind, getattr(s, kind), inner)
     for t in s.transitions:
         out += _transition(t, inner)
-    if s.automaton is not None:
-        out += _automaton(s.automaton, inner)
+    for a in s.automata:
+        out += _automaton(a, inner)
     return out
 
 

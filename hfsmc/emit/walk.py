@@ -35,7 +35,11 @@ S = TypeVar("S", bound=Snippet)  # a back end's snippet view
 
 @dataclass(frozen=True, slots=True)
 class AutomatonView:
+    """A sub-automaton or a region, numbered in pre-order (the order ticks due together run)."""
+
+    index: int
     owner: int  # index of the composite state holding it; -1 for the root
+    region: str | None  # the region's name; None for a state's one sub-automaton and the root
     period_ms: int
     initial: int  # index of its initial state
     history: bool
@@ -56,10 +60,8 @@ class TransitionView(Generic[S]):
 class StateView(Generic[S]):
     index: int
     path: str
-    container: int  # index of the sub-automaton holding it
-    child: int  # its own sub-automaton, or -1
-    child_initial: int  # index of that sub-automaton's initial state
-    child_history: bool
+    container: int  # index of the sub-automaton (or region) holding it
+    children: tuple[AutomatonView, ...]  # its sub-automaton, or its regions in order; () for a leaf
     final: bool
     entry: S | None
     during: S | None
@@ -94,12 +96,13 @@ class Walk(ABC, Generic[S]):
         self.snippets: list[S] = []
         # Sub-automata numbered parents first, as the scheduler walks them.
         self.automata: list[AutomatonView] = []
-        self.auto_of: dict[str, int] = {}
+        self.auto_of: dict[str, int] = {}  # the prefix of its states' paths -> index
         for auto in model.automata():
-            self.auto_of[auto.owner] = len(self.automata)
+            self.auto_of[auto.path] = len(self.automata)
             owner = self.index[auto.owner] if auto.owner else -1
-            initial = self.index[f"{auto.owner}/{auto.initial}" if auto.owner else auto.initial]
-            self.automata.append(AutomatonView(owner, auto.period_ms, initial, auto.history))
+            initial = self.index[f"{auto.path}/{auto.initial}" if auto.path else auto.initial]
+            self.automata.append(AutomatonView(len(self.automata), owner, auto.region,
+                                               auto.period_ms, initial, auto.history))
 
     @abstractmethod
     def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> S:
@@ -132,23 +135,18 @@ class Walk(ABC, Generic[S]):
     def state_views(self) -> list[StateView[S]]:
         """Every state with its snippets and transitions, in state order."""
         own = [self._own_snippets(i, s) for i, s in enumerate(self.states)]
-        return [StateView(i, s.path, self.auto_of[s.path.rpartition("/")[0]], child, initial,
-                          history, s.final, entry, during, exit_, self._transitions(i, s, own),
+        return [StateView(i, s.path, self.auto_of[s.path.rpartition("/")[0]],
+                          tuple(self.automata[self.auto_of[a.path]] for a in s.automata),
+                          s.final, entry, during, exit_, self._transitions(i, s, own),
                           comment_text(f"{self.base}:{s.span.line} {s.path}"))
-                for (i, s), (child, initial, history, entry, during, exit_)
-                in zip(enumerate(self.states), own, strict=True)]
+                for (i, s), (entry, during, exit_) in zip(enumerate(self.states), own, strict=True)]
 
-    def _own_snippets(self, i: int, s: State) -> tuple[int, int, bool, S | None, S | None, S | None]:
-        child, initial, history = -1, -1, False
-        if s.automaton is not None:
-            child = self.auto_of[s.path]
-            initial = self.automata[child].initial
-            history = s.automaton.history
-        return (child, initial, history, self.snippet("entry", i, s.entry),
-                self.snippet("during", i, s.during), self.snippet("exit", i, s.exit))
+    def _own_snippets(self, i: int, s: State) -> tuple[S | None, S | None, S | None]:
+        return (self.snippet("entry", i, s.entry), self.snippet("during", i, s.during),
+                self.snippet("exit", i, s.exit))
 
-    def _transitions(self, i: int, s: State, own: list[tuple[int, int, bool, S | None, S | None,
-                                                             S | None]]) -> tuple[TransitionView[S], ...]:
+    def _transitions(self, i: int, s: State,
+                     own: list[tuple[S | None, S | None, S | None]]) -> tuple[TransitionView[S], ...]:
         out: list[TransitionView[S]] = []
         for t in s.transitions:
             target = self.target(s, t.target)
@@ -158,7 +156,7 @@ class Walk(ABC, Generic[S]):
             do = self.snippet("do", i, t.do, f" (transition {t.index})")
             cond = (f" after {after}" if after else "") + (" when ..." if when else "")
             out.append(TransitionView(
-                t.index, target, t.after_us, when, do, own[target][4],
+                t.index, target, t.after_us, when, do, own[target][1],
                 comment_text(f"{self.base}:{t.span.line}{label} {s.path} -> "
                              f"{self.states[target].path}{cond}")))
         return tuple(out)

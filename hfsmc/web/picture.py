@@ -59,7 +59,7 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
             where = repr(owner) if owner else "the root"
             raise ValueError(f"the structure has no states under {where}")
         initial = str(info.get("initial") or kids[0].name)
-        return Automaton(owner=owner, period_ms=period, period_written=True, initial=initial,
+        return Automaton(owner=owner, region=None, period_ms=period, period_written=True, initial=initial,
                          history=bool(info.get("history")), states=kids, span=_NOWHERE,
                          initial_span=_NOWHERE)
 
@@ -77,7 +77,7 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
             for tr in sorted(moves.get(path, ()), key=lambda tr: int(tr["index"])))
         return State(name=name, path=path, entry=None, during=None, exit=None, transitions=trs,
                      final=bool(st.get("final")),
-                     automaton=automaton(path, period) if composite else None, span=_NOWHERE)
+                     automata=(automaton(path, period),) if composite else (), span=_NOWHERE)
 
     root = automaton("", 100)
     return Model(name=str(structure.get("name") or "component"), language="python",

@@ -456,12 +456,12 @@ void check_focus(const Tables& tb, const std::string& focus) {
     std::vector<std::string> all, composite;
     for (int k = 0; k < tb.n_states; ++k) {
         if (path == tb.states[k].path) {
-            if (tb.states[k].child < 0)
+            if (tb.states[k].n_children == 0)
                 throw UsageError("--focus " + focus + ": state `" + path + "` has no sub-automaton to show");
             return;
         }
         all.emplace_back(tb.states[k].path);
-        if (tb.states[k].child >= 0) composite.emplace_back(tb.states[k].path);
+        if (tb.states[k].n_children > 0) composite.emplace_back(tb.states[k].path);
     }
     throw UsageError("--focus " + focus + ": no state `" + path + "` in " + tb.name +
                      did_you_mean(path, composite.empty() ? all : composite));

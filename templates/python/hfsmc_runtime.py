@@ -11,6 +11,7 @@ instant, stop requests acted on at tick boundaries (docs/semantics.md).
 from __future__ import annotations
 
 import argparse
+import bisect
 import contextlib
 import json
 import os
@@ -171,7 +172,8 @@ class Engine:
         self.root = len(m["paths"])
         self.index = {p: i for i, p in enumerate(m["paths"])}
         self.final: tuple[bool, ...] = m["final"] + (False,)
-        self.child: tuple[int, ...] = m["child"] + (0,)  # sub-automaton of a state, or -1
+        # Per state: its sub-automaton, or its regions in order (the root's: the root automaton).
+        self.children: tuple[tuple[int, ...], ...] = m["children"] + ((0,),)
         self.container: tuple[int, ...] = m["container"] + (-1,)
         self.period_us = tuple(p * 1000 for p in m["periods"])
         self.ENTER: tuple[Callable[[], None], ...] = m["enter"]
@@ -209,11 +211,21 @@ class Engine:
                        "to": self.paths[j], "index": k})
 
     def activate(self, b: int) -> None:
-        self.chain.append(b)
+        # The active sub-automata, in pre-order: sub-automata are numbered so (parents first,
+        # regions in the order written), so the chain stays sorted.
+        chain = self.chain
+        if chain[-1] < b:
+            chain.append(b)
+        else:
+            bisect.insort(chain, b)
         self.deadline[b] = self.t
 
-    def deactivate(self) -> None:
-        self.chain.pop()
+    def deactivate(self, b: int) -> None:
+        chain = self.chain
+        if chain[-1] == b:
+            chain.pop()
+        else:
+            chain.remove(b)
 
     def fail(self, exc: BaseException, sid: int) -> None:
         """A snippet raised: report it, record it, ask for a stop with reason error."""
@@ -243,9 +255,10 @@ class Engine:
         return self.t / 1e6
 
     def done(self) -> bool:
-        b = self.child[self.owner]
-        return b >= 0 and self.cur[b] >= 0 and self.is_active[self.cur[b]] and \
-            self.final[self.cur[b]]
+        """The owning state's sub-automaton, or every one of its regions, is in a final state."""
+        kids = self.children[self.owner]
+        cur, active, final = self.cur, self.is_active, self.final
+        return bool(kids) and all(cur[b] >= 0 and active[cur[b]] and final[cur[b]] for b in kids)
 
     def active(self, path: str) -> bool:
         i = self.index.get(path.strip("/"))
@@ -511,13 +524,13 @@ class Engine:
         ns = m["namespace"]
         return {
             "name": self.name,
-            "automata": [{"owner": self.paths[o] if o >= 0 else "", "period_ms": p,
+            "automata": [{"owner": self.paths[o] if o >= 0 else "", "region": r, "period_ms": p,
                           "initial": self.paths[i].rpartition("/")[2],
                           "history": h}
-                         for o, p, i, h in zip(m["owners"], m["periods"], m["initial"],
-                                               m["history"], strict=False)],
-            "states": [{"path": p, "final": f, "composite": c >= 0}
-                       for p, f, c in zip(m["paths"], m["final"], m["child"], strict=False)],
+                         for o, r, p, i, h in zip(m["owners"], m["regions"], m["periods"],
+                                                  m["initial"], m["history"], strict=False)],
+            "states": [{"path": p, "final": f, "composite": bool(c)}
+                       for p, f, c in zip(m["paths"], m["final"], m["children"], strict=False)],
             "transitions": [{"from": f, "to": t, "index": k, "name": n}
                             for f, t, k, n in m["transitions"]],
             "variables": list(m["variables"]),
@@ -807,10 +820,10 @@ def _check_focus(engine: Engine, focus: str | None) -> None:
     path = focus.strip("/")
     i = engine.index.get(path)
     if i is None:
-        composite = [p for k, p in enumerate(engine.paths[:-1]) if engine.child[k] >= 0]
+        composite = [p for k, p in enumerate(engine.paths[:-1]) if engine.children[k]]
         raise UsageError(f"--focus {focus}: no state `{path}` in {engine.name}"
                          f"{_did_you_mean(path, composite or engine.paths[:-1])}")
-    if engine.child[i] < 0:
+    if not engine.children[i]:
         raise UsageError(f"--focus {focus}: state `{path}` has no sub-automaton to show")
 
 

@@ -85,7 +85,7 @@ void step() {  // after each observer call
 hfsmc::Structure structure() {
     hfsmc::Structure s;
     s.name = "blinker";
-    s.automata = {{"", 100, "Blinking", false}, {"Blinking", 50, "Lit", true}};
+    s.automata = {{"", "", 100, "Blinking", false}, {"Blinking", "", 50, "Lit", true}};
     s.states = {{"Blinking", false, true}, {"Blinking/Lit", false, false}, {"Blinking/Dark", false, false},
                 {"Paused", false, false}, {"Done", true, false}};
     s.transitions = {{"Blinking", "Done", 0, "enough"}, {"Blinking", "Paused", 1, "pause"},

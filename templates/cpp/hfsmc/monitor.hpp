@@ -397,7 +397,9 @@ private:
                         ",\"minor\":" + std::to_string(MINOR) + ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
         for (const auto& a : s.automata) {
             if (o.back() != '[') o += ',';
-            o += "{\"owner\":" + json_string(a.owner) + ",\"period_ms\":" + std::to_string(a.period_ms) +
+            o += "{\"owner\":" + json_string(a.owner) + ",\"region\":" +
+                 (a.region.empty() ? std::string("null") : json_string(a.region)) +
+                 ",\"period_ms\":" + std::to_string(a.period_ms) +
                  ",\"initial\":" + json_string(a.initial) + ",\"history\":" + (a.history ? "true" : "false") + "}";
         }
         o += "],\"states\":[";

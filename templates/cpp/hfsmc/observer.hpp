@@ -14,6 +14,7 @@ namespace hfsmc {
 struct Structure {
     struct Automaton {
         std::string owner;  // path of the owning state, "" for the root
+        std::string region;  // the region's name, "" for a state's one sub-automaton and the root
         int period_ms;
         std::string initial;  // name of the initial state
         bool history;

@@ -61,12 +61,14 @@ public:
 // --- the tables a generated component hands to its engine -------------------------
 struct StateInfo {
     const char* path;
-    int container;  // the sub-automaton holding it
-    int child;  // its own sub-automaton, or -1
+    int container;  // the sub-automaton (or region) holding it
+    int first_child;  // its sub-automaton or regions: Tables::children[first_child, + n_children)
+    int n_children;
     bool final;
 };
 struct AutomatonInfo {
     int owner;  // state index, -1 for the root
+    const char* region;  // the region's name; nullptr for a state's one sub-automaton, the root
     int period_ms;
     int initial;  // state index
     bool history;
@@ -91,6 +93,7 @@ struct Tables {
     const char* file;  // the model file, as hfsmc was given it
     const StateInfo* states;
     int n_states;
+    const int* children;  // the sub-automata of the states, see StateInfo
     const AutomatonInfo* automata;
     int n_automata;
     const TransitionInfo* transitions;
@@ -365,11 +368,17 @@ public:
             emit(r);
         }
     }
+    // The active sub-automata in pre-order: they are numbered so (parents first, regions in
+    // the order written), so the chain stays sorted.
     void activate(int b) {
-        chain_.push_back(b);
+        if (chain_.back() < b) chain_.push_back(b);
+        else chain_.insert(std::upper_bound(chain_.begin(), chain_.end(), b), b);
         deadline_[static_cast<std::size_t>(b)] = t;
     }
-    void deactivate() { chain_.pop_back(); }
+    void deactivate(int b) {
+        if (chain_.back() == b) chain_.pop_back();
+        else chain_.erase(std::find(chain_.begin(), chain_.end(), b));
+    }
     bool after(int i, long long us) const { return t - entered[static_cast<std::size_t>(i)] >= us; }
 
     // A snippet threw: report it, record it, ask for a stop with reason error.
@@ -415,10 +424,13 @@ public:
     double now() const { return static_cast<double>(t) / 1e6; }
     bool done() const {
         if (owner >= root_) return false;
-        const int b = tb_.states[owner].child;
-        if (b < 0) return false;
-        const int c = cur[static_cast<std::size_t>(b)];
-        return c >= 0 && is_active[static_cast<std::size_t>(c)] && tb_.states[c].final;
+        // Its sub-automaton, or every one of its regions, is in a final state.
+        const StateInfo& s = tb_.states[owner];
+        for (int k = s.first_child; k < s.first_child + s.n_children; ++k) {
+            const int c = cur[static_cast<std::size_t>(tb_.children[k])];
+            if (c < 0 || !is_active[static_cast<std::size_t>(c)] || !tb_.states[c].final) return false;
+        }
+        return s.n_children > 0;
     }
     bool active(std::string_view path) const {
         while (!path.empty() && path.front() == '/') path.remove_prefix(1);
@@ -703,10 +715,11 @@ private:
             const AutomatonInfo& a = tb_.automata[k];
             std::string initial = tb_.states[a.initial].path;
             initial = initial.substr(initial.rfind('/') == std::string::npos ? 0 : initial.rfind('/') + 1);
-            s.automata.push_back({path_of(a.owner < 0 ? root_ : a.owner), a.period_ms, initial, a.history});
+            s.automata.push_back({path_of(a.owner < 0 ? root_ : a.owner), a.region ? a.region : "",
+                                  a.period_ms, initial, a.history});
         }
         for (int i = 0; i < tb_.n_states; ++i)
-            s.states.push_back({tb_.states[i].path, tb_.states[i].final, tb_.states[i].child >= 0});
+            s.states.push_back({tb_.states[i].path, tb_.states[i].final, tb_.states[i].n_children > 0});
         for (int k = 0; k < tb_.n_transitions; ++k) {
             const TransitionInfo& tr = tb_.transitions[k];
             s.transitions.push_back({tb_.states[tr.from].path, tb_.states[tr.to].path, tr.index, tr.name});
