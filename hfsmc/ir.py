@@ -117,6 +117,9 @@ class Automaton:
     states: tuple[State, ...]
     span: Span = field(compare=False)
     initial_span: Span = field(compare=False)
+    # Set on the root sub-automaton of a used file where it is used (`use`): its states'
+    # paths continue the using state's, their snippets run in the instance's namespace.
+    instance: Instance | None = None
 
     @property
     def path(self) -> str:
@@ -130,6 +133,46 @@ class Automaton:
             if s.name == name:
                 return s
         return None
+
+
+@dataclass(frozen=True, slots=True)
+class Binding:
+    """One `with` entry: a parameter or an interface of the used model, and what it gets."""
+
+    name: str  # the used model's parameter or interface
+    kind: Literal["parameter", "interface"]
+    value: Value  # a literal (parameters), None when bound to a name of the using model
+    source: str | None  # the using model's parameter (`$NAME`) or interface bound to it
+    span: Span = field(compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class Instance:
+    """A sub-automaton taken from another model file (`use`), as it is used at one state.
+
+    ``model`` is the used file built and checked on its own (paths relative to its root,
+    spans in its file); the using state's ``automata`` holds the same states again with
+    paths that continue the using state's (``TakeOff/Climb``) and this instance set on
+    their automaton.  ``bindings`` are what `with` says, in the order written; a
+    parameter it does not name keeps its default, an interface binds to the using
+    model's interface of the same name (``Instance.binding`` says which, for each).
+    """
+
+    file: str  # the used file's path, as hfsmc reads it (relative to the using file's folder)
+    written: str  # as written after `use:`
+    model: Model
+    bindings: tuple[Binding, ...]
+    span: Span = field(compare=False)  # the `use` value in the using file
+
+    def binding(self, name: str) -> Binding:
+        """What the used model's parameter or interface ``name`` gets in this instance."""
+        for b in self.bindings:
+            if b.name == name:
+                return b
+        for p in self.model.parameters:
+            if p.name == name:
+                return Binding(name, "parameter", p.default, None, self.span)
+        return Binding(name, "interface", None, name, self.span)
 
 
 @dataclass(frozen=True, slots=True)
