@@ -10,24 +10,46 @@ component view holds as ``machine``.
 
 from __future__ import annotations
 
+import re
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Generic, TypeVar
 
 from hfsmc.durations import format_us
 from hfsmc.emit.comments import comment_text
-from hfsmc.ir import Code, Model, State
+from hfsmc.ir import Automaton, Code, Instance, Model, State
 
 
 @dataclass(frozen=True, slots=True)
 class Snippet:
-    """One snippet of the model as a back end prints it (subclassed per back end)."""
+    """One snippet of the model as a back end prints it (subclassed per back end).
 
-    sid: int  # its number, in the order of the generated code
+    A snippet of a state inside an instance of a used file (`use`) is defined in that
+    file's code unit, not in the component's own code: the walk of the using model makes
+    only a reference to it (this base class), whose ``call`` names it there."""
+
+    sid: int  # its number, in the order of its unit's generated code
     kind: str  # entry | during | exit | when | do | functions | on_shutdown
     owner: int  # state index; len(states) for the root's snippets
     where: str  # comment text: "blinker.yaml:31 entry of Blinking/Lit"
+
+    @property
+    def call(self) -> str:
+        """What calls it from the component's state functions."""
+        return f"_hfsm_s{self.sid}"
+
+
+@dataclass(frozen=True, slots=True)
+class SnippetRef(Snippet):
+    """A snippet defined in the code unit of instance ``instance`` (`use`)."""
+
+    instance: int
+
+    @property
+    def call(self) -> str:
+        return f"_hfsm_i{self.instance}._hfsm_s{self.sid}"
 
 
 S = TypeVar("S", bound=Snippet)  # a back end's snippet view
@@ -46,13 +68,38 @@ class AutomatonView:
 
 
 @dataclass(frozen=True, slots=True)
+class InstanceView:
+    """An instance of a used file (`use`): its states are numbered like the others (a
+    contiguous run, from ``base``); its snippets are defined in its file's code unit."""
+
+    number: int  # 1, 2, ... in pre-order: the component names it `_hfsm_i{number}`
+    unit: str  # the code unit of its file (one per used file): an identifier
+    instance: Instance
+    owner: int  # index of the using state
+    base: int  # index of its first state: a state's index in the used model, plus base
+    parent: int  # the instance it is used in (its number), 0 for the component's own model
+    prefix: str  # the using state's path: active() inside reads paths below it
+    sid0: int  # where its snippets start in the component's table of every snippet
+    n_snippets: int
+
+
+@dataclass(frozen=True, slots=True)
+class UnitView:
+    """A used file's code, defined once and instantiated per `use`."""
+
+    name: str  # an identifier, unique in the component
+    file: str  # the used file
+    model: Model
+
+
+@dataclass(frozen=True, slots=True)
 class TransitionView(Generic[S]):
     index: int
     target: int
     after_us: int | None
-    when: S | None
-    do: S | None
-    target_during: S | None  # runs after entering the target, in the same tick
+    when: S | Snippet | None
+    do: S | Snippet | None
+    target_during: S | Snippet | None  # runs after entering the target, in the same tick
     comment: str
 
 
@@ -63,9 +110,9 @@ class StateView(Generic[S]):
     container: int  # index of the sub-automaton (or region) holding it
     children: tuple[AutomatonView, ...]  # its sub-automaton, or its regions in order; () for a leaf
     final: bool
-    entry: S | None
-    during: S | None
-    exit: S | None
+    entry: S | Snippet | None
+    during: S | Snippet | None
+    exit: S | Snippet | None
     transitions: tuple[TransitionView[S], ...]
     comment: str
 
@@ -78,8 +125,10 @@ class MachineView(Generic[S]):
     on_shutdown: S | None
     states: tuple[StateView[S], ...]
     automata: tuple[AutomatonView, ...]
-    snippets: tuple[S, ...]  # in sid order
+    snippets: tuple[S, ...]  # the model's own, in sid order
     on_interrupt: int  # index of the state to go to on an interrupt, or -1
+    instances: tuple[InstanceView, ...]  # in pre-order
+    units: tuple[UnitView, ...]  # one per used file, in order of first use
 
 
 class Walk(ABC, Generic[S]):
@@ -94,6 +143,7 @@ class Walk(ABC, Generic[S]):
         self.index = {s.path: i for i, s in enumerate(self.states)}
         self.root = len(self.states)  # the owner of the root's snippets
         self.snippets: list[S] = []
+        self._instances()
         # Sub-automata numbered parents first, as the scheduler walks them.
         self.automata: list[AutomatonView] = []
         self.auto_of: dict[str, int] = {}  # the prefix of its states' paths -> index
@@ -104,13 +154,56 @@ class Walk(ABC, Generic[S]):
             self.automata.append(AutomatonView(len(self.automata), owner, auto.region,
                                                auto.period_ms, initial, auto.history))
 
+    def _instances(self) -> None:
+        """Number the instances of used files, and say which one each state is in."""
+        self.unit_of = [0] * len(self.states)  # per state: its instance's number, 0 for none
+        self.next_sid: dict[int, int] = {}  # per instance: the number of its next snippet
+        units: dict[str, UnitView] = {}
+        found: list[tuple[Instance, int, int]] = []  # instance, base, end
+        for auto in self.model.automata():  # pre-order: an instance before those inside it
+            inst = auto.instance
+            if inst is None or not auto.states:
+                continue
+            base = self.index[auto.states[0].path]
+            end = base + sum(1 for _ in _states_below(auto))
+            found.append((inst, base, end))
+            for i in range(base, end):
+                self.unit_of[i] = len(found)
+            if inst.file not in units:
+                name = _identifier(Path(inst.file).stem)
+                taken = {u.name for u in units.values()}
+                unique, k = name, 2
+                while unique in taken:
+                    unique, k = f"{name}_{k}", k + 1
+                units[inst.file] = UnitView(unique, inst.file, inst.model)
+            self.next_sid[len(found)] = 1 if inst.model.functions is not None else 0
+        self.units = tuple(units.values())
+        self.found = found
+
+    def instance_views(self) -> tuple[InstanceView, ...]:
+        """The instances, once every snippet is numbered (``machine`` does it)."""
+        out: list[InstanceView] = []
+        sid0 = len(self.snippets)
+        for number, (inst, base, _end) in enumerate(self.found, start=1):
+            owner = base - 1  # the using state comes just before its sub-automaton's states
+            out.append(InstanceView(number, next(u.name for u in self.units if u.file == inst.file),
+                                    inst, owner, base, self.unit_of[owner],
+                                    self.states[owner].path, sid0, self.next_sid[number]))
+            sid0 += self.next_sid[number]
+        return tuple(out)
+
     @abstractmethod
     def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> S:
         """The back end's view of one snippet; ``where`` is its comment text."""
 
-    def snippet(self, kind: str, owner: int, code: Code | None, what: str = "") -> S | None:
+    def snippet(self, kind: str, owner: int, code: Code | None, what: str = "") -> S | Snippet | None:
         if code is None:
             return None
+        unit = self.unit_of[owner] if owner < self.root else 0
+        if unit:  # defined in its file's code unit: numbered as that unit's walk numbers it
+            sid = self.next_sid[unit]
+            self.next_sid[unit] = sid + 1
+            return SnippetRef(sid, kind, owner, "", unit)
         path = self.states[owner].path if owner < self.root else ""
         where = f"{self.base}:{code.span.line} {kind}" + (f" of {path}" if path else "") + what
         view = self.make_snippet(len(self.snippets), kind, owner, code, comment_text(where))
@@ -120,12 +213,18 @@ class Walk(ABC, Generic[S]):
     def machine(self) -> MachineView[S]:
         """Every snippet made, in the order of the generated code, and the tables."""
         m = self.model
-        functions = self.snippet("functions", self.root, m.functions)
+        functions = self._own(self.snippet("functions", self.root, m.functions))
         states = tuple(self.state_views())
-        on_shutdown = self.snippet("on_shutdown", self.root, m.on_shutdown)
+        on_shutdown = self._own(self.snippet("on_shutdown", self.root, m.on_shutdown))
         return MachineView(functions, on_shutdown, states, tuple(self.automata),
                            tuple(self.snippets),
-                           self.index[m.on_interrupt] if m.on_interrupt is not None else -1)
+                           self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
+                           self.instance_views(), self.units)
+
+    def _own(self, view: S | Snippet | None) -> S | None:
+        """A snippet of the root: always the model's own."""
+        assert view is None or not isinstance(view, SnippetRef)
+        return view  # type: ignore[return-value]
 
     def target(self, s: State, name: str) -> int:
         """Index of the sibling ``name`` of state ``s``."""
@@ -138,15 +237,17 @@ class Walk(ABC, Generic[S]):
         return [StateView(i, s.path, self.auto_of[s.path.rpartition("/")[0]],
                           tuple(self.automata[self.auto_of[a.path]] for a in s.automata),
                           s.final, entry, during, exit_, self._transitions(i, s, own),
-                          comment_text(f"{self.base}:{s.span.line} {s.path}"))
+                          comment_text(f"{Path(s.span.file).name}:{s.span.line} {s.path}"))
                 for (i, s), (entry, during, exit_) in zip(enumerate(self.states), own, strict=True)]
 
-    def _own_snippets(self, i: int, s: State) -> tuple[S | None, S | None, S | None]:
+    def _own_snippets(self, i: int, s: State) -> tuple[S | Snippet | None, S | Snippet | None,
+                                                      S | Snippet | None]:
         return (self.snippet("entry", i, s.entry), self.snippet("during", i, s.during),
                 self.snippet("exit", i, s.exit))
 
     def _transitions(self, i: int, s: State,
-                     own: list[tuple[S | None, S | None, S | None]]) -> tuple[TransitionView[S], ...]:
+                     own: list[tuple[S | Snippet | None, S | Snippet | None, S | Snippet | None]]
+                     ) -> tuple[TransitionView[S], ...]:
         out: list[TransitionView[S]] = []
         for t in s.transitions:
             target = self.target(s, t.target)
@@ -157,6 +258,19 @@ class Walk(ABC, Generic[S]):
             cond = (f" after {after}" if after else "") + (" when ..." if when else "")
             out.append(TransitionView(
                 t.index, target, t.after_us, when, do, own[target][1],
-                comment_text(f"{self.base}:{t.span.line}{label} {s.path} -> "
+                comment_text(f"{Path(t.span.file).name}:{t.span.line}{label} {s.path} -> "
                              f"{self.states[target].path}{cond}")))
         return tuple(out)
+
+
+def _states_below(auto: Automaton) -> Iterator[State]:
+    for s in auto.states:
+        yield s
+        for a in s.automata:
+            yield from _states_below(a)
+
+
+def _identifier(text: str) -> str:
+    """``text`` made an identifier (a used file's stem names its code unit)."""
+    out = re.sub(r"[^A-Za-z0-9_]", "_", text) or "unit"
+    return out if not out[0].isdigit() else f"u{out}"
