@@ -163,31 +163,38 @@ class _Writer:
 
     # -- states --------------------------------------------------------------
     def automaton(self, depth: int, a: Automaton, extra: list[tuple[str, str | None]]) -> None:
+        """An `<automaton>`, or a `<region name=...>` for a parallel region."""
         period = None
         if a.period_written:
             period = f"{a.period_ms}ms" if a.period_ms % 1000 else format_us(a.period_ms * 1000)
-        attrs: list[tuple[str, str | None]] = [("period", period), ("initial", a.initial)]
+        tag = "automaton" if a.region is None else "region"
+        attrs: list[tuple[str, str | None]] = [("name", a.region)] if a.region is not None else []
+        attrs += [("period", period), ("initial", a.initial)]
         attrs += extra
         attrs.append(("history", "true" if a.history else None))
-        self.open(depth, "automaton", attrs, a.span)
+        self.open(depth, tag, attrs, a.span)
         for s in a.states:
             self.state(depth + 1, s)
-        self.close(depth, "automaton")
+        self.close(depth, tag)
 
     def state(self, depth: int, s: State) -> None:
         attrs: list[tuple[str, str | None]] = [("name", s.name),
                                                ("final", "true" if s.final else None)]
         codes = [(kind, getattr(s, kind)) for kind in ("entry", "during", "exit")]
-        if not s.transitions and s.automaton is None and all(c is None for _, c in codes):
+        if not s.transitions and not s.automata and all(c is None for _, c in codes):
             self.empty(depth, "state", attrs, s.span)
             return
         self.open(depth, "state", attrs, s.span)
         for kind, code in codes:
             self.code(depth + 1, kind, code)
+        if _written_first(s):  # XML allows either order: keep the source's, and its comments
+            for a in s.automata:
+                self.automaton(depth + 1, a, [])
         for t in s.transitions:
             self.transition(depth + 1, t)
-        if s.automaton is not None:
-            self.automaton(depth + 1, s.automaton, [])
+        if not _written_first(s):
+            for a in s.automata:  # its sub-automaton, or its regions in order
+                self.automaton(depth + 1, a, [])
         self.close(depth, "state")
 
     def transition(self, depth: int, t: Transition) -> None:
@@ -200,6 +207,14 @@ class _Writer:
         self.code(depth + 1, "when", t.when)
         self.code(depth + 1, "do", t.do)
         self.close(depth, "transition")
+
+
+def _written_first(s: State) -> bool:
+    """Whether the source has ``s``'s sub-automaton or regions before its transitions."""
+    if not s.automata or not s.transitions:
+        return False
+    a, t = s.automata[0].span, s.transitions[0].span
+    return a.file == t.file and (a.line, a.col) < (t.line, t.col)
 
 
 def _layout(text: str, indent: str) -> str:

@@ -405,8 +405,23 @@ class _Converter:
                 self.transition(child, sp, sd)
             elif tag == "automaton":
                 self.automaton(child, sp, sd)
+            elif tag == "region":
+                self.region(child, sp, sd)
             else:
                 sd[tag] = self.text(child, (*sp, tag))
+
+    def region(self, el: Element, path: PathKey, sd: dict[str, Any]) -> None:
+        """A `<region>` as an entry of the state's `regions` mapping, as YAML writes it.
+
+        A `<region>` beside an `<automaton>` (E160) or alone (E161) is left to the IR
+        builder, which reports it at the first `<region>`, where YAML's `regions` key is.
+        """
+        rpath: PathKey = (*path, "regions")
+        self.first_key(el, rpath)
+        found = self.named(el, rpath, sd.setdefault("regions", {}), "region")
+        if found is not None:
+            rd, rp = found
+            self.automaton(el, rp, rd)
 
     def transition(self, el: Element, path: PathKey, sd: dict[str, Any]) -> None:
         self.first_key(el, (*path, "transitions"))
