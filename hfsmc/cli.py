@@ -63,7 +63,7 @@ def _print(diags: Iterable[Diagnostic], sources: dict[str, list[str]], fmt: str)
 def _compile_or_exit(path: str) -> Result:
     """Compile one model; print its diagnostics; exit 1 when it has errors."""
     result = compile_file(path)
-    _print(result.diagnostics, {path: result.lines}, "text")
+    _print(result.diagnostics, result.sources, "text")
     if not result.ok:
         sys.exit(1)
     return result
@@ -96,7 +96,7 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx
     for note in dict.fromkeys(n for r in results for n in r.notes):
         click.echo(f"hfsmc: note: {note}", err=True)
     all_diags = [d for r in results for d in r.diagnostics]
-    _print(all_diags, {r.path: r.lines for r in results}, fmt)
+    _print(all_diags, {k: v for r in results for k, v in r.sources.items()}, fmt)
     if dump_ir:
         for r in results:
             if r.model is not None:
@@ -133,7 +133,7 @@ def diagram(model: str, output: str | None, state_path: str | None, rankdir: str
     # Errors inside snippets do not change the picture: a model being written, or a legacy
     # file whose code never ran, is still drawn (the errors are shown; check still fails).
     result = compile_file(model)
-    _print(result.diagnostics, {model: result.lines}, "text")
+    _print(result.diagnostics, result.sources, "text")
     drawn = result.model if result.ok else (
         result.structure if result.errors_only_in_snippets else None)
     if drawn is None:
@@ -157,7 +157,7 @@ def convert(source: str, output: str, strict: bool) -> None:
     from hfsmc.commands.convert import compile_for_convert, convert_model
 
     result = compile_for_convert(source, strict)
-    _print(result.diagnostics, {source: result.lines}, "text")
+    _print(result.diagnostics, result.sources, "text")
     if not result.ok:
         sys.exit(1)
     assert result.model is not None
@@ -196,7 +196,7 @@ def build(model: str, target: str, output: str | None, compile_: bool, depfile: 
         from hfsmc.cppcompile import compile_component
 
         diags = compile_component(folder, result.model.file)
-        _print(diags, {model: result.lines}, "text")
+        _print(diags, result.sources, "text")
         if any(d.severity == "error" for d in diags):
             click.echo(f"{built.folder}: the C++ build failed; the previous executable, if any, "
                        "is kept", err=True)
@@ -226,7 +226,7 @@ def run(model: str, args: tuple[str, ...]) -> None:
         from hfsmc.cppcompile import compile_component
 
         diags = compile_component(folder, result.model.file)
-        _print(diags, {model: result.lines}, "text")
+        _print(diags, result.sources, "text")
         if any(d.severity == "error" for d in diags):
             sys.exit(1)
         sys.stderr.flush()

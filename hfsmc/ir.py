@@ -237,6 +237,17 @@ class Model:
             for a in reversed(s.automata):
                 stack.extend(reversed(a.states))
 
+    def own_states(self) -> Iterator[State]:
+        """The states this model's file writes, in the order of ``states()``: those of
+        used files' instances (checked with the used file) left out; the using state stays."""
+        stack = list(reversed(self.root.states))
+        while stack:
+            s = stack.pop()
+            yield s
+            for a in reversed(s.automata):
+                if a.instance is None:
+                    stack.extend(reversed(a.states))
+
     def automata(self) -> Iterator[Automaton]:
         """Every sub-automaton and region in pre-order: each one, then those inside its
         states, before its next sibling (the order ticks due together run in)."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ast
 import re
+from collections.abc import Callable
 from typing import Any
 
 from hfsmc.durations import has_unit, parse_us
@@ -34,8 +35,22 @@ _LITERAL_TYPES: dict[type, str] = {bool: "bool", int: "int", float: "float", str
 _PY_TYPES = {"bool": bool, "int": int, "float": float, "str": str, "list": list, "dict": dict}
 
 
-def build_ir(doc: Document, diags: Diagnostics) -> Model:
-    return _IrBuilder(doc, diags).model()
+# Builds the sub-automaton of a state that writes `use` (hfsmc/uses.py): given the using
+# document, its diagnostics, the state's node, its document path, its state path and the
+# period it inherits; None when the used file cannot give one (the hook said why).
+UseHook = Callable[[Document, Diagnostics, dict[str, Any], PathKey, str, int], "Automaton | None"]
+_USE_EXCLUDES = ("states", "regions", "initial", "period", "history")
+
+
+def build_ir(doc: Document, diags: Diagnostics, uses: UseHook | None = None) -> Model:
+    """The IR of one document; ``uses`` builds the states that `use` another file."""
+    return _IrBuilder(doc, diags, uses).model()
+
+
+def coerce_literal(doc: Document, diags: Diagnostics, value: Any, vtype: str, path: PathKey,
+                   code: str = "E101") -> Value:
+    """``value`` (at ``path``) checked against ``vtype``; text from XML is converted."""
+    return _IrBuilder(doc, diags).coerce(value, vtype, path, code)
 
 
 def _freeze(v: Any) -> Value:
@@ -47,9 +62,10 @@ def _freeze(v: Any) -> Value:
 
 
 class _IrBuilder:
-    def __init__(self, doc: Document, diags: Diagnostics) -> None:
+    def __init__(self, doc: Document, diags: Diagnostics, uses: UseHook | None = None) -> None:
         self.doc = doc
         self.diags = diags
+        self.uses = uses
         self.data: dict[str, Any] = doc.data
 
     # -- helpers -----------------------------------------------------------
@@ -155,7 +171,7 @@ class _IrBuilder:
                 out.append(Variable(name, vtype, _freeze(spec), False, span))
         return tuple(out)
 
-    def coerce(self, value: Any, vtype: str, path: PathKey) -> Value:
+    def coerce(self, value: Any, vtype: str, path: PathKey, code: str = "E101") -> Value:
         """Check (and for text from XML, convert) a literal against its declared type."""
         want = _PY_TYPES[vtype]
         if want is int and isinstance(value, int) and not -(2**63) <= value < 2**63:
@@ -165,7 +181,8 @@ class _IrBuilder:
             return _freeze(value)
         if want is float and isinstance(value, int) and not isinstance(value, bool):
             return float(value)
-        if isinstance(value, str) and path[-1] in ("init", "default") and self.doc.format != "yaml":
+        as_text = path[-1] in ("init", "default") or path[-2:-1] == ("with",)
+        if isinstance(value, str) and as_text and self.doc.format != "yaml":
             converted = _from_text(value, vtype)
             if converted is not None:
                 return converted
@@ -174,7 +191,7 @@ class _IrBuilder:
             word = "true" if YAML11_BOOLS[value.strip().lower()] else "false"
             how = " (YAML 1.2 reads it as a string)" if self.doc.format == "yaml" else ""
             notes = (f"`{value.strip()}` is not a boolean{how}: write `{word}`",)
-        self.diags.error("E101", f"`{path[-1]}` must be a {vtype}, not {value!r}", self.doc.span(path),
+        self.diags.error(code, f"`{path[-1]}` must be a {vtype}, not {value!r}", self.doc.span(path),
                          *notes)
         return _freeze(value)
 
@@ -206,16 +223,21 @@ class _IrBuilder:
         """A state's parallel regions (docs/semantics.md: regions), in the order written."""
         regions: dict[str, Any] = node.get("regions") or {}
         rpath: PathKey = (*path, "regions")
+        xml = self.doc.format == "xml"  # the words of the format the user wrote
         if "states" in node:
-            self.diags.error("E160", f"state `{spath}` has both `states` and `regions`: a state "
+            both = "an `<automaton>` and `<region>` elements" if xml else "`states` and `regions`"
+            self.diags.error("E160", f"state `{spath}` has both {both}: a state "
                              "holds one sub-automaton or parallel regions, not both",
                              self.doc.key_span(rpath),
+                             "move the automaton's states into a `<region>`, or drop the "
+                             "`<region>` elements" if xml else
                              "move the states into a region, or drop `regions`")
         if len(regions) == 1:
             name = next(iter(regions))
             self.diags.error("E161", f"state `{spath}` has a single region `{name}`: regions run "
                              "side by side, so a state needs two or more",
                              self.doc.key_span(rpath),
+                             f"write the region as an `<automaton>` of `{spath}`" if xml else
                              f"write the region's `initial` and `states` on `{spath}` itself")
         for key in ("initial", "period", "history"):
             if key in node and "states" not in node:
@@ -224,11 +246,31 @@ class _IrBuilder:
         return tuple(self.automaton(spec or {}, (*rpath, name), spath, period_ms, name)
                      for name, spec in regions.items())
 
+    def use(self, node: dict[str, Any], path: PathKey, spath: str,
+            period_ms: int) -> tuple[Automaton, ...]:
+        """The sub-automaton a state takes from another file (docs/model.md: use)."""
+        for key in _USE_EXCLUDES:
+            if key in node:
+                self.diags.error("E176", f"state `{spath}` uses `{node['use']}`, which gives its "
+                                 f"sub-automaton: `{key}` cannot be written beside `use`",
+                                 self.doc.key_span((*path, key)),
+                                 "the used file's root says it (its `period` too: without one, "
+                                 "it takes this state's parent's)")
+        if self.uses is None:
+            return ()
+        auto = self.uses(self.doc, self.diags, node, path, spath, period_ms)
+        return () if auto is None else (auto,)
+
     def state(self, name: str, node: dict[str, Any], path: PathKey, parent: str, period_ms: int) -> State:
         spath = f"{parent}/{name}" if parent else name
         span = self.doc.key_span(path)
         autos: tuple[Automaton, ...] = ()
-        if "regions" in node:
+        if "with" in node and "use" not in node:
+            self.diags.error("E184", f"`with` of state `{spath}` binds the parameters of a used "
+                             "file, and the state has no `use`", self.doc.key_span((*path, "with")))
+        if "use" in node:
+            autos = self.use(node, path, spath, period_ms)
+        elif "regions" in node:
             autos = self.regions(node, path, spath, period_ms)
         elif "states" in node:
             autos = (self.automaton(node, path, spath, period_ms),)

@@ -27,11 +27,13 @@ class NamedPass:
 
 
 def _walk_autos(model: Model) -> Iterator[tuple[Automaton, State | None]]:
-    """Every sub-automaton and region with its owning state (None for the root)."""
+    """Every sub-automaton and region with its owning state (None for the root), those
+    inside used files' instances left out: the used file was checked on its own."""
     yield model.root, None
-    for s in model.states():
+    for s in model.own_states():
         for a in s.automata:
-            yield a, s
+            if a.instance is None:
+                yield a, s
 
 
 def _where(auto: Automaton, owner: State | None) -> str:

@@ -13,6 +13,7 @@ from hfsmc.frontend.source import Document, split_lines
 from hfsmc.ir import Model
 from hfsmc.ir_builder import build_ir
 from hfsmc.lower import lower
+from hfsmc.uses import UseLoader
 
 # Errors inside snippet code (syntax, names, parameters assigned, imports, C++ keywords and
 # brackets, active() paths): the model's structure is sound, so it can still be drawn and a
@@ -32,6 +33,13 @@ class Result:
     notes: list[str] = field(default_factory=list)  # said once, not problems of the model
     # The lowered model even when its snippets have errors (None when the structure has any).
     structure: Model | None = None
+    # The lines of the files it uses (`use`), by the name their diagnostics give.
+    used: dict[str, list[str]] = field(default_factory=dict)
+
+    @property
+    def sources(self) -> dict[str, list[str]]:
+        """The lines of every file its diagnostics may point into."""
+        return {**self.used, self.path: self.lines}
 
     @property
     def ok(self) -> bool:
@@ -87,18 +95,21 @@ def compile_file(path: str, text: str | None = None, cxx: bool = False) -> Resul
 def _compile(path: str, text: str | None) -> Result:
     diags = Diagnostics()
     doc: Document | None = None
+    uses = UseLoader(path)
     try:
         doc = load(path, diags, text)
         if not diags.has_errors:
             schema.validate(doc, diags)
         if diags.has_errors:
             return Result(path, None, diags.sorted(), doc.lines, doc)
-        model = lower(build_ir(doc, diags), diags)
+        model = lower(build_ir(doc, diags, uses), diags)
+        uses.finish(diags)
     except HfsmcError as e:
         diags.extend(e.diagnostics)
-        return Result(path, None, diags.sorted(), doc.lines if doc else _lines(path, text), doc)
+        return Result(path, None, diags.sorted(), doc.lines if doc else _lines(path, text), doc,
+                      used=uses.sources)
     return Result(path, None if diags.has_errors else model, diags.sorted(), doc.lines, doc,
-                  structure=model)
+                  structure=model, used=uses.sources)
 
 
 def _lines(path: str, text: str | None) -> list[str]:

@@ -48,7 +48,7 @@ def snippets(model: Model) -> list[Snippet]:
     out: list[Snippet] = []
     if model.functions is not None:
         out.append(Snippet("functions", "", model.functions))
-    for s in model.states():
+    for s in model.own_states():  # a used file's snippets are checked with its own names
         for kind in ("entry", "during", "exit"):
             code = getattr(s, kind)
             if code is not None:

@@ -218,7 +218,7 @@ def _load_model(path: str, what: str = "the component") -> Model:
 
     result = compile_file(path)
     if result.model is None or not result.ok:
-        sys.stderr.write(render_text(result.diagnostics, {path: result.lines},
+        sys.stderr.write(render_text(result.diagnostics, result.sources,
                                      color=sys.stderr.isatty()))
         raise _ViewError(f"{path} has errors; {what} cannot be shown with it")
     return result.model
