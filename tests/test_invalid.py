@@ -196,6 +196,7 @@ _NAMED = {
     "E136": re.compile(r"on_interrupt names `([^`]+)`"),
     "E141": re.compile(r"undefined name `([^`]+)`"),
     "E142": re.compile(r"parameter `([^`]+)`"),
+    "E162": re.compile(r"-> `([^`]+)`"),
 }
 
 YAML_CASES = [c for c in CASES if (INVALID / c.file).is_file()
@@ -222,3 +223,33 @@ def test_all_problems_reported_in_one_run() -> None:
     result = compile_file("tests/invalid/several_problems.yaml")
     codes = {d.code for d in result.diagnostics if d.severity == "error"}
     assert {"E111", "E132", "E134", "E141"} <= codes, short(result.diagnostics)
+
+
+# ---------------------------------------------------------------------------
+# done() and regions: W215 is for a state without a sub-automaton only
+
+_DONE = """\
+hfsm: 1
+name: arm
+language: {language}
+initial: Work
+states:
+  Work:
+    regions:
+      Joints: {{initial: Move, states: {{Move: {{final: true}}}}}}
+      Gripper: {{initial: Open, states: {{Open: {{final: true}}}}}}
+    transitions:
+      - {{to: Idle, when: done()}}
+  Idle:
+    transitions:
+      - {{to: Work, when: {idle}}}
+"""
+
+
+@pytest.mark.parametrize("language", ["python", "cpp"])
+def test_done_in_a_state_with_regions_is_not_w215(language: str) -> None:
+    """docs/model.md: done() of a state with regions is true once every region is final."""
+    result = compile_file("m.yaml", text=_DONE.format(language=language, idle="done()"))
+    assert [(d.code, str(d.span)) for d in result.diagnostics] == [("W215", "m.yaml:14:26")]
+    clean = compile_file("m.yaml", text=_DONE.format(language=language, idle="elapsed() > 1"))
+    assert clean.diagnostics == [] and clean.model is not None
