@@ -115,13 +115,22 @@ def test_example_builds_with_plain_cmake_and_runs(example: Path, tmp_path: Path)
     assert r.stdout.splitlines()[0] == f'{{"t":0,"ev":"start","name":"{example.stem}"}}'
 
 
-def test_cpp_example_traces_like_its_python_twin(project: Superbuild, tmp_path: Path) -> None:
-    twin = ROOT / "examples/blinker_cpp/blinker_cpp.yaml"
+@pytest.mark.parametrize("name", ["blinker", "regions_arm"])
+def test_cpp_example_traces_like_its_python_twin(project: Superbuild, tmp_path: Path,
+                                                 name: str) -> None:
+    """examples/NAME_cpp gives the trace of examples/NAME, byte for byte (regions_arm: three
+    regions at different periods, one with history, done() when all are final)."""
+    twin = ROOT / f"examples/{name}_cpp/{name}_cpp.yaml"
     cpp = run([str(project.executable(twin)), "--clock", "virtual", "--trace", "-"])
     assert cpp.returncode == 0, cpp.stderr
-    py = python_trace(ROOT / "examples/blinker/blinker.yaml", tmp_path)
-    assert cpp.stdout.replace('"name":"blinker_cpp"', '"name":"blinker"') == py
+    py = python_trace(ROOT / f"examples/{name}/{name}.yaml", tmp_path)
+    assert cpp.stdout.replace(f'"name":"{name}_cpp"', f'"name":"{name}"') == py
     assert py.count('"ev":"fire"') > 20
+    assert py.splitlines()[-1].endswith('"ev":"stop","reason":"final"}')
+    if name == "regions_arm":  # back from Charging: Cycle resumes at Grip, Led and Battery restart
+        assert ('{"t":2000,"ev":"enter","state":"Working/Cycle/Grip"}\n'
+                '{"t":2000,"ev":"enter","state":"Working/Led/Lit"}\n'
+                '{"t":2000,"ev":"enter","state":"Working/Battery/Ok"}\n') in py
 
 
 def test_hostile_names_and_strings_compile_and_trace_like_python(project: Superbuild,
