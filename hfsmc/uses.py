@@ -70,7 +70,7 @@ class UseLoader:
             diags.error("E173", f"`{written}` is a {model.language} model, and this one is "
                         f"{language}: snippets of both run in one component", site)
             return None
-        bindings = _bind(doc, diags, node, path, used)
+        bindings = _bind(doc, diags, node, path, model, written)
         root = model.root
         period = root.period_ms if root.period_written else period_ms
         auto = _graft(root, spath, period)
@@ -150,11 +150,14 @@ def _graft_state(state: State, parent: str, period_ms: int) -> State:
                    automata=tuple(_graft(a, path, period_ms) for a in state.automata))
 
 
+def _a(word: object) -> str:
+    return f"an {word}" if str(word)[:1] in ("a", "e", "i", "o", "u") else f"a {word}"
+
+
 def _bind(doc: Document, diags: Diagnostics, node: dict[str, Any], path: PathKey,
-          used: UsedFile) -> tuple[Binding, ...]:
-    """What `with` binds, checked against the used model and the using one."""
-    assert used.model is not None
-    model = used.model
+          model: Model, used: str) -> tuple[Binding, ...]:
+    """What `with` binds, checked against the used model (``used``: as written) and the
+    using one."""
     params = {p.name: p for p in model.parameters}
     ifaces = {i.name: i for i in model.interfaces}
     mine_params: dict[str, Any] = doc.data.get("parameters") or {}
@@ -165,24 +168,24 @@ def _bind(doc: Document, diags: Diagnostics, node: dict[str, Any], path: PathKey
         span = doc.span(vpath)
         if name in params:
             out.append(_bind_parameter(doc, diags, vpath, name, value, params[name].type,
-                                       mine_params, used.path))
+                                       mine_params, used))
         elif name in ifaces:
             want = ifaces[name].type
             spec = mine_ifaces.get(value) if isinstance(value, str) else None
             if not isinstance(spec, dict):
                 note = did_you_mean(str(value), mine_ifaces) if isinstance(value, str) else None
-                diags.error("E181", f"`with` binds interface `{name}` of `{used.path}` to "
+                diags.error("E181", f"`with` binds interface `{name}` of `{used}` to "
                             f"`{value}`, which is not an interface of this model", span,
                             *((note,) if note else (f"its interfaces: "
                                                     f"{', '.join(mine_ifaces) or 'none'}",)))
             elif spec.get("type") != want:
-                diags.error("E182", f"interface `{name}` of `{used.path}` is a {want} interface, "
-                            f"and `{value}` is a {spec.get('type')} one", span)
+                diags.error("E182", f"interface `{name}` of `{used}` is {_a(want)} interface, "
+                            f"and `{value}` is {_a(spec.get('type'))} one", span)
             out.append(Binding(name, "interface", None, str(value), span))
         else:
             note = did_you_mean(name, [*params, *ifaces])
             diags.error("E177", f"`with` names `{name}`, which is neither a parameter nor an "
-                        f"interface of `{used.path}`", doc.key_span(vpath),
+                        f"interface of `{used}`", doc.key_span(vpath),
                         *((note,) if note else (f"it has: {', '.join([*params, *ifaces]) or 'none'}",)))
     bound = {b.name for b in out}
     site = doc.span((*path, "use"))
@@ -191,12 +194,12 @@ def _bind(doc: Document, diags: Diagnostics, node: dict[str, Any], path: PathKey
             continue
         spec = mine_ifaces.get(name)
         if not isinstance(spec, dict):
-            diags.error("E183", f"interface `{name}` of `{used.path}` is not bound, and this model "
+            diags.error("E183", f"interface `{name}` of `{used}` is not bound, and this model "
                         f"has no interface `{name}`", site,
                         f"bind it to one of this model's {iface.type} interfaces: with: {{{name}: NAME}}")
         elif spec.get("type") != iface.type:
-            diags.error("E183", f"interface `{name}` of `{used.path}` is not bound, and this "
-                        f"model's `{name}` is a {spec.get('type')} interface, not a {iface.type} one",
+            diags.error("E183", f"interface `{name}` of `{used}` is not bound, and this "
+                        f"model's `{name}` is {_a(spec.get('type'))} interface, not {_a(iface.type)} one",
                         site, f"bind it to a {iface.type} interface: with: {{{name}: NAME}}")
     return tuple(out)
 
@@ -212,8 +215,8 @@ def _bind_parameter(doc: Document, diags: Diagnostics, vpath: PathKey, name: str
             diags.error("E179", f"`{value}` names no parameter of this model", span,
                         *((note,) if note else ()), "write `$$` for a literal `$`")
         elif spec.get("type") != vtype and not (vtype == "float" and spec.get("type") == "int"):
-            diags.error("E180", f"parameter `{name}` of `{used}` is a {vtype}, and `{ref}` is "
-                        f"a {spec.get('type')}", span)
+            diags.error("E180", f"parameter `{name}` of `{used}` is {_a(vtype)}, and `{ref}` is "
+                        f"{_a(spec.get('type'))}", span)
         return Binding(name, "parameter", None, ref, span)
     if isinstance(value, str) and value.startswith("$$"):
         value = value[1:]

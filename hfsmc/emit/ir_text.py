@@ -50,6 +50,13 @@ def _automaton(auto: Automaton, indent: str) -> list[str]:
     head += "" if auto.period_written else " (inherited)"
     head += f" initial {auto.initial}" + (" history" if auto.history else "")
     out = [head]
+    if auto.instance is not None:  # its states' positions (@line:col) are in the used file
+        inst = auto.instance
+        out.append(f"{indent}  use {inst.written!r} = {inst.file} {_at(inst.span)}")
+        for b in inst.bindings:
+            bound = f"${b.source}" if b.kind == "parameter" and b.source else \
+                (b.source if b.kind == "interface" else repr(b.value))
+            out.append(f"{indent}    with {b.kind} {b.name} = {bound} {_at(b.span)}")
     for s in auto.states:
         out += _state(s, indent + "  ")
     return out

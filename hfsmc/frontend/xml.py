@@ -399,9 +399,12 @@ class _Converter:
             return
         sd, sp = found
         self.attr(el, sp, sd, "final", convert=_flag)
+        self.attr(el, sp, sd, "use")
         for child in self.children(el):
             tag = str(child.tag)
-            if tag == "transition":
+            if tag == "with":
+                self.binding(child, sp, sd)
+            elif tag == "transition":
                 self.transition(child, sp, sd)
             elif tag == "automaton":
                 self.automaton(child, sp, sd)
@@ -422,6 +425,21 @@ class _Converter:
         if found is not None:
             rd, rp = found
             self.automaton(el, rp, rd)
+
+    def binding(self, el: Element, path: PathKey, sd: dict[str, Any]) -> None:
+        """A `<with name=... value=...>` as an entry of YAML's `with` mapping; its text is
+        converted by the used parameter's type when the used file is read."""
+        wpath: PathKey = (*path, "with")
+        self.first_key(el, wpath)
+        group = sd.setdefault("with", {})
+        name = el.get("name", "")
+        if name in group:
+            _, value_span = self.index.attribute(el, "name")
+            self.diags.error("E121", f"`with` binds `{name}` twice", value_span,
+                             f"the first is on line {self.doc.key_span((*wpath, name)).line}")
+            return
+        _, value_span = self.index.attribute(el, "value")
+        self.put(group, (*wpath, name), el.get("value", ""), self.index.span(el), value_span)
 
     def transition(self, el: Element, path: PathKey, sd: dict[str, Any]) -> None:
         self.first_key(el, (*path, "transitions"))
