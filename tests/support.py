@@ -220,6 +220,47 @@ TRACE = """\
 """
 RECORDS: list[dict[str, Any]] = [json.loads(line) for line in TRACE.splitlines()]
 
+# A state with two regions (tests/cpp/observers_main.cpp --regions gives the same), as the
+# monitor sends it, and a run of it: the views' region case.
+PARALLEL_STRUCTURE: dict[str, Any] = {
+    "name": "par",
+    "automata": [{"owner": "", "region": None, "period_ms": 100, "initial": "Mission", "history": False},
+                 {"owner": "Mission", "region": "Nav", "period_ms": 100, "initial": "A", "history": False},
+                 {"owner": "Mission", "region": "Watch", "period_ms": 300, "initial": "Ok", "history": True}],
+    "states": [{"path": "Mission", "final": False, "composite": True},
+               {"path": "Mission/Nav/A", "final": False, "composite": False},
+               {"path": "Mission/Nav/B", "final": True, "composite": False},
+               {"path": "Mission/Watch/Ok", "final": False, "composite": False},
+               {"path": "Mission/Watch/Seen", "final": True, "composite": False},
+               {"path": "Done", "final": True, "composite": False}],
+    "transitions": [{"from": "Mission", "to": "Done", "index": 0, "name": "all done"},
+                    {"from": "Mission/Nav/A", "to": "Mission/Nav/B", "index": 0, "name": None},
+                    {"from": "Mission/Watch/Ok", "to": "Mission/Watch/Seen", "index": 0, "name": "seen"}],
+    "variables": ["n"],
+    "parameters": {},
+}
+PARALLEL_TRACE = """\
+{"t":0,"ev":"start","name":"par"}
+{"t":0,"ev":"enter","state":"Mission"}
+{"t":0,"ev":"enter","state":"Mission/Nav/A"}
+{"t":0,"ev":"enter","state":"Mission/Watch/Ok"}
+{"t":200,"ev":"fire","from":"Mission/Nav/A","to":"Mission/Nav/B","index":0}
+{"t":200,"ev":"exit","state":"Mission/Nav/A"}
+{"t":200,"ev":"enter","state":"Mission/Nav/B"}
+{"t":900,"ev":"fire","from":"Mission/Watch/Ok","to":"Mission/Watch/Seen","index":0}
+{"t":900,"ev":"exit","state":"Mission/Watch/Ok"}
+{"t":900,"ev":"enter","state":"Mission/Watch/Seen"}
+{"t":900,"ev":"log","state":"Mission/Watch/Seen","msg":"seen"}
+{"t":1000,"ev":"fire","from":"Mission","to":"Done","index":0}
+{"t":1000,"ev":"exit","state":"Mission/Watch/Seen"}
+{"t":1000,"ev":"exit","state":"Mission/Nav/B"}
+{"t":1000,"ev":"exit","state":"Mission"}
+{"t":1000,"ev":"enter","state":"Done"}
+{"t":1000,"ev":"exit","state":"Done"}
+{"t":1000,"ev":"stop","reason":"final"}
+"""
+PARALLEL_RECORDS: list[dict[str, Any]] = [json.loads(line) for line in PARALLEL_TRACE.splitlines()]
+
 GREEN = r"\x1b\[(?:[0-9;]*;)?32m(?:\x1b\[[0-9;]*m)*"  # green foreground, then maybe other SGRs
 
 

@@ -31,7 +31,7 @@ from typing import Any
 import pytest
 
 from tests.conftest import ROOT
-from tests.support import MONITOR_VALIDATOR, STRUCTURE, Client, read_messages
+from tests.support import MONITOR_VALIDATOR, PARALLEL_STRUCTURE, STRUCTURE, Client, read_messages
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
@@ -463,3 +463,74 @@ def test_feeds_go_to_every_client_and_frames_only_to_those_that_subscribe(
         asks.close()
         quiet.close()
     r.finish()
+
+
+# -- a state with regions (observers_main --regions) ------------------------------------------
+def test_regions_reach_the_monitor_as_the_python_one_sends_them(observers_program: Path, run: Callable[..., Run],
+                                                                clients: Callable[..., Client]) -> None:
+    """The hello names each automaton's region; the snapshot of a run with two regions
+    active is the Python view's."""
+    r = run(observers_program, "--regions", "--monitor", "0", "--gate-at", "9")
+    r.at_gate()
+    c = clients(r.port)
+    hello, snapshot = c.message(), c.message()
+    r.release()
+    rest = c.until_bye()
+    r.finish()
+    for m in (hello, snapshot, *rest):
+        MONITOR_VALIDATOR.validate(m)
+    assert hello is not None and hello["structure"] == PARALLEL_STRUCTURE
+    view = hfsmc_view.ViewState(PARALLEL_STRUCTURE)
+    for it in calls_of(r)[:9]:
+        view.apply(*it)
+    assert snapshot == json.loads(json.dumps(view.snapshot()))
+    assert [a["state"] for a in snapshot["active"]] == ["Mission", "Mission/Watch/Ok", "Mission/Nav/B"]
+
+
+@pytest.mark.parametrize("focus", [None, "Mission/Watch"])
+def test_display_of_regions_prints_the_python_lines(observers_program: Path, run: Callable[..., Run],
+                                                    focus: str | None) -> None:
+    r = run(observers_program, "--regions", "--display", *(["--focus", focus] if focus else []))
+    out, _ = r.finish()
+    expected = io.StringIO()
+    d = hfsmc_view.Display(focus=focus, stream=expected)
+    d.start(PARALLEL_STRUCTURE)
+    for kind, payload in calls_of(r):
+        if kind == "record":
+            d.record(payload)
+        else:
+            d.sample(*payload)
+    d.close()
+    assert out.decode() == expected.getvalue()
+    assert out.decode().startswith("  0.000  start par in Mission/Nav/A, Mission/Watch/Ok\n")
+
+
+def test_display_of_regions_on_a_terminal(observers_program: Path, run: Callable[..., Run]) -> None:
+    """Regions as named groups under their state, every region's active state green."""
+    tty = Terminal(30, 120)
+    try:
+        r = run(observers_program, "--regions", "--display", "--gate-at", "9", stdin=subprocess.DEVNULL,
+                stdout=tty.slave, stderr=tty.slave)
+        tty.read_until(b"component: at the gate")
+        tty.read_until(b"\x1b[35mn\x1b[0m 2")
+        frame = tty.out.rpartition(b"\x1b[J")[2]
+        r.release()
+        tty.read_until(b"closed")
+        assert r.proc.wait(timeout=15) == 0
+        plain = re.sub(rb"\x1b\[[0-9;]*[A-Za-z]", b"", frame).decode()
+        lines = [ln for ln in plain.split("\r\n") if not ln.startswith("component:")]
+        tree = [ln[:33].rstrip() for ln in lines[:9]]
+        assert tree == ["par  100 ms",
+                        "├── ● Mission ‖  0.6s",
+                        "│   ├── [Nav 100 ms]",
+                        "│   │   ├── ○ A",
+                        "│   │   └── ● B  0.4s  final",
+                        "│   └── [Watch 300 ms history]",
+                        "│       ├── ● Ok  0.6s",
+                        "│       └── ○ Seen  final",
+                        "└── ○ Done  final"], plain
+        for state in (b"B", b"Ok"):  # both regions' states at once
+            assert re.search(rb"\x1b\[1;32m\xe2\x97\x8f " + state + rb"\x1b", frame), frame
+        assert b"\x1b[32m[Nav 100 ms]" in frame
+    finally:
+        tty.close()

@@ -79,13 +79,39 @@ def _dur(ms: int) -> str:
 
 
 def _lit(view: ViewState, path: str) -> bool:
+    if path in view.regions:
+        path = path.rpartition("/")[0]
     return path in view.active or (view.stop_reason is not None and path in view.stopped_in)
+
+
+def _period(view: ViewState, path: str) -> str:
+    return f"{view.periods[path]} ms" + (" history" if path in view.history else "") \
+        if path in view.periods else ("history" if path in view.history else "")
+
+
+def _region_label(view: ViewState, path: str, collapsed: int) -> Text:
+    """A region: ``[Watch 200 ms history]``, green while its state is active."""
+    from rich.text import Text
+
+    owner = path.rpartition("/")[0]
+    style = "green" if owner in view.active else \
+        "yellow" if view.stop_reason is not None and owner in view.stopped_in else "dim"
+    label = Text(" ".join(x for x in ("[" + clean(path.rpartition("/")[2]), _period(view, path)) if x)
+                 + "]", style=style)
+    if collapsed:
+        label.append(f"  ▸ {collapsed} states", style="dim")
+    label.no_wrap, label.overflow = True, "ellipsis"
+    return label
 
 
 def _label(view: ViewState, path: str, collapsed: int) -> Text:
     from rich.text import Text
 
+    if path in view.regions:
+        return _region_label(view, path, collapsed)
     name = clean(path.rpartition("/")[2] or view.name)
+    if any(c in view.regions for c in view.children.get(path, ())):
+        name += " ‖"  # a parallel state: its children are its regions
     if path in view.active:
         label = Text(f"● {name}", style="bold green")
         label.append(f"  {_dur(view.t_ms - view.active[path])}", style="green")
@@ -100,7 +126,8 @@ def _label(view: ViewState, path: str, collapsed: int) -> Text:
         label.append(f"  {view.periods[path]} ms" + (" history" if path in view.history else ""),
                      style="dim")
     if collapsed:
-        label.append(f"  ▸ {collapsed} states", style="dim")
+        regions = name.endswith(" ‖")
+        label.append(f"  ▸ {collapsed} {'regions' if regions else 'states'}", style="dim")
     label.no_wrap, label.overflow = True, "ellipsis"  # one line per state, whatever the width
     return label
 
@@ -186,7 +213,8 @@ def _one_line(text: str, style: str = "") -> Text:
 
 
 def _walk(view: ViewState, focus: str, autofocus: bool) -> list[tuple[str, str, bool]]:
-    """The states the tree shows, depth first in model order: (parent, path, expanded)."""
+    """The states (and regions) the tree shows, depth first in model order: (parent, path,
+    expanded). A region is expanded with its state: autofocus follows every region."""
     out: list[tuple[str, str, bool]] = []
 
     def visit(path: str) -> None:

@@ -112,8 +112,13 @@ def check_record(rec: object) -> str | None:
 
 
 def infer_structure(records: Iterable[dict[str, Any]]) -> dict[str, Any]:
-    """A structure (as the runtime gives it) guessed from the paths a trace names."""
+    """A structure (as the runtime gives it) guessed from the paths a trace names.
+
+    A path segment that is never entered itself, but whose descendants are, is a
+    region (``Mission/Watch`` of ``Mission/Watch/Ok``): every state has an ``enter``
+    record, a region none (docs/semantics.md §13). Its period is not known."""
     view = ViewState()
+    named: set[str] = set()
     for rec in records:
         if rec.get("ev") == "start" and not view.name:
             view.name = str(rec.get("name", ""))
@@ -121,8 +126,14 @@ def infer_structure(records: Iterable[dict[str, Any]]) -> dict[str, Any]:
             path = rec.get(key)
             if rec.get("ev") in ("enter", "exit", "fire") and isinstance(path, str) and path:
                 view.learn(path)
-    states = [{"path": p, "final": False, "composite": bool(view.children[p])} for p in view.paths()]
-    return {"name": view.name, "automata": [], "states": states, "transitions": [],
+                named.add(path)
+    regions = [p for p in view.paths() if p not in named and "/" in p and p.rpartition("/")[0] in named]
+    automata = [{"owner": r.rpartition("/")[0], "region": r.rpartition("/")[2],
+                 "initial": view.children[r][0].rpartition("/")[2], "history": False}
+                for r in regions if view.children[r]]
+    states = [{"path": p, "final": False, "composite": bool(view.children[p])}
+              for p in view.paths() if p not in regions]
+    return {"name": view.name, "automata": automata, "states": states, "transitions": [],
             "variables": [], "parameters": {}}
 
 
@@ -132,8 +143,13 @@ class ViewState:
     def __init__(self, structure: dict[str, Any] | None = None) -> None:
         self.name = ""
         self.children: dict[str, list[str]] = {"": []}  # every known path -> child paths
+        # Paths of regions (``Mission/Watch``): nodes of the tree that are no states; the
+        # children of a parallel state are its regions, in the order written.
+        self.regions: set[str] = set()
         self.final: set[str] = set()
-        self.periods: dict[str, int] = {}  # owner path ("" root) -> period of its sub-automaton
+        # Path of a sub-automaton (its owner's, "" for the root; OWNER/REGION for a
+        # region) -> its period; ``history``: those that resume their last state.
+        self.periods: dict[str, int] = {}
         self.history: set[str] = set()
         self.transition_names: dict[tuple[str, int], str] = {}
         self.variable_names: list[str] = []
@@ -177,6 +193,20 @@ class ViewState:
         """The deepest active state ("" when none is)."""
         return max(self.active, key=lambda p: p.count("/"), default="")
 
+    def leaves(self) -> list[str]:
+        """The innermost active states, one per active region (one without regions), in
+        model order."""
+        return [p for p in self.active if not any(q.startswith(p + "/") for q in self.active)]
+
+    def owner(self, path: str) -> str:
+        """The state that holds ``path``'s node: its parent, or the parallel state of a region."""
+        parent = path.rpartition("/")[0]
+        return parent.rpartition("/")[0] if parent in self.regions else parent
+
+    def lit(self, path: str) -> bool:
+        """Whether ``path`` is active (a region: whether its state is)."""
+        return path in self.active or (path in self.regions and path.rpartition("/")[0] in self.active)
+
     # -- applying what the component says ------------------------------------------------
     def apply_structure(self, s: dict[str, Any]) -> None:
         """Take the component's structure (states in model order, automata, names)."""
@@ -186,9 +216,15 @@ class ViewState:
             if st.get("final"):
                 self.final.add(str(st["path"]))
         for a in s.get("automata", ()):
-            self.periods[str(a["owner"])] = int(a["period_ms"])
+            where = str(a["owner"])
+            if a.get("region"):
+                where = f"{where}/{a['region']}"
+                self.learn(where)
+                self.regions.add(where)
+            if a.get("period_ms") is not None:
+                self.periods[where] = int(a["period_ms"])
             if a.get("history"):
-                self.history.add(str(a["owner"]))
+                self.history.add(where)
         for tr in s.get("transitions", ()):
             if tr.get("name"):
                 self.transition_names[(str(tr["from"]), int(tr["index"]))] = str(tr["name"])
@@ -322,7 +358,7 @@ class PlainLines:
         out: list[str] = []
         ev = payload.get("ev") if kind == "record" else None
         if self._start is not None and kind != "structure" and ev not in ("enter", "log", "error"):
-            inner = view.innermost()
+            inner = ", ".join(view.leaves())
             out.append(f"{_ts(self._start)}  start {clean(view.name)}" + (f" in {clean(inner)}" if inner else ""))
             self._start = None
         if ev == "start":
@@ -344,5 +380,5 @@ def _snapshot_line(snap: dict[str, Any]) -> str:
     if snap.get("stop"):
         return f"{_ts(snap['t'])}  stopped ({clean(snap['stop']['reason'])})"
     paths = [str(a["state"]) for a in snap.get("active", ())]
-    inner = max(paths, key=lambda p: p.count("/"), default="")
+    inner = ", ".join(p for p in paths if not any(q.startswith(p + "/") for q in paths))
     return f"{_ts(snap['t'])}  in {clean(inner)}" if inner else f"{_ts(snap['t'])}  not started"

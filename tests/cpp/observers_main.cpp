@@ -3,7 +3,7 @@
 //
 //   observers_main [--monitor ADDR] [--display] [--focus PATH] [--no-autofocus]
 //                  [--calls FILE] [--gate FILE] [--gate-at N] [--burst N] [--pause-ms N] [--masks]
-//                  [--feeds]
+//                  [--feeds] [--regions]
 //   observers_main --parse ADDR      prints HOST PORT, or the error and exits 2
 //   observers_main --readable        prints hfsmc::readable of each line of stdin
 //   observers_main --fit             prints view_detail::fit's T L V for each FREE T L V of stdin
@@ -14,7 +14,8 @@
 // waits for FILE.1, and so on. --burst adds N log records after the 9th call; --masks
 // prints each thread's blocked signals there. --feeds registers a stand-in vehicle and
 // camera (hfsmc::Feed, as mavlink.hpp and camera.hpp do): the camera has a new frame at
-// every call.
+// every call. --regions plays the run of a state with two regions instead
+// (PARALLEL_STRUCTURE and PARALLEL_TRACE of tests/support.py).
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -66,6 +67,8 @@ int pause_ms = 0;
 std::string gate;
 std::vector<int> gates;  // call counts where the run waits
 int made = 0;
+bool regions = false;
+std::vector<std::string> variable_names = {"led", "count", "pauses"};
 
 void step() {  // after each observer call
     ++made;
@@ -82,7 +85,21 @@ void step() {  // after each observer call
     std::fflush(stderr);
 }
 
+hfsmc::Structure parallel_structure() {
+    hfsmc::Structure s;
+    s.name = "par";
+    s.automata = {{"", "", 100, "Mission", false}, {"Mission", "Nav", 100, "A", false},
+                  {"Mission", "Watch", 300, "Ok", true}};
+    s.states = {{"Mission", false, true}, {"Mission/Nav/A", false, false}, {"Mission/Nav/B", true, false},
+                {"Mission/Watch/Ok", false, false}, {"Mission/Watch/Seen", true, false}, {"Done", true, false}};
+    s.transitions = {{"Mission", "Done", 0, "all done"}, {"Mission/Nav/A", "Mission/Nav/B", 0, ""},
+                     {"Mission/Watch/Ok", "Mission/Watch/Seen", 0, "seen"}};
+    s.variables = {"n"};
+    return s;
+}
+
 hfsmc::Structure structure() {
+    if (regions) return parallel_structure();
     hfsmc::Structure s;
     s.name = "blinker";
     s.automata = {{"", "", 100, "Blinking", false}, {"Blinking", "", 50, "Lit", true}};
@@ -146,15 +163,45 @@ void blink(long long t, const std::string& from, const std::string& to) {
 void sample(long long t, const std::vector<std::string>& values, long long overruns) {
     if (calls.is_open()) {
         calls << "{\"sample\":{\"t\":" << t << ",\"variables\":{";
-        const char* names[] = {"led", "count", "pauses"};
         for (std::size_t i = 0; i < values.size(); ++i) {
-            calls << (i ? "," : "") << hfsmc::json_string(names[i]) << ":" << hfsmc::json_string(values[i]);
+            calls << (i ? "," : "") << hfsmc::json_string(variable_names[i]) << ":" << hfsmc::json_string(values[i]);
         }
         calls << "},\"overruns\":" << overruns << "}}\n";
     }
     for (auto& o : observers) o->sample(t, values, overruns);
     std::this_thread::sleep_for(std::chrono::milliseconds(pause_ms));
     step();
+}
+
+// The run of PARALLEL_TRACE (tests/support.py): both regions active, each takes a
+// transition, the state is left (regions exited in reverse order), the run stops.
+// The 9th call is the sample at 600 ms, both regions half way.
+void play_regions() {
+    hfsmc::Record start = rec(0, "start");
+    start.name = "par";
+    emit(start);
+    emit(at(0, "enter", "Mission"));
+    emit(at(0, "enter", "Mission/Nav/A"));
+    emit(at(0, "enter", "Mission/Watch/Ok"));
+    sample(0, {"0"}, 0);
+    emit(fire(200, "Mission/Nav/A", "Mission/Nav/B", 0));
+    emit(at(200, "exit", "Mission/Nav/A"));
+    emit(at(200, "enter", "Mission/Nav/B"));
+    sample(600, {"2"}, 0);
+    emit(fire(900, "Mission/Watch/Ok", "Mission/Watch/Seen", 0));
+    emit(at(900, "exit", "Mission/Watch/Ok"));
+    emit(at(900, "enter", "Mission/Watch/Seen"));
+    emit(log(900, "Mission/Watch/Seen", "seen"));
+    sample(950, {"3"}, 1);
+    emit(fire(1000, "Mission", "Done", 0));
+    emit(at(1000, "exit", "Mission/Watch/Seen"));
+    emit(at(1000, "exit", "Mission/Nav/B"));
+    emit(at(1000, "exit", "Mission"));
+    emit(at(1000, "enter", "Done"));
+    emit(at(1000, "exit", "Done"));
+    hfsmc::Record stop = rec(1000, "stop");
+    stop.reason = "final";
+    emit(stop);
 }
 
 void print_masks() {
@@ -224,6 +271,9 @@ int main(int argc, char** argv) {
                 burst = std::stoi(value());
             } else if (a == "--pause-ms") {
                 pause_ms = std::stoi(value());
+            } else if (a == "--regions") {
+                regions = true;
+                variable_names = {"n"};
             } else if (a == "--masks") {
                 masks = true;
             } else if (a == "--feeds") {
@@ -242,6 +292,13 @@ int main(int argc, char** argv) {
     if (gates.empty()) gates.push_back(9);
 
     for (auto& o : observers) o->start(structure());
+    if (regions) {
+        play_regions();
+        for (auto& o : observers) o->close();
+        observers.clear();
+        std::fprintf(stderr, "closed\n");
+        return 0;
+    }
     hfsmc::Record start = rec(0, "start");
     start.name = "blinker";
     emit(start);

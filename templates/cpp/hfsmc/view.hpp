@@ -180,12 +180,29 @@ private:
     std::string no_keys_;
 
     bool lit(const std::string& p) const {
+        if (v_.is_region(p)) return lit(p.substr(0, p.rfind('/')));
         return v_.active.find(p) || (v_.stop_reason && v_.stopped_in.find(p));
     }
 
+    // A region: `[Watch 200 ms history]`, green while its state is active (as hfsmc_view).
+    void region_label(Line& l, const std::string& path, std::size_t collapsed) const {
+        const std::size_t slash = path.rfind('/');
+        const std::string owner = path.substr(0, slash);
+        const char* style = v_.active.find(owner) ? "32" : (v_.stop_reason && v_.stopped_in.find(owner)) ? "33" : "2";
+        std::string text = "[" + clean(path.substr(slash + 1));
+        auto period = v_.periods.find(path);
+        if (period != v_.periods.end()) text += " " + std::to_string(period->second) + " ms";
+        if (v_.has_history(path)) text += " history";
+        l.add(text + "]", style);
+        if (collapsed) l.add("  \u25b8 " + std::to_string(collapsed) + " states", "2");
+    }
+
     void label(Line& l, const std::string& path, std::size_t collapsed) const {
+        if (v_.is_region(path)) return region_label(l, path, collapsed);
         std::size_t slash = path.rfind('/');
         std::string name = clean(slash == std::string::npos ? (path.empty() ? v_.name : path) : path.substr(slash + 1));
+        const bool parallel = v_.is_parallel(path);
+        if (parallel) name += " \u2016";
         if (const long long* since = v_.active.find(path)) {
             l.add("\u25cf " + name, "1;32").add("  " + duration(v_.t_ms - *since), "32");
         } else if (const long long* at = v_.stop_reason ? v_.stopped_in.find(path) : nullptr) {
@@ -198,7 +215,7 @@ private:
         if (period != v_.periods.end()) {
             l.add("  " + std::to_string(period->second) + " ms" + (v_.has_history(path) ? " history" : ""), "2");
         }
-        if (collapsed) l.add("  \u25b8 " + std::to_string(collapsed) + " states", "2");
+        if (collapsed) l.add("  \u25b8 " + std::to_string(collapsed) + (parallel ? " regions" : " states"), "2");
     }
 
     std::vector<Line> tree(int width, int max_rows) const {

@@ -146,8 +146,11 @@ public:
 
     std::string name;
     std::map<std::string, std::vector<std::string>> children{{"", {}}};
+    // Paths of regions (OWNER/REGION): nodes of the tree that are no states; the
+    // children of a parallel state are its regions, in the order written.
+    std::vector<std::string> regions;
     std::vector<std::string> finals;
-    std::map<std::string, int> periods;  // owner path ("" root) -> period
+    std::map<std::string, int> periods;  // sub-automaton path (owner's, OWNER/REGION) -> period
     std::vector<std::string> history;
     std::map<std::pair<std::string, int>, std::string> transition_names;
     std::vector<std::string> variable_names;
@@ -177,6 +180,31 @@ public:
     bool has_history(const std::string& p) const {
         return std::find(history.begin(), history.end(), p) != history.end();
     }
+    bool is_region(const std::string& p) const {
+        return std::find(regions.begin(), regions.end(), p) != regions.end();
+    }
+    // A parallel state: its children are regions.
+    bool is_parallel(const std::string& p) const {
+        auto it = children.find(p);
+        if (it == children.end()) return false;
+        for (const auto& c : it->second) {
+            if (is_region(c)) return true;
+        }
+        return false;
+    }
+
+    // The innermost active states, one per active region, in model order (as Python's leaves()).
+    std::vector<std::string> leaves() const {
+        std::vector<std::string> out;
+        for (const auto& kv : active.items) {
+            bool inner = true;
+            for (const auto& other : active.items) {
+                if (other.first.compare(0, kv.first.size() + 1, kv.first + "/") == 0) inner = false;
+            }
+            if (inner) out.push_back(kv.first);
+        }
+        return out;
+    }
 
     // The deepest active state ("" when none is); the first of equals, as Python's max.
     std::string innermost() const {
@@ -196,8 +224,14 @@ public:
             if (st.final && !is_final(st.path)) finals.push_back(st.path);
         }
         for (const auto& a : s.automata) {
-            periods[a.owner] = a.period_ms;
-            if (a.history && !has_history(a.owner)) history.push_back(a.owner);
+            std::string where = a.owner;
+            if (!a.region.empty()) {
+                where += "/" + a.region;
+                learn(where);
+                if (!is_region(where)) regions.push_back(where);
+            }
+            periods[where] = a.period_ms;
+            if (a.history && !has_history(where)) history.push_back(where);
         }
         for (const auto& tr : s.transitions) {
             if (!tr.name.empty()) transition_names[{tr.from, tr.index}] = tr.name;
@@ -335,7 +369,8 @@ public:
         std::vector<std::string> out;
         std::string ev = rec ? rec->ev : "";
         if (start_ && std::string(kind) != "structure" && ev != "enter" && ev != "log" && ev != "error") {
-            std::string inner = v.innermost();
+            std::string inner;
+            for (const auto& leaf : v.leaves()) inner += (inner.empty() ? "" : ", ") + leaf;
             out.push_back(seconds7(*start_) + "  start " + clean(v.name) +
                           (inner.empty() ? "" : " in " + clean(inner)));
             start_.reset();
