@@ -20,7 +20,17 @@ from rich.console import Console
 from hfsmc.commands.view import view
 from hfsmc.emit.structure import structure_of
 from hfsmc.pipeline import compile_file
-from tests.support import BLINKER, GREEN, RECORDS, STRUCTURE, TRACE, Tmux, py
+from tests.support import (
+    BLINKER,
+    GREEN,
+    PARALLEL_RECORDS,
+    PARALLEL_STRUCTURE,
+    RECORDS,
+    STRUCTURE,
+    TRACE,
+    Tmux,
+    py,
+)
 
 # The component's own module, shipped in the data package hfsmc.templates. mypy cannot
 # follow the wheel's mapping of hfsmc.templates onto templates/, so it reads the same file
@@ -166,8 +176,9 @@ def test_good_records_pass_the_check() -> None:
 
 
 # -- plain lines -------------------------------------------------------------------------
-def plain(records: list[dict[str, Any]], focus: str | None = None) -> list[str]:
-    v, p, out = ViewState(STRUCTURE), PlainLines(focus), []
+def plain(records: list[dict[str, Any]], focus: str | None = None,
+          structure: dict[str, Any] = STRUCTURE) -> list[str]:
+    v, p, out = ViewState(structure), PlainLines(focus), []
     for rec in records:
         out += p.lines(v, "record", rec)
         v.apply_record(rec)
@@ -476,3 +487,67 @@ def test_replay_in_a_terminal_toggles_autofocus_and_quits(tmux: Callable[..., Tm
     text = t.wait(lambda s: "EXIT=" in s)
     assert "EXIT=0" in text
     assert "icanon echo" in text, "the terminal is back in line mode with echo"
+
+
+# -- regions ---------------------------------------------------------------------------------
+def par_upto(t: int) -> ViewState:
+    return fed([r for r in PARALLEL_RECORDS if r["t"] <= t], PARALLEL_STRUCTURE)
+
+
+def test_regions_are_nodes_of_the_tree_under_their_state() -> None:
+    v = ViewState(PARALLEL_STRUCTURE)
+    assert v.children["Mission"] == ["Mission/Nav", "Mission/Watch"]
+    assert v.regions == {"Mission/Nav", "Mission/Watch"}
+    assert v.periods == {"": 100, "Mission/Nav": 100, "Mission/Watch": 300}
+    assert v.history == {"Mission/Watch"}
+    v = par_upto(200)
+    assert v.leaves() == ["Mission/Watch/Ok", "Mission/Nav/B"]
+    assert v.lit("Mission/Watch") and not v.lit("Mission/Watch/Seen")
+    assert v.owner("Mission/Watch/Ok") == "Mission" and v.owner("Mission") == ""
+
+
+def test_the_screen_shows_each_region_as_a_named_group_all_lit_at_once() -> None:
+    text = screen(par_upto(900), width=120)
+    tree = [line[:34].rstrip() for line in text.splitlines()[:9]]
+    assert tree == ["par  100 ms",
+                    "├── ● Mission ‖  0.9s",
+                    "│   ├── [Nav 100 ms]",
+                    "│   │   ├── ○ A",
+                    "│   │   └── ● B  0.7s  final",
+                    "│   └── [Watch 300 ms history]",
+                    "│       ├── ○ Ok",
+                    "│       └── ● Seen  0.0s  final",
+                    "└── ○ Done  final"], text
+    colored = screen(par_upto(900), color=True)
+    assert re.search(GREEN + "● B", colored) and re.search(GREEN + "● Seen", colored)
+    assert re.search(GREEN + r"\[Nav 100 ms\]", colored)
+
+
+def test_autofocus_folds_a_parallel_state_and_focus_takes_a_state_or_a_region() -> None:
+    v = par_upto(1000)
+    assert re.search(r"○ Mission ‖\s+▸ 2 regions", screen(v))
+    assert "[Nav" in screen(v, autofocus=False)
+    v = par_upto(200)
+    mission = "\n".join(line[:34] for line in screen(v, focus="Mission").splitlines())
+    assert "[Nav 100 ms]" in mission and "[Watch 300 ms history]" in mission and "Done" not in mission
+    watch = [line[:30].rstrip() for line in screen(v, focus="/Mission/Watch/").splitlines()[:3]]
+    assert watch == ["[Watch 300 ms history]", "├── ● Ok  0.2s", "└── ○ Seen  final"]
+    assert plain(PARALLEL_RECORDS, focus="Mission/Watch", structure=PARALLEL_STRUCTURE) == [
+        "  0.000  start par in Mission/Nav/A, Mission/Watch/Ok",
+        "  0.900  Mission/Watch/Ok -> Mission/Watch/Seen  (seen)",
+        "  1.000  stop (final)"]
+
+
+def test_regions_are_inferred_from_a_trace_and_survive_a_snapshot() -> None:
+    s = hfsmc_view.infer_structure(PARALLEL_RECORDS)
+    assert [(a["owner"], a["region"], a["initial"]) for a in s["automata"]] == [
+        ("Mission", "Nav", "A"), ("Mission", "Watch", "Ok")]
+    assert "Mission/Nav" not in [st["path"] for st in s["states"]]
+    v = ViewState(s)
+    assert v.children["Mission"] == ["Mission/Nav", "Mission/Watch"] and not v.periods
+    source = par_upto(900)
+    late = ViewState(PARALLEL_STRUCTURE)
+    late.apply_snapshot(json.loads(json.dumps(source.snapshot())))
+    assert late.active == source.active
+    assert hfsmc_view.PlainLines().lines(late, "snapshot", source.snapshot()) == [
+        "  0.900  in Mission/Nav/B, Mission/Watch/Seen"]
