@@ -191,7 +191,8 @@ class _IrBuilder:
             word = "true" if YAML11_BOOLS[value.strip().lower()] else "false"
             how = " (YAML 1.2 reads it as a string)" if self.doc.format == "yaml" else ""
             notes = (f"`{value.strip()}` is not a boolean{how}: write `{word}`",)
-        self.diags.error(code, f"`{path[-1]}` must be a {vtype}, not {value!r}", self.doc.span(path),
+        article = "an" if vtype == "int" else "a"
+        self.diags.error(code, f"`{path[-1]}` must be {article} {vtype}, not {value!r}", self.doc.span(path),
                          *notes)
         return _freeze(value)
 
