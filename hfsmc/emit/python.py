@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from hfsmc.emit.data import component_config
 from hfsmc.emit.templating import environment, runtime_files, template_folder
-from hfsmc.emit.walk import MachineView, Snippet, Walk
+from hfsmc.emit.walk import InstanceView, MachineView, Snippet, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, DictValue, Model, Value
 from hfsmc.pycheck import import_statement
@@ -120,6 +120,39 @@ class TransitionPaths:
 
 
 @dataclass(frozen=True, slots=True)
+class PythonInstanceView:
+    """An instance of a used file: the arguments of ``hfsmc_runtime.load_instance``."""
+
+    number: int  # `_hfsm_i{number}`
+    module: str  # its file's module, beside the component: `_hfsm_use_NAME`
+    file: str  # the used file, for error messages
+    base: int
+    count: int
+    sid0: int
+    parent: int  # the instance it is used in, 0 for the component's model
+    prefix: str  # the using state's path
+    where: str  # how active() errors name it
+    values_literal: str  # dict literal: parameters bound to literals, and defaults
+    links_literal: str  # tuple literal of (name, the using namespace's parameter, type)
+    interfaces_literal: str  # tuple literal of (name, the using namespace's interface)
+
+
+@dataclass(frozen=True, slots=True)
+class PythonUnitView:
+    """What ``unit.py.j2`` prints: a used file's code, loaded once per instance."""
+
+    module: str
+    base: str  # the used file's name
+    file: str
+    component: str  # the component's name
+    imports: tuple[ImportView, ...]
+    parameters: tuple[str, ...]
+    variables: tuple[VariableView, ...]
+    interfaces: tuple[str, ...]
+    machine: MachineView[PythonSnippet]
+
+
+@dataclass(frozen=True, slots=True)
 class PythonComponentView:
     """Everything ``component.py.j2`` and ``config.yaml.j2`` print, computed."""
 
@@ -135,15 +168,17 @@ class PythonComponentView:
     machine: MachineView[PythonSnippet]
     interrupt_timeout_us: int | None
     transition_paths: tuple[TransitionPaths, ...]
+    instances: tuple[PythonInstanceView, ...]
     config: str  # the body of NAME.yaml
 
 
 class PythonWalk(Walk[PythonSnippet]):
     """Walks the IR once and makes the view of the templates."""
 
-    def __init__(self, model: Model) -> None:
+    def __init__(self, model: Model, base_name: str = "") -> None:
         super().__init__(model)
         self.variables = frozenset(v.name for v in model.variables)
+        self.base_name = base_name  # a used file's unit name (unit_view)
 
     def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> PythonSnippet:
         mode = "eval" if kind == "when" else "exec"
@@ -187,8 +222,49 @@ class PythonWalk(Walk[PythonSnippet]):
                 TransitionPaths(s.path, f"{s.path.rpartition('/')[0]}/{t.target}".lstrip("/"),
                                 t.index, t.name)
                 for s in self.states for t in s.transitions),
+            instances=tuple(_instance_view(i) for i in machine.instances),
             config=component_config(m),
         )
+
+    def unit_view(self, component: str) -> PythonUnitView:
+        """The code of a used file (this walk's model) as its module prints it."""
+        m = self.model
+        return PythonUnitView(
+            module=unit_module(self.base_name),
+            base=self.base,
+            file=m.file,
+            component=component,
+            imports=tuple(ImportView(import_statement(i.text), i.text, i.span.line)
+                          for i in m.imports),
+            parameters=tuple(p.name for p in m.parameters),
+            variables=tuple(VariableView(v.name, _py_literal(v.init)) for v in m.variables),
+            interfaces=tuple(i.name for i in m.interfaces),
+            machine=self.machine(),
+        )
+
+
+def unit_module(unit: str) -> str:
+    """The module of a used file's code, beside the component (never shadows an import)."""
+    return f"_hfsm_use_{unit}"
+
+
+def _instance_view(i: InstanceView) -> PythonInstanceView:
+    inst = i.instance
+    values: dict[str, str] = {}
+    links: list[tuple[str, str, str]] = []
+    for p in inst.model.parameters:
+        b = inst.binding(p.name)
+        if b.source is not None:
+            links.append((p.name, b.source, p.type))
+        else:
+            value = float(b.value) if p.type == "float" and isinstance(b.value, int) else b.value
+            values[p.name] = _py_literal(value)
+    interfaces = tuple((f.name, inst.binding(f.name).source or f.name) for f in inst.model.interfaces)
+    return PythonInstanceView(
+        i.number, unit_module(i.unit), inst.file, i.base, i.count, i.sid0, i.parent, i.prefix,
+        f"{inst.written} (used at {i.prefix})",
+        "{" + ", ".join(f"{k!r}: {v}" for k, v in values.items()) + "}",
+        repr(tuple(links)), repr(interfaces))
 
 
 def component_view(model: Model) -> PythonComponentView:
@@ -233,6 +309,13 @@ def component_files(model: Model) -> dict[str, bytes]:
             + main[table_at + len(_EMPTY_TABLE):])
     config = env.get_template("config.yaml.j2").render(view=view)
     out = {f"{model.name}.py": main.encode("utf-8"), f"{model.name}.yaml": config.encode("utf-8")}
+    for unit in view.machine.units:
+        uview = PythonWalk(unit.model, unit.name).unit_view(model.name)
+        text = env.get_template("unit.py.j2").render(view=uview)
+        table_at = text.rfind(_EMPTY_TABLE)
+        text = (text[:table_at] + _line_table(text, uview.machine.snippets)
+                + text[table_at + len(_EMPTY_TABLE):])
+        out[f"{uview.module}.py"] = text.encode("utf-8")
     out.update(runtime_files(template_folder("python"), RUNTIME_FILES, INTERFACE_FILES,
                              (i.type for i in model.interfaces)))
     return out

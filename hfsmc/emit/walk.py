@@ -77,6 +77,7 @@ class InstanceView:
     instance: Instance
     owner: int  # index of the using state
     base: int  # index of its first state: a state's index in the used model, plus base
+    count: int  # its number of states (those of instances inside it too)
     parent: int  # the instance it is used in (its number), 0 for the component's own model
     prefix: str  # the using state's path: active() inside reads paths below it
     sid0: int  # where its snippets start in the component's table of every snippet
@@ -187,7 +188,7 @@ class Walk(ABC, Generic[S]):
         for number, (inst, base, _end) in enumerate(self.found, start=1):
             owner = base - 1  # the using state comes just before its sub-automaton's states
             out.append(InstanceView(number, next(u.name for u in self.units if u.file == inst.file),
-                                    inst, owner, base, self.unit_of[owner],
+                                    inst, owner, base, _end - base, self.unit_of[owner],
                                     self.states[owner].path, sid0, self.next_sid[number]))
             sid0 += self.next_sid[number]
         return tuple(out)

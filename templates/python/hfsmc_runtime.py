@@ -179,7 +179,19 @@ class Engine:
         self.ENTER: tuple[Callable[[], None], ...] = m["enter"]
         self.EXIT: tuple[Callable[[], None], ...] = m["exit"]
         self.TICK: tuple[Callable[[], None], ...] = m["tick"]
-        self.snippets: tuple[tuple[Any, ...], ...] = m["snippets"]
+        # Every snippet: the model's own, then each instance's (`use`), numbered so.
+        snippets = list(m["snippets"])
+        sources = [(m["file"], m["gen_file"], 0, len(snippets))]
+        for inst in m["instances"]:
+            table = inst["module"]._hfsm_SNIPPETS
+            if len(snippets) != inst["sid0"]:
+                raise RuntimeError("internal: the snippets of an instance are numbered wrongly")
+            for kind, owner, first, rows in table:
+                state = self.root if owner >= inst["count"] else owner + inst["base"]
+                snippets.append((kind, state, first, rows))
+            sources.append((inst["file"], inst["module"].__file__, inst["sid0"], len(table)))
+        self.snippets: tuple[tuple[Any, ...], ...] = tuple(snippets)
+        self.report = reporter(sources, self.snippets, self.paths)
         n, a = len(self.paths), len(self.period_us)
         self.entered = [0] * n
         self.is_active = [False] * n
@@ -233,7 +245,7 @@ class Engine:
         if self.recording:
             self.emit({"t": self.t // 1000, "ev": "error", "state": self.paths[i],
                        "snippet": kind})
-        sys.stderr.write(self.m["report"](exc, sid))
+        sys.stderr.write(self.report(exc, sid))
         sys.stderr.flush()
         if self.stopping:
             self.stop_failed = True
@@ -265,6 +277,15 @@ class Engine:
         if i is None:
             raise ValueError(f"active({path!r}): no such state in {self.name}")
         return self.is_active[i]
+
+    def active_below(self, prefix: str, where: str) -> Callable[[str], bool]:
+        """active() of an instance of a used file: paths below the using state ``prefix``."""
+        def active(path: str) -> bool:
+            i = self.index.get(f"{prefix}/{path.strip('/')}")
+            if i is None:
+                raise ValueError(f"active({path!r}): no such state in {where}")
+            return self.is_active[i]
+        return active
 
     def shutdown(self) -> None:
         if self.interrupting is None and not self.stopping:
@@ -548,26 +569,36 @@ def _short(value: object) -> str:
 
 # --- error reports ---------------------------------------------------------------------------
 
-def reporter(file: str, gen_file: str, snippets: Sequence[tuple[Any, ...]],
-             lines: Sequence[int], paths: Sequence[str]) -> Callable[[BaseException, int], str]:
+def reporter(sources: Sequence[tuple[str, str, int, int]], snippets: Sequence[tuple[Any, ...]],
+             paths: Sequence[str]) -> Callable[[BaseException, int], str]:
     """The function that writes a snippet error as model positions (docs/semantics.md §9).
 
     ``snippets[sid]`` = (kind, state, first generated line, rows) with rows =
     ((model line, model col, generated indent), ...) for each line of the snippet;
-    ``lines`` = sorted first generated lines, to find the snippet of a frame.
+    ``sources`` = (model file, generated file, first sid, number of snippets) of the
+    component's own code, then of each instance of a used file (its file's module).
     """
     from bisect import bisect_right
-    gen = os.path.abspath(gen_file)
     runtime = os.path.abspath(__file__)
-    order = sorted(range(len(snippets)), key=lambda s: snippets[s][2])
+    starts = [s[2] for s in sources]
+    # Per source: its snippets' first generated lines, sorted, and their numbers.
+    lines: list[list[int]] = []
+    order: list[list[int]] = []
+    for _model, _gen, sid0, n in sources:
+        ids = sorted(range(sid0, sid0 + n), key=lambda s: snippets[s][2])
+        order.append(ids)
+        lines.append([snippets[s][2] for s in ids])
 
-    def locate(fs: traceback.FrameSummary) -> tuple[int, int, int, int] | None:
-        if os.path.abspath(fs.filename) != gen or fs.lineno is None:
+    def source_of(sid: int) -> int:
+        return bisect_right(starts, sid) - 1
+
+    def locate(src: int, fs: traceback.FrameSummary) -> tuple[int, int, int, int] | None:
+        if os.path.abspath(fs.filename) != os.path.abspath(sources[src][1]) or fs.lineno is None:
             return None
-        k = bisect_right(lines, fs.lineno) - 1
+        k = bisect_right(lines[src], fs.lineno) - 1
         if k < 0:
             return None
-        sid = order[k]
+        sid = order[src][k]
         first, rows = snippets[sid][2], snippets[sid][3]
         row = fs.lineno - first
         if not 0 <= row < len(rows):
@@ -582,11 +613,13 @@ def reporter(file: str, gen_file: str, snippets: Sequence[tuple[Any, ...]],
         return f"{kind} of {name}" if name else kind
 
     def report(exc: BaseException, sid: int) -> str:
+        src = source_of(sid)
+        file = sources[src][0]
         frames = traceback.extract_tb(exc.__traceback__)
         head = (sid, snippets[sid][3][0][0], snippets[sid][3][0][1], -1)
         body: list[str] = []
         for fs in frames:
-            hit = locate(fs)
+            hit = locate(src, fs)
             if hit is not None:
                 head = hit
                 body.append(f"  {file}:{hit[1]} in {where(hit[0])}\n    {(fs.line or '').strip()}\n")
@@ -604,15 +637,57 @@ def reporter(file: str, gen_file: str, snippets: Sequence[tuple[Any, ...]],
     return report
 
 
-def load_failure(engine: Engine, early: tuple[BaseException, int, str | None]) -> int:
+def load_failure(engine: Engine, early: tuple[BaseException, int, str | None, str]) -> int:
     """An import or the `functions` code failed when the component was loaded: exit 1."""
-    exc, where, text = early
+    exc, where, text, file = early
     if text is not None:  # an import: `where` is its model line
         what = "".join(traceback.format_exception_only(type(exc), exc)).strip()
-        sys.stderr.write(f"{engine.m['file']}:{where}: error: cannot import `{text}`: {what}\n")
+        sys.stderr.write(f"{file}:{where}: error: cannot import `{text}`: {what}\n")
     else:
-        sys.stderr.write(engine.m["report"](exc, where))
+        sys.stderr.write(engine.report(exc, where))
     return 1
+
+
+def load_instance(engine: Engine, here: str, unit: str, number: int, base: int, sid0: int,
+                  prefix: str, where: str, values: dict[str, Any],
+                  links: Sequence[tuple[str, str, str]], parent: dict[str, Any]) -> Any:
+    """One instance of a used file (`use`): its module loaded into a namespace of its own,
+    with the helpers, its parameters (``values``: literals and defaults; ``links``:
+    (name, the using namespace's parameter, type), bound again at start by
+    ``bind_instances`` once --param is read) and its interfaces (bound at start)."""
+    import importlib.util
+    path = os.path.join(here, f"{unit}.py")
+    spec = importlib.util.spec_from_file_location(f"{unit}_{number}", path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot load {path}")
+    module = importlib.util.module_from_spec(spec)
+    ns = module.__dict__
+    ns.update(_hfsm=engine, _hfsm_BASE=base, _hfsm_SID0=sid0, log=engine.log,
+              elapsed=engine.elapsed, now=engine.now, done=engine.done,
+              active=engine.active_below(prefix, where), shutdown=engine.shutdown)
+    ns.update(values)
+    for name, source, kind in links:
+        ns[name] = _bound(parent.get(source), kind)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _bound(value: Any, kind: str) -> Any:
+    return float(value) if kind == "float" and isinstance(value, int) else value
+
+
+def bind_instances(engine: Engine) -> None:
+    """At start, once parameters and interfaces are set: each instance's `$NAME` parameters
+    and its interfaces take the using namespace's (parents first)."""
+    spaces = [engine.m["namespace"]]
+    for inst in engine.m["instances"]:
+        ns = inst["module"].__dict__
+        parent = spaces[inst["parent"]]
+        for name, source, kind in inst["links"]:
+            ns[name] = _bound(parent.get(source), kind)
+        for name, source in inst["interfaces"]:
+            ns[name] = parent.get(source)
+        spaces.append(ns)
 
 
 # --- command line ----------------------------------------------------------------------------
@@ -784,6 +859,7 @@ def _configure(engine: Engine, args: argparse.Namespace, here: str) -> None:
         where = given.get("url", url)
         ns[name] = make_interface(name, str(given.get("type", kind)),
                                   None if where is None else str(where), {**options, **extra})
+    bind_instances(engine)
 
 
 def main(engine: Engine, argv: Sequence[str], here: str) -> int:
