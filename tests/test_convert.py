@@ -122,3 +122,51 @@ def test_yaml_comments_become_xml_comments(tmp_path: Path) -> None:
 def test_yaml_comments_skip_block_scalars_and_quoted_hashes() -> None:
     got = yaml_comments(MODEL.splitlines(keepends=True))
     assert got == [(7, "tune me"), (9, "speed"), (17, "the first -- state"), (22, "one second")]
+
+
+REGIONS = """\
+hfsm: 1
+name: arm
+variables: {n: 0}
+initial: Work
+states:
+  Work:
+    regions:
+      # the joints move
+      Joints:
+        period: 50ms  # fast
+        initial: Move
+        states:
+          Move: {transitions: [{to: Still, after: 1s}]}
+          Still: {final: true}
+      # the gripper closes
+      Gripper:
+        initial: Open
+        states:
+          Open:
+            during: n += 1
+            transitions: [{to: Closed, when: n > 3}]  # squeeze
+          Closed: {final: true}
+    transitions:
+      - {to: Done, when: done()}  # both regions final
+  Done: {final: true}
+"""
+
+
+def test_regions_convert_both_ways_keeping_comments(tmp_path: Path) -> None:
+    src = tmp_path / "arm.yaml"
+    src.write_text(REGIONS)
+    xml = tmp_path / "arm.xml"
+    assert run("convert", str(src), "-o", str(xml))[0] == 0
+    lines = [line.strip() for line in xml.read_text().splitlines()]
+    assert lines[lines.index("<!-- the joints move -->") + 2].startswith('<region name="Joints"')
+    assert lines[lines.index("<!-- the gripper closes -->") + 1].startswith(
+        '<region name="Gripper" initial="Open">')
+    assert lines[lines.index("<!-- squeeze -->") + 1] == '<transition to="Closed">'
+    assert lines[lines.index("<!-- both regions final -->") + 1] == '<transition to="Done">'
+    # The regions come before the state's transition, as in the YAML.
+    assert lines.index("</region>") < lines.index('<transition to="Done">')
+    # An edit in the XML reaches the YAML, whose comments and layout stay.
+    xml.write_text(xml.read_text().replace('initial="Open"', 'initial="Closed"'))
+    assert run("convert", str(xml), "-o", str(src))[0] == 0
+    assert src.read_text() == REGIONS.replace("initial: Open", "initial: Closed")

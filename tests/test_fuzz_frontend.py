@@ -275,6 +275,12 @@ def _state_maps(data: Any) -> list[dict[str, Any]]:
             if k == "states" and isinstance(c, dict) and isinstance(c[k], dict) and c[k]]
 
 
+def _region_maps(data: Any) -> list[dict[str, Any]]:
+    """Every `regions` mapping (a state's parallel regions)."""
+    return [c[k] for c, k in _slots({"": data})
+            if k == "regions" and isinstance(c, dict) and isinstance(c[k], dict) and c[k]]
+
+
 def _transitions(data: Any) -> list[dict[str, Any]]:
     return [t for c, k in _slots({"": data})
             if k == "transitions" and isinstance(c, dict) and isinstance(c[k], list)
@@ -300,12 +306,13 @@ def add_key(draw: Draw, data: Any) -> None:
     target = draw(st.sampled_from(maps))
     key = draw(st.sampled_from(["transition", "inital", "final", "period", "states", "initial",
                                 "history", "on_interrupt", "when", "to", "after", "entry",
-                                "interrupt_timeout", "hfsm"]))
+                                "interrupt_timeout", "hfsm", "regions"]))
     target[key] = copy.deepcopy(draw(st.sampled_from(_VALUES)))
 
 
 def rename_state(draw: Draw, data: Any) -> None:
-    maps = _state_maps(data)
+    """Rename a state or a region."""
+    maps = _state_maps(data) + _region_maps(data)
     if not maps:
         return
     states = draw(st.sampled_from(maps))
@@ -343,6 +350,21 @@ def nest_state(draw: Draw, data: Any) -> None:
             host["initial"] = name
 
 
+def make_regions(draw: Draw, data: Any) -> None:
+    """Copy a composite state's sub-automaton into one to three regions, dropping it or not."""
+    hosts = [s for m in _state_maps(data) for s in m.values()
+             if isinstance(s, dict) and isinstance(s.get("states"), dict) and s["states"]]
+    if not hosts:
+        return
+    host = draw(st.sampled_from(hosts))
+    sub = {k: host[k] for k in ("initial", "period", "history", "states") if k in host}
+    names = draw(st.lists(_NAMES, min_size=1, max_size=3))
+    host["regions"] = {name: copy.deepcopy(sub) for name in names}
+    if draw(st.booleans()):
+        for k in sub:
+            del host[k]
+
+
 def make_final(draw: Draw, data: Any) -> None:
     hosts = [s for m in _state_maps(data) for s in m.values() if isinstance(s, dict)]
     if hosts:
@@ -350,7 +372,7 @@ def make_final(draw: Draw, data: Any) -> None:
 
 
 DATA_MUTATIONS = [delete_key, change_value, add_key, rename_state, retarget, nest_state,
-                  make_final]
+                  make_final, make_regions]
 
 
 @st.composite

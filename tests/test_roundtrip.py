@@ -1,4 +1,5 @@
-"""Random valid models survive YAML → XML → YAML with an equal IR."""
+"""Random valid models (sub-automata and parallel regions nested) survive YAML → XML → YAML
+with an equal IR; a hand-written model with nested regions goes both ways."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from ruamel.yaml import YAML
 
+from hfsmc.emit.ir_text import dump
 from hfsmc.emit.xml import to_xml
 from hfsmc.emit.yaml import _styled, to_yaml
 from hfsmc.pipeline import compile_file
@@ -44,12 +46,11 @@ def states(draw: st.DrawFn, depth: int) -> dict[str, Any]:
             if draw(st.booleans()):
                 node[kind] = draw(snippets(kind))
         if depth > 0 and draw(st.booleans()):
-            node["states"] = draw(states(depth - 1))
-            node["initial"] = draw(st.sampled_from(sorted(node["states"])))
-            if draw(st.booleans()):
-                node["period"] = draw(PERIOD)
-            if draw(st.booleans()):
-                node["history"] = draw(st.booleans())
+            if draw(st.integers(0, 2)) == 0:  # parallel regions, each a sub-automaton
+                regions = draw(st.lists(IDENT, min_size=2, max_size=3, unique=True))
+                node["regions"] = {r: draw(automata(depth - 1)) for r in regions}
+            else:
+                node.update(draw(automata(depth - 1)))
         elif draw(st.booleans()):
             node["final"] = True
         if not node.get("final"):
@@ -69,6 +70,18 @@ def states(draw: st.DrawFn, depth: int) -> dict[str, Any]:
                 node["transitions"] = trans
         out[name] = node
     return out
+
+
+@st.composite
+def automata(draw: st.DrawFn, depth: int) -> dict[str, Any]:
+    """A sub-automaton or a region: states, initial, and maybe period and history."""
+    node: dict[str, Any] = {"states": draw(states(depth))}
+    node["initial"] = draw(st.sampled_from(sorted(node["states"])))
+    if draw(st.booleans()):
+        node["period"] = draw(PERIOD)
+    if draw(st.booleans()):
+        node["history"] = draw(st.booleans())
+    return node
 
 
 @st.composite
@@ -139,3 +152,79 @@ states:
     assert inits == {"speed": "0.5", "ready": False, "path": "{1, 2, 3}", "n": 3}
     second = compile_file("c.xml", text=to_xml(first.model))
     assert second.model == first.model, second.diagnostics
+
+
+NESTED = """\
+hfsm: 1
+name: nested
+variables: {n: 0}
+initial: Mission
+states:
+  Mission:
+    entry: log("in")
+    regions:
+      Nav:
+        period: 50ms
+        initial: Go
+        states:
+          Go:
+            initial: Climb
+            history: true
+            states:
+              Climb: {transitions: [{to: Cruise, after: 1s}]}
+              Cruise: {during: "n += 1"}
+            transitions: [{to: Back, when: n > 3}]
+          Back: {final: true}
+      Watch:
+        initial: Sensors
+        states:
+          Sensors:
+            regions:
+              Gps: {initial: Fix, states: {Fix: {final: true}}}
+              Battery: {period: 1s, initial: Ok, history: true, states: {Ok: {final: true}}}
+    transitions:
+      - {to: Done, when: done()}
+  Done: {final: true}
+"""
+
+
+def test_nested_regions_yaml_xml_yaml() -> None:
+    """A region whose state has a sub-automaton, and regions inside a region's state."""
+    first = compile_file("n.yaml", text=NESTED)
+    assert first.model is not None and first.diagnostics == [], first.diagnostics
+    xml = to_xml(first.model)
+    second = compile_file("n.xml", text=xml)
+    assert second.model == first.model, (second.diagnostics, xml)
+    third = compile_file("n2.yaml", text=to_yaml(second.model))
+    assert third.model == first.model, third.diagnostics
+    sensors = first.model.find("Mission/Watch/Sensors")
+    assert sensors is not None and [a.region for a in sensors.automata] == ["Gps", "Battery"]
+    assert [a.path for a in first.model.automata()] == [
+        "", "Mission/Nav", "Mission/Nav/Go", "Mission/Watch", "Mission/Watch/Sensors/Gps",
+        "Mission/Watch/Sensors/Battery"]
+
+
+def test_nested_regions_xml_yaml_xml() -> None:
+    model = compile_file("n.yaml", text=NESTED).model
+    assert model is not None
+    xml = to_xml(model)
+    assert '<region name="Battery" period="1s" initial="Ok" history="true">' in xml
+    first = compile_file("n.xml", text=xml)
+    assert first.model is not None and first.diagnostics == [], first.diagnostics
+    second = compile_file("n.yaml", text=to_yaml(first.model))
+    assert second.model == first.model, second.diagnostics
+    assert to_xml(second.model) == xml
+
+
+def test_dump_ir_shows_regions() -> None:
+    """`hfsmc check --dump-ir`: a region is `region NAME of OWNER`, its states' paths hold it."""
+    model = compile_file("n.yaml", text=NESTED).model
+    assert model is not None
+    lines = [line.strip() for line in dump(model).splitlines()]
+    assert "region Nav of Mission period 50ms initial Go" in lines
+    assert "automaton Mission/Nav/Go period 50ms (inherited) initial Climb history" in lines
+    assert "region Watch of Mission period 100ms (inherited) initial Sensors" in lines
+    assert "region Battery of Mission/Watch/Sensors period 1000ms initial Ok history" in lines
+    assert "state Mission/Watch/Sensors/Gps/Fix final @26:44" in lines
+    regions = [line for line in lines if line.startswith("region ")]
+    assert [r.split()[1] for r in regions] == ["Nav", "Watch", "Gps", "Battery"]

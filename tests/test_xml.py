@@ -339,6 +339,67 @@ def test_schema_errors_at_their_position(xml: str, code: str, at: str, note: str
         assert note in d.notes
 
 
+def regions(first: str, where: str = "state") -> str:
+    """A state ``W`` with the region ``first`` and a valid region ``R`` (or ``first`` in
+    ``where``: the automaton itself), on line 2 of the document."""
+    other = '<region name="R" initial="B"><state name="B" final="true"/></region>'
+    if where == "automaton":
+        return f'<automaton initial="W">{first}<state name="W">{other}{other}</state></automaton>'
+    return f'<automaton initial="W"><state name="W">{first}{other}</state></automaton>'
+
+
+@pytest.mark.parametrize("region, where_, code, at, note", [
+    ('<region name="Q" inital="A"><state name="A" final="true"/></region>', "state",
+     "E100", 'inital="A"', "did you mean `initial`?"),
+    ('<region name="Q" initial="A" period="fast"><state name="A"/></region>', "state",
+     "E110", 'fast"', None),
+    ('<region name="Q" initial="A" history="yes"><state name="A"/></region>', "state",
+     "E101", 'yes"', None),
+    ('<region name="Q" initial="A"/>', "state", "E102", '<region name="Q"', None),
+    ('<region initial="A"><state name="A"/></region>', "state", "E102", "<region initial", None),
+    ('<region name="Q" initial="A"><state name="A"/><transition to="A"/></region>', "state",
+     "E100", '<transition to="A"/></region>', "allowed in `<region>`: state"),
+    ('<region name="Q" initial="A"><state name="A"/></region>', "automaton",
+     "E100", '<region name="Q"', None),
+    ('<region name="R" initial="A"><state name="A"/></region>', "state",
+     "E121", 'R" initial="B"', "the first `R` is on line 2"),
+])
+def test_region_errors_at_their_position(region: str, where_: str, code: str, at: str,
+                                         note: str | None) -> None:
+    text = wrap(regions(region, where_) + "\n")
+    r = comp(text)
+    col = text.splitlines()[1].index(at) + 1
+    assert (code, f"m.xml:2:{col}") in where(r), r.diagnostics
+    if note is not None:
+        d = next(d for d in r.diagnostics if d.code == code)
+        assert note in d.notes
+
+
+def test_regions_read_as_yaml_writes_them() -> None:
+    """`<region>` gives the Document YAML's `regions` gives: the same IR, spans in the XML."""
+    xml = wrap(regions('<region name="Q" period="20ms" initial="A" history="true">'
+                       '<state name="A" final="true"/></region>') + "\n")
+    yaml = """\
+hfsm: 1
+name: m
+initial: W
+states:
+  W:
+    regions:
+      Q: {period: 20ms, initial: A, history: true, states: {A: {final: true}}}
+      R: {initial: B, states: {B: {final: true}}}
+"""
+    model = built("m.xml", xml)
+    assert model == built("m.yaml", yaml)
+    q, r = model.root.states[0].automata
+    line = xml.splitlines()[1]
+    assert (q.region, q.path, q.period_ms, q.history, r.region) == ("Q", "W/Q", 20, True, "R")
+    assert (q.span.line, q.span.col) == (2, line.index('<region name="Q"') + 1)
+    assert (q.initial_span.line, q.initial_span.col) == (2, line.index('A" history') + 1)
+    assert q.states[0].path == "W/Q/A"
+    assert (q.states[0].span.line, q.states[0].span.col) == (2, line.index('<state name="A"') + 1)
+
+
 def test_every_schema_problem_in_one_run() -> None:
     xml = """\
 <hfsm version="1" name="multi" langauge="python">

@@ -75,13 +75,25 @@ def _state(s: State) -> dict[str, Any]:
             d[kind] = text
     if s.final:
         d["final"] = True
-    if s.transitions:
+    first = written_first(s)
+    if s.transitions and not first:
         d["transitions"] = [_transition(t) for t in s.transitions]
     if s.parallel:
         d["regions"] = {a.region: _automaton(a) for a in s.automata}
     elif s.automaton is not None:
         d.update(_automaton(s.automaton))
+    if first:
+        d["transitions"] = [_transition(t) for t in s.transitions]
     return d
+
+
+def written_first(s: State) -> bool:
+    """Whether the source has ``s``'s sub-automaton or regions before its transitions
+    (both formats allow either order; the writers keep the user's)."""
+    if not s.automata or not s.transitions:
+        return False
+    a, t = s.automata[0].span, s.transitions[0].span
+    return a.file == t.file and (a.line, a.col) < (t.line, t.col)
 
 
 def _transition(t: Transition) -> dict[str, Any]:

@@ -15,7 +15,7 @@ import re
 from collections.abc import Sequence
 
 from hfsmc.durations import format_us
-from hfsmc.emit.data import thaw
+from hfsmc.emit.data import thaw, written_first
 from hfsmc.errors import Diagnostic, EmitError, Span
 from hfsmc.frontend.xmlsource import clean_text
 from hfsmc.ir import Automaton, Code, Model, State, Transition, Value
@@ -187,14 +187,13 @@ class _Writer:
         self.open(depth, "state", attrs, s.span)
         for kind, code in codes:
             self.code(depth + 1, kind, code)
-        if _written_first(s):  # XML allows either order: keep the source's, and its comments
-            for a in s.automata:
-                self.automaton(depth + 1, a, [])
+        first = written_first(s)  # either order is valid: keep the source's, and its comments
+        for a in s.automata if first else ():
+            self.automaton(depth + 1, a, [])
         for t in s.transitions:
             self.transition(depth + 1, t)
-        if not _written_first(s):
-            for a in s.automata:  # its sub-automaton, or its regions in order
-                self.automaton(depth + 1, a, [])
+        for a in () if first else s.automata:  # its sub-automaton, or its regions in order
+            self.automaton(depth + 1, a, [])
         self.close(depth, "state")
 
     def transition(self, depth: int, t: Transition) -> None:
@@ -207,14 +206,6 @@ class _Writer:
         self.code(depth + 1, "when", t.when)
         self.code(depth + 1, "do", t.do)
         self.close(depth, "transition")
-
-
-def _written_first(s: State) -> bool:
-    """Whether the source has ``s``'s sub-automaton or regions before its transitions."""
-    if not s.automata or not s.transitions:
-        return False
-    a, t = s.automata[0].span, s.transitions[0].span
-    return a.file == t.file and (a.line, a.col) < (t.line, t.col)
 
 
 def _layout(text: str, indent: str) -> str:
