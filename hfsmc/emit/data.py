@@ -6,7 +6,7 @@ import json
 from typing import Any
 
 from hfsmc.durations import format_us
-from hfsmc.ir import Automaton, Code, DictValue, Model, State, Transition, Value
+from hfsmc.ir import Automaton, Binding, Code, DictValue, Model, State, Transition, Value
 
 
 def thaw(v: Value) -> Any:
@@ -75,16 +75,33 @@ def _state(s: State) -> dict[str, Any]:
             d[kind] = text
     if s.final:
         d["final"] = True
-    first = written_first(s)
+    instance = s.automaton.instance if s.automaton is not None else None
+    if instance is not None:  # as written: the used file is not copied in
+        d["use"] = instance.written
+        if instance.bindings:
+            d["with"] = {b.name: binding_value(b) for b in instance.bindings}
+    first = written_first(s) or instance is not None
     if s.transitions and not first:
         d["transitions"] = [_transition(t) for t in s.transitions]
     if s.parallel:
         d["regions"] = {a.region: _automaton(a) for a in s.automata}
-    elif s.automaton is not None:
+    elif s.automaton is not None and instance is None:
         d.update(_automaton(s.automaton))
     if first:
         d["transitions"] = [_transition(t) for t in s.transitions]
     return d
+
+
+def binding_value(b: Binding) -> Any:
+    """A `with` entry's value as written: `$NAME` for a parameter of the using model, the
+    interface's name, or the literal (a string that starts with `$` written `$$`)."""
+    if b.kind == "interface":
+        return b.source
+    if b.source is not None:
+        return f"${b.source}"
+    if isinstance(b.value, str) and b.value.startswith("$"):
+        return f"${b.value}"
+    return thaw(b.value)
 
 
 def written_first(s: State) -> bool:

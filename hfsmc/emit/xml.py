@@ -15,10 +15,10 @@ import re
 from collections.abc import Sequence
 
 from hfsmc.durations import format_us
-from hfsmc.emit.data import thaw, written_first
+from hfsmc.emit.data import binding_value, thaw, written_first
 from hfsmc.errors import Diagnostic, EmitError, Span
 from hfsmc.frontend.xmlsource import clean_text
-from hfsmc.ir import Automaton, Code, Model, State, Transition, Value
+from hfsmc.ir import Automaton, Binding, Code, Model, State, Transition, Value
 
 _INDENT = "  "
 # Characters XML 1.0 cannot carry at all, not even as character references.
@@ -181,6 +181,10 @@ class _Writer:
         attrs: list[tuple[str, str | None]] = [("name", s.name),
                                                ("final", "true" if s.final else None)]
         codes = [(kind, getattr(s, kind)) for kind in ("entry", "during", "exit")]
+        instance = s.automaton.instance if s.automaton is not None else None
+        if instance is not None:
+            self.use(depth, s, [*attrs, ("use", instance.written)], instance.bindings)
+            return
         if not s.transitions and not s.automata and all(c is None for _, c in codes):
             self.empty(depth, "state", attrs, s.span)
             return
@@ -194,6 +198,21 @@ class _Writer:
             self.transition(depth + 1, t)
         for a in () if first else s.automata:  # its sub-automaton, or its regions in order
             self.automaton(depth + 1, a, [])
+        self.close(depth, "state")
+
+    def use(self, depth: int, s: State, attrs: list[tuple[str, str | None]],
+            bindings: tuple[Binding, ...]) -> None:
+        """A state that takes its sub-automaton from another file, as written (the used
+        file is not copied in): `use=...` and its `<with>` elements."""
+        self.open(depth, "state", attrs, s.span)
+        for kind in ("entry", "during", "exit"):
+            self.code(depth + 1, kind, getattr(s, kind))
+        for b in bindings:
+            value = binding_value(b)
+            text = value if isinstance(value, str) else _literal(b.value)
+            self.empty(depth + 1, "with", [("name", b.name), ("value", text)], b.span)
+        for t in s.transitions:
+            self.transition(depth + 1, t)
         self.close(depth, "state")
 
     def transition(self, depth: int, t: Transition) -> None:
