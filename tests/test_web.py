@@ -36,6 +36,8 @@ from tests.cppbuild import need_toolchain
 from tests.support import (
     BLINKER,
     MONITOR_VALIDATOR,
+    PARALLEL_RECORDS,
+    PARALLEL_STRUCTURE,
     RECORDS,
     STRUCTURE,
     build_blinker,
@@ -116,6 +118,58 @@ def test_a_sub_automaton_is_drawn_alone_from_the_picture_s_model() -> None:
             assert await bridge.sub_svg(wrong) is None, wrong
 
     asyncio.run(asyncio.wait_for(story(), 20))
+
+
+def test_regions_are_drawn_from_the_structure_as_from_the_model(tmp_path: Path) -> None:
+    """A structure's automata that name a region give the state its regions: the same
+    clusters (the state's, one per region) and state nodes as the model's drawing, and each
+    region alone can be drawn."""
+    yaml = tmp_path / "par.yaml"
+    yaml.write_text(PAR_YAML)
+    result = compile_file(str(yaml))
+    assert result.model is not None, result.diagnostics
+    assert structure_of(result.model) == PARALLEL_STRUCTURE
+    rebuilt = model_from_structure(PARALLEL_STRUCTURE)
+    mission = rebuilt.find("Mission")
+    assert mission is not None and mission.parallel
+    assert [(a.region, a.period_ms, a.history, a.path) for a in mission.automata] == [
+        ("Nav", 100, False, "Mission/Nav"), ("Watch", 300, True, "Mission/Watch")]
+    from_model, from_structure = svg_of(result.model), svg_of(rebuilt)
+    for kind in ("node", "cluster"):
+        assert {i for i in ids(from_model, kind) if "#" not in i} == \
+            {i for i in ids(from_structure, kind) if "#" not in i}
+    assert ids(from_structure, "cluster") == {"Mission", "Mission/Nav", "Mission/Watch"}
+    assert ids(svg_of(rebuilt, "Mission/Watch"), "node") >= {"Mission/Watch/Ok", "Mission/Watch/Seen"}
+    with pytest.raises(ValueError, match="bad region"):
+        model_from_structure({**PARALLEL_STRUCTURE, "automata": [
+            *PARALLEL_STRUCTURE["automata"], {"owner": "", "region": "X", "period_ms": 1,
+                                              "initial": "A", "history": False}]})
+
+
+PAR_YAML = """\
+hfsm: 1
+name: par
+period: 100ms
+variables: {n: 0}
+initial: Mission
+states:
+  Mission:
+    regions:
+      Nav:
+        initial: A
+        states:
+          A: {transitions: [{to: B, after: 200ms}]}
+          B: {final: true}
+      Watch:
+        period: 300ms
+        initial: Ok
+        history: true
+        states:
+          Ok: {transitions: [{to: Seen, when: n >= 3, name: seen}]}
+          Seen: {final: true}
+    transitions: [{to: Done, when: done(), name: all done}]
+  Done: {final: true}
+"""
 
 
 # -- the bridge against a real monitor server --------------------------------------------------
@@ -1025,6 +1079,68 @@ def test_a_500_state_model_opens_and_colours_its_active_state(
         s = shown(lambda s: sorted(s["svg"]) == ["G8", "G8/S0"] and s["fills"][0] == GREEN, "G8/S0")
         assert sorted(s["tree"]) == ["G8", "G8/S0"]
         screenshot(driver, "web-500-states", tmp_path)
+    finally:
+        srv.close()
+
+
+REGIONS_JS = r"""
+const fill = (p) => { const g = [...document.querySelectorAll('#hv-diagram g.node')].find((x) => x.id === p);
+                      const e = g && g.querySelector('ellipse'); return e ? getComputedStyle(e).fill : null; };
+const svg = document.querySelector('#hv-diagram svg');
+const inside = (p) => { const g = [...svg.querySelectorAll('g.node')].find((x) => x.id === p);
+  const r = g.getBoundingClientRect(), s = svg.getBoundingClientRect();
+  return r.left >= s.left && r.right <= s.right && r.top >= s.top && r.bottom <= s.bottom; };
+return {status: document.body.dataset.status,
+        svg: [...document.querySelectorAll('#hv-diagram g.hv-active')].map((x) => x.id).sort(),
+        tree: [...document.querySelectorAll('#hv-tree li.hv-active')].map((li) => li.dataset.path),
+        rows: [...document.querySelectorAll('#hv-tree li')].map((li) => li.textContent.replace(/[0-9.]+ s$/, '')),
+        fills: Object.fromEntries(arguments[0].map((p) => [p, fill(p)])),
+        inside: arguments[1].map(inside)};
+"""
+
+
+@needs_browser
+def test_the_page_lights_every_region_of_a_parallel_state(
+        processes: Callable[..., Process], browsers: Callable[[], Any], tmp_path: Path) -> None:
+    """Drawn from the structure alone: each region a group in the tree and a cluster in the
+    picture, the active state of every region green at once, autofocus keeping them all."""
+    srv = monitor.MonitorServer(port=0, announce=io.StringIO())
+    srv.start(PARALLEL_STRUCTURE)
+    leaves = ["Mission/Nav/A", "Mission/Nav/B", "Mission/Watch/Ok", "Mission/Watch/Seen"]
+    try:
+        for rec in PARALLEL_RECORDS[:7]:  # at 200 ms: Nav in B, Watch in Ok
+            srv.record(rec)
+        web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0",
+                         f"127.0.0.1:{srv.port}"], "web")
+        url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+        driver = browsers()
+        driver.get(url)
+
+        def shown(ok: Callable[[dict[str, Any]], bool], focus: list[str]) -> dict[str, Any]:
+            deadline = time.monotonic() + 30
+            while not ok(s := driver.execute_script(REGIONS_JS, leaves, focus)):
+                assert time.monotonic() < deadline, s
+                time.sleep(0.1)
+            assert isinstance(s, dict)
+            return s
+
+        lit = ["Mission", "Mission/Nav", "Mission/Nav/B", "Mission/Watch", "Mission/Watch/Ok"]
+        s = shown(lambda s: s["status"] == "connected" and s["svg"] == lit, [])
+        assert sorted(s["tree"]) == lit
+        assert s["fills"] == {"Mission/Nav/A": WHITE, "Mission/Nav/B": GREEN,  # final states are grey
+                              "Mission/Watch/Ok": GREEN, "Mission/Watch/Seen": "rgb(200, 200, 200)"}, s
+        assert [r.split("open")[0].strip() for r in s["rows"]] == [
+            "▾Mission‖ 2 regions", "▾[Nav]100 ms", "A", "B", "▾[Watch]300 ms history", "Ok", "Seen",
+            "Done"], s["rows"]
+        screenshot(driver, "web-regions", tmp_path)
+        for rec in PARALLEL_RECORDS[7:10]:  # Watch: Ok -> Seen
+            srv.record(rec)
+        s = shown(lambda s: s["fills"]["Mission/Watch/Seen"] == GREEN, [])
+        assert s["fills"]["Mission/Nav/B"] == GREEN and s["fills"]["Mission/Watch/Ok"] == WHITE
+        # Zoomed in by hand, then autofocus on: both regions' active states in view again.
+        driver.execute_script(GESTURE_JS)
+        driver.find_element("id", "hv-autofocus").click()
+        s = shown(lambda s: all(s["inside"]), ["Mission/Nav/B", "Mission/Watch/Seen"])
     finally:
         srv.close()
 

@@ -37,10 +37,24 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
 
     Enough for the diagram: it lacks the conditions and timers of the arrows
     and the ``on_interrupt`` mark, which the monitor protocol does not carry.
-    Raises ValueError when the structure does not hold together.
+    A state's regions are the automata that name it as owner with a ``region``
+    (their states' paths are OWNER/REGION/NAME). Raises ValueError when the
+    structure does not hold together.
     """
     states = [st for st in structure.get("states", ()) if isinstance(st, dict)]
-    autos = {str(a["owner"]): a for a in structure.get("automata", ()) if isinstance(a, dict)}
+    autos: dict[str, dict[str, Any]] = {}  # an automaton's path (OWNER, OWNER/REGION) -> it
+    regions: dict[str, list[str]] = {}  # a parallel state's path -> its regions' names, in order
+    for a in structure.get("automata", ()):
+        if not isinstance(a, dict):
+            continue
+        owner, region = str(a["owner"]), a.get("region")
+        if region:
+            if not owner or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", str(region)):
+                raise ValueError(f"bad region {region!r} of {owner!r}")
+            regions.setdefault(owner, []).append(str(region))
+            autos[f"{owner}/{region}"] = a
+        else:
+            autos[owner] = a
     children: dict[str, list[dict[str, Any]]] = {"": []}
     for st in states:
         path = str(st["path"])
@@ -51,24 +65,28 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
         if isinstance(tr, dict):
             moves.setdefault(str(tr["from"]), []).append(tr)
 
-    def automaton(owner: str, period: int) -> Automaton:
-        info = autos.get(owner, {})
+    def automaton(owner: str, period: int, region: str | None = None) -> Automaton:
+        where = f"{owner}/{region}" if region else owner
+        info = autos.get(where, {})
         period = int(info.get("period_ms", period))
-        kids = tuple(state(st, period) for st in children.get(owner, ()))
+        kids = tuple(state(st, period) for st in children.get(where, ()))
         if not kids:
-            where = repr(owner) if owner else "the root"
-            raise ValueError(f"the structure has no states under {where}")
+            raise ValueError(f"the structure has no states under {repr(where) if where else 'the root'}")
         initial = str(info.get("initial") or kids[0].name)
-        return Automaton(owner=owner, region=None, period_ms=period, period_written=True, initial=initial,
-                         history=bool(info.get("history")), states=kids, span=_NOWHERE,
-                         initial_span=_NOWHERE)
+        return Automaton(owner=owner, region=region, period_ms=period, period_written=True,
+                         initial=initial, history=bool(info.get("history")), states=kids,
+                         span=_NOWHERE, initial_span=_NOWHERE)
 
     def state(st: dict[str, Any], period: int) -> State:
         path = str(st["path"])
         name = path.rpartition("/")[2]
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
             raise ValueError(f"bad state path {path!r}")
-        composite = bool(st.get("composite")) and bool(children.get(path))
+        composite = bool(st.get("composite")) and bool(children.get(path) or regions.get(path))
+        held: tuple[Automaton, ...] = ()
+        if composite:
+            held = tuple(automaton(path, period, r) for r in regions[path]) if path in regions \
+                else (automaton(path, period),)
         trs = tuple(
             Transition(index=int(tr["index"]), target=str(tr["to"]).rpartition("/")[2], when=None,
                        after_us=None, do=None,
@@ -77,7 +95,7 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
             for tr in sorted(moves.get(path, ()), key=lambda tr: int(tr["index"])))
         return State(name=name, path=path, entry=None, during=None, exit=None, transitions=trs,
                      final=bool(st.get("final")),
-                     automata=(automaton(path, period),) if composite else (), span=_NOWHERE)
+                     automata=held, span=_NOWHERE)
 
     root = automaton("", 100)
     return Model(name=str(structure.get("name") or "component"), language="python",

@@ -26,7 +26,8 @@
     pictures: new Map(),   // drawings open as tabs: "" (the whole automaton) or a composite's path -> SVG text
     tab: "",               // the drawing shown
     problem: null,         // why the whole drawing is not the model's
-    composites: new Set(), // paths of the composite states
+    composites: new Set(), // paths of the composite states and of the regions (each drawable alone)
+    regionsOf: new Map(),  // a parallel state's path -> its regions' paths (OWNER/REGION), in order
     folded: new Set(),     // composite states folded in the tree
     dragged: false,        // the last mouse press panned (then it is no click)
     replay: null,          // a replay's trace: {trace, end, fires, variables}
@@ -84,7 +85,14 @@
     $("hv-name").textContent = view.structure.name || "component";
     document.title = (view.structure.name || "component") + " · hfsmc view";
     $("hv-autofocus").checked = msg.autofocus !== false;
+    view.regionsOf = new Map();
+    for (const a of view.structure.automata || []) {
+      if (!a.region) continue;
+      if (!view.regionsOf.has(a.owner)) view.regionsOf.set(a.owner, []);
+      view.regionsOf.get(a.owner).push(a.owner + "/" + a.region);
+    }
     view.composites = new Set(view.structure.states.filter((st) => st.composite).map((st) => st.path));
+    for (const paths of view.regionsOf.values()) for (const p of paths) view.composites.add(p);
     view.order = new Map(view.structure.states.map((s, i) => [s.path, i]));
     view.pictures = new Map([["", msg.svg]]);
     view.tab = "";
@@ -204,12 +212,45 @@
     }
   }
 
+  // A region's row: [Watch] and its period, above its states; lit with its state.
+  function regionRow(path, automaton) {
+    const li = el("li", "hv-region");
+    li.dataset.path = path;
+    li.style.paddingLeft = (4 + 16 * (path.split("/").length - 1)) + "px";
+    const f = el("span", "hv-fold", view.folded.has(path) ? "▸" : "▾");
+    f.title = "fold or unfold";
+    f.addEventListener("click", () => fold(path));
+    li.append(f, el("span", "hv-name", "[" + automaton.region + "]"));
+    const note = [typeof automaton.period_ms === "number" ? automaton.period_ms + " ms" : "",
+                  automaton.history ? "history" : ""].filter((x) => x).join(" ");
+    if (note) li.append(el("span", "hv-note", note));
+    const open = el("span", "hv-open", "open");
+    open.title = "draw this region alone";
+    open.addEventListener("click", () => openSub(path));
+    li.append(open);
+    li._hvTime = li.appendChild(el("span", "hv-time"));
+    return li;
+  }
+
   function buildTree() {
     const tree = $("hv-tree");
     tree.replaceChildren();
     view.rows.clear();
-    const periods = new Map((view.structure.automata || []).map((a) => [a.owner, a.period_ms]));
+    const automata = view.structure.automata || [];
+    // A sub-automaton's period under its path: the owner's, or OWNER/REGION for a region.
+    const periods = new Map(automata.map((a) => [a.region ? a.owner + "/" + a.region : a.owner, a.period_ms]));
+    const regions = new Map(automata.filter((a) => a.region).map((a) => [a.owner + "/" + a.region, a]));
     for (const st of view.structure.states || []) {
+      // The regions a state is the first of: their rows come first, outermost first.
+      const parts = st.path.split("/");
+      for (let i = 2; i < parts.length; i++) {
+        const r = parts.slice(0, i).join("/");
+        if (regions.has(r) && !view.rows.has(r)) {
+          const li = regionRow(r, regions.get(r));
+          tree.appendChild(li);
+          view.rows.set(r, li);
+        }
+      }
       const depth = st.path.split("/").length - 1;
       const li = el("li");
       li.dataset.path = st.path;
@@ -222,6 +263,7 @@
         f.addEventListener("click", () => fold(st.path));
       }
       li.append(f, el("span", "hv-mark"), el("span", "hv-name", st.path.split("/").pop()));
+      if (view.regionsOf.has(st.path)) li.append(el("span", "hv-note", "‖ " + view.regionsOf.get(st.path).length + " regions"));
       if (st.composite && periods.has(st.path)) {
         li.append(el("span", "hv-note", periods.get(st.path) + " ms"));
       }
@@ -250,6 +292,13 @@
       if (li) {
         li.classList.toggle("hv-active", on);
         if (!on) li._hvTime.textContent = "";
+      }
+      // A parallel state's regions are active with it: every one lit at once.
+      for (const r of view.regionsOf.get(path) || []) {
+        const rg = view.elements.get(r);
+        if (rg) rg.classList.toggle("hv-active", on);
+        const rli = view.rows.get(r);
+        if (rli) rli.classList.toggle("hv-active", on);
       }
     };
     if (full) {
@@ -591,19 +640,20 @@
     $("hv-diagram").classList.remove("hv-dragging");
   }
 
-  // Keep the deepest active state in view: pan to it when it is (partly) outside,
-  // and zoom out when it is bigger than the view.
+  // Keep the deepest active states in view (one per region: the innermost drawn active
+  // states): pan to them when they are (partly) outside, and zoom out when they do not fit.
   function autofocus() {
     if (!view.svg || !view.active.size) return;
-    let deepest = null;
-    for (const path of view.active.keys()) {
-      if (!view.elements.has(path)) continue;
-      if (!deepest || path.split("/").length > deepest.split("/").length) deepest = path;
+    const drawn = [...view.active.keys()].filter((p) => view.elements.has(p));
+    const deepest = drawn.filter((p) => !drawn.some((q) => q.startsWith(p + "/")));
+    let a = null, b = null;
+    for (const path of deepest) {
+      const box = svgBox(view.elements.get(path));
+      if (!box) continue;
+      a = a ? {x: Math.min(a.x, box[0].x), y: Math.min(a.y, box[0].y)} : box[0];
+      b = b ? {x: Math.max(b.x, box[1].x), y: Math.max(b.y, box[1].y)} : box[1];
     }
-    if (!deepest) return;
-    const box = svgBox(view.elements.get(deepest));
-    if (!box) return;
-    const [a, b] = box;
+    if (!a || !b) return;
     const [x, y, w, h] = view.box;
     const m = Math.min(Math.max(b.x - a.x, b.y - a.y) * 0.25, Math.min(w, h) * 0.05);
     const inside = a.x - m >= x && a.y - m >= y && b.x + m <= x + w && b.y + m <= y + h;
