@@ -90,14 +90,14 @@ class UseLoader:
                 diags.error("E170", f"used file `{written}` does not exist (looked for {path})", site)
                 return None
             try:
-                read_text(path)
+                text = read_text(path)
             except HfsmcError as e:
                 why = e.diagnostics[0].message if e.diagnostics else "cannot be read"
                 diags.error("E171", f"used file `{written}` cannot be read: {why}", site)
                 return None
             self.stack.append((real, path))
             try:
-                used = self._build(path, written, site, diags)
+                used = self._build(path, text, written, site, diags)
             finally:
                 self.stack.pop()
             if used is None:
@@ -106,12 +106,13 @@ class UseLoader:
         used.sites.append(site)
         return used
 
-    def _build(self, path: str, written: str, site: Span, diags: Diagnostics) -> UsedFile | None:
+    def _build(self, path: str, text: str, written: str, site: Span,
+               diags: Diagnostics) -> UsedFile | None:
         own = Diagnostics()
         doc: Document | None = None
         model: Model | None = None
         try:
-            doc = load(path, own)
+            doc = load(path, own, text)
             if doc.format not in ("yaml", "xml"):
                 diags.error("E172", f"used file `{written}` is a legacy {doc.format} file, not an "
                             "hfsm model", site, f"convert it first: hfsmc convert {path} NEW.yaml")
