@@ -25,7 +25,17 @@ from hfsmc.commands.view import view
 from hfsmc.emit.structure import structure_of
 from hfsmc.pipeline import compile_file
 from tests.conftest import ROOT
-from tests.support import GREEN, RECORDS, STRUCTURE, Client, Tmux, py
+from tests.support import (
+    GREEN,
+    MONITOR_VALIDATOR,
+    PARALLEL_RECORDS,
+    PARALLEL_STRUCTURE,
+    RECORDS,
+    STRUCTURE,
+    Client,
+    Tmux,
+    py,
+)
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
@@ -400,6 +410,36 @@ def test_view_attaches_to_a_monitor(server: Any, capsys: pytest.CaptureFixture[s
                                 "  3.200  interrupt (sigint) -> Done", "  3.200  stop (sigint)"]
     assert err.splitlines() == [f"hfsmc view: connected to 127.0.0.1:{srv.port}",
                                 "hfsmc view: component stopped (sigint)"]
+
+
+def test_view_attaches_to_a_component_with_regions(server: Any, clients: Any,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """The hello names the regions (and validates); a late viewer starts from the innermost
+    state of each region, and follows the transitions inside regions."""
+    srv = server()
+    srv.start(PARALLEL_STRUCTURE)
+    for rec in PARALLEL_RECORDS[:7]:  # at 200 ms: Nav in B, Watch in Ok
+        srv.record(rec)
+    settle(srv)
+    raw = clients(srv.port)
+    hello, snap = raw.message(), raw.message()
+    for m in (hello, snap):
+        MONITOR_VALIDATOR.validate(m)
+    assert hello is not None and hello["structure"] == PARALLEL_STRUCTURE
+    status: list[int] = []
+    th = threading.Thread(target=lambda: status.append(view(f"127.0.0.1:{srv.port}", None)))
+    th.start()
+    time.sleep(0.5)
+    for rec in PARALLEL_RECORDS[7:]:
+        srv.record(rec)
+    srv.close()
+    th.join(10)
+    assert status == [0]
+    assert capsys.readouterr().out.splitlines() == [
+        "  0.200  in Mission/Nav/B, Mission/Watch/Ok",
+        "  0.900  Mission/Watch/Ok -> Mission/Watch/Seen  (seen)",
+        "  1.000  Mission -> Done  (all done)",
+        "  1.000  stop (final)"]
 
 
 def test_view_reports_a_refused_connection(capsys: pytest.CaptureFixture[str]) -> None:

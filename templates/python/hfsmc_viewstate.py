@@ -193,10 +193,13 @@ class ViewState:
         """The deepest active state ("" when none is)."""
         return max(self.active, key=lambda p: p.count("/"), default="")
 
-    def leaves(self) -> list[str]:
-        """The innermost active states, one per active region (one without regions), in
-        model order."""
-        return [p for p in self.active if not any(q.startswith(p + "/") for q in self.active)]
+    def leaves(self, active: Iterable[str] | None = None) -> list[str]:
+        """The innermost of the active states (or of ``active``), one per active region
+        (one without regions), in model order."""
+        paths = list(self.active if active is None else active)
+        order = {p: i for i, p in enumerate(self.paths())}
+        return sorted((p for p in paths if not any(q.startswith(p + "/") for q in paths)),
+                      key=lambda p: order.get(p, len(order)))
 
     def owner(self, path: str) -> str:
         """The state that holds ``path``'s node: its parent, or the parallel state of a region."""
@@ -372,13 +375,12 @@ class PlainLines:
         elif ev == "stop":
             out.append(f"{_ts(payload['t'])}  stop ({clean(payload['reason'])})")
         elif kind == "snapshot":
-            out.append(_snapshot_line(payload))
+            out.append(_snapshot_line(view, payload))
         return out
 
 
-def _snapshot_line(snap: dict[str, Any]) -> str:
+def _snapshot_line(view: ViewState, snap: dict[str, Any]) -> str:
     if snap.get("stop"):
         return f"{_ts(snap['t'])}  stopped ({clean(snap['stop']['reason'])})"
-    paths = [str(a["state"]) for a in snap.get("active", ())]
-    inner = ", ".join(p for p in paths if not any(q.startswith(p + "/") for q in paths))
+    inner = ", ".join(view.leaves(str(a["state"]) for a in snap.get("active", ())))
     return f"{_ts(snap['t'])}  in {clean(inner)}" if inner else f"{_ts(snap['t'])}  not started"

@@ -196,12 +196,9 @@ public:
     // The innermost active states, one per active region, in model order (as Python's leaves()).
     std::vector<std::string> leaves() const {
         std::vector<std::string> out;
-        for (const auto& kv : active.items) {
-            bool inner = true;
-            for (const auto& other : active.items) {
-                if (other.first.compare(0, kv.first.size() + 1, kv.first + "/") == 0) inner = false;
-            }
-            if (inner) out.push_back(kv.first);
+        visit_leaves("", out);
+        for (const auto& kv : active.items) {  // paths outside the tree (none, normally) last
+            if (!children.count(kv.first) && is_leaf(kv.first)) out.push_back(kv.first);
         }
         return out;
     }
@@ -339,6 +336,20 @@ public:
 
 private:
     Ordered<long long> exited_;  // exits since the last enter, fire or interrupt
+
+    bool is_leaf(const std::string& p) const {
+        if (!active.find(p)) return false;
+        for (const auto& other : active.items) {
+            if (other.first.compare(0, p.size() + 1, p + "/") == 0) return false;
+        }
+        return true;
+    }
+    void visit_leaves(const std::string& at, std::vector<std::string>& out) const {
+        for (const auto& child : children.at(at)) {
+            if (is_leaf(child)) out.push_back(child);
+            visit_leaves(child, out);
+        }
+    }
 
     static std::string since_json(const Ordered<long long>& m) {
         std::string o = "[";
