@@ -6,7 +6,11 @@ are filled grey (an initial final state is a grey double circle).  A composite
 state is a cluster labelled with its name, period and ``history`` (and, as a
 cluster cannot be a double circle, ``initial`` and a bold border when it is
 the initial state); below ``depth`` levels it is one tinted circle saying how
-many states it holds.  A transition is an arrow labelled with its name,
+many states it holds.  A state with parallel regions is such a cluster split
+into dashed clusters, one per region (its name and period), side by side in
+the order written: their initial states share a rank.  A sub-automaton taken
+from another file (``use``) has the file's name in its cluster's label.  A
+transition is an arrow labelled with its name,
 ``[when]`` and ``after``, numbered when its state has several (the order they
 are tried); long lines are wrapped, not cut.  The ``on_interrupt`` state gets
 a dashed arrow from an ``interrupt`` marker.  The direction (``rankdir``) is
@@ -32,6 +36,7 @@ running Graphviz.
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,7 +45,7 @@ import graphviz
 from hfsmc.durations import format_us
 from hfsmc.emit.dot_layout import Plan, Spacing, choose_rankdir, text_size
 from hfsmc.emit.dot_text import WRAP, esc_lines, one_line, shorten, wrap
-from hfsmc.errors import UsageError, did_you_mean
+from hfsmc.errors import UsageError
 from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Automaton, Model, State, Transition
 
@@ -101,35 +106,37 @@ SPACING = Spacing(ranksep=_inches(GRAPH_ATTRS["ranksep"]), nodesep=_inches(GRAPH
 
 def to_dot(model: Model, state_path: str | None = None, *, rankdir: str = "auto",
            depth: int | None = None) -> str:
-    """The DOT source of ``model``'s diagram, or of one state's sub-automaton.
+    """The DOT source of ``model``'s diagram, or of one state's sub-automaton
+    or regions, or of one region (``state_path``: ``Mission``, ``Mission/Watch``).
 
     ``rankdir`` is ``LR``, ``TB`` or ``auto`` (chosen from the drawing's
     estimated size); composite states more than ``depth`` levels below the
     drawn sub-automaton are drawn as one node (``depth=0``: its own states
-    only; None: every level).
+    only; None: every level).  A region is a level as a sub-automaton is: the
+    states of a state's regions are one level below it.
 
-    Raises UsageError when ``state_path`` names no state, or a state without a
-    sub-automaton, or for a bad ``rankdir`` / ``depth``.
+    Raises UsageError when ``state_path`` names neither a state nor a region,
+    or a state without a sub-automaton, or for a bad ``rankdir`` / ``depth``.
     """
     if rankdir not in RANKDIRS:
         raise UsageError(f"rankdir must be one of {', '.join(RANKDIRS)}, not {rankdir!r}")
     if depth is not None and depth < 0:
         raise UsageError(f"depth must be 0 or more, not {depth}")
-    auto, title = _select(model, state_path)
+    autos, title = _select(model, state_path)
     g = graphviz.Digraph(
         name=model.name,
         graph_attr={**GRAPH_ATTRS, "label": esc_lines([title])},
         node_attr=NODE_ATTRS,
         edge_attr=EDGE_ATTRS,
     )
-    expanded = _expanded(auto, depth)
+    expanded = _expanded(autos, depth)
     if rankdir == "auto":
         trial = _Drawing(expanded, rows=False)
-        trial.automaton(graphviz.Digraph(), auto, level=1, clusters=())
+        trial.top(graphviz.Digraph(), autos)
         rankdir = choose_rankdir(trial.plan, SPACING)
     g.graph_attr["rankdir"] = rankdir
     drawing = _Drawing(expanded, rows=rankdir == "TB")
-    drawing.automaton(g, auto, level=1, clusters=())
+    drawing.top(g, autos)
     if state_path is None and model.on_interrupt:
         drawing.interrupt(g, model)
     source: str = g.source
@@ -186,39 +193,79 @@ def _stderr_text(stderr: bytes | str | None) -> str:
 # selection
 
 
-def _select(model: Model, state_path: str | None) -> tuple[Automaton, str]:
-    """The sub-automaton to draw and the diagram's title."""
+def _select(model: Model, state_path: str | None) -> tuple[tuple[Automaton, ...], str]:
+    """The sub-automaton (or the regions) to draw and the diagram's title."""
     root_period = format_us(model.root.period_ms * 1000)
     if state_path is None:
-        return model.root, f"{model.name} · period {root_period}"
+        return (model.root,), f"{model.name} · period {root_period}"
     state = model.find(state_path)
-    composites = [s.path for s in model.states() if s.automaton is not None]
+    if state is not None and state.automata:
+        name = _name_line(state.path, state.automaton)
+        return state.automata, f"{model.name}: {name} · {_state_note(state)}"
+    region = model.automaton_at(state_path) if state is None else None
+    if region is not None and region.region is not None:
+        # A region alone is drawn as a sub-automaton is: its states, no dashed box.
+        return (region,), f"{model.name}: {region.path} · region · {_automaton_note(region)}"
+    drawable = _drawable(model)
     if state is None:
-        msg = f"--state {state_path}: no such state in model `{model.name}`"
-        hint = did_you_mean(state_path, composites)
-        raise UsageError(f"{msg} ({hint})" if hint else msg + _listing(composites))
-    if state.automaton is None:
-        raise UsageError(
-            f"--state {state_path}: state `{state.path}` has no sub-automaton to draw"
-            + _listing(composites)
-        )
-    return state.automaton, f"{model.name}: {state.path} · {_automaton_note(state.automaton)}"
+        msg = f"--state {state_path}: no such state or region in model `{model.name}`"
+        near = _nearest(state_path, drawable)
+        raise UsageError(f"{msg} (did you mean {near}?)" if near else msg + _listing(drawable))
+    raise UsageError(
+        f"--state {state_path}: state `{state.path}` has no sub-automaton to draw"
+        + _listing(drawable)
+    )
 
 
-def _listing(composites: list[str]) -> str:
-    if not composites:
+def _drawable(model: Model) -> dict[str, bool]:
+    """What ``--state`` takes, in model order: the paths of composite states
+    (False) and of regions (True)."""
+    out: dict[str, bool] = {}
+    for s in model.states():
+        if s.automata:
+            out[s.path] = False
+            if s.parallel:
+                out.update(dict.fromkeys((a.path for a in s.automata), True))
+    return out
+
+
+def _nearest(path: str, drawable: dict[str, bool]) -> str | None:
+    """The valid paths nearest a wrong one, quoted: a composite state's path
+    that is ``path`` with region names added (``Mission/Nav/Go`` for
+    ``Mission/Go``), else up to three spelt alike."""
+    regions = sorted((p for p, is_region in drawable.items() if is_region), key=len, reverse=True)
+
+    def without_regions(p: str) -> str:
+        for r in regions:  # innermost first
+            if p.startswith(r + "/"):
+                return without_regions(r.rpartition("/")[0] + p[len(r):])
+        return p
+
+    close = [p for p, is_region in drawable.items()
+             if not is_region and p != path and without_regions(p) == path]
+    close = close or difflib.get_close_matches(path, list(drawable), n=3, cutoff=0.6)
+    return " or ".join(f"`{p}`" for p in close) or None
+
+
+def _listing(drawable: dict[str, bool]) -> str:
+    if not drawable:
         return "; this model has no composite state"
-    return "; composite states: " + ", ".join(composites)
+    if not any(drawable.values()):
+        return "; composite states: " + ", ".join(drawable)
+    return "; composite states and regions: " + ", ".join(
+        f"{p} (region)" if is_region else p for p, is_region in drawable.items())
 
 
-def _expanded(auto: Automaton, depth: int | None, level: int = 1) -> frozenset[str]:
-    """Paths of the composite states under ``auto`` drawn as clusters: those
-    at most ``depth`` levels down (the states of ``auto`` are level 1)."""
+def _expanded(autos: tuple[Automaton, ...], depth: int | None, level: int = 1) -> frozenset[str]:
+    """Paths of the composite states under ``autos`` drawn as clusters: those
+    at most ``depth`` levels down (the states of ``autos`` are level 1, those
+    of a state's sub-automaton or regions one more)."""
     out: set[str] = set()
-    for s in auto.states:
-        if s.automaton is not None and (depth is None or level <= depth):
-            out.add(s.path)
-            out |= _expanded(s.automaton, depth, level + 1)
+    for a in autos:
+        for s in a.states:
+            if s.automata and (depth is None or level <= depth):
+                out.add(s.path)
+                out |= _expanded(s.automata, depth, level + 1)
     return frozenset(out)
 
 
@@ -235,6 +282,13 @@ class _Drawing:
     rows: bool  # small flat sub-automata in one row (top-to-bottom drawings)
     plan: Plan = field(default_factory=Plan)
 
+    def top(self, g: graphviz.Digraph, autos: tuple[Automaton, ...]) -> None:
+        """What is drawn: one sub-automaton, or a state's regions side by side."""
+        if len(autos) == 1:
+            self.automaton(g, autos[0], level=1, clusters=())
+        else:
+            self.regions(g, autos, level=1, clusters=(), fill=None)
+
     def automaton(self, g: graphviz.Digraph, auto: Automaton, level: int,
                   clusters: tuple[str, ...]) -> None:
         """The states of ``auto`` (clusters for composite ones), then its transitions.
@@ -244,19 +298,20 @@ class _Drawing:
         """
         for s in auto.states:
             initial = s.name == auto.initial
-            if s.automaton is None or s.path not in self.expanded:
+            if not s.automata or s.path not in self.expanded:
                 attrs = _state_attrs(s, initial, level)
                 g.node(_node_id(s), **attrs)
                 self.plan.node(_node_id(s), _circle_size(attrs["label"]), clusters)
                 continue
-            cluster = _cluster_id(s)
-            label = [s.name, _automaton_note(s.automaton, initial)]
+            cluster = _cluster_id(s.path)
+            label = [_name_line(s.name, s.automaton), _state_note(s, initial)]
             self.plan.cluster_label[cluster] = text_size(label, CLUSTER_FONTSIZE)
+            fill = CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)]
             with g.subgraph(name=cluster) as c:
                 c.attr(
                     label=esc_lines(label, left=True),
                     style="rounded,filled" + (",bold" if initial else ""),
-                    fillcolor=CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)],
+                    fillcolor=fill,
                     color=BORDER,
                     penwidth="2" if initial else "1.2",
                     fontsize=str(CLUSTER_FONTSIZE),
@@ -265,7 +320,10 @@ class _Drawing:
                     tooltip=s.path,
                     id=s.path,
                 )
-                self.automaton(c, s.automaton, level + 1, (*clusters, cluster))
+                if s.automaton is not None:
+                    self.automaton(c, s.automaton, level + 1, (*clusters, cluster))
+                else:
+                    self.regions(c, s.automata, level + 1, (*clusters, cluster), fill)
         row_of: dict[str, int] = {}
         for i, ids in enumerate(self.row_groups(auto, level)):
             self.row(g, ids)
@@ -273,6 +331,42 @@ class _Drawing:
         for s in auto.states:
             for t in s.transitions:
                 self.transition(g, s, t, auto, clusters, row_of)
+
+    def regions(self, g: graphviz.Digraph, regions: tuple[Automaton, ...], level: int,
+                clusters: tuple[str, ...], fill: str | None) -> None:
+        """Each region a dashed cluster (tinted as its state's, ``fill``) labelled
+        with its name and period, in the order written; their initial states on
+        one rank, so that the regions stand side by side, not one after another.
+
+        Of clusters that share ranks, dot puts the one declared last first (a
+        left-to-right drawing flips that to the order declared, top to bottom),
+        so top to bottom the regions are declared last first.  It is what dot
+        starts from; to cross fewer arrows it may still swap regions."""
+        for a in reversed(regions) if self.rows else regions:
+            cluster = _cluster_id(a.path)
+            label = [_name_line(a.region or "", a), _automaton_note(a)]
+            self.plan.cluster_label[cluster] = text_size(label, CLUSTER_FONTSIZE)
+            with g.subgraph(name=cluster) as c:
+                c.attr(
+                    label=esc_lines(label, left=True),
+                    style="rounded,dashed" + (",filled" if fill else ""),
+                    color=BORDER,
+                    penwidth="1.5",
+                    fontsize=str(CLUSTER_FONTSIZE),
+                    labeljust="l",
+                    margin=str(CLUSTER_MARGIN),
+                    tooltip=a.path,
+                    id=a.path,
+                    **({"fillcolor": fill} if fill else {}),
+                )
+                self.automaton(c, a, level, (*clusters, cluster))
+        starts = [_node_id(self.entry_anchor(s)) for a in regions
+                  if (s := a.state(a.initial)) is not None]
+        self.plan.aligned.append(tuple(starts))
+        with g.subgraph() as same:
+            same.attr(rank="same")
+            for node_id in starts:
+                same.node(node_id)
 
     def is_pair(self, auto: Automaton) -> bool:
         """Whether a nested sub-automaton is a pair of simple states (or one)."""
@@ -332,8 +426,8 @@ class _Drawing:
                margin="0.04,0.02", fontsize=EDGE_ATTRS["fontsize"], id=f"{ident}:label")
         self.plan.node(via, size, clusters)
         g.edge(tail, via, arrowhead="none", id=ident,
-               **({"ltail": _cluster_id(src)} if out_of else {}))
-        g.edge(via, head, id=f"{ident}:head", **({"lhead": _cluster_id(dst)} if into else {}))
+               **({"ltail": _cluster_id(src.path)} if out_of else {}))
+        g.edge(via, head, id=f"{ident}:head", **({"lhead": _cluster_id(dst.path)} if into else {}))
         self.plan.edge(tail, via)
         self.plan.edge(via, head)
 
@@ -353,17 +447,17 @@ class _Drawing:
                fillcolor="#fbe9e7", color=INTERRUPT_COLOR, fontcolor=INTERRUPT_COLOR,
                fontsize=EDGE_ATTRS["fontsize"], width="0", height="0", margin="0.06,0.03",
                tooltip=f"on_interrupt: {target.path}", id=marker)
-        into = {"lhead": _cluster_id(target)} if target.path in self.expanded else {}
+        into = {"lhead": _cluster_id(target.path)} if target.path in self.expanded else {}
         g.edge(marker, head, style="dashed", color=INTERRUPT_COLOR, id=f"{marker}:head", **into)
 
     def entry_anchor(self, s: State) -> State:
         """The node an edge into ``s`` attaches to: ``s``, or its initial leaf.
 
         The initial child is what the layout puts first in a cluster, so edges
-        come in where the sub-automaton starts.
+        come in where the sub-automaton starts (the first region's, for regions).
         """
-        while s.automaton is not None and s.path in self.expanded:
-            child = s.automaton.state(s.automaton.initial)
+        while s.automata and s.path in self.expanded:
+            child = s.automata[0].state(s.automata[0].initial)
             if child is None:  # cannot happen in a checked model
                 break
             s = child
@@ -377,11 +471,12 @@ class _Drawing:
         puts the target after the whole cluster, not beside it.  A row is on
         one rank: arrows leave where they come in, from the initial state, so
         that clusters in a chain stay in line instead of stepping sideways.
+        Of regions, the one whose farthest child is farthest is left from.
         """
-        while s.automaton is not None and s.path in self.expanded:
-            if self.rows and self.is_pair(s.automaton):
+        while s.automata and s.path in self.expanded:
+            if self.rows and all(self.is_pair(a) for a in s.automata):
                 return self.entry_anchor(s)
-            s = _farthest(s.automaton)
+            s = max((_farthest(a) for a in s.automata), key=lambda far: far[1])[0]
         return s
 
 
@@ -396,9 +491,10 @@ def _state_attrs(s: State, initial: bool, level: int) -> dict[str, str]:
     if s.final:
         attrs["fillcolor"] = FINAL_FILL
         attrs["penwidth"] = "2"
-    if s.automaton is not None:  # a composite state below the depth drawn
-        count = len(s.automaton.states)
-        attrs["label"] = esc_lines([s.name, f"({count} state{'s' * (count != 1)})"])
+    if s.automata:  # a composite state below the depth drawn
+        count, what = (len(s.automata), "region") if s.parallel else (
+            len(s.automata[0].states), "state")
+        attrs["label"] = esc_lines([s.name, f"({count} {what}{'s' * (count != 1)})"])
         attrs["fillcolor"] = CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)]
         attrs["color"] = BORDER
         attrs["penwidth"] = "2"
@@ -411,6 +507,23 @@ def _circle_size(label: str) -> tuple[float, float]:
     width, height = text_size(lines, float(NODE_ATTRS["fontsize"]))
     d = max(_inches(NODE_ATTRS["width"]), 1.36 * max(width, height) + 8)
     return d, d
+
+
+def _name_line(name: str, auto: Automaton | None) -> str:
+    """A cluster's first line: the name, then the file a used sub-automaton
+    comes from (``TakeOff · lib/takeoff.yaml``)."""
+    if auto is None or auto.instance is None:
+        return name
+    return f"{name} · {auto.instance.written}"
+
+
+def _state_note(s: State, initial: bool = False) -> str:
+    """A composite state's second line: its sub-automaton's period, or how
+    many regions it has (each says its own period)."""
+    if s.automaton is not None:
+        return _automaton_note(s.automaton, initial)
+    note = f"{len(s.automata)} regions"
+    return "initial · " + note if initial else note
 
 
 def _automaton_note(auto: Automaton, initial: bool = False) -> str:
@@ -429,8 +542,9 @@ def _node_id(s: State) -> str:
     return s.path
 
 
-def _cluster_id(s: State) -> str:
-    return f"cluster_{s.path}"
+def _cluster_id(path: str) -> str:
+    """A composite state's or a region's cluster: ``cluster_`` and its path."""
+    return f"cluster_{path}"
 
 
 def _transition_id(src: State, t: Transition) -> str:
@@ -456,9 +570,10 @@ def _chain(auto: Automaton, expanded: frozenset[str]) -> list[State]:
     return order if s is None and len(order) == len(auto.states) else []
 
 
-def _farthest(auto: Automaton) -> State:
+def _farthest(auto: Automaton) -> tuple[State, int]:
     """The child of ``auto`` with the longest shortest path from the initial child
-    (the last such in model order); unreachable children do not count."""
+    (the last such in model order), and that length; unreachable children do
+    not count."""
     start = auto.state(auto.initial) or auto.states[0]
     dist = {start.name: 0}
     queue = [start]
@@ -472,7 +587,7 @@ def _farthest(auto: Automaton) -> State:
     for s in auto.states:
         if s.name in dist and dist[s.name] >= dist[best.name]:
             best = s
-    return best
+    return best, dist[best.name]
 
 
 # ---------------------------------------------------------------------------

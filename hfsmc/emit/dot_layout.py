@@ -37,6 +37,9 @@ class Plan:
     cluster_label: dict[str, tuple[float, float]] = field(default_factory=dict)
     # Node ids that share a rank when drawn top to bottom (rank=same).
     rows: list[tuple[str, ...]] = field(default_factory=list)
+    # Node ids that share a rank in both directions: the initial states of
+    # parallel regions, drawn side by side.
+    aligned: list[tuple[str, ...]] = field(default_factory=list)
 
     def node(self, node_id: str, size: tuple[float, float], clusters: tuple[str, ...]) -> None:
         self.nodes[node_id] = size
@@ -124,12 +127,9 @@ def estimate(plan: Plan, spacing: Spacing, rankdir: str) -> tuple[float, float]:
 
 def _ranks(plan: Plan, rows: bool) -> dict[str, int]:
     """Each node's rank: cycles broken depth first in declaration order, then
-    the longest path from the sources, two ranks per edge; with ``rows``, the
-    nodes of a row count as one."""
-    rep = {n: n for n in plan.nodes}
-    for row in plan.rows if rows else []:
-        for n in row:
-            rep[n] = row[0]
+    the longest path from the sources, two ranks per edge; the nodes of an
+    aligned group, and with ``rows`` of a row, count as one."""
+    rep = _groups(plan.nodes, [*(plan.rows if rows else []), *plan.aligned])
     nodes = dict.fromkeys(rep[n] for n in plan.nodes)
     out_edges: dict[str, list[str]] = {n: [] for n in nodes}
     for tail, head, _ in plan.edges:
@@ -160,6 +160,24 @@ def _ranks(plan: Plan, rows: bool) -> dict[str, int]:
         for nxt in kept[node]:
             rank[nxt] = max(rank[nxt], rank[node] + 2)
     return {n: rank[rep[n]] for n in plan.nodes}
+
+
+def _groups(nodes: dict[str, tuple[float, float]], groups: list[tuple[str, ...]]
+            ) -> dict[str, str]:
+    """Each node's representative: groups that share a node merge (a row of
+    a region holding its initial state is aligned with the other regions)."""
+    rep = {n: n for n in nodes}
+
+    def find(n: str) -> str:
+        while rep[n] != n:
+            n = rep[n]
+        return n
+
+    for group in groups:
+        first = find(group[0])
+        for n in group[1:]:
+            rep[find(n)] = first
+    return {n: find(n) for n in nodes}
 
 
 def _topological(nodes: dict[str, None], succ: dict[str, list[str]]) -> list[str]:
