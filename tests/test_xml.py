@@ -358,7 +358,7 @@ def regions(first: str, where: str = "state") -> str:
     ('<region name="Q" initial="A"/>', "state", "E102", '<region name="Q"', None),
     ('<region initial="A"><state name="A"/></region>', "state", "E102", "<region initial", None),
     ('<region name="Q" initial="A"><state name="A"/><transition to="A"/></region>', "state",
-     "E100", '<transition to="A"/></region>', "allowed in `<region>`: state"),
+     "E100", '<transition to="A"/></region>', "allowed in `<region>`: description, state"),
     ('<region name="Q" initial="A"><state name="A"/></region>', "automaton",
      "E100", '<region name="Q"', None),
     ('<region name="R" initial="A"><state name="A"/></region>', "state",
@@ -378,7 +378,7 @@ def test_region_errors_at_their_position(region: str, where_: str, code: str, at
 def test_regions_read_as_yaml_writes_them() -> None:
     """`<region>` gives the Document YAML's `regions` gives: the same IR, spans in the XML."""
     xml = wrap(regions('<region name="Q" period="20ms" initial="A" history="true">'
-                       '<state name="A" final="true"/></region>') + "\n")
+                       '<description>q</description><state name="A" final="true"/></region>') + "\n")
     yaml = """\
 hfsm: 1
 name: m
@@ -386,11 +386,13 @@ initial: W
 states:
   W:
     regions:
-      Q: {period: 20ms, initial: A, history: true, states: {A: {final: true}}}
+      Q: {period: 20ms, initial: A, history: true, description: q, states: {A: {final: true}}}
       R: {initial: B, states: {B: {final: true}}}
 """
     model = built("m.xml", xml)
     assert model == built("m.yaml", yaml)
+    docs = [load(f"m.{kind}", Diagnostics(), text).data for kind, text in (("xml", xml), ("yaml", yaml))]
+    assert docs[0] == docs[1]
     q, r = model.root.states[0].automata
     line = xml.splitlines()[1]
     assert (q.region, q.path, q.period_ms, q.history, r.region) == ("Q", "W/Q", 20, True, "R")

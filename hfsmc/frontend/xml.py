@@ -391,7 +391,10 @@ class _Converter:
         states: dict[str, Any] = {}
         self.put(d, (*path, "states"), states, self.index.span(el), self.index.span(el))
         for child in self.children(el):
-            self.state(child, (*path, "states"), states)
+            if child.tag == "description":  # a region's, as YAML's region may have
+                d["description"] = self.text(child, (*path, "description"))
+            else:
+                self.state(child, (*path, "states"), states)
 
     def state(self, el: Element, path: PathKey, states: dict[str, Any]) -> None:
         found = self.named(el, path, states, "state")
