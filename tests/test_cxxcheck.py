@@ -337,7 +337,8 @@ def test_active_paths_and_done_are_checked_in_both_languages(tmp_path: Path, lan
     got = [(d.code, str(d.span), d.notes) for d in r.diagnostics if d.code in ("E146", "W215")]
     assert got == [
         ("W215", f"{path}:{first}:{entry_col}",
-         ("done() says whether the owning state's sub-automaton is in a final state",)),
+         ("done() says whether the owning state's sub-automaton (every one of its regions) is in a "
+          "final state",)),
         ("E146", f"{path}:{first + 1}:{fwd_col}", ("did you mean `Patrol/Forward`?",)),
     ], r.diagnostics
     messages = [d.message for d in r.diagnostics if d.code == "E146"]

@@ -23,7 +23,7 @@ import jinja2
 from hfsmc.emit.comments import comment_text
 from hfsmc.emit.data import component_config
 from hfsmc.emit.templating import environment, runtime_files, template_folder
-from hfsmc.emit.walk import MachineView, Snippet, Walk
+from hfsmc.emit.walk import InstanceView, MachineView, Snippet, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, Value
 
@@ -129,6 +129,43 @@ class TransitionIndices:
 
 
 @dataclass(frozen=True, slots=True)
+class SnippetRow:
+    """A row of the component's table of every snippet: one of an instance of a used file."""
+
+    kind: str
+    owner: int  # state index in the component
+    line: int
+    col: int
+    file_literal: str  # the used file, as a C++ string literal
+
+
+@dataclass(frozen=True, slots=True)
+class CppUnitView:
+    """A used file's code: a class template, one object per `use`."""
+
+    cls: str  # `_hfsm_U_NAME`
+    base: str  # the used file's name
+    parameters: tuple[MemberView, ...]
+    variables: tuple[MemberView, ...]
+    interfaces: tuple[InterfaceView, ...]  # references to the using model's
+    machine: MachineView[CppSnippet]
+
+
+@dataclass(frozen=True, slots=True)
+class CppInstanceView:
+    """One instance of a used file: a member of the component, and its snippets' rows."""
+
+    number: int  # the member `_hfsm_i{number}`
+    cls: str
+    base: int
+    sid0: int
+    prefix_literal: str  # the using state's path
+    where_literal: str  # how active() errors name it
+    arguments: tuple[str, ...]  # its parameters' then its interfaces' C++ expressions
+    rows: tuple[SnippetRow, ...]
+
+
+@dataclass(frozen=True, slots=True)
 class CppComponentView:
     """Everything ``component.cpp.j2``, ``CMakeLists.txt.j2`` and ``config.yaml.j2`` print,
     computed."""
@@ -149,6 +186,8 @@ class CppComponentView:
     interrupt_timeout_us: int  # -1 without one
     transition_indices: tuple[TransitionIndices, ...]
     first_child: tuple[int, ...]  # per state: where its sub-automata start in _hfsm_CHILDREN
+    units: tuple[CppUnitView, ...]
+    instances: tuple[CppInstanceView, ...]
     line_back: str  # a #line back into the generated file (numbered after rendering)
     config: str  # the body of NAME.yaml
 
@@ -156,9 +195,10 @@ class CppComponentView:
 class CppWalk(Walk[CppSnippet]):
     """Walks the IR once and makes the view of the templates."""
 
-    def __init__(self, model: Model) -> None:
+    def __init__(self, model: Model, unit: str = "") -> None:
         super().__init__(model)
         self.file = model.file
+        self.unit = unit  # a used file's unit name (unit_view)
 
     def lines(self, code: Code) -> tuple[str, int, int]:
         """The snippet's text, each line after a #line directive and padded to its column."""
@@ -210,11 +250,36 @@ class CppWalk(Walk[CppSnippet]):
                 cpp_string(i.url or ""), "{" + options + "}", _line(self.file, i.span.line)))
         return tuple(params), tuple(variables), tuple(interfaces)
 
+    def unit_view(self) -> CppUnitView:
+        """The code of a used file (this walk's model) as its class prints it."""
+        params, variables, interfaces = self.members()
+        return CppUnitView(unit_class(self.unit), self.base, params, variables, interfaces,
+                           self.machine())
+
+    def instance_view(self, i: InstanceView, unit: CppUnitView) -> CppInstanceView:
+        inst = i.instance
+        owner = "" if i.parent == 0 else f"_hfsm_i{i.parent}."
+        args = []
+        for p in inst.model.parameters:
+            b = inst.binding(p.name)
+            args.append(f"{owner}{b.source}" if b.source is not None else cpp_literal(b.value, p.type))
+        for f in inst.model.interfaces:
+            args.append(f"{owner}{inst.binding(f.name).source or f.name}")
+        file = cpp_string(inst.file)
+        rows = tuple(SnippetRow(s.kind, self.root if s.owner >= i.count else i.base + s.owner,
+                                s.line, s.col, file) for s in unit.machine.snippets)
+        return CppInstanceView(i.number, unit.cls, i.base, i.sid0, cpp_string(i.prefix),
+                               cpp_string(f"{inst.written} (used at {i.prefix})"), tuple(args), rows)
+
     def view(self) -> CppComponentView:
         m = self.model
         machine = self.machine()
         params, variables, interfaces = self.members()
         kinds = {i.type for i in m.interfaces}
+        units = {u.name: CppWalk(u.model, u.name).unit_view() for u in machine.units}
+        imports = list(m.imports)
+        for u in machine.units:  # the used files' imports are merged, once each
+            imports += [i for i in u.model.imports if i.text not in {k.text for k in imports}]
         return CppComponentView(
             name=m.name,
             name_literal=cpp_string(m.name),
@@ -223,8 +288,8 @@ class CppWalk(Walk[CppSnippet]):
             source_literal=cpp_string(f"src/{m.name}.cpp"),
             description_lines=tuple(comment_text(ln)
                                     for ln in (m.description or "").strip().splitlines()),
-            includes=tuple(IncludeView(_include(i.text), _line(self.file, i.span.line))
-                           for i in m.imports),
+            includes=tuple(IncludeView(_include(i.text), _line(i.span.file, i.span.line))
+                           for i in imports),
             driver_headers=tuple(f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds)
                                  if k in INTERFACE_FILES),
             parameters=params,
@@ -242,9 +307,16 @@ class CppWalk(Walk[CppSnippet]):
                                   cpp_string(t.name or ""))
                 for s in self.states for t in s.transitions),
             first_child=_offsets([len(st.children) for st in machine.states]),
+            units=tuple(units.values()),
+            instances=tuple(self.instance_view(i, units[i.unit]) for i in machine.instances),
             line_back=_BACK,
             config=component_config(m),
         )
+
+
+def unit_class(unit: str) -> str:
+    """The class of a used file's code."""
+    return f"_hfsm_U_{unit}"
 
 
 def _offsets(counts: list[int]) -> tuple[int, ...]:

@@ -81,6 +81,7 @@ struct SnippetInfo {
     const char* kind;  // entry during exit when do functions on_shutdown
     int owner;  // state index; the number of states for the root's snippets
     int line, col;  // of its first line in the model
+    const char* file;  // the used file a snippet of an instance (`use`) is in; nullptr: the model
 };
 struct ParameterInfo {  // for --help
     const char* name;
@@ -394,7 +395,7 @@ public:
                      json_string(s.kind) + "}";
             emit(r);
         }
-        std::string text = std::string(tb_.file) + ":" + std::to_string(s.line) + ":" +
+        std::string text = std::string(s.file ? s.file : tb_.file) + ":" + std::to_string(s.line) + ":" +
                            std::to_string(s.col) + ": error: " + what + "\n";
         text += path.empty() ? "  in " + std::string(s.kind) + "\n"
                              : "  in " + std::string(s.kind) + " of state `" + path + "`\n";
@@ -438,6 +439,14 @@ public:
         const auto found = by_path_.find(path);
         if (found != by_path_.end()) return is_active[static_cast<std::size_t>(found->second)] != 0;
         throw std::invalid_argument("active(" + string_repr(path) + "): no such state in " + tb_.name);
+    }
+    // active() inside an instance of a used file: paths below the using state.
+    bool active_below(const std::string& prefix, std::string_view path, const char* where) const {
+        while (!path.empty() && path.front() == '/') path.remove_prefix(1);
+        while (!path.empty() && path.back() == '/') path.remove_suffix(1);
+        const auto found = by_path_.find(prefix + "/" + std::string(path));
+        if (found != by_path_.end()) return is_active[static_cast<std::size_t>(found->second)] != 0;
+        throw std::invalid_argument("active(" + string_repr(path) + "): no such state in " + where);
     }
     void shutdown() {
         if (interrupting_.empty() && !stopping_ && request_ == nullptr) request_ = "shutdown";
