@@ -7,6 +7,7 @@ import importlib
 import io
 import json
 import re
+import subprocess
 import sys
 import threading
 import time
@@ -551,3 +552,57 @@ def test_regions_are_inferred_from_a_trace_and_survive_a_snapshot() -> None:
     assert late.active == source.active
     assert hfsmc_view.PlainLines().lines(late, "snapshot", source.snapshot()) == [
         "  0.900  in Mission/Nav/B, Mission/Watch/Seen"]
+
+
+SLOW_PAR = """\
+hfsm: 1
+name: slowpar
+period: 100ms
+variables: {n: 0}
+initial: Mission
+states:
+  Mission:
+    regions:
+      Navigate:
+        period: 50ms
+        initial: A
+        states:
+          A: {transitions: [{to: B, after: 600ms}]}
+          B: {transitions: [{to: C, after: 600ms}]}
+          C: {final: true}
+      Watch:
+        period: 200ms
+        initial: Ok
+        history: true
+        states:
+          Ok: {during: "n += 1", transitions: [{to: Seen, when: n >= 10}]}
+          Seen: {final: true}
+    transitions: [{to: Done, when: done()}]
+  Done: {final: true}
+"""
+
+
+@pytest.mark.timeout(90)
+def test_component_display_of_regions_in_a_terminal(tmux: Callable[..., Tmux], tmp_path: Path) -> None:
+    """A real component with two regions: both regions' active states green at once, then
+    --focus on a region shows that region alone."""
+    (tmp_path / "slowpar.yaml").write_text(SLOW_PAR)
+    subprocess.run([sys.executable, "-m", "hfsmc", "build", "slowpar.yaml", "-o", "out"], cwd=tmp_path,
+                   check=True, capture_output=True, timeout=120, stdin=subprocess.DEVNULL)
+    main = tmp_path / "out" / "slowpar.py"
+    t = tmux(py(main, "--clock", "real", "--until", "4s", "--display"), tmp_path)
+    text = t.wait(lambda s: bool(re.search(GREEN + "● B", s)), colors=True)
+    assert re.search(GREEN + "● Ok", text) and re.search(GREEN + r"\[Watch 200 ms history\]", text)
+    tree = [line[:31].rstrip() for line in t.screen().splitlines()[:9]]
+    assert [re.sub(r"\d\.\ds", "_", line) for line in tree] == [
+        "slowpar  100 ms", "├── ● Mission ‖  _", "│   ├── [Navigate 50 ms]", "│   │   ├── ○ A",
+        "│   │   ├── ● B  _", "│   │   └── ○ C  final", "│   └── [Watch 200 ms history]",
+        "│       ├── ● Ok  _", "│       └── ○ Seen  final"], tree
+    text = t.wait(lambda s: "EXIT=0" in s)
+    assert re.search(r"○ Mission ‖\s+▸ 2 regions", text) and "stopped (final)" in text
+    done = subprocess.run([sys.executable, str(main), "--until", "5s", "--display", "--focus", "/Mission/Watch/"],
+                          capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["  0.000  start slowpar in Mission/Navigate/A, Mission/Watch/Ok",
+                                        "  2.000  Mission/Watch/Ok -> Mission/Watch/Seen",
+                                        "  2.100  stop (final)"]

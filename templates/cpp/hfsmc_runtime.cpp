@@ -446,14 +446,21 @@ void print_help(const Tables& tb) {
     }
 }
 
-// --focus names a state that holds a sub-automaton (or the root: `/`).
+// --focus names a state that holds a sub-automaton (or the root: `/`), or a region.
 void check_focus(const Tables& tb, const std::string& focus) {
     std::size_t a = 0, b = focus.size();
     while (a < b && focus[a] == '/') ++a;
     while (b > a && focus[b - 1] == '/') --b;
     const std::string path = focus.substr(a, b - a);
     if (path.empty()) return;
-    std::vector<std::string> all, composite;
+    std::vector<std::string> all, composite, regions;
+    for (int k = 0; k < tb.n_automata; ++k) {  // a region: OWNER/REGION
+        const AutomatonInfo& info = tb.automata[k];
+        if (!info.region || info.owner < 0) continue;
+        const std::string region = std::string(tb.states[info.owner].path) + "/" + info.region;
+        if (path == region) return;
+        regions.push_back(region);
+    }
     for (int k = 0; k < tb.n_states; ++k) {
         if (path == tb.states[k].path) {
             if (tb.states[k].n_children == 0)
@@ -463,6 +470,7 @@ void check_focus(const Tables& tb, const std::string& focus) {
         all.emplace_back(tb.states[k].path);
         if (tb.states[k].n_children > 0) composite.emplace_back(tb.states[k].path);
     }
+    composite.insert(composite.end(), regions.begin(), regions.end());
     throw UsageError("--focus " + focus + ": no state `" + path + "` in " + tb.name +
                      did_you_mean(path, composite.empty() ? all : composite));
 }

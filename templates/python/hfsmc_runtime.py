@@ -890,13 +890,16 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
 
 
 def _check_focus(engine: Engine, focus: str | None) -> None:
-    """--focus must name a state that holds a sub-automaton (the root: `/`)."""
+    """--focus must name a state that holds a sub-automaton (the root: `/`), or a region."""
     if focus is None or not focus.strip("/"):
         return
     path = focus.strip("/")
     i = engine.index.get(path)
+    regions = [f"{engine.paths[o]}/{r}" for o, r in zip(engine.m["owners"], engine.m["regions"], strict=True) if r]
+    if i is None and path in regions:
+        return
     if i is None:
-        composite = [p for k, p in enumerate(engine.paths[:-1]) if engine.children[k]]
+        composite = [p for k, p in enumerate(engine.paths[:-1]) if engine.children[k]] + regions
         raise UsageError(f"--focus {focus}: no state `{path}` in {engine.name}"
                          f"{_did_you_mean(path, composite or engine.paths[:-1])}")
     if not engine.children[i]:
