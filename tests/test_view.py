@@ -26,6 +26,7 @@ from tests.support import (
     GREEN,
     PARALLEL_RECORDS,
     PARALLEL_STRUCTURE,
+    PARALLEL_TRACE,
     RECORDS,
     STRUCTURE,
     TRACE,
@@ -606,3 +607,16 @@ def test_component_display_of_regions_in_a_terminal(tmux: Callable[..., Tmux], t
     assert done.stdout.splitlines() == ["  0.000  start slowpar in Mission/Navigate/A, Mission/Watch/Ok",
                                         "  2.000  Mission/Watch/Ok -> Mission/Watch/Seen",
                                         "  2.100  stop (final)"]
+
+
+def test_replay_of_a_trace_with_regions(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Without the model the regions are inferred from the trace; --focus takes a region."""
+    trace = tmp_path / "par.trace"
+    trace.write_text(PARALLEL_TRACE)
+    assert view(None, str(trace), focus="Mission/Watch", speed=0) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        "  0.000  start par in Mission/Nav/A, Mission/Watch/Ok",
+        "  0.900  Mission/Watch/Ok -> Mission/Watch/Seen",
+        "  1.000  stop (final)"]
+    assert view(None, str(trace), focus="Mission/Wat", speed=0) == 2
+    assert "--focus Mission/Wat: no state of that path" in capsys.readouterr().err
