@@ -31,7 +31,8 @@ MODEL = MONITOR / "monitor_area.yaml"
 MODEL_CPP = ROOT / "examples/monitor_area_cpp/monitor_area_cpp.yaml"
 SITL_SECONDS = 133  # ArduCopter SITL flew it in 133 s from take-off to the end (project issue 13)
 BAND = 1.0  # m: the altitude kept within this of the mission's altitude
-FLYING = ("Mission", "Correct", "LinkLost")  # between take-off and landing
+FLYING = ("Flight", "LinkLost")  # between take-off and landing
+STAGES = "Flight/Mission/Stages/"  # the stages' paths: Flight holds the regions Mission, Altitude
 
 
 def flight_altitude() -> float:
@@ -49,7 +50,7 @@ def top_state(trace: list[dict[str, object]]) -> str:
 
 def fly_and_sample(f: Flight, timeout: float) -> list[float]:
     """Wait for the component to end; every 0.5 s meanwhile, from the end of the take-off
-    to the start of the landing (the top-level states Mission, Correct, LinkLost), the
+    to the start of the landing (the top-level states Flight, LinkLost), the
     true altitude from the simulator's truth file. That file is rewritten every second,
     so it may be up to a second older than the trace: samples start 1.5 s after the
     take-off ended (so none is from the take-off), and one read before the trace shows
@@ -109,9 +110,10 @@ def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path,
         assert status == 0, log[-3000:]
         trace = f.trace
     assert trace[-1] == {"t": trace[-1]["t"], "ev": "stop", "reason": "final"}
-    stages = [t for t in fired_into(trace) if t.startswith("Mission/") and t.count("/") == 1]
-    assert stages == ["Mission/MonitorArea", "Mission/BackToRoad", "Mission/TurnRound",
-                      "Mission/FollowRoadBack", "Mission/GoHome", "Mission/OverHome"], stages
+    stages = [t.removeprefix(STAGES) for t in fired_into(trace)
+              if t.startswith(STAGES) and t.count("/") == STAGES.count("/")]
+    assert stages == ["MonitorArea", "BackToRoad", "TurnRound", "FollowRoadBack", "GoHome",
+                      "OverHome"], stages
     report = json.loads((f.folder / "report.json").read_text())
     assert report["stages"] == ["takeoff", "road", "accident", "back at the road",
                                 "road back", "home", "landing", "landed"]
@@ -145,7 +147,7 @@ def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path,
     track = truth["track"]
     assert isinstance(track, dict)  # the highest point of the whole flight, measured throughout
     assert track["max_altitude"] <= altitude + BAND, track
-    corrections = fired_into(trace).count("Correct")
+    corrections = fired_into(trace).count("Flight/Altitude/Correcting")
     assert worst <= BAND, (worst, corrections, altitudes)
     errors = [round(min(math.dist((v["north"], v["east"]), p) for p in found), 2)
               for v in victims]
