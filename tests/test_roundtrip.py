@@ -47,7 +47,7 @@ def states(draw: st.DrawFn, depth: int) -> dict[str, Any]:
                 node[kind] = draw(snippets(kind))
         if depth > 0 and draw(st.booleans()):
             if draw(st.integers(0, 2)) == 0:  # parallel regions, each a sub-automaton
-                regions = draw(st.lists(IDENT, min_size=2, max_size=3, unique=True))
+                regions = draw(st.lists(IDENT, min_size=2, max_size=2, unique=True))
                 node["regions"] = {r: draw(automata(depth - 1)) for r in regions}
             else:
                 node.update(draw(automata(depth - 1)))
