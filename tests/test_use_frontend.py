@@ -304,3 +304,24 @@ def test_convert_keeps_use_as_written_both_ways(tmp_path: Path) -> None:
            "      drone: other\n" in yaml
     assert ok(tmp_path / "m.xml") == model
     assert ok(tmp_path / "m2.yaml") == model
+
+
+def test_a_used_model_has_no_stopping_keys(tmp_path: Path) -> None:
+    lib = CLIMB.replace("initial: Arm\n", "initial: Arm\non_interrupt: Top\ninterrupt_timeout: 5s\n")
+    write(tmp_path, {"lib/climb.yaml": lib, "lib/hold.xml": HOLD_XML, "main.yaml": MAIN})
+    result = compile_file(str(tmp_path / "main.yaml"))
+    climb = tmp_path / "lib" / "climb.yaml"
+    assert found(result) == [
+        ("E174", f"{climb}:10:1"), ("E174", f"{climb}:11:1")], show(result.diagnostics)
+    main = tmp_path / "main.yaml"
+    assert all(d.notes[-1] == f"used from {main}:12:10, {main}:16:10" for d in result.diagnostics)
+
+
+def test_a_legacy_file_is_not_a_model_to_use(tmp_path: Path) -> None:
+    legacy = Path("tests/legacy/corpus/visualstates").glob("*.xml")
+    write(tmp_path, {"lib/old.xml": next(iter(sorted(legacy))).read_text("utf-8"),
+                     "main.yaml": "hfsm: 1\nname: m\ninitial: A\nstates:\n  A: {use: lib/old.xml, "
+                                  "transitions: [{to: B, after: 1s}]}\n  B: {final: true}\n"})
+    result = compile_file(str(tmp_path / "main.yaml"))
+    assert found(result) == [("E172", f"{tmp_path / 'main.yaml'}:5:12")], show(result.diagnostics)
+    assert "convert it first" in result.diagnostics[0].notes[0]
