@@ -488,9 +488,10 @@ def test_regions_reach_the_monitor_as_the_python_one_sends_them(observers_progra
 
 
 @pytest.mark.parametrize("focus", [None, "Mission/Watch"])
-def test_display_of_regions_prints_the_python_lines(observers_program: Path, run: Callable[..., Run],
+def test_display_of_regions_prints_the_python_lines(build: tuple[Path, dict[str, str]], run: Callable[..., Run],
                                                     focus: str | None) -> None:
-    r = run(observers_program, "--regions", "--display", *(["--focus", focus] if focus else []))
+    exe, env = build
+    r = run(exe, "--regions", "--display", *(["--focus", focus] if focus else []), env=env)
     out, _ = r.finish()
     expected = io.StringIO()
     d = hfsmc_view.Display(focus=focus, stream=expected)

@@ -48,6 +48,7 @@ from tests.support import (
 )
 
 monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
+viewstate = importlib.import_module("hfsmc.templates.python.hfsmc_viewstate")
 
 CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 GREEN = "rgb(76, 175, 80)"  # --active in app.css
@@ -319,6 +320,18 @@ def test_the_states_active_at_an_instant_come_from_the_trace() -> None:
     assert active_at(STRUCTURE, RECORDS, 3200) == []
     for t in range(0, 3300, 50):
         assert set(active_at(STRUCTURE, RECORDS, t)) == trace_active(RECORDS, t), t
+
+
+def test_a_trace_with_regions_replays_without_the_model() -> None:
+    """The structure inferred from the trace gives the regions: drawn as region clusters,
+    the states of both regions active at once."""
+    inferred = viewstate.infer_structure(PARALLEL_RECORDS)
+    picture = asyncio.run(painter(None, None)(inferred))
+    assert picture.svg is not None and picture.problem is None
+    assert ids(picture.svg, "cluster") == {"Mission", "Mission/Nav", "Mission/Watch"}
+    assert active_at(inferred, PARALLEL_RECORDS, 500) == ["Mission", "Mission/Watch/Ok", "Mission/Nav/B"]
+    for t in range(0, 1100, 100):
+        assert set(active_at(inferred, PARALLEL_RECORDS, t)) == trace_active(PARALLEL_RECORDS, t), t
 
 
 async def _replay_story() -> None:
