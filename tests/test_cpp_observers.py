@@ -483,7 +483,7 @@ def test_regions_reach_the_monitor_as_the_python_one_sends_them(observers_progra
     view = hfsmc_view.ViewState(PARALLEL_STRUCTURE)
     for it in calls_of(r)[:9]:
         view.apply(*it)
-    assert snapshot == json.loads(json.dumps(view.snapshot()))
+    assert snapshot is not None and snapshot == json.loads(json.dumps(view.snapshot()))
     assert [a["state"] for a in snapshot["active"]] == ["Mission", "Mission/Watch/Ok", "Mission/Nav/B"]
 
 
