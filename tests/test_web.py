@@ -1146,6 +1146,14 @@ def test_the_page_lights_every_region_of_a_parallel_state(
             "▾Mission‖ 2 regions", "▾[Nav]100 ms", "A", "B", "▾[Watch]300 ms history", "Ok", "Seen",
             "Done"], s["rows"]
         screenshot(driver, "web-regions", tmp_path)
+        # A region folds its states away, as a composite state does.
+        rows = [driver.find_element("css selector", f'#hv-tree li[data-path="Mission/Watch/{n}"]')
+                for n in ("Ok", "Seen")]
+        fold = driver.find_element("css selector", '#hv-tree li[data-path="Mission/Watch"] .hv-fold')
+        fold.click()
+        assert not any(r.is_displayed() for r in rows) and fold.text == "▸"
+        fold.click()
+        assert all(r.is_displayed() for r in rows)
         for rec in PARALLEL_RECORDS[7:10]:  # Watch: Ok -> Seen
             srv.record(rec)
         s = shown(lambda s: s["fills"]["Mission/Watch/Seen"] == GREEN, [])

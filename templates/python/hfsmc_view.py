@@ -15,7 +15,9 @@ The automaton thread only puts items on a queue; one thread of this module
 owns the ``ViewState`` and the terminal, so the two never share data.
 
 On a terminal: active states green with their time in state, the states a
-stop left yellow, others dim; autofocus folds inactive composite states (key
+stop left yellow, others dim; a parallel state (``‖``) holds its regions as
+named groups (``[Watch 200 ms history]``) with their states; autofocus folds
+inactive composite states (key
 ``a`` toggles it; ``q`` quits ``hfsmc view``); lines the component prints go
 above the tree. Plain lines: ``  0.000  start NAME in PATH``, then
 ``  1.350  FROM -> TO  (name)`` per transition (only those inside the focus
