@@ -253,3 +253,30 @@ def test_done_in_a_state_with_regions_is_not_w215(language: str) -> None:
     assert [(d.code, str(d.span)) for d in result.diagnostics] == [("W215", "m.yaml:14:26")]
     clean = compile_file("m.yaml", text=_DONE.format(language=language, idle="elapsed() > 1"))
     assert clean.diagnostics == [] and clean.model is not None
+
+
+@pytest.mark.parametrize("path", ["tests/invalid/region_transition_across.yaml",
+                                  "tests/invalid/xml_region_transition_across.xml"])
+def test_a_transition_across_regions_says_how_to_coordinate(path: str) -> None:
+    d = next(d for d in compile_file(path).diagnostics if d.code == "E162")
+    assert d.message == ("`Work/Joints/Move` -> `Closed`: `Closed` is in region `Gripper`, and "
+                         "nothing crosses from one region of `Work` to another")
+    assert d.notes == ('regions run side by side; to coordinate them, test '
+                       'active("Work/Gripper/Closed") or a variable, or leave `Work` with a '
+                       'transition of its own',)
+
+
+def test_region_errors_speak_the_language_of_the_file() -> None:
+    """E160 and E161 name `states`/`regions` in YAML, `<automaton>`/`<region>` in XML."""
+    notes = {path: next(d for d in compile_file(f"tests/invalid/{path}").diagnostics
+                        if d.code == code).notes[0]
+             for path, code in (("region_and_states.yaml", "E160"), ("region_single.yaml", "E161"),
+                                ("xml_region_beside_automaton.xml", "E160"),
+                                ("xml_region_single.xml", "E161"))}
+    assert notes == {
+        "region_and_states.yaml": "move the states into a region, or drop `regions`",
+        "region_single.yaml": "write the region's `initial` and `states` on `Work` itself",
+        "xml_region_beside_automaton.xml": "move the automaton's states into a `<region>`, or "
+                                           "drop the `<region>` elements",
+        "xml_region_single.xml": "write the region as an `<automaton>` of `Work`",
+    }
