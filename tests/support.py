@@ -182,8 +182,8 @@ BLINKER = "examples/blinker/blinker.yaml"
 # The blinker's structure, as the monitor sends it (tests/cpp/observers_main.cpp gives the same).
 STRUCTURE: dict[str, Any] = {
     "name": "blinker",
-    "automata": [{"owner": "", "region": None, "period_ms": 100, "initial": "Blinking", "history": False},
-                 {"owner": "Blinking", "region": None, "period_ms": 50, "initial": "Lit", "history": True}],
+    "automata": [{"owner": "", "region": None, "use": None, "period_ms": 100, "initial": "Blinking", "history": False},
+                 {"owner": "Blinking", "region": None, "use": None, "period_ms": 50, "initial": "Lit", "history": True}],
     "states": [{"path": "Blinking", "final": False, "composite": True},
                {"path": "Blinking/Lit", "final": False, "composite": False},
                {"path": "Blinking/Dark", "final": False, "composite": False},
@@ -224,9 +224,9 @@ RECORDS: list[dict[str, Any]] = [json.loads(line) for line in TRACE.splitlines()
 # monitor sends it, and a run of it: the views' region case.
 PARALLEL_STRUCTURE: dict[str, Any] = {
     "name": "par",
-    "automata": [{"owner": "", "region": None, "period_ms": 100, "initial": "Mission", "history": False},
-                 {"owner": "Mission", "region": "Nav", "period_ms": 100, "initial": "A", "history": False},
-                 {"owner": "Mission", "region": "Watch", "period_ms": 300, "initial": "Ok", "history": True}],
+    "automata": [{"owner": "", "region": None, "use": None, "period_ms": 100, "initial": "Mission", "history": False},
+                 {"owner": "Mission", "region": "Nav", "use": None, "period_ms": 100, "initial": "A", "history": False},
+                 {"owner": "Mission", "region": "Watch", "use": None, "period_ms": 300, "initial": "Ok", "history": True}],
     "states": [{"path": "Mission", "final": False, "composite": True},
                {"path": "Mission/Nav/A", "final": False, "composite": False},
                {"path": "Mission/Nav/B", "final": True, "composite": False},
@@ -441,11 +441,11 @@ def many_states(groups: int = 20, per: int = 24) -> dict[str, Any]:
     """``groups`` composite states of ``per`` leaves each, in a ring: 500 states by default
     (tests/test_web.py and bench/web.py)."""
     states: list[dict[str, Any]] = []
-    automata = [{"owner": "", "region": None, "period_ms": 100, "initial": "G0", "history": False}]
+    automata = [{"owner": "", "region": None, "use": None, "period_ms": 100, "initial": "G0", "history": False}]
     transitions: list[dict[str, Any]] = []
     for g in range(groups):
         states.append({"path": f"G{g}", "final": False, "composite": True})
-        automata.append({"owner": f"G{g}", "region": None, "period_ms": 10, "initial": "S0", "history": False})
+        automata.append({"owner": f"G{g}", "region": None, "use": None, "period_ms": 10, "initial": "S0", "history": False})
         for i in range(per):
             states.append({"path": f"G{g}/S{i}", "final": False, "composite": False})
             transitions.append({"from": f"G{g}/S{i}", "to": f"G{g}/S{(i + 1) % per}",

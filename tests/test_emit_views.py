@@ -36,8 +36,8 @@ states:
     transitions:
       - {{to: "Off", after: 5s}}
 """
-AUTOMATA = (AutomatonView(index=0, owner=-1, region=None, period_ms=100, initial=0, history=False),
-            AutomatonView(index=1, owner=1, region=None, period_ms=100, initial=2, history=False))
+AUTOMATA = (AutomatonView(index=0, owner=-1, region=None, use=None, period_ms=100, initial=0, history=False),
+            AutomatonView(index=1, owner=1, region=None, use=None, period_ms=100, initial=2, history=False))
 
 
 def lamp(language: str) -> Model:

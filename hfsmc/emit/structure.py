@@ -20,7 +20,9 @@ def structure_of(model: Model) -> dict[str, Any]:
 
     return {
         "name": model.name,
-        "automata": [{"owner": a.owner, "region": a.region, "period_ms": a.period_ms,
+        "automata": [{"owner": a.owner, "region": a.region,
+                      "use": a.instance.written if a.instance is not None else None,
+                      "period_ms": a.period_ms,
                       "initial": a.initial,
                       "history": a.history} for a in model.automata()],
         "states": [{"path": s.path, "final": s.final, "composite": s.composite}

@@ -62,6 +62,7 @@ class AutomatonView:
     index: int
     owner: int  # index of the composite state holding it; -1 for the root
     region: str | None  # the region's name; None for a state's one sub-automaton and the root
+    use: str | None  # the used file it comes from (`use`), as written; None for the others
     period_ms: int
     initial: int  # index of its initial state
     history: bool
@@ -152,8 +153,10 @@ class Walk(ABC, Generic[S]):
             self.auto_of[auto.path] = len(self.automata)
             owner = self.index[auto.owner] if auto.owner else -1
             initial = self.index[f"{auto.path}/{auto.initial}" if auto.path else auto.initial]
-            self.automata.append(AutomatonView(len(self.automata), owner, auto.region,
-                                               auto.period_ms, initial, auto.history))
+            self.automata.append(AutomatonView(
+                len(self.automata), owner, auto.region,
+                auto.instance.written if auto.instance is not None else None,
+                auto.period_ms, initial, auto.history))
 
     def _instances(self) -> None:
         """Number the instances of used files, and say which one each state is in."""

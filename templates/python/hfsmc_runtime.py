@@ -545,11 +545,12 @@ class Engine:
         ns = m["namespace"]
         return {
             "name": self.name,
-            "automata": [{"owner": self.paths[o] if o >= 0 else "", "region": r, "period_ms": p,
-                          "initial": self.paths[i].rpartition("/")[2],
+            "automata": [{"owner": self.paths[o] if o >= 0 else "", "region": r, "use": u,
+                          "period_ms": p, "initial": self.paths[i].rpartition("/")[2],
                           "history": h}
-                         for o, r, p, i, h in zip(m["owners"], m["regions"], m["periods"],
-                                                  m["initial"], m["history"], strict=False)],
+                         for o, r, u, p, i, h in zip(m["owners"], m["regions"], m["uses"],
+                                                     m["periods"], m["initial"], m["history"],
+                                                     strict=False)],
             "states": [{"path": p, "final": f, "composite": bool(c)}
                        for p, f, c in zip(m["paths"], m["final"], m["children"], strict=False)],
             "transitions": [{"from": f, "to": t, "index": k, "name": n}

@@ -88,8 +88,8 @@ void step() {  // after each observer call
 hfsmc::Structure parallel_structure() {
     hfsmc::Structure s;
     s.name = "par";
-    s.automata = {{"", "", 100, "Mission", false}, {"Mission", "Nav", 100, "A", false},
-                  {"Mission", "Watch", 300, "Ok", true}};
+    s.automata = {{"", "", "", 100, "Mission", false}, {"Mission", "Nav", "", 100, "A", false},
+                  {"Mission", "Watch", "", 300, "Ok", true}};
     s.states = {{"Mission", false, true}, {"Mission/Nav/A", false, false}, {"Mission/Nav/B", true, false},
                 {"Mission/Watch/Ok", false, false}, {"Mission/Watch/Seen", true, false}, {"Done", true, false}};
     s.transitions = {{"Mission", "Done", 0, "all done"}, {"Mission/Nav/A", "Mission/Nav/B", 0, ""},
@@ -102,7 +102,7 @@ hfsmc::Structure structure() {
     if (regions) return parallel_structure();
     hfsmc::Structure s;
     s.name = "blinker";
-    s.automata = {{"", "", 100, "Blinking", false}, {"Blinking", "", 50, "Lit", true}};
+    s.automata = {{"", "", "", 100, "Blinking", false}, {"Blinking", "", "", 50, "Lit", true}};
     s.states = {{"Blinking", false, true}, {"Blinking/Lit", false, false}, {"Blinking/Dark", false, false},
                 {"Paused", false, false}, {"Done", true, false}};
     s.transitions = {{"Blinking", "Done", 0, "enough"}, {"Blinking", "Paused", 1, "pause"},

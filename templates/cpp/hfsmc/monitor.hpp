@@ -398,7 +398,8 @@ private:
         for (const auto& a : s.automata) {
             if (o.back() != '[') o += ',';
             o += "{\"owner\":" + json_string(a.owner) + ",\"region\":" +
-                 (a.region.empty() ? std::string("null") : json_string(a.region)) +
+                 (a.region.empty() ? std::string("null") : json_string(a.region)) + ",\"use\":" +
+                 (a.use.empty() ? std::string("null") : json_string(a.use)) +
                  ",\"period_ms\":" + std::to_string(a.period_ms) +
                  ",\"initial\":" + json_string(a.initial) + ",\"history\":" + (a.history ? "true" : "false") + "}";
         }

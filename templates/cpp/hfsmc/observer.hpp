@@ -15,6 +15,7 @@ struct Structure {
     struct Automaton {
         std::string owner;  // path of the owning state, "" for the root
         std::string region;  // the region's name, "" for a state's one sub-automaton and the root
+        std::string use;  // the used file it comes from (`use`), as written; "" for the others
         int period_ms;
         std::string initial;  // name of the initial state
         bool history;

@@ -69,6 +69,7 @@ struct StateInfo {
 struct AutomatonInfo {
     int owner;  // state index, -1 for the root
     const char* region;  // the region's name; nullptr for a state's one sub-automaton, the root
+    const char* use;  // the used file it comes from (`use`), as written; nullptr for the others
     int period_ms;
     int initial;  // state index
     bool history;
@@ -725,6 +726,7 @@ private:
             std::string initial = tb_.states[a.initial].path;
             initial = initial.substr(initial.rfind('/') == std::string::npos ? 0 : initial.rfind('/') + 1);
             s.automata.push_back({path_of(a.owner < 0 ? root_ : a.owner), a.region ? a.region : "",
+                                  a.use ? a.use : "",
                                   a.period_ms, initial, a.history});
         }
         for (int i = 0; i < tb_.n_states; ++i)
