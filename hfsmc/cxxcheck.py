@@ -38,7 +38,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from importlib.resources import files
 from pathlib import Path
@@ -115,7 +115,7 @@ def check_cpp(model: Model) -> CxxCheck:
 
 
 def _result(model: Model, source: str, code: int, text: str) -> CxxCheck:
-    diags = messages(text, model.file, source)
+    diags = _with_use_sites(model, messages(text, model.file, source))
     missing = re.search(r"^(\S+?):\d+:\d+: fatal error: (\S+): No such file or directory$",
                         text, re.M)
     if missing and not any(d.code == "E144" for d in diags):
@@ -127,6 +127,22 @@ def _result(model: Model, source: str, code: int, text: str) -> CxxCheck:
         diags.append(Diagnostic("E150", "g++ -fsyntax-only failed on the generated C++",
                                 Span(model.file, 1, 1), notes=tail))
     return CxxCheck(diags)
+
+
+def _with_use_sites(model: Model, diags: list[Diagnostic]) -> list[Diagnostic]:
+    """A message in a used file's snippet notes where that file is used from."""
+    sites: dict[str, set[Span]] = {}
+    for auto in model.automata():
+        if auto.instance is not None:
+            sites.setdefault(auto.instance.file, set()).add(auto.instance.span)
+    out = []
+    for d in diags:
+        used = sites.get(d.span.file)
+        if used:
+            note = "used from " + ", ".join(str(s) for s in sorted(used))
+            d = replace(d, notes=(*d.notes, note))
+        out.append(d)
+    return out
 
 
 @dataclass(frozen=True)

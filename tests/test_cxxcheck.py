@@ -155,6 +155,46 @@ def test_missing_semicolon_at_the_end_of_functions(tmp_path: Path) -> None:
     assert [(d.code, str(d.span)) for d in r.diagnostics] == [("E144", f"{path}:6:16")]
 
 
+USED = """\
+hfsm: 1
+name: climb
+language: cpp
+parameters: {step: {type: float, default: 0.5}}
+variables: {height: 0.0}
+initial: Climb
+states:
+  Climb:
+    during: height += stepp;
+    transitions: [{to: Up, when: height > 1.0}]
+  Up: {final: true}
+"""
+USING = """\
+hfsm: 1
+name: twice
+language: cpp
+initial: A
+states:
+  A:
+    use: lib/climb.yaml
+    transitions: [{to: B, when: done()}]
+  B:
+    use: lib/climb.yaml
+    with: {step: 1}
+    transitions: [{to: C, when: done()}]
+  C: {final: true}
+"""
+
+
+def test_a_compiler_error_in_a_used_file_is_at_its_line_there(tmp_path: Path) -> None:
+    (tmp_path / "lib").mkdir()
+    used = write(tmp_path / "lib", "climb.yaml", USED)
+    path = write(tmp_path, "twice.yaml", USING)
+    r = compile_file(path, cxx=True)
+    assert [(d.code, str(d.span), d.notes[-1]) for d in r.diagnostics] == [
+        ("E144", f"{used}:9:23", f"used from {path}:7:10, {path}:10:10")], r.diagnostics
+    assert r.model is None
+
+
 def test_check_compiles_cpp_snippets_and_no_cxx_skips_it(tmp_path: Path) -> None:
     path = write(tmp_path, "typo.yaml", TYPO)
     r = CliRunner().invoke(main, ["check", path])
