@@ -270,6 +270,9 @@ class Engine:
         """The owning state's sub-automaton, or every one of its regions, is in a final state."""
         kids = self.children[self.owner]
         cur, active, final = self.cur, self.is_active, self.final
+        if len(kids) == 1:  # a sub-automaton (the common case: no generator)
+            c = cur[kids[0]]
+            return c >= 0 and active[c] and final[c]
         return bool(kids) and all(cur[b] >= 0 and active[cur[b]] and final[cur[b]] for b in kids)
 
     def active(self, path: str) -> bool:
