@@ -2,7 +2,8 @@
 
 tests/golden/NAME.ir.txt  the lowered IR (``hfsmc check --dump-ir``)
 tests/golden/NAME.dot     the Graphviz source of ``hfsmc diagram``
-tests/golden/NAME.component.py.txt  the generated Python component (``hfsmc build -t python``)
+tests/golden/NAME.component.py.txt  the generated Python component (``hfsmc build -t python``),
+                                    then the modules of the files it uses
 tests/golden/NAME.component.cpp.txt  the generated C++ source (``hfsmc build -t cpp``)
 tests/golden/NAME.cmake.txt  its CMakeLists.txt
 """
@@ -26,7 +27,12 @@ from tests.conftest import examples, model_language  # noqa: E402
 
 
 def python_component(model: Model) -> str:
-    return python.component_files(model)[f"{model.name}.py"].decode("utf-8")
+    """The component's module, then the module of each used file (`use`) after a banner."""
+    files = python.component_files(model)
+    text = files[f"{model.name}.py"].decode("utf-8")
+    for name in sorted(f for f in files if f.startswith("_hfsm_use_")):
+        text += f"\n# ===== {name} =====\n" + files[name].decode("utf-8")
+    return text
 
 
 def cpp_component(model: Model) -> str:
