@@ -114,7 +114,8 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx
 @click.argument("model", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="OUT.svg, OUT.png or OUT.dot (default: MODEL's name with .svg).")
-@click.option("--state", "state_path", metavar="PATH", help="Draw only this state's sub-automaton.",
+@click.option("--state", "state_path", metavar="PATH",
+              help="Draw only this state's sub-automaton or regions, or one region (Flight/Altitude).",
               shell_complete=completion.complete_state)
 @click.option("--rankdir", type=click.Choice(["auto", "LR", "TB"], case_sensitive=False),
               default="auto", show_default=True,

@@ -10,6 +10,7 @@ sit by their arrows and inside their sub-automaton's cluster.
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import itertools
 import json
@@ -32,7 +33,7 @@ from hfsmc.cli import main
 from hfsmc.durations import format_us
 from hfsmc.emit import dot, dot_layout, dot_text
 from hfsmc.errors import UsageError
-from hfsmc.ir import Automaton, Model, State
+from hfsmc.ir import Automaton, Instance, Model, State
 from hfsmc.pipeline import compile_file
 from tests.conftest import examples
 
@@ -176,26 +177,63 @@ def svg_texts(data: bytes) -> list[str]:
     return ["".join(str(s) for s in t.itertext()) for t in root.iter(SVG_TEXT)]
 
 
-def leaves(auto: Automaton, depth: int | None = None) -> list[tuple[State, bool]]:
-    """Every state drawn as a node under ``auto`` (simple states, and composite
-    ones more than ``depth`` levels down) with whether it is initial in its parent."""
+Drawn = Automaton | tuple[Automaton, ...]
+
+
+def _autos(auto: Drawn) -> tuple[Automaton, ...]:
+    return (auto,) if isinstance(auto, Automaton) else auto
+
+
+def _down(depth: int | None) -> int | None:
+    return None if depth is None else depth - 1
+
+
+def leaves(auto: Drawn, depth: int | None = None) -> list[tuple[State, bool]]:
+    """Every state drawn as a node under ``auto`` (a sub-automaton, or a state's
+    regions: simple states, and composite ones more than ``depth`` levels
+    down) with whether it is initial in its parent."""
     out: list[tuple[State, bool]] = []
-    for s in auto.states:
-        if s.automaton is None or depth == 0:
-            out.append((s, s.name == auto.initial))
-        else:
-            out.extend(leaves(s.automaton, None if depth is None else depth - 1))
+    for a in _autos(auto):
+        for s in a.states:
+            if not s.automata or depth == 0:
+                out.append((s, s.name == a.initial))
+            else:
+                out.extend(leaves(s.automata, _down(depth)))
     return out
 
 
-def composites(auto: Automaton, depth: int | None = None) -> list[State]:
-    """The composite states under ``auto`` drawn as clusters."""
-    out: list[State] = []
-    for s in auto.states:
-        if s.automaton is not None and depth != 0:
-            out.append(s)
-            out.extend(composites(s.automaton, None if depth is None else depth - 1))
+def composites(auto: Drawn, depth: int | None = None) -> list[tuple[State, int | None]]:
+    """The composite states under ``auto`` drawn as clusters, each with the
+    depth still drawn below it."""
+    out: list[tuple[State, int | None]] = []
+    for a in _autos(auto):
+        for s in a.states:
+            if s.automata and depth != 0:
+                out.append((s, _down(depth)))
+                out.extend(composites(s.automata, _down(depth)))
     return out
+
+
+def region_clusters(auto: Drawn, depth: int | None = None) -> list[tuple[Automaton, int | None]]:
+    """The regions drawn as dashed clusters under ``auto`` (a state's regions
+    drawn alone are clusters too), each with the depth drawn in it."""
+    autos = _autos(auto)
+    out = [(a, depth) for a in autos if len(autos) > 1]
+    out += [(r, inner) for s, inner in composites(auto, depth) if s.parallel
+            for r in s.automata]
+    return out
+
+
+def entry_node(auto: Automaton, depth: int | None) -> str:
+    """The node that ``auto``'s initial state is drawn as (or, when it is drawn
+    as a cluster, the node arrows into it attach to: its initial leaf)."""
+    state = auto.state(auto.initial)
+    assert state is not None
+    while state.automata and depth != 0:
+        inner = state.automata[0]
+        state, depth = inner.state(inner.initial), _down(depth)
+        assert state is not None
+    return state.path
 
 
 def label_text(lines: list[str]) -> str:
@@ -208,12 +246,12 @@ def same_text(a: str, b: str) -> bool:
     return "".join(a.split()) == "".join(b.split())
 
 
-def expected_transitions(auto: Automaton, depth: int | None = None
+def expected_transitions(auto: Drawn, depth: int | None = None
                          ) -> list[tuple[str, str, str]]:
     """(source path, target path, full label on one line) of every transition
     drawn under ``auto``; ``N. `` first when the state has several."""
     out: list[tuple[str, str, str]] = []
-    for s in auto.states:
+    for s in (s for a in _autos(auto) for s in a.states):
         parent = s.path.rpartition("/")[0]
         for t in s.transitions:
             parts = []
@@ -227,8 +265,8 @@ def expected_transitions(auto: Automaton, depth: int | None = None
             number = f"{t.index + 1}. " if len(s.transitions) > 1 else ""
             out.append((s.path, f"{parent}/{t.target}" if parent else t.target,
                         number + " ".join(parts)))
-        if s.automaton is not None and depth != 0:
-            out.extend(expected_transitions(s.automaton, None if depth is None else depth - 1))
+        for a in s.automata if depth != 0 else ():
+            out.extend(expected_transitions(a, _down(depth)))
     return out
 
 
@@ -259,36 +297,61 @@ def drawn_transitions(graph: dict[str, Any]) -> list[tuple[str, str, list[str]]]
     return out
 
 
-def check_structure(model: Model, source: str, auto: Automaton | None = None,
+def check_structure(model: Model, source: str, auto: Drawn | None = None,
                     depth: int | None = None) -> dict[str, Any]:
-    """The DOT of ``model`` (or of the sub-automaton ``auto``) against the model."""
+    """The DOT of ``model`` (or of the sub-automaton ``auto``, or of a state's
+    regions) against the model."""
     auto = auto or model.root
+    autos = _autos(auto)
     graph = read_dot(source)
     assert graph["compound"] == "true"
     assert graph["rankdir"] in ("LR", "TB")
     assert graph["newrank"] == "true"
     objects = graph.get("objects", [])
-    clusters = {o["name"]: o for o in objects if "nodes" in o and o["name"].startswith("cluster_")}
+    clusters = {o["name"]: o for o in objects if "nodes" in o and o["name"].startswith("cluster_")
+                and not o["name"].startswith("cluster_#")}  # helper clusters: `#`
     nodes = {o["name"]: o for o in objects if "nodes" not in o and not o["name"].startswith("#")}
-    # the only other subgraphs: rows of states on one rank (top to bottom)
+    # the only other subgraphs: rows of states on one rank (top to bottom), and
+    # the initial states of a state's regions, on one rank in both directions
+    starts = {entry_node(r, inner) for r, inner in region_clusters(auto, depth)}
     for row in (o for o in objects if "nodes" in o and o["name"] not in clusters):
-        assert graph["rankdir"] == "TB" and row["rank"] == "same"
-        assert len(row["nodes"]) <= dot.CHAIN_ROW
+        if row["name"] == "cluster_#regions":  # a state's regions drawn alone, held together
+            assert len(autos) > 1 and row["peripheries"] == "0"
+            continue
+        assert row["rank"] == "same"
+        names = {o["name"] for o in objects if o["_gvid"] in row["nodes"]}
+        if not names & starts:  # else rows joined with the regions' initial states
+            assert graph["rankdir"] == "TB"
+            assert len(row["nodes"]) <= dot.CHAIN_ROW
 
-    # one cluster per composite state, labelled with its name and period
-    assert set(clusters) == {f"cluster_{s.path}" for s in composites(auto, depth)}
-    for s in composites(auto, depth):
-        assert s.automaton is not None
-        lines = esc_lines(clusters[f"cluster_{s.path}"]["label"])
-        assert lines[0] == s.name
-        assert f"period {format_us(s.automaton.period_ms * 1000)}" in lines[1]
-        assert ("history" in lines[1]) == s.automaton.history
-        members = set(clusters[f"cluster_{s.path}"].get("nodes", []))
+    # one cluster per composite state, labelled with its name and period (or its
+    # number of regions), and one dashed cluster per region drawn
+    regions = region_clusters(auto, depth)
+    assert set(clusters) == {f"cluster_{s.path}" for s, _ in composites(auto, depth)} | {
+        f"cluster_{r.path}" for r, _ in regions}
+    for s, inner in composites(auto, depth):
+        cluster = clusters[f"cluster_{s.path}"]
+        lines = esc_lines(cluster["label"])
+        instance = s.automata[0].instance
+        assert lines[0] == (s.name if instance is None else f"{s.name} · {instance.written}")
+        if s.automaton is not None:
+            assert f"period {format_us(s.automaton.period_ms * 1000)}" in lines[1]
+            assert ("history" in lines[1]) == s.automaton.history
+        else:
+            assert lines[1].endswith(f"{len(s.automata)} regions")
+        assert "dashed" not in cluster["style"]
+        members = set(cluster.get("nodes", []))
         member_names = {o["name"] for o in objects if o["_gvid"] in members}
-        level = s.path.count("/") - auto.owner.count("/") + (0 if auto.owner else 1)
-        inner = None if depth is None else depth - level
         assert {n for n in member_names if not n.startswith("#")} == {
-            leaf.path for leaf, _ in leaves(s.automaton, inner)}
+            leaf.path for leaf, _ in leaves(s.automata, inner)}
+    for r, inner in regions:
+        cluster = clusters[f"cluster_{r.path}"]
+        assert esc_lines(cluster["label"]) == [
+            r.region, f"period {format_us(r.period_ms * 1000)}" + " · history" * r.history]
+        assert "dashed" in cluster["style"].split(","), r.path
+        member_names = {o["name"] for o in objects if o["_gvid"] in cluster.get("nodes", [])}
+        assert {n for n in member_names if not n.startswith("#")} == {
+            leaf.path for leaf, _ in leaves(r, inner)}
 
     # simple states: a circle, a double circle when initial, grey when final;
     # a composite state below the depth drawn: a circle saying how many states it holds
@@ -298,11 +361,12 @@ def check_structure(model: Model, source: str, auto: Automaton | None = None,
         node = nodes[s.path]
         assert node["shape"] == ("doublecircle" if initial else "circle"), s.path
         assert (node["fillcolor"] == dot.FINAL_FILL) == s.final, s.path
-        if s.automaton is None:
+        if not s.automata:
             assert esc_lines(node["label"]) == [s.name]
         else:
-            count = len(s.automaton.states)
-            assert esc_lines(node["label"]) == [s.name, f"({count} states)"], s.path
+            count = (f"({len(s.automata)} regions)" if s.parallel
+                     else f"({len(s.automata[0].states)} states)")
+            assert esc_lines(node["label"]) == [s.name, count], s.path
             assert node["fillcolor"] in dot.CLUSTER_FILLS
 
     # a transition's label node sits in the cluster of its own sub-automaton
@@ -316,7 +380,8 @@ def check_structure(model: Model, source: str, auto: Automaton | None = None,
         parent = src.rpartition("/")[0]
         holders = [c for c in clusters.values() if e["head"] in c.get("nodes", [])]
         innermost = max((c["name"] for c in holders), key=len, default=None)
-        assert innermost == (f"cluster_{parent}" if parent != auto.owner else None), src
+        top = len(autos) == 1 and parent == autos[0].path
+        assert innermost == (None if top else f"cluster_{parent}"), src
 
     # one arrow per transition, between the right states, with its whole label,
     # wrapped in lines of at most dot_text.WRAP characters
@@ -416,7 +481,8 @@ def check_layout(source: str) -> None:
     graph = layout(source)
     objects = {o["_gvid"]: o for o in graph["objects"] if "nodes" not in o}
     clusters = {o["name"].removeprefix("cluster_"): as_box(o["bb"])
-                for o in graph["objects"] if "nodes" in o and o["name"].startswith("cluster_")}
+                for o in graph["objects"] if "nodes" in o and o["name"].startswith("cluster_")
+                and not o["name"].startswith("cluster_#")}
     states = {o["name"]: o for o in objects.values() if not o["name"].startswith("#")}
     labels: list[tuple[str, Box]] = []  # (source state path, box)
     for e in graph["edges"]:
@@ -670,6 +736,312 @@ def test_state_errors(tmp_path: Path, state: str, message: str) -> None:
     assert message in result.stderr
     assert "Traceback" not in result.output
     assert not out.exists()
+
+
+# ---------------------------------------------------------------------------
+# parallel regions and sub-automata from other files
+
+# Three regions (one holding a composite state, one a state with regions of its
+# own), arrows out of the parallel state and back into it.
+REGIONS = """\
+hfsm: 1
+name: regions
+language: python
+variables: {n: 0, seen: false}
+period: 100ms
+initial: Idle
+states:
+  Idle: {transitions: [{to: Mission, when: n > 0}]}
+  Mission:
+    regions:
+      Nav:
+        period: 50ms
+        initial: TakeOff
+        states:
+          TakeOff: {transitions: [{to: Follow, when: n > 1}]}
+          Follow:
+            initial: Track
+            states:
+              Track: {transitions: [{to: Lost, when: not seen}]}
+              Lost: {transitions: [{to: Track, when: seen}]}
+            transitions: [{to: Arrived, after: 60s}]
+          Arrived: {final: true}
+      Watch:
+        period: 300ms
+        initial: Ok
+        history: true
+        states:
+          Ok: {transitions: [{to: Low, when: n > 5}]}
+          Low: {final: true}
+      Arm:
+        initial: Work
+        states:
+          Work:
+            regions:
+              Joint:
+                initial: Up
+                states:
+                  Up: {transitions: [{to: Down, after: 1s}]}
+                  Down: {transitions: [{to: Up, after: 1s}]}
+              Grip:
+                period: 50ms
+                initial: Open
+                states:
+                  Open: {transitions: [{to: Closed, when: n > 1}]}
+                  Closed: {final: true}
+            transitions: [{to: Rest, when: done()}]
+          Rest: {final: true}
+    transitions:
+      - {to: Land, when: done()}
+      - {to: Mission, name: restart, when: n > 9}
+  Land: {transitions: [{to: Done, after: 5s}]}
+  Done: {final: true}
+"""
+
+
+def regions_model(tmp_path: Path) -> Model:
+    return compile_model(write_model(tmp_path, REGIONS))
+
+
+def clusters_of(graph: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {o["name"]: o for o in graph["objects"] if o["name"].startswith("cluster_")}
+
+
+def check_region_order(model: Model, source: str, owners: list[str]) -> None:
+    """Laid out by dot, the regions of each of ``owners`` stand side by side in
+    the order written (left to right top to bottom, top to bottom left to
+    right), their initial states on one rank."""
+    graph = layout(source)
+    rankdir = graph["rankdir"]
+    boxes = {name.removeprefix("cluster_"): as_box(o["bb"])
+             for name, o in clusters_of(graph).items()}
+    pos = {o["name"]: tuple(map(float, o["pos"].split(","))) for o in graph["objects"]
+           if "pos" in o}
+    for owner in owners:
+        state = model.find(owner)
+        assert state is not None and state.parallel
+        regions = [a.path for a in state.automata]
+        b = [boxes[r] for r in regions]
+        for first, second in itertools.pairwise(b):
+            if rankdir == "TB":
+                assert first[2] <= second[0], (owner, regions)  # left of it
+            else:
+                assert first[1] >= second[3], (owner, regions)  # above it
+    for names in ([o["name"] for o in graph["objects"] if o["_gvid"] in row["nodes"]]
+                  for row in graph["objects"] if row.get("rank") == "same"
+                  and "nodes" in row and not row["name"].startswith("cluster_")):
+        along = 1 if rankdir == "TB" else 0
+        assert len({round(pos[n][along]) for n in names}) == 1, names
+
+
+@pytest.mark.parametrize("rankdir", ["LR", "TB"])
+def test_regions_are_dashed_clusters_side_by_side(tmp_path: Path, rankdir: str) -> None:
+    model = regions_model(tmp_path)
+    source = dot.to_dot(model, rankdir=rankdir)
+    graph = check_structure(model, source)
+    clusters = clusters_of(graph)
+    # the parallel state: a solid box saying how many regions it has
+    mission = clusters["cluster_Mission"]
+    assert esc_lines(mission["label"]) == ["Mission", "3 regions"]
+    assert mission["style"] == "rounded,filled" and mission["id"] == "Mission"
+    # its regions: dashed boxes, named, with their period (and history), tinted as it is
+    for path, label in (("Mission/Nav", ["Nav", "period 50ms"]),
+                        ("Mission/Watch", ["Watch", "period 300ms · history"]),
+                        ("Mission/Arm", ["Arm", "period 100ms"]),
+                        ("Mission/Arm/Work/Joint", ["Joint", "period 100ms"]),
+                        ("Mission/Arm/Work/Grip", ["Grip", "period 50ms"])):
+        region = clusters[f"cluster_{path}"]
+        assert esc_lines(region["label"]) == label
+        assert region["style"] == "rounded,dashed,filled" and region["id"] == path
+    assert clusters["cluster_Mission/Nav"]["fillcolor"] == mission["fillcolor"]
+    work = clusters["cluster_Mission/Arm/Work"]
+    assert esc_lines(work["label"]) == ["Work", "initial · 2 regions"]
+    assert clusters["cluster_Mission/Arm/Work/Grip"]["fillcolor"] == work["fillcolor"]
+    assert work["fillcolor"] != mission["fillcolor"]
+    # the parallel state's own arrows leave and enter its box
+    names = {o["_gvid"]: o["name"] for o in graph["objects"]}
+    edges = graph["edges"]
+    (out,) = [e for e in edges if e.get("id") == "Mission#0"]
+    assert out["ltail"] == "cluster_Mission"
+    assert names[out["tail"]] == "Mission/Nav/Arrived"  # the farthest region's farthest state
+    (into,) = [e for e in edges if e.get("id") == "Idle#0:head"]
+    assert into.get("lhead") == "cluster_Mission" and names[into["head"]] == "Mission/Nav/TakeOff"
+    check_region_order(model, source, ["Mission", "Mission/Arm/Work"])
+    check_layout(source)
+
+
+def test_regions_svg_names_regions(tmp_path: Path) -> None:
+    out = tmp_path / "regions.svg"
+    result = run_cli(str(write_model(tmp_path, REGIONS)), "-o", str(out))
+    assert result.exit_code == 0, result.output
+    root = etree.fromstring(out.read_bytes())
+    ids = {g.get("id") for g in root.iter("{http://www.w3.org/2000/svg}g")}
+    assert {"Mission", "Mission/Nav", "Mission/Watch", "Mission/Arm/Work/Grip",
+            "Mission/Nav/Follow/Track", "Mission#0"} <= ids
+    texts = svg_texts(out.read_bytes())
+    assert {"Nav", "Watch", "Arm", "Joint", "Grip", "3 regions", "period 300ms · history"} <= {
+        t.strip() for t in texts}
+
+
+@pytest.mark.parametrize("depth", [0, 1, 2])
+def test_depth_counts_regions_as_a_level(tmp_path: Path, depth: int) -> None:
+    model = regions_model(tmp_path)
+    source = dot.to_dot(model, depth=depth)
+    graph = check_structure(model, source, depth=depth)
+    clusters = set(clusters_of(graph))
+    assert clusters == [
+        set(),
+        {"cluster_Mission", "cluster_Mission/Nav", "cluster_Mission/Watch", "cluster_Mission/Arm"},
+        {"cluster_Mission", "cluster_Mission/Nav", "cluster_Mission/Watch", "cluster_Mission/Arm",
+         "cluster_Mission/Nav/Follow", "cluster_Mission/Arm/Work",
+         "cluster_Mission/Arm/Work/Joint", "cluster_Mission/Arm/Work/Grip"},
+    ][depth]
+    nodes = {o["name"]: o for o in graph["objects"] if "nodes" not in o}
+    if depth == 0:  # the parallel state folded: a circle saying how many regions it has
+        assert esc_lines(nodes["Mission"]["label"]) == ["Mission", "(3 regions)"]
+    if depth == 1:
+        assert esc_lines(nodes["Mission/Arm/Work"]["label"]) == ["Work", "(2 regions)"]
+        assert esc_lines(nodes["Mission/Nav/Follow"]["label"]) == ["Follow", "(2 states)"]
+    check_layout(source)
+
+
+def test_state_draws_a_parallel_state_s_regions(tmp_path: Path) -> None:
+    path = write_model(tmp_path, REGIONS)
+    model = compile_model(path)
+    mission = model.find("Mission")
+    assert mission is not None and mission.parallel
+    source = dot.to_dot(model, "Mission")
+    graph = check_structure(model, source, mission.automata)
+    assert graph["label"] == "regions: Mission · 3 regions"
+    clusters = clusters_of(graph)
+    assert "cluster_Mission" not in clusters
+    # drawn alone, the regions are dashed boxes on the page's white
+    assert clusters["cluster_Mission/Watch"]["style"] == "rounded,dashed"
+    assert "Idle" not in {o["name"] for o in graph["objects"]}
+    check_region_order(model, source, ["Mission", "Mission/Arm/Work"])
+    # depth counts from the regions' states
+    check_structure(model, dot.to_dot(model, "Mission", depth=0), mission.automata, depth=0)
+
+    out = tmp_path / "mission.svg"
+    result = run_cli(str(path), "--state", "Mission", "-o", str(out))
+    assert result.exit_code == 0, result.output
+    assert {"Nav", "Watch", "Arm", "Track"} <= set(svg_texts(out.read_bytes()))
+
+
+@pytest.mark.parametrize(("state", "title"), [
+    ("Mission/Arm/Work", "regions: Mission/Arm/Work · 2 regions"),
+    ("Mission/Nav/Follow", "regions: Mission/Nav/Follow · period 50ms"),
+    ("Mission/Watch", "regions: Mission/Watch · region · period 300ms · history"),
+    ("Mission/Arm/Work/Grip", "regions: Mission/Arm/Work/Grip · region · period 50ms"),
+])
+def test_state_through_regions(tmp_path: Path, state: str, title: str) -> None:
+    """A state's path names the regions it is in; a region is drawn alone as a
+    sub-automaton is (its states, no box)."""
+    model = compile_model(write_model(tmp_path, REGIONS))
+    found = model.find(state)
+    drawn = found.automata if found is not None else model.automaton_at(state)
+    assert drawn is not None
+    graph = check_structure(model, dot.to_dot(model, state), drawn)
+    assert graph["label"] == title
+    assert all(o["name"].removeprefix("cluster_").startswith(state + "/")
+               for o in graph["objects"] if o["name"][0] not in "#%"
+               and not o["name"].startswith("cluster_#"))
+
+
+@pytest.mark.parametrize(("state", "message"), [
+    ("Mission/Follow", "no such state or region in model `regions` "
+                       "(did you mean `Mission/Nav/Follow`?)"),
+    ("Mission/Wach", "(did you mean `Mission/Watch`?)"),
+    ("Mission/Arm/Work/Grp", "(did you mean `Mission/Arm/Work/Grip`?)"),
+    ("Mission/Watch/Ok", "state `Mission/Watch/Ok` has no sub-automaton to draw; composite "
+                         "states and regions: Mission, Mission/Nav (region), Mission/Watch "
+                         "(region), Mission/Arm (region), Mission/Nav/Follow, Mission/Arm/Work, "
+                         "Mission/Arm/Work/Joint (region), Mission/Arm/Work/Grip (region)"),
+    ("Nowhere/At/All", "no such state or region in model `regions`; composite states and"),
+])
+def test_state_errors_with_regions(tmp_path: Path, state: str, message: str) -> None:
+    path = write_model(tmp_path, REGIONS)
+    with pytest.raises(UsageError) as caught:
+        dot.to_dot(compile_model(path), state)
+    assert message in str(caught.value)
+    out = tmp_path / "out.svg"
+    result = run_cli(str(path), "--state", state, "-o", str(out))
+    assert result.exit_code == 2, result.output
+    assert message in result.stderr
+    assert "Traceback" not in result.output
+    assert not out.exists()
+
+
+USED = """\
+hfsm: 1
+name: climb
+language: python
+parameters: {altitude: {type: float, default: 3.0}}
+variables: {h: 0.0}
+period: 50ms
+initial: Climb
+states:
+  Climb: {during: "h += 1", transitions: [{to: Up, when: h >= altitude}]}
+  Up: {final: true}
+"""
+
+USING = """\
+hfsm: 1
+name: using
+language: python
+initial: TakeOff
+states:
+  TakeOff:
+    use: lib/climb.yaml
+    with: {altitude: 5.0}
+    transitions: [{to: Watch, when: done()}]
+  Watch:
+    regions:
+      Left: {initial: Again, states: {Again: {use: lib/climb.yaml}}}
+      Right: {initial: Idle, states: {Idle: {}}}
+"""
+
+
+def test_used_sub_automaton_names_its_file(tmp_path: Path) -> None:
+    (tmp_path / "lib").mkdir()
+    write_model(tmp_path / "lib", USED, "climb.yaml")
+    path = write_model(tmp_path, USING)
+    model = compile_model(path)
+    source = dot.to_dot(model)
+    graph = check_structure(model, source)
+    clusters = clusters_of(graph)
+    assert esc_lines(clusters["cluster_TakeOff"]["label"]) == [
+        "TakeOff · lib/climb.yaml", "initial · period 50ms"]
+    assert esc_lines(clusters["cluster_Watch/Left/Again"]["label"])[0] == (
+        "Again · lib/climb.yaml")
+    assert {"TakeOff/Climb", "TakeOff/Up", "Watch/Left/Again/Climb"} <= {
+        o["name"] for o in graph["objects"]}
+    check_layout(source)
+    take_off = model.find("TakeOff")
+    assert take_off is not None and take_off.automaton is not None
+    graph = check_structure(model, dot.to_dot(model, "TakeOff"), take_off.automaton)
+    assert graph["label"] == "using: TakeOff · lib/climb.yaml · period 50ms"
+    # folded, it is a circle as any composite state
+    nodes = {o["name"]: o for o in read_dot(dot.to_dot(model, depth=0))["objects"]}
+    assert esc_lines(nodes["TakeOff"]["label"]) == ["TakeOff", "(2 states)"]
+
+
+def test_a_hand_built_instance_names_its_file(tmp_path: Path) -> None:
+    """The label comes from the IR alone (Automaton.instance), whatever built it."""
+    model = compile_model(write_model(tmp_path, NESTED))
+    follow = model.find("Follow")
+    assert follow is not None and follow.automaton is not None
+    used = compile_model(write_model(tmp_path, USED, "climb.yaml"))
+    instance = Instance(file="lib/x.yaml", written="../lib/x.yaml", model=used, bindings=(),
+                        span=follow.span)
+    auto = dataclasses.replace(follow.automaton, instance=instance)
+    root = dataclasses.replace(model.root, states=tuple(
+        dataclasses.replace(s, automata=(auto,)) if s.name == "Follow" else s
+        for s in model.root.states))
+    model = dataclasses.replace(model, root=root)
+    graph = check_structure(model, dot.to_dot(model))
+    assert esc_lines(clusters_of(graph)["cluster_Follow"]["label"])[0] == (
+        "Follow · ../lib/x.yaml")
 
 
 # ---------------------------------------------------------------------------

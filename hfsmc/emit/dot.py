@@ -29,14 +29,14 @@ so that the cluster grows around it).  In SVG, a state's element (node or
 cluster) has its path as ``id`` and a transition ``PATH#N`` (its source and
 index, as a trace's ``fire`` record names it), for views that colour them.
 
-Label text is wrapped and escaped by hfsmc/emit/dot_text.py.  The same model
+Label text is wrapped and escaped by hfsmc/emit/dot_text.py; what
+``--state`` draws is chosen by hfsmc/emit/dot_select.py.  The same model
 always gives the same DOT bytes: the direction is estimated, not measured by
 running Graphviz.
 """
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,7 +44,17 @@ import graphviz
 
 from hfsmc.durations import format_us
 from hfsmc.emit.dot_layout import Plan, Spacing, choose_rankdir, text_size
-from hfsmc.emit.dot_text import WRAP, esc_lines, one_line, shorten, wrap
+from hfsmc.emit.dot_select import select
+from hfsmc.emit.dot_text import (
+    WRAP,
+    automaton_note,
+    esc_lines,
+    name_line,
+    one_line,
+    shorten,
+    state_note,
+    wrap,
+)
 from hfsmc.errors import UsageError
 from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Automaton, Model, State, Transition
@@ -122,7 +132,7 @@ def to_dot(model: Model, state_path: str | None = None, *, rankdir: str = "auto"
         raise UsageError(f"rankdir must be one of {', '.join(RANKDIRS)}, not {rankdir!r}")
     if depth is not None and depth < 0:
         raise UsageError(f"depth must be 0 or more, not {depth}")
-    autos, title = _select(model, state_path)
+    autos, title = select(model, state_path)
     g = graphviz.Digraph(
         name=model.name,
         graph_attr={**GRAPH_ATTRS, "label": esc_lines([title])},
@@ -135,7 +145,12 @@ def to_dot(model: Model, state_path: str | None = None, *, rankdir: str = "auto"
         trial.top(graphviz.Digraph(), autos)
         rankdir = choose_rankdir(trial.plan, SPACING)
     g.graph_attr["rankdir"] = rankdir
-    drawing = _Drawing(expanded, rows=rankdir == "TB")
+    # A first pass finds the groups of states drawn on one rank (rows, the
+    # regions' initial states); dot keeps one such group per state, so groups
+    # that share a state are written as one.
+    first = _Drawing(expanded, rows=rankdir == "TB")
+    first.top(graphviz.Digraph(), autos)
+    drawing = _Drawing(expanded, rows=rankdir == "TB", merged=_merge(first.same))
     drawing.top(g, autos)
     if state_path is None and model.on_interrupt:
         drawing.interrupt(g, model)
@@ -193,75 +208,13 @@ def _stderr_text(stderr: bytes | str | None) -> str:
 # selection
 
 
-def _select(model: Model, state_path: str | None) -> tuple[tuple[Automaton, ...], str]:
-    """The sub-automaton (or the regions) to draw and the diagram's title."""
-    root_period = format_us(model.root.period_ms * 1000)
-    if state_path is None:
-        return (model.root,), f"{model.name} · period {root_period}"
-    state = model.find(state_path)
-    if state is not None and state.automata:
-        name = _name_line(state.path, state.automaton)
-        return state.automata, f"{model.name}: {name} · {_state_note(state)}"
-    region = model.automaton_at(state_path) if state is None else None
-    if region is not None and region.region is not None:
-        # A region alone is drawn as a sub-automaton is: its states, no dashed box.
-        return (region,), f"{model.name}: {region.path} · region · {_automaton_note(region)}"
-    drawable = _drawable(model)
-    if state is None:
-        msg = f"--state {state_path}: no such state or region in model `{model.name}`"
-        near = _nearest(state_path, drawable)
-        raise UsageError(f"{msg} (did you mean {near}?)" if near else msg + _listing(drawable))
-    raise UsageError(
-        f"--state {state_path}: state `{state.path}` has no sub-automaton to draw"
-        + _listing(drawable)
-    )
-
-
-def _drawable(model: Model) -> dict[str, bool]:
-    """What ``--state`` takes, in model order: the paths of composite states
-    (False) and of regions (True)."""
-    out: dict[str, bool] = {}
-    for s in model.states():
-        if s.automata:
-            out[s.path] = False
-            if s.parallel:
-                out.update(dict.fromkeys((a.path for a in s.automata), True))
-    return out
-
-
-def _nearest(path: str, drawable: dict[str, bool]) -> str | None:
-    """The valid paths nearest a wrong one, quoted: a composite state's path
-    that is ``path`` with region names added (``Mission/Nav/Go`` for
-    ``Mission/Go``), else up to three spelt alike."""
-    regions = sorted((p for p, is_region in drawable.items() if is_region), key=len, reverse=True)
-
-    def without_regions(p: str) -> str:
-        for r in regions:  # innermost first
-            if p.startswith(r + "/"):
-                return without_regions(r.rpartition("/")[0] + p[len(r):])
-        return p
-
-    close = [p for p, is_region in drawable.items()
-             if not is_region and p != path and without_regions(p) == path]
-    close = close or difflib.get_close_matches(path, list(drawable), n=3, cutoff=0.6)
-    return " or ".join(f"`{p}`" for p in close) or None
-
-
-def _listing(drawable: dict[str, bool]) -> str:
-    if not drawable:
-        return "; this model has no composite state"
-    if not any(drawable.values()):
-        return "; composite states: " + ", ".join(drawable)
-    return "; composite states and regions: " + ", ".join(
-        f"{p} (region)" if is_region else p for p, is_region in drawable.items())
-
-
-def _expanded(autos: tuple[Automaton, ...], depth: int | None, level: int = 1) -> frozenset[str]:
+def _expanded(autos: Automaton | tuple[Automaton, ...], depth: int | None,
+              level: int = 1) -> frozenset[str]:
     """Paths of the composite states under ``autos`` drawn as clusters: those
     at most ``depth`` levels down (the states of ``autos`` are level 1, those
     of a state's sub-automaton or regions one more)."""
     out: set[str] = set()
-    for a in autos:
+    for a in (autos,) if isinstance(autos, Automaton) else autos:
         for s in a.states:
             if s.automata and (depth is None or level <= depth):
                 out.add(s.path)
@@ -281,13 +234,21 @@ class _Drawing:
     expanded: frozenset[str]
     rows: bool  # small flat sub-automata in one row (top-to-bottom drawings)
     plan: Plan = field(default_factory=Plan)
+    # Groups of node ids on one rank, in the order met; with ``merged`` (from a
+    # first pass), the k-th group is written as merged[k], or not at all.
+    same: list[tuple[str, ...]] = field(default_factory=list)
+    merged: dict[int, tuple[str, ...]] | None = None
 
     def top(self, g: graphviz.Digraph, autos: tuple[Automaton, ...]) -> None:
         """What is drawn: one sub-automaton, or a state's regions side by side."""
         if len(autos) == 1:
             self.automaton(g, autos[0], level=1, clusters=())
-        else:
-            self.regions(g, autos, level=1, clusters=(), fill=None)
+            return
+        # In an unseen cluster: dot orders clusters at the top level otherwise
+        # than inside another (regions.__doc__).
+        with g.subgraph(name="cluster_#regions") as c:
+            c.attr(label="", peripheries="0", margin="0", id="#regions")
+            self.regions(c, autos, level=1, clusters=("cluster_#regions",), fill=None)
 
     def automaton(self, g: graphviz.Digraph, auto: Automaton, level: int,
                   clusters: tuple[str, ...]) -> None:
@@ -304,7 +265,7 @@ class _Drawing:
                 self.plan.node(_node_id(s), _circle_size(attrs["label"]), clusters)
                 continue
             cluster = _cluster_id(s.path)
-            label = [_name_line(s.name, s.automaton), _state_note(s, initial)]
+            label = [name_line(s.name, s.automaton), state_note(s, initial)]
             self.plan.cluster_label[cluster] = text_size(label, CLUSTER_FONTSIZE)
             fill = CLUSTER_FILLS[(level - 1) % len(CLUSTER_FILLS)]
             with g.subgraph(name=cluster) as c:
@@ -344,7 +305,7 @@ class _Drawing:
         starts from; to cross fewer arrows it may still swap regions."""
         for a in reversed(regions) if self.rows else regions:
             cluster = _cluster_id(a.path)
-            label = [_name_line(a.region or "", a), _automaton_note(a)]
+            label = [name_line(a.region or "", a), automaton_note(a)]
             self.plan.cluster_label[cluster] = text_size(label, CLUSTER_FONTSIZE)
             with g.subgraph(name=cluster) as c:
                 c.attr(
@@ -363,10 +324,18 @@ class _Drawing:
         starts = [_node_id(self.entry_anchor(s)) for a in regions
                   if (s := a.state(a.initial)) is not None]
         self.plan.aligned.append(tuple(starts))
-        with g.subgraph() as same:
-            same.attr(rank="same")
-            for node_id in starts:
-                same.node(node_id)
+        self.same_rank(g, starts)
+
+    def same_rank(self, g: graphviz.Digraph, ids: list[str]) -> None:
+        """``ids`` on one rank (``rank=same``), merged with the groups that share a node."""
+        k = len(self.same)
+        self.same.append(tuple(ids))
+        written = ids if self.merged is None else self.merged.get(k, ())
+        if written:
+            with g.subgraph() as same:
+                same.attr(rank="same")
+                for node_id in written:
+                    same.node(node_id)
 
     def is_pair(self, auto: Automaton) -> bool:
         """Whether a nested sub-automaton is a pair of simple states (or one)."""
@@ -388,10 +357,7 @@ class _Drawing:
         height of one state, not of a column."""
         self.plan.rows.append(tuple(ids))
         if self.rows:
-            with g.subgraph() as same:
-                same.attr(rank="same")
-                for node_id in ids:
-                    same.node(node_id)
+            self.same_rank(g, ids)
 
     def transition(self, g: graphviz.Digraph, src: State, t: Transition, parent: Automaton,
                    clusters: tuple[str, ...], row_of: dict[str, int]) -> None:
@@ -480,6 +446,32 @@ class _Drawing:
         return s
 
 
+def _merge(groups: list[tuple[str, ...]]) -> dict[int, tuple[str, ...]]:
+    """Groups that share a node, joined: each written where the last of them
+    is (the outermost: inner sub-automata are drawn first); others nowhere."""
+    owner = list(range(len(groups)))
+
+    def find(k: int) -> int:
+        while owner[k] != k:
+            k = owner[k]
+        return k
+
+    first_with: dict[str, int] = {}
+    for k, group in enumerate(groups):
+        for node_id in group:
+            if node_id in first_with:
+                owner[find(first_with[node_id])] = find(k)
+            else:
+                first_with[node_id] = k
+    joined: dict[int, list[str]] = {}
+    last: dict[int, int] = {}
+    for k, group in enumerate(groups):
+        root = find(k)
+        joined.setdefault(root, []).extend(n for n in group if n not in joined[root])
+        last[root] = k
+    return {last[root]: tuple(ids) for root, ids in joined.items()}
+
+
 def _state_attrs(s: State, initial: bool, level: int) -> dict[str, str]:
     attrs = {
         "label": esc_lines([s.name]),  # never shortened: names tell states apart
@@ -507,32 +499,6 @@ def _circle_size(label: str) -> tuple[float, float]:
     width, height = text_size(lines, float(NODE_ATTRS["fontsize"]))
     d = max(_inches(NODE_ATTRS["width"]), 1.36 * max(width, height) + 8)
     return d, d
-
-
-def _name_line(name: str, auto: Automaton | None) -> str:
-    """A cluster's first line: the name, then the file a used sub-automaton
-    comes from (``TakeOff · lib/takeoff.yaml``)."""
-    if auto is None or auto.instance is None:
-        return name
-    return f"{name} · {auto.instance.written}"
-
-
-def _state_note(s: State, initial: bool = False) -> str:
-    """A composite state's second line: its sub-automaton's period, or how
-    many regions it has (each says its own period)."""
-    if s.automaton is not None:
-        return _automaton_note(s.automaton, initial)
-    note = f"{len(s.automata)} regions"
-    return "initial · " + note if initial else note
-
-
-def _automaton_note(auto: Automaton, initial: bool = False) -> str:
-    """``period 100ms``, with `` · history`` when on; a composite initial state
-    (a cluster cannot be a double circle) says ``initial`` first."""
-    note = f"period {format_us(auto.period_ms * 1000)}"
-    if auto.history:
-        note += " · history"
-    return "initial · " + note if initial else note
 
 
 def _node_id(s: State) -> str:

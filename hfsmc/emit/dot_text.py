@@ -4,7 +4,8 @@ Labels are Graphviz escStrings: backslashes are doubled (no ``\\N``, ``\\l``
 surprises), ``&`` becomes ``&amp;`` (Graphviz decodes entities even in plain
 labels), ``<...>`` is never taken for an HTML label (``graphviz.nohtml``) and
 quotes are escaped by the ``graphviz`` package.  Long lines are wrapped, not
-cut (docs/diagrams.md).
+cut (docs/diagrams.md).  The titles of boxes (a state's or a region's name,
+the file a used sub-automaton comes from, periods) are written here too.
 """
 
 from __future__ import annotations
@@ -12,6 +13,9 @@ from __future__ import annotations
 import unicodedata
 
 import graphviz
+
+from hfsmc.durations import format_us
+from hfsmc.ir import Automaton, State
 
 # Label lines (names, conditions) are wrapped at this many characters, at
 # spaces and preferably before `and` / `or`; a condition longer than
@@ -133,3 +137,29 @@ def esc_lines(lines: list[str], left: bool = False) -> str:
         text = "\\n".join(_esc(line) for line in lines)
     label: str = graphviz.nohtml(text)
     return label
+
+
+def name_line(name: str, auto: Automaton | None) -> str:
+    """A cluster's first line: the name, then the file a used sub-automaton
+    comes from (``TakeOff · lib/takeoff.yaml``)."""
+    if auto is None or auto.instance is None:
+        return name
+    return f"{name} · {auto.instance.written}"
+
+
+def state_note(s: State, initial: bool = False) -> str:
+    """A composite state's second line: its sub-automaton's period, or how
+    many regions it has (each says its own period)."""
+    if s.automaton is not None:
+        return automaton_note(s.automaton, initial)
+    note = f"{len(s.automata)} regions"
+    return "initial · " + note if initial else note
+
+
+def automaton_note(auto: Automaton, initial: bool = False) -> str:
+    """``period 100ms``, with `` · history`` when on; a composite initial state
+    (a cluster cannot be a double circle) says ``initial`` first."""
+    note = f"period {format_us(auto.period_ms * 1000)}"
+    if auto.history:
+        note += " · history"
+    return "initial · " + note if initial else note
