@@ -30,6 +30,7 @@ from click.testing import CliRunner
 from lxml import etree
 
 from hfsmc.cli import main
+from hfsmc.commands import completion
 from hfsmc.durations import format_us
 from hfsmc.emit import dot, dot_layout, dot_text
 from hfsmc.errors import UsageError
@@ -970,6 +971,14 @@ def test_state_errors_with_regions(tmp_path: Path, state: str, message: str) -> 
     assert message in result.stderr
     assert "Traceback" not in result.output
     assert not out.exists()
+
+
+def test_state_completion_offers_regions(tmp_path: Path) -> None:
+    path = str(write_model(tmp_path, REGIONS))
+    assert completion.state_paths(path, regions=True) == [
+        "Mission", "Mission/Nav", "Mission/Watch", "Mission/Arm", "Mission/Nav/Follow",
+        "Mission/Arm/Work", "Mission/Arm/Work/Joint", "Mission/Arm/Work/Grip"]
+    assert completion.state_paths(path) == ["Mission", "Mission/Nav/Follow", "Mission/Arm/Work"]
 
 
 USED = """\

@@ -31,9 +31,10 @@ _SIM_FILE_OPTIONS = {"--world", "--truth"}
 _TRACE_LINES = 200_000  # enough for the paths of any trace, bounded for a huge one
 
 
-def state_paths(model: str | None) -> list[str]:
+def state_paths(model: str | None, regions: bool = False) -> list[str]:
     """Paths of the composite states of ``model`` (those ``--state`` and ``--focus``
-    take), in model order; [] when it does not compile."""
+    take), in model order, with ``regions`` their regions' paths too (``--state``
+    draws a region); [] when it does not compile."""
     if not model:
         return []
     try:
@@ -42,7 +43,8 @@ def state_paths(model: str | None) -> list[str]:
         result = compile_file(model, cxx=False)  # no g++ run for a Tab
         if result.model is None:
             return []
-        return [s.path for s in result.model.states() if s.automata]
+        return [path for s in result.model.states() if s.automata
+                for path in (s.path, *(a.path for a in s.automata if regions and s.parallel))]
     except Exception:  # completion must never show a traceback
         return []
 
@@ -82,8 +84,8 @@ def _model_argument(ctx: click.Context) -> str | None:
 
 def complete_state(ctx: click.Context, param: click.Parameter,
                    incomplete: str) -> list[CompletionItem]:
-    """``--state`` of ``hfsmc diagram``: the composite states of MODEL."""
-    return _matching(state_paths(_model_argument(ctx)), incomplete)
+    """``--state`` of ``hfsmc diagram``: the composite states and regions of MODEL."""
+    return _matching(state_paths(_model_argument(ctx), regions=True), incomplete)
 
 
 def complete_focus(ctx: click.Context, param: click.Parameter,
