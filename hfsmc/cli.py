@@ -174,7 +174,8 @@ def convert(source: str, output: str, strict: bool) -> None:
               help="The component folder (default: build/NAME).")
 @click.option("--compile", "compile_", is_flag=True, help="C++: also run CMake and the compiler.")
 @click.option("--depfile", type=click.Path(dir_okay=False),
-              help="Also write a make depfile: the component's files depend on MODEL.")
+              help="Also write a make depfile: the component's files depend on MODEL "
+                   "and the files it uses.")
 @click.option("--dump-ir", is_flag=True, help="Print the lowered IR first.")
 @_guard
 def build(model: str, target: str, output: str | None, compile_: bool, depfile: str | None,

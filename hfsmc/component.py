@@ -42,8 +42,18 @@ def write_component(model: Model, target: str, folder: Path,
     changed = write_tree(folder, files, executable)
     if depfile is not None:
         outputs = " ".join(_make_escape(str(folder / f)) for f in sorted(files))
-        write_atomic(depfile, f"{outputs}: {_make_escape(model.file)}\n")
+        inputs = " ".join(_make_escape(f) for f in model_files(model))
+        write_atomic(depfile, f"{outputs}: {inputs}\n")
     return WrittenComponent(folder, tuple(sorted(files)), tuple(sorted(changed)), folder / main)
+
+
+def model_files(model: Model) -> list[str]:
+    """The model's file, then the files its states `use` (nested ones too), each once."""
+    files = [model.file]
+    for automaton in model.automata():
+        if automaton.instance is not None and automaton.instance.file not in files:
+            files.append(automaton.instance.file)
+    return files
 
 
 def _make_escape(path: str) -> str:

@@ -142,6 +142,17 @@ def test_depfile_names_outputs_and_the_model(tmp_path: Path) -> None:
         f"{tmp_path}/my\\ out/blinker.py" in targets
 
 
+def test_depfile_names_the_used_files(tmp_path: Path) -> None:
+    """A change to a used file (here one used by a used file) rebuilds the component."""
+    dep = tmp_path / "use_nested.d"
+    r = hfsmc("build", "tests/conformance/92_use_nested.yaml", "-o", str(tmp_path / "out"),
+              "--depfile", str(dep))
+    assert r.returncode == 0, r.stderr
+    assert dep.read_text().partition(": ")[2] == (
+        "tests/conformance/92_use_nested.yaml tests/conformance/lib/outer.yaml "
+        "tests/conformance/lib/inner.yaml\n")
+
+
 @pytest.mark.parametrize(("model", "target", "hint"), [
     ("examples/blinker/blinker.yaml", "cpp", "-t python"),
     ("examples/blinker_cpp/blinker_cpp.yaml", "python", "-t cpp")])
