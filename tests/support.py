@@ -261,6 +261,69 @@ PARALLEL_TRACE = """\
 """
 PARALLEL_RECORDS: list[dict[str, Any]] = [json.loads(line) for line in PARALLEL_TRACE.splitlines()]
 
+# STRUCTURE as the component tells it when Blinking's sub-automaton is used from another
+# file (tests/cpp/observers_main.cpp --use).
+USED_STRUCTURE: dict[str, Any] = {**STRUCTURE, "automata": [
+    STRUCTURE["automata"][0], {**STRUCTURE["automata"][1], "use": "lib/blink.yaml"}]}
+
+# A model that uses one file twice, that file using another: paths through instances
+# (First/Hold/Wait), a file named as each using model writes it (lib/climb.yaml, hold.yaml).
+USED_MODELS = {
+    "legs.yaml": """\
+hfsm: 1
+name: legs
+parameters:
+  high: {type: float, default: 2.0}
+variables: {legs: 0}
+period: 100ms
+initial: First
+states:
+  First:
+    use: lib/climb.yaml
+    with: {target: 1.0}
+    transitions: [{to: Second, when: done(), do: "legs += 1"}]
+  Second:
+    use: lib/climb.yaml
+    with: {target: $high}
+    transitions: [{to: Done, when: done(), do: "legs += 1"}]
+  Done: {final: true}
+""",
+    "lib/climb.yaml": """\
+hfsm: 1
+name: climb
+parameters:
+  target: {type: float, default: 2.0}
+variables: {height: 0.0}
+period: 100ms
+initial: Climb
+states:
+  Climb:
+    during: "height += 0.5"
+    transitions: [{to: Hold, when: height >= target}]
+  Hold:
+    use: hold.yaml
+    transitions: [{to: Up, when: done()}]
+  Up: {final: true}
+""",
+    "lib/hold.yaml": """\
+hfsm: 1
+name: hold
+period: 100ms
+initial: Wait
+states:
+  Wait: {transitions: [{to: Still, after: 1s}]}
+  Still: {final: true}
+""",
+}
+
+
+def write_used_models(folder: Path) -> Path:
+    """USED_MODELS written under ``folder``; the using model's path."""
+    for name, text in USED_MODELS.items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_text(text)
+    return folder / "legs.yaml"
+
 GREEN = r"\x1b\[(?:[0-9;]*;)?32m(?:\x1b\[[0-9;]*m)*"  # green foreground, then maybe other SGRs
 
 

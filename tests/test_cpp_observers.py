@@ -29,9 +29,17 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rich.console import Console
 
 from tests.conftest import ROOT
-from tests.support import MONITOR_VALIDATOR, PARALLEL_STRUCTURE, STRUCTURE, Client, read_messages
+from tests.support import (
+    MONITOR_VALIDATOR,
+    PARALLEL_STRUCTURE,
+    STRUCTURE,
+    USED_STRUCTURE,
+    Client,
+    read_messages,
+)
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 hfsmc_view = importlib.import_module("hfsmc.templates.python.hfsmc_view")
@@ -533,5 +541,47 @@ def test_display_of_regions_on_a_terminal(observers_program: Path, run: Callable
         for state in (b"B", b"Ok"):  # both regions' states at once
             assert re.search(rb"\x1b\[1;32m\xe2\x97\x8f " + state + rb"\x1b", frame), frame
         assert b"\x1b[32m[Nav 100 ms]" in frame
+    finally:
+        tty.close()
+
+
+# -- a sub-automaton used from another file (observers_main --use) --------------------------
+def test_a_used_file_reaches_the_monitor_as_the_python_one_sends_it(
+        observers_program: Path, run: Callable[..., Run], clients: Callable[..., Client]) -> None:
+    r = run(observers_program, "--use", "--monitor", "0", "--gate-at", "9")
+    r.at_gate()
+    hello = clients(r.port).message()
+    r.finish()
+    assert hello is not None
+    MONITOR_VALIDATOR.validate(hello)
+    assert hello["structure"] == USED_STRUCTURE
+
+
+def test_display_of_a_used_file_on_a_terminal(build: tuple[Path, dict[str, str]], run: Callable[..., Run]) -> None:
+    """The state's line names the file, as the Python view's tree writes it."""
+    exe, env = build
+    tty = Terminal(30, 120)
+    try:
+        r = run(exe, "--use", "--display", "--gate-at", "9", stdin=subprocess.DEVNULL,
+                stdout=tty.slave, stderr=tty.slave, env=env)
+        tty.read_until(b"component: at the gate")
+        tty.read_until(b"\x1b[35mpauses\x1b[0m 0")
+        frame = tty.out.rpartition(b"\x1b[J")[2]
+        r.release()
+        tty.read_until(b"closed")
+        assert r.proc.wait(timeout=15) == 0
+        view = hfsmc_view.ViewState(USED_STRUCTURE)
+        for it in calls_of(r)[:9]:
+            view.apply(*it)
+        shown = io.StringIO()
+        Console(file=shown, width=120, color_system=None).print(hfsmc_view.render(view, width=120))
+        first = shown.getvalue().splitlines()
+        py_tree = [ln[:first[0].index("╭")].rstrip() for ln in first[:6]]
+        assert py_tree[1] == "├── ● Blinking · lib/blink.yaml  0.6s  50 ms history", py_tree
+        plain = re.sub(rb"\x1b\[[0-9;]*[A-Za-z]", b"", frame).decode()
+        lines = [ln for ln in plain.split("\r\n") if not ln.startswith("component:")]
+        assert [ln[:len(want) + 2] for ln, want in zip(lines, py_tree, strict=False)] == \
+            [want + "  " for want in py_tree], plain
+        assert b"\x1b[1;32m\xe2\x97\x8f Blinking\x1b[0m\x1b[2m \xc2\xb7 lib/blink.yaml\x1b[0m" in frame
     finally:
         tty.close()

@@ -30,8 +30,10 @@ from tests.support import (
     RECORDS,
     STRUCTURE,
     TRACE,
+    USED_STRUCTURE,
     Tmux,
     py,
+    write_used_models,
 )
 
 # The component's own module, shipped in the data package hfsmc.templates. mypy cannot
@@ -620,3 +622,63 @@ def test_replay_of_a_trace_with_regions(tmp_path: Path, capsys: pytest.CaptureFi
         "  1.000  stop (final)"]
     assert view(None, str(trace), focus="Mission/Wat", speed=0) == 2
     assert "--focus Mission/Wat: no state of that path" in capsys.readouterr().err
+
+
+# -- sub-automata used from other files --------------------------------------------------------
+def test_a_state_names_the_file_its_sub_automaton_is_used_from(tmp_path: Path) -> None:
+    """From the model (hfsmc view --model) as from a component's structure: the file as the
+    using model writes it, on the state's line, whether it is active, left at a stop or not."""
+    result = compile_file(str(write_used_models(tmp_path)))
+    assert result.model is not None, result.diagnostics
+    v = ViewState(structure_of(result.model))
+    assert v.uses == {"First": "lib/climb.yaml", "First/Hold": "hold.yaml",
+                      "Second": "lib/climb.yaml", "Second/Hold": "hold.yaml"}
+    for rec in [{"t": 0, "ev": "start", "name": "legs"}, {"t": 0, "ev": "enter", "state": "First"},
+                {"t": 200, "ev": "enter", "state": "First/Hold"},
+                {"t": 200, "ev": "enter", "state": "First/Hold/Wait"}]:
+        v.apply_record(rec)
+    v.advance(500)
+    tree = [line[:50].rstrip() for line in screen(v).splitlines()[:9]]
+    assert tree == ["legs  100 ms",
+                    "├── ● First · lib/climb.yaml  0.5s  100 ms",
+                    "│   ├── ○ Climb",
+                    "│   ├── ● Hold · hold.yaml  0.3s  100 ms",
+                    "│   │   ├── ● Wait  0.3s",
+                    "│   │   └── ○ Still  final",
+                    "│   └── ○ Up  final",
+                    "├── ○ Second · lib/climb.yaml  100 ms  ▸ 3 states",
+                    "└── ○ Done  final"], tree
+    assert screen(v, focus="First/Hold").startswith("● Hold · hold.yaml  0.3s  100 ms ")
+    stopped = fed(upto(500), USED_STRUCTURE)
+    stopped.apply_record({"t": 600, "ev": "exit", "state": "Blinking/Dark"})
+    stopped.apply_record({"t": 600, "ev": "exit", "state": "Blinking"})
+    stopped.apply_record({"t": 600, "ev": "stop", "reason": "sigint"})
+    assert "■ Blinking · lib/blink.yaml  0.6s, at stop  50 ms history" in screen(stopped)
+    colored = screen(fed(upto(500), USED_STRUCTURE), color=True)
+    assert re.search(r"● Blinking\x1b\[0m\x1b\[(?:[0-9;]*;)?2(?:;[0-9;]*)?m · lib/blink\.yaml", colored), \
+        "the file is dim"
+
+
+@pytest.mark.timeout(90)
+def test_component_display_of_used_files_in_a_terminal(tmux: Callable[..., Tmux], tmp_path: Path) -> None:
+    """A real component using one file twice, that file using another: each using state's
+    line names its file, the instances' states below it, paths through them in the panel."""
+    write_used_models(tmp_path)
+    subprocess.run([sys.executable, "-m", "hfsmc", "build", "legs.yaml", "-o", "out"], cwd=tmp_path,
+                   check=True, capture_output=True, timeout=120, stdin=subprocess.DEVNULL)
+    t = tmux(py(tmp_path / "out" / "legs.py", "--clock", "real", "--display"), tmp_path)
+    text = t.wait(lambda s: bool(re.search(GREEN + "● Hold", s)), colors=True)
+    assert re.search(GREEN + "● First", text), text
+    tree = [re.sub(r"\d\.\ds", "_", line[:50].rstrip()) for line in t.screen().splitlines()[:9]]
+    assert tree == ["legs  100 ms",
+                    "├── ● First · lib/climb.yaml  _  100 ms",
+                    "│   ├── ○ Climb",
+                    "│   ├── ● Hold · hold.yaml  _  100 ms",
+                    "│   │   ├── ● Wait  _",
+                    "│   │   └── ○ Still  final",
+                    "│   └── ○ Up  final",
+                    "├── ○ Second · lib/climb.yaml  100 ms  ▸ 3 states",
+                    "└── ○ Done  final"], tree
+    assert "0.200  First/Climb -> First/Hold" in t.screen()
+    text = t.wait(lambda s: "EXIT=0" in s)
+    assert "○ Second · lib/climb.yaml  100 ms  ▸ 3 states" in text and "stopped (final)" in text

@@ -16,12 +16,12 @@ owns the ``ViewState`` and the terminal, so the two never share data.
 
 On a terminal: active states green with their time in state, the states a
 stop left yellow, others dim; a parallel state (``‖``) holds its regions as
-named groups (``[Watch 200 ms history]``) with their states; autofocus folds
-inactive composite states (key
-``a`` toggles it; ``q`` quits ``hfsmc view``); lines the component prints go
-above the tree. Plain lines: ``  0.000  start NAME in PATH``, then
-``  1.350  FROM -> TO  (name)`` per transition (only those inside the focus
-state with ``--focus``), ``interrupt (REASON) -> STATE`` and ``stop (REASON)``.
+named groups (``[Watch 200 ms history]``) with their states; a state whose
+sub-automaton is used from another file names it (``TakeOff · lib/takeoff.yaml``);
+autofocus folds inactive composite states (key ``a`` toggles it; ``q`` quits
+``hfsmc view``); lines the component prints go above the tree. Plain lines:
+``  0.000  start NAME in PATH``, then ``  1.350  FROM -> TO  (name)`` per transition
+(only those inside the focus state with ``--focus``), ``interrupt (REASON) -> STATE`` and ``stop (REASON)``.
 """
 
 from __future__ import annotations
@@ -114,14 +114,19 @@ def _label(view: ViewState, path: str, collapsed: int) -> Text:
     name = clean(path.rpartition("/")[2] or view.name)
     if any(c in view.regions for c in view.children.get(path, ())):
         name += " ‖"  # a parallel state: its children are its regions
+    # The file its sub-automaton is used from, if it is (``● TakeOff · lib/takeoff.yaml  1.2s``).
+    used = f" · {clean(view.uses[path])}" if path in view.uses else ""
     if path in view.active:
         label = Text(f"● {name}", style="bold green")
+        label.append(used, style="dim")
         label.append(f"  {_dur(view.t_ms - view.active[path])}", style="green")
     elif view.stop_reason is not None and path in view.stopped_in:
         label = Text(f"■ {name}", style="bold yellow")
+        label.append(used, style="dim")
         label.append(f"  {_dur(view.t_ms - view.stopped_in[path])}, at stop", style="yellow")
     else:
         label = Text(f"○ {name}", style="dim")
+        label.append(used, style="dim")
     if path in view.final:
         label.append("  final", style="dim italic")
     if path in view.periods:

@@ -151,6 +151,8 @@ class ViewState:
         # region) -> its period; ``history``: those that resume their last state.
         self.periods: dict[str, int] = {}
         self.history: set[str] = set()
+        # A state whose sub-automaton is used from another file -> that file, as written.
+        self.uses: dict[str, str] = {}
         self.transition_names: dict[tuple[str, int], str] = {}
         self.variable_names: list[str] = []
         self.parameters: dict[str, str] = {}
@@ -228,6 +230,8 @@ class ViewState:
                 self.periods[where] = int(a["period_ms"])
             if a.get("history"):
                 self.history.add(where)
+            if a.get("use"):
+                self.uses[where] = str(a["use"])
         for tr in s.get("transitions", ()):
             if tr.get("name"):
                 self.transition_names[(str(tr["from"]), int(tr["index"]))] = str(tr["name"])

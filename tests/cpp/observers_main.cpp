@@ -3,7 +3,7 @@
 //
 //   observers_main [--monitor ADDR] [--display] [--focus PATH] [--no-autofocus]
 //                  [--calls FILE] [--gate FILE] [--gate-at N] [--burst N] [--pause-ms N] [--masks]
-//                  [--feeds] [--regions]
+//                  [--feeds] [--regions] [--use]
 //   observers_main --parse ADDR      prints HOST PORT, or the error and exits 2
 //   observers_main --readable        prints hfsmc::readable of each line of stdin
 //   observers_main --fit             prints view_detail::fit's T L V for each FREE T L V of stdin
@@ -15,7 +15,8 @@
 // prints each thread's blocked signals there. --feeds registers a stand-in vehicle and
 // camera (hfsmc::Feed, as mavlink.hpp and camera.hpp do): the camera has a new frame at
 // every call. --regions plays the run of a state with two regions instead
-// (PARALLEL_STRUCTURE and PARALLEL_TRACE of tests/support.py).
+// (PARALLEL_STRUCTURE and PARALLEL_TRACE of tests/support.py). --use says that Blinking's
+// sub-automaton is used from lib/blink.yaml (the structure's "use"), the run unchanged.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -68,6 +69,7 @@ std::string gate;
 std::vector<int> gates;  // call counts where the run waits
 int made = 0;
 bool regions = false;
+bool use = false;
 std::vector<std::string> variable_names = {"led", "count", "pauses"};
 
 void step() {  // after each observer call
@@ -102,7 +104,8 @@ hfsmc::Structure structure() {
     if (regions) return parallel_structure();
     hfsmc::Structure s;
     s.name = "blinker";
-    s.automata = {{"", "", "", 100, "Blinking", false}, {"Blinking", "", "", 50, "Lit", true}};
+    s.automata = {{"", "", "", 100, "Blinking", false},
+                  {"Blinking", "", use ? "lib/blink.yaml" : "", 50, "Lit", true}};
     s.states = {{"Blinking", false, true}, {"Blinking/Lit", false, false}, {"Blinking/Dark", false, false},
                 {"Paused", false, false}, {"Done", true, false}};
     s.transitions = {{"Blinking", "Done", 0, "enough"}, {"Blinking", "Paused", 1, "pause"},
@@ -274,6 +277,8 @@ int main(int argc, char** argv) {
             } else if (a == "--regions") {
                 regions = true;
                 variable_names = {"n"};
+            } else if (a == "--use") {
+                use = true;
             } else if (a == "--masks") {
                 masks = true;
             } else if (a == "--feeds") {

@@ -203,12 +203,20 @@ private:
         std::string name = clean(slash == std::string::npos ? (path.empty() ? v_.name : path) : path.substr(slash + 1));
         const bool parallel = v_.is_parallel(path);
         if (parallel) name += " \u2016";
+        // The file its sub-automaton is used from, if it is (`● TakeOff · lib/takeoff.yaml  1.2s`).
+        auto use = v_.uses.find(path);
+        const std::string used = use == v_.uses.end() ? "" : " \u00b7 " + clean(use->second);
         if (const long long* since = v_.active.find(path)) {
-            l.add("\u25cf " + name, "1;32").add("  " + duration(v_.t_ms - *since), "32");
+            l.add("\u25cf " + name, "1;32");
+            if (!used.empty()) l.add(used, "2");
+            l.add("  " + duration(v_.t_ms - *since), "32");
         } else if (const long long* at = v_.stop_reason ? v_.stopped_in.find(path) : nullptr) {
-            l.add("\u25a0 " + name, "1;33").add("  " + duration(v_.t_ms - *at) + ", at stop", "33");
+            l.add("\u25a0 " + name, "1;33");
+            if (!used.empty()) l.add(used, "2");
+            l.add("  " + duration(v_.t_ms - *at) + ", at stop", "33");
         } else {
             l.add("\u25cb " + name, "2");
+            if (!used.empty()) l.add(used, "2");
         }
         if (v_.is_final(path)) l.add("  final", "2;3");
         auto period = v_.periods.find(path);

@@ -152,6 +152,7 @@ public:
     std::vector<std::string> finals;
     std::map<std::string, int> periods;  // sub-automaton path (owner's, OWNER/REGION) -> period
     std::vector<std::string> history;
+    std::map<std::string, std::string> uses;  // a state whose sub-automaton is used from a file -> that file
     std::map<std::pair<std::string, int>, std::string> transition_names;
     std::vector<std::string> variable_names;
     Ordered<std::string> values;
@@ -229,6 +230,7 @@ public:
             }
             periods[where] = a.period_ms;
             if (a.history && !has_history(where)) history.push_back(where);
+            if (!a.use.empty()) uses[where] = a.use;
         }
         for (const auto& tr : s.transitions) {
             if (!tr.name.empty()) transition_names[{tr.from, tr.index}] = tr.name;
