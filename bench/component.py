@@ -15,7 +15,9 @@ Three parts, each with the issue's targets:
   cost includes the scheduler. The libraries get one event per transition,
   in their fastest documented form. Targets: hfsmc >= 3x faster than
   ``transitions`` flat and >= 10x nested, >= 10x faster than ``sismic`` and
-  ``python-statemachine``.
+  ``python-statemachine``. Beside them, alone (no library has periodic regions): a
+  state with 8 parallel regions at 10, 20, ..., 80 ms (``regions8.yaml``), its cost
+  per tick and per instant.
 * **Real clock**: drift of a 100 ms automaton over 60 s (< 1 ms), and p99
   lateness of the ticks of a 100 Hz automaton (<= 2 ms), from the actual start
   of every tick against its deadline, recorded by wrappers around the
@@ -92,7 +94,10 @@ SPEED_MODELS = {("flat", "bare"): "bench_flat", ("flat", "counted"): "bench_flat
 MODEL_FILES = {"bench_flat": "flat.yaml", "bench_flat_counted": "flat_counted.yaml",
                "bench_nested": "nested.yaml", "bench_nested_counted": "nested_counted.yaml",
                "bench_rt_10hz": "rt_10hz.yaml", "bench_rt_100hz": "rt_100hz.yaml",
-               "bench_chain20": "chain20.yaml"}
+               "bench_chain20": "chain20.yaml", "bench_regions8": "regions8.yaml"}
+# Eight parallel regions at 10, 20, ..., 80 ms under a 10 ms root: no library counterpart,
+# timed alone, per tick and per instant.
+REGIONS_MODEL = "bench_regions8"
 
 
 @dataclass(frozen=True)
@@ -461,6 +466,117 @@ def psm_class(case: str, counter: Counter | None) -> Any:
             c.n_exit += 1
 
     return Counted
+
+
+def ticks_of(periods_us: tuple[int, ...], instants: int) -> int:
+    """Ticks in the first ``instants`` instants of a component whose sub-automata are all
+    active from t = 0 and never leave, the root's period being the shortest."""
+    end = (instants - 1) * periods_us[0]
+    return sum(end // p + 1 for p in periods_us)
+
+
+class Regions(Contender):
+    """regions8 under the virtual clock: ``instants`` instants of the 10 ms root."""
+
+    name = "hfsmc"
+
+    def __init__(self) -> None:
+        self.how = (f"generated {REGIONS_MODEL}.py: Engine.run('virtual', until): a state "
+                    "with 8 regions at 10, 20, ..., 80 ms, each cycling through three "
+                    "states on `after` and on a counter, under a 10 ms root")
+        self.module: ModuleType | None = None
+        self.n = 0
+        self.expected: dict[int, tuple[int, int, tuple[int, ...]]] = {}  # n -> checked run
+
+    def ticks(self, n: int) -> int:
+        return self.expected[n][0]
+
+    def prepare(self, n: int) -> None:
+        self.module = None
+        self.module = load_component(REGIONS_MODEL)
+        self.n = n
+        if n not in self.expected:
+            self.reference(n)
+            self.module = load_component(REGIONS_MODEL)
+
+    def reference(self, n: int) -> None:
+        """An untimed run of n instants that counts the ticks and the instants, against
+        ``ticks_of``; its counters are what every timed run of n must end with."""
+        assert self.module is not None
+        eng = self.module._hfsm
+        ticks, instants = [0], set()
+
+        def counted(f: Callable[[], None]) -> Callable[[], None]:
+            def tick() -> None:
+                ticks[0] += 1
+                instants.add(eng.t)
+                f()
+            return tick
+
+        eng.TICK = tuple(counted(f) for f in eng.TICK)
+        eng.run("virtual", (n - 1) * eng.period_us[0])
+        if len(instants) != n or ticks[0] != ticks_of(eng.period_us, n):
+            raise AssertionError(f"{REGIONS_MODEL}: {ticks[0]} ticks in {len(instants)} "
+                                 f"instants, expected {ticks_of(eng.period_us, n)} in {n}")
+        self.expected[n] = (ticks[0], len(instants), self.counters())
+
+    def counters(self) -> tuple[int, ...]:
+        assert self.module is not None
+        return tuple(self.module.__dict__[f"n{k}"] for k in range(1, 9))
+
+    def go(self) -> None:
+        assert self.module is not None
+        self.module._hfsm.run("virtual", (self.n - 1) * self.module._hfsm.period_us[0])
+
+    def check(self, n: int) -> None:
+        assert self.module is not None
+        eng = self.module._hfsm
+        if eng.status != 0 or eng.t != (n - 1) * eng.period_us[0] or \
+                self.counters() != self.expected[n][2]:
+            raise AssertionError(f"{REGIONS_MODEL}: status {eng.status}, t {eng.t}, counters "
+                                 f"{self.counters()}, expected {self.expected[n][2]}")
+        self.module = None
+
+
+@dataclass
+class RegionsResult:
+    how: str
+    ticks_per_instant: float
+    runs: list[Run] = field(default_factory=list)  # n = instants
+    ticks: int = 0  # per run
+
+    def best(self, per: str, clock: str = "cpu", median: bool = False) -> float:
+        each = [(r.cpu_ns if clock == "cpu" else r.wall_ns) /
+                (self.ticks if per == "tick" else r.n) for r in self.runs]
+        return statistics.median(each) if median else min(each)
+
+    def json(self) -> dict[str, Any]:
+        return {"how": self.how, "instants_per_run": self.runs[0].n,
+                "ticks_per_run": self.ticks, "runs": len(self.runs),
+                "ticks_per_instant": round(self.ticks_per_instant, 3),
+                "ns_per_tick_cpu": round(self.best("tick"), 1),
+                "ns_per_tick_wall": round(self.best("tick", "wall"), 1),
+                "ns_per_tick_cpu_median": round(self.best("tick", median=True), 1),
+                "ns_per_instant_cpu": round(self.best("instant"), 1),
+                "ns_per_instant_wall": round(self.best("instant", "wall"), 1),
+                "ns_per_instant_cpu_median": round(self.best("instant", median=True), 1)}
+
+
+def regions_speed(mode: Mode, log: Callable[[str], None]) -> RegionsResult:
+    """regions8: rounds of about mode.seconds_per_run, best kept (as the machines above)."""
+    c = Regions()
+    probe = 2000
+    per = timed(c, probe).cpu_ns / probe
+    n = max(1000, min(int(mode.seconds_per_run * 1e9 / max(per, 1.0)), 2_000_000))
+    c.prepare(n)  # the reference run of this size
+    c.module = None
+    res = RegionsResult(c.how, c.ticks(n) / n, ticks=c.ticks(n))
+    for _ in range(mode.rounds):
+        res.runs.append(timed(c, n))
+    log(f"  regions8 (8 regions, 10-80 ms) ns (cpu, best of {mode.rounds}): per tick "
+        f"{res.best('tick'):,.0f}, per instant {res.best('instant'):,.0f} "
+        f"({res.ticks_per_instant:.2f} ticks an instant)")
+    return res
 
 
 def contender(name: str, case: str, variant: str) -> Contender:
@@ -906,6 +1022,7 @@ def main(argv: list[str] | None = None) -> int:
         log("== per-transition cost (ns per transition; cpu = process time, best of "
             f"{mode.rounds} interleaved runs of about {mode.seconds_per_run} s) ==")
         results = speed(mode, log)
+        regions = regions_speed(mode, log)
         speed_json: dict[str, Any] = {}
         rows: list[list[str]] = []
         for case in CASES:
@@ -934,6 +1051,11 @@ def main(argv: list[str] | None = None) -> int:
                                  f"{r.ns_cpu_median:,.0f}",
                                  "1" if name == "hfsmc" else f"{ratio:.1f}x", judged])
                 speed_json[f"{case}_{variant}"] = entry
+        for per in ("tick", "instant"):
+            rows.append(["regions8", f"per {per}", "hfsmc", f"{regions.best(per):,.0f}",
+                         f"{regions.best(per, 'wall'):,.0f}",
+                         f"{regions.best(per, median=True):,.0f}", "-", ""])
+        speed_json["regions8"] = {"hfsmc": regions.json()}
         log("")
         for line in table(rows, ["case", "actions", "contender", "ns cpu", "ns wall",
                                  "ns cpu median", "/ hfsmc", "target"]):

@@ -14,7 +14,9 @@ Three parts, each with the issue's targets:
   and a large number of transitions and takes the difference of the wall
   times over the difference of the transitions, which cancels start-up
   (process creation, dynamic linking, Python's imports). The figure is the
-  median of the rounds.
+  median of the rounds. Beside them, without a hand-written twin: a state with 8
+  parallel regions at 10, 20, ..., 80 ms (``regions8.cpp.yaml``, ``regions8.yaml``),
+  in C++ and in Python, per tick and per instant.
 * **Real clock**: a 100 Hz component whose ``during`` compares
   ``std::chrono::steady_clock`` with the tick's logical time ``now()`` runs for
   60 s: p50/p99/max tick lateness (p99 <= 0.5 ms) and drift (< 1 ms), computed
@@ -49,7 +51,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from component import hfsmc_command, lateness_figures  # bench/component.py, beside this script
+from component import (  # bench/component.py, beside this script
+    hfsmc_command,
+    lateness_figures,
+    ticks_of,
+)
 from report import finish_targets, hfsmc_revision, loadavg, machine, table, verdict
 
 HERE = Path(__file__).resolve().parent
@@ -71,6 +77,9 @@ CASES = ("flat", "nested")
 VARIANTS = ("bare", "counted")
 LEVELS = {"flat": 1, "nested": 3}  # states exited and entered by one transition
 CONTENDERS = ("baseline", "cpp", "python")
+# regions8(.cpp).yaml: a state with 8 regions at 10, 20, ..., 80 ms under a 10 ms root; no
+# hand-written twin. Timed per instant (every 10 ms) and per tick.
+REGIONS_PERIODS_US = (10_000, *(10_000 * k for k in range(1, 9)))
 
 
 @dataclass(frozen=True)
@@ -188,13 +197,15 @@ class Program:
     per: list[tuple[float, float]] = field(default_factory=list)  # (wall, cpu) s/transition
     sizes: tuple[int, int] = (0, 0)
     instructions: float | None = None  # per transition, under callgrind
+    period_ms: int = 1  # of the root: the instants are 0, period, ..., (n-1) * period
 
     def argv(self, n: int) -> list[str]:
         """The command that takes n transitions: the baseline runs n ticks; a generated
-        component under the virtual clock ticks at 0, 1, ..., n-1 ms."""
+        component under the virtual clock ticks at 0, 1, ..., n-1 ms (regions8: n instants,
+        10 ms apart)."""
         if self.name == "baseline":
             return [*self.command, str(n)]
-        return [*self.command, "--clock", "virtual", "--until", f"{n - 1}ms"]
+        return [*self.command, "--clock", "virtual", "--until", f"{(n - 1) * self.period_ms}ms"]
 
     def ns_wall(self) -> float:
         return statistics.median(w for w, _ in self.per) * 1e9
@@ -316,6 +327,39 @@ def speed(mode: Mode, bin_dir: Path, cpp: dict[str, Path], py: dict[str, Path],
     return results
 
 
+def regions_speed(mode: Mode, cpp: Path, py: Path, log: Callable[[str], None]) -> dict[str, Program]:
+    """regions8 in C++ and in Python, the same way as the machines above (per instant);
+    their traces over 2 s must be identical."""
+    progs = {"cpp": component_program("cpp", "regions8", "bare", [str(cpp)]),
+             "python": component_program("python", "regions8", "bare", [sys.executable, str(py)])}
+    traces = []
+    for prog in progs.values():
+        prog.period_ms = 10
+        traces.append(must([*prog.argv(201), "--trace", "-"], f"{prog.name} regions8 trace").out)
+    if traces[0] != traces[1] or traces[0].count('"ev":"fire"') == 0:
+        print("  warning: regions8: the C++ and the Python traces differ", flush=True)
+    for prog in progs.values():
+        calibrate(prog, mode.seconds_per_run)
+    for _ in range(mode.rounds):
+        for prog in progs.values():
+            small, large = prog.sizes
+            a, b = timed(prog, small), timed(prog, large)
+            prog.per.append(((b.wall_s - a.wall_s) / (large - small),
+                             (b.cpu_s - a.cpu_s) / (large - small)))
+    progs["cpp"].instructions = instructions(progs["cpp"])
+    log(f"  regions8 (8 regions) ns/instant (wall, median of {mode.rounds}): " +
+        ", ".join(f"{p.name} {p.ns_wall():,.1f}" for p in progs.values()) +
+        f"; {ticks_per_instant(progs['cpp']):.2f} ticks an instant")
+    return progs
+
+
+def ticks_per_instant(prog: Program) -> float:
+    """Ticks per instant of regions8 between the program's two run sizes."""
+    small, large = prog.sizes
+    return (ticks_of(REGIONS_PERIODS_US, large) - ticks_of(REGIONS_PERIODS_US, small)) / \
+        (large - small)
+
+
 def instructions(prog: Program, small: int = 100_000, large: int = 200_000) -> float | None:
     """Instructions per transition under callgrind (difference of two sizes), or None
     without valgrind. Unlike time, the count does not depend on the machine's load."""
@@ -336,7 +380,8 @@ def python_in_process(path: Path) -> dict[str, float]:
     """component.py's in-process figures of the Python component (best CPU), if present."""
     try:
         speed_json = json.loads(path.read_text(encoding="utf-8"))["python_component"]["speed"]
-        return {k: float(v["hfsmc"]["ns_per_transition_cpu"]) for k, v in speed_json.items()}
+        return {k: float(v["hfsmc"].get("ns_per_transition_cpu", v["hfsmc"].get("ns_per_tick_cpu")))
+                for k, v in speed_json.items()}
     except (OSError, KeyError, TypeError, ValueError):
         return {}
 
@@ -447,8 +492,11 @@ def build_time(mode: Mode, log: Callable[[str], None]) -> dict[str, Any]:
 # ---------------------------------------------------------------------------
 
 def speed_report(results: dict[tuple[str, str], dict[str, Program]], in_process: dict[str, float],
-                 targets: list[dict[str, Any]], log: Callable[[str], None]) -> dict[str, Any]:
-    """Two tables: wall time (the targets' figure), then CPU time and instruction counts."""
+                 targets: list[dict[str, Any]], log: Callable[[str], None],
+                 regions: dict[str, Program] | None = None) -> dict[str, Any]:
+    """Two tables: wall time (the targets' figure), then CPU time and instruction counts;
+    regions8's rows per tick and per instant, without a hand-written twin or a target."""
+    inproc_regions = in_process.get("regions8")
     rows: list[list[str]] = []
     rows_cpu: list[list[str]] = []
     out: dict[str, Any] = {}
@@ -484,6 +532,30 @@ def speed_report(results: dict[tuple[str, str], dict[str, Program]], in_process:
                                   "hand-written switch", "value": round(vs_base, 3), "met": ok_base})
         targets.append({"target": f"{key}: generated C++ >= {TARGET_VS_PYTHON:g}x faster than "
                                   "the generated Python", "value": round(vs_py, 1), "met": ok_py})
+    if regions:
+        cpp, py = regions["cpp"], regions["python"]
+        tpi = ticks_per_instant(cpp)
+        entry = {name: p.json() for name, p in regions.items()}
+        entry.update({"ticks_per_instant": round(tpi, 4),
+                      "ns_per_tick_wall_median": {"cpp": round(cpp.ns_wall() / tpi, 2),
+                                                  "python": round(py.ns_wall() / tpi, 2)},
+                      "ns_per_tick_cpu_median": {"cpp": round(cpp.ns_cpu() / tpi, 2),
+                                                 "python": round(py.ns_cpu() / tpi, 2)},
+                      "instructions_per_tick": None if cpp.instructions is None
+                      else round(cpp.instructions / tpi, 1),
+                      "python_over_cpp": round(py.ns_wall() / cpp.ns_wall(), 1),
+                      "python_over_cpp_cpu": round(py.ns_cpu() / cpp.ns_cpu(), 1)})
+        out["regions8"] = entry
+        for per, div in (("tick", tpi), ("instant", 1.0)):
+            rows.append(["regions8", f"per {per}", "-", f"{cpp.ns_wall() / div:,.2f}",
+                         f"{py.ns_wall() / div:,.1f}", "-",
+                         f"{py.ns_wall() / cpp.ns_wall():,.0f}x"])
+            rows_cpu.append(["regions8", f"per {per}", "-", f"{cpp.ns_cpu() / div:,.2f}",
+                             f"{py.ns_cpu() / div:,.1f}", "-",
+                             f"{py.ns_cpu() / cpp.ns_cpu():,.0f}x", "-",
+                             "-" if cpp.instructions is None else f"{cpp.instructions / div:,.1f}",
+                             "-", f"{inproc_regions:,.0f}" if inproc_regions and per == "tick"
+                             else "-"])
     log("\nwall time, ns per transition (median of the rounds): the targets' figure")
     for line in table(rows, ["case", "actions", "switch", "C++", "Python",
                              f"C++/switch (<= {TARGET_VS_BASELINE:g})",
@@ -538,14 +610,15 @@ def main(argv: list[str] | None = None) -> int:
     if "speed" in parts:
         cpp: dict[str, Path] = {}
         py: dict[str, Path] = {}
-        for key in ("flat", "flat_counted", "nested", "nested_counted"):
+        for key in ("flat", "flat_counted", "nested", "nested_counted", "regions8"):
             cpp[key] = build_cpp(MODELS / f"{key}.cpp.yaml", WORK / f"cpp_{key}").exe
             py[key] = build_python(MODELS / f"{key}.yaml", WORK / f"py_{key}")
         log("\n== per-transition cost (ns per transition: wall time of a large run minus a "
             f"small one, over the transitions between them; median of {mode.rounds} rounds) ==")
         results = speed(mode, bin_dir, cpp, py, log)
+        regions = regions_speed(mode, cpp["regions8"], py["regions8"], log)
         in_process = python_in_process(ns.json or HERE / "results.json")
-        figures["speed"] = speed_report(results, in_process, targets, log)
+        figures["speed"] = speed_report(results, in_process, targets, log, regions)
 
     if "realtime" in parts:
         log(f"\n== real clock: 100 Hz component for {mode.realtime_s} s ==")
