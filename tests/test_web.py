@@ -45,6 +45,7 @@ from tests.support import (
     many_states,
     read_messages,
     wait_until,
+    write_used_models,
 )
 
 monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
@@ -171,6 +172,43 @@ states:
     transitions: [{to: Done, when: done(), name: all done}]
   Done: {final: true}
 """
+
+
+def cluster_titles(svg: str) -> list[str]:
+    """The first line of every cluster's label, in the drawing's order."""
+    return re.findall(r'<g id="[^"]+" class="cluster">\s*<title>[^<]*</title>\s*(?:<[^t][^>]*>\s*)*'
+                      r'<text[^>]*>([^<]*)</text>', svg)
+
+
+def test_a_used_file_is_drawn_from_the_structure_as_from_the_model(tmp_path: Path) -> None:
+    """A structure's ``use`` makes the automaton an instance of that file: its cluster is
+    named after it as in the model's drawing (a nested use too), alone as well."""
+    result = compile_file(str(write_used_models(tmp_path)))
+    assert result.model is not None, result.diagnostics
+    rebuilt = model_from_structure(structure_of(result.model))
+    for path, written in (("First", "lib/climb.yaml"), ("Second/Hold", "hold.yaml")):
+        state, real = rebuilt.find(path), result.model.find(path)
+        assert state is not None and state.automaton is not None and state.automaton.instance is not None
+        assert real is not None and real.automaton is not None and real.automaton.instance is not None
+        instance = state.automaton.instance
+        assert (instance.written, instance.file) == (written, written)
+        # Its model has the used file's states with their paths there, as the real one's.
+        assert [s.path for s in instance.model.states()] == \
+            [s.path for s in real.automaton.instance.model.states()]
+    assert [s.path for s in rebuilt.find("First").automaton.instance.model.states()] == [  # type: ignore[union-attr]
+        "Climb", "Hold", "Hold/Wait", "Hold/Still", "Up"]
+    from_model, from_structure = svg_of(result.model), svg_of(rebuilt)
+    for kind in ("node", "cluster"):
+        assert {i for i in ids(from_model, kind) if "#" not in i} == \
+            {i for i in ids(from_structure, kind) if "#" not in i}
+    titles = cluster_titles(from_structure)
+    assert titles == cluster_titles(from_model)
+    assert titles == ["First · lib/climb.yaml", "Hold · hold.yaml", "Second · lib/climb.yaml",
+                      "Hold · hold.yaml"], titles
+    for alone in ("First", "First/Hold"):  # the title of a sub-automaton drawn alone
+        files = [re.findall(r"<text[^>]*>([^<]*\.yaml[^<]*)</text>", svg_of(m, alone)) for m in (rebuilt, result.model)]
+        assert files[0] == files[1] and files[0][0].startswith(f"legs: {alone} · "), files
+    assert model_from_structure(STRUCTURE).find("Blinking").automaton.instance is None  # type: ignore[union-attr]
 
 
 # -- the bridge against a real monitor server --------------------------------------------------
@@ -1162,6 +1200,56 @@ def test_the_page_lights_every_region_of_a_parallel_state(
         driver.execute_script(GESTURE_JS)
         driver.find_element("id", "hv-autofocus").click()
         s = shown(lambda s: all(s["inside"]), ["Mission/Nav/B", "Mission/Watch/Seen"])
+    finally:
+        srv.close()
+
+
+USE_JS = r"""
+return {status: document.body.dataset.status,
+        tree: [...document.querySelectorAll('#hv-tree li.hv-active')].map((li) => li.dataset.path),
+        rows: [...document.querySelectorAll('#hv-tree li')].map((li) => li.textContent.replace(/[0-9.]+ s$/, '')),
+        uses: [...document.querySelectorAll('#hv-tree .hv-use')].map((u) => [u.closest('li').dataset.path, u.title]),
+        clusters: [...document.querySelectorAll('#hv-diagram g.cluster text')].map((t) => t.textContent)
+          .filter((t) => t.includes('.yaml'))};
+"""
+
+
+@needs_browser
+def test_the_page_names_the_files_sub_automata_are_used_from(
+        processes: Callable[..., Process], browsers: Callable[[], Any], tmp_path: Path) -> None:
+    """Drawn from the structure alone: the tree row of a using state and its cluster in the
+    picture name the file, a nested use too; the instance's states light as any others."""
+    result = compile_file(str(write_used_models(tmp_path)))
+    assert result.model is not None, result.diagnostics
+    srv = monitor.MonitorServer(port=0, announce=io.StringIO())
+    srv.start(structure_of(result.model))
+    try:
+        for rec in [{"t": 0, "ev": "start", "name": "legs"}, {"t": 0, "ev": "enter", "state": "First"},
+                    {"t": 0, "ev": "enter", "state": "First/Climb"},
+                    {"t": 200, "ev": "fire", "from": "First/Climb", "to": "First/Hold", "index": 0},
+                    {"t": 200, "ev": "exit", "state": "First/Climb"},
+                    {"t": 200, "ev": "enter", "state": "First/Hold"},
+                    {"t": 200, "ev": "enter", "state": "First/Hold/Wait"}]:
+            srv.record(rec)
+        web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0",
+                         f"127.0.0.1:{srv.port}"], "web")
+        url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+        driver = browsers()
+        driver.get(url)
+        deadline = time.monotonic() + 30
+        while (s := driver.execute_script(USE_JS))["tree"] != ["First", "First/Hold", "First/Hold/Wait"]:
+            assert time.monotonic() < deadline, s
+            time.sleep(0.1)
+        assert s["status"] == "connected"
+        assert [r.split("open")[0].strip() for r in s["rows"]] == [
+            "▾First· lib/climb.yaml100 ms", "Climb", "▾Hold· hold.yaml100 ms", "Wait", "Still", "Up",
+            "▾Second· lib/climb.yaml100 ms", "Climb", "▾Hold· hold.yaml100 ms", "Wait", "Still", "Up",
+            "Done"], s["rows"]
+        assert s["uses"][:2] == [["First", "its sub-automaton is used from lib/climb.yaml"],
+                                 ["First/Hold", "its sub-automaton is used from hold.yaml"]]
+        assert s["clusters"] == ["First · lib/climb.yaml", "Hold · hold.yaml", "Second · lib/climb.yaml",
+                                 "Hold · hold.yaml"], s["clusters"]
+        screenshot(driver, "web-use", tmp_path)
     finally:
         srv.close()
 

@@ -9,12 +9,13 @@ sends in its ``hello`` (states and arrows, with the transitions' names only).
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from typing import Any
 
 from hfsmc.emit.dot import render, to_dot
 from hfsmc.errors import Span
-from hfsmc.ir import Automaton, Model, State, Transition
+from hfsmc.ir import Automaton, Instance, Model, State, Transition
 
 _NOWHERE = Span("<monitor>", 1, 1)
 
@@ -38,8 +39,9 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
     Enough for the diagram: it lacks the conditions and timers of the arrows
     and the ``on_interrupt`` mark, which the monitor protocol does not carry.
     A state's regions are the automata that name it as owner with a ``region``
-    (their states' paths are OWNER/REGION/NAME). Raises ValueError when the
-    structure does not hold together.
+    (their states' paths are OWNER/REGION/NAME). An automaton with a ``use`` is an
+    instance of that file (see ``_instance``), whose cluster the diagram names after it.
+    Raises ValueError when the structure does not hold together.
     """
     states = [st for st in structure.get("states", ()) if isinstance(st, dict)]
     autos: dict[str, dict[str, Any]] = {}  # an automaton's path (OWNER, OWNER/REGION) -> it
@@ -73,9 +75,11 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
         if not kids:
             raise ValueError(f"the structure has no states under {repr(where) if where else 'the root'}")
         initial = str(info.get("initial") or kids[0].name)
-        return Automaton(owner=owner, region=region, period_ms=period, period_written=True,
+        auto = Automaton(owner=owner, region=region, period_ms=period, period_written=True,
                          initial=initial, history=bool(info.get("history")), states=kids,
                          span=_NOWHERE, initial_span=_NOWHERE)
+        use = info.get("use")
+        return dataclasses.replace(auto, instance=_instance(str(use), auto)) if use else auto
 
     def state(st: dict[str, Any], period: int) -> State:
         path = str(st["path"])
@@ -102,3 +106,31 @@ def model_from_structure(structure: dict[str, Any]) -> Model:
                  description=None, imports=(), interfaces=(), parameters=(), variables=(),
                  functions=None, on_shutdown=None, on_interrupt=None, interrupt_timeout_us=None,
                  root=root, file="<monitor>", span=_NOWHERE)
+
+
+def _instance(written: str, auto: Automaton) -> Instance:
+    """What a structure tells of a used file where ``auto`` takes it: its name as the
+    using model writes it, and its states, which make the used file's model again (paths
+    from its own root, as ``Instance.model`` has them). No bindings and no code: the
+    monitor protocol carries neither."""
+    root = _rerooted(auto, auto.owner + "/")
+    model = Model(name=written.rpartition("/")[2].partition(".")[0] or written, language="python",
+                  description=None, imports=(), interfaces=(), parameters=(), variables=(),
+                  functions=None, on_shutdown=None, on_interrupt=None, interrupt_timeout_us=None,
+                  root=root, file=written, span=_NOWHERE)
+    return Instance(file=written, written=written, model=model, bindings=(), span=_NOWHERE)
+
+
+def _rerooted(auto: Automaton, prefix: str) -> Automaton:
+    """``auto`` with ``prefix`` taken off every path in it, and made a root (no instance:
+    an instance inside keeps its own)."""
+
+    def cut(path: str) -> str:
+        return path[len(prefix):] if path.startswith(prefix) else ""
+
+    def below(a: Automaton) -> Automaton:
+        return dataclasses.replace(a, owner=cut(a.owner), states=tuple(
+            dataclasses.replace(s, path=cut(s.path), automata=tuple(below(x) for x in s.automata))
+            for s in a.states))
+
+    return dataclasses.replace(below(auto), owner="", instance=None)

@@ -240,6 +240,8 @@
     // A sub-automaton's period under its path: the owner's, or OWNER/REGION for a region.
     const periods = new Map(automata.map((a) => [a.region ? a.owner + "/" + a.region : a.owner, a.period_ms]));
     const regions = new Map(automata.filter((a) => a.region).map((a) => [a.owner + "/" + a.region, a]));
+    // A state whose sub-automaton is used from another file -> that file, as written.
+    const uses = new Map(automata.filter((a) => a.use && !a.region).map((a) => [a.owner, String(a.use)]));
     for (const st of view.structure.states || []) {
       // The regions a state is the first of: their rows come first, outermost first.
       const parts = st.path.split("/");
@@ -263,6 +265,11 @@
         f.addEventListener("click", () => fold(st.path));
       }
       li.append(f, el("span", "hv-mark"), el("span", "hv-name", st.path.split("/").pop()));
+      if (uses.has(st.path)) {
+        const use = el("span", "hv-use", "· " + uses.get(st.path));
+        use.title = "its sub-automaton is used from " + uses.get(st.path);
+        li.append(use);
+      }
       if (view.regionsOf.has(st.path)) li.append(el("span", "hv-note", "‖ " + view.regionsOf.get(st.path).length + " regions"));
       if (st.composite && periods.has(st.path)) {
         li.append(el("span", "hv-note", periods.get(st.path) + " ms"));
