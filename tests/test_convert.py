@@ -170,3 +170,41 @@ def test_regions_convert_both_ways_keeping_comments(tmp_path: Path) -> None:
     xml.write_text(xml.read_text().replace('initial="Open"', 'initial="Closed"'))
     assert run("convert", str(xml), "-o", str(src))[0] == 0
     assert src.read_text() == REGIONS.replace("initial: Open", "initial: Closed")
+
+
+USED = """\
+hfsm: 1
+name: wait
+initial: Waiting
+states:
+  Waiting: {transitions: [{to: Over, after: 1s}]}
+  Over: {final: true}
+"""
+USING = """\
+hfsm: 1
+name: twice
+initial: A
+states:
+  A:
+    use: lib/wait.yaml
+    transitions: [{to: B, when: done()}]
+  B: {final: true}
+"""
+
+
+def test_convert_to_another_folder_rewrites_use_paths_from_there(tmp_path: Path) -> None:
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "wait.yaml").write_text(USED, "utf-8")
+    (tmp_path / "twice.yaml").write_text(USING, "utf-8")
+    (tmp_path / "out" / "deep").mkdir(parents=True)
+    code, text = run("convert", str(tmp_path / "twice.yaml"), "-o", str(tmp_path / "out" / "deep" / "twice.xml"))
+    assert code == 0, text
+    assert "lib/wait.yaml -> ../../lib/wait.yaml" in text
+    xml = (tmp_path / "out" / "deep" / "twice.xml").read_text("utf-8")
+    assert 'use="../../lib/wait.yaml"' in xml
+    code, text = run("check", str(tmp_path / "out" / "deep" / "twice.xml"))
+    assert code == 0, text
+    # beside the source: the path stays as written, and nothing is said about it
+    code, text = run("convert", str(tmp_path / "twice.yaml"), "-o", str(tmp_path / "twice.xml"))
+    assert code == 0 and "use` paths" not in text
+    assert 'use="lib/wait.yaml"' in (tmp_path / "twice.xml").read_text("utf-8")

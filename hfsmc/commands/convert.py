@@ -6,19 +6,22 @@ its comments kept) and hfsmc/emit/xml.py (the comments of a YAML source carried 
 
 from __future__ import annotations
 
+import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 from hfsmc.emit.yaml import to_yaml
 from hfsmc.errors import Diagnostic, UsageError
 from hfsmc.fsutil import write_atomic
+from hfsmc.ir import Automaton, Model, State
 from hfsmc.pipeline import Result, compile_file
 
 
 def convert_model(result: Result, out: Path) -> list[str]:
     """Write ``result``'s model to ``out`` in the format its suffix names; report lines."""
-    model = result.model
-    assert model is not None
+    assert result.model is not None
+    model, moved = relocate_uses(result.model, out)
     suffix = out.suffix.lower()
     if suffix in (".yaml", ".yml"):
         existing = None
@@ -41,7 +44,35 @@ def convert_model(result: Result, out: Path) -> list[str]:
     write_atomic(out, text)
     n_states = sum(1 for _ in model.states())
     n_trans = sum(len(s.transitions) for s in model.states())
-    return [*legacy_report(result), f"{how} {out}: {n_states} states, {n_trans} transitions"]
+    report = [*legacy_report(result), f"{how} {out}: {n_states} states, {n_trans} transitions"]
+    if moved:
+        report.append(f"{out}: `use` paths written from its folder: {', '.join(dict.fromkeys(moved))}")
+    return report
+
+
+def relocate_uses(model: Model, out: Path) -> tuple[Model, list[str]]:
+    """The model with each relative `use` path of its own states rewritten from ``out``'s
+    folder, so that the converted file finds the same used files (`use` paths are relative
+    to the file that writes them); and the paths rewritten, as `old -> new`."""
+    src, dst = Path(model.file).parent, out.parent
+    if src.resolve() == dst.resolve():
+        return model, []
+    moved: list[str] = []
+
+    def automaton(a: Automaton) -> Automaton:
+        if a.instance is not None:  # a used file's own uses are written in that file
+            written = a.instance.written
+            if os.path.isabs(written):
+                return a
+            new = Path(os.path.relpath(src / written, dst)).as_posix()
+            moved.append(f"{written} -> {new}")
+            return replace(a, instance=replace(a.instance, written=new))
+        return replace(a, states=tuple(state(s) for s in a.states))
+
+    def state(s: State) -> State:
+        return replace(s, automata=tuple(automaton(a) for a in s.automata)) if s.automata else s
+
+    return replace(model, root=automaton(model.root)), moved
 
 
 _BLOCK_START = re.compile(r"(?:^|[:-][ \t])[ \t]*[|>][0-9+-]*[ \t]*$")
