@@ -16,6 +16,7 @@ from click.testing import CliRunner
 from hfsmc.cli import main
 from hfsmc.commands.completion import component_flags
 from tests.conftest import ROOT
+from tests.support import write_used_models
 
 HFSMC = Path(sys.executable).parent / "hfsmc"  # the console script: its name sets the variable
 BLINKER = "examples/blinker/blinker.yaml"
@@ -67,6 +68,23 @@ def test_view_focus_completes_from_the_model_or_the_trace(tmp_path: Path) -> Non
                      '{"t":0,"ev":"enter","state":"A/B"}\n{"t":0,"ev":"enter","state":"A/B/C"}\n'
                      'not json\n', "ascii")
     assert complete(f"hfsmc view --replay {trace} --focus ") == ["plain,A", "plain,A/B"]
+
+
+REGIONS = "examples/regions_arm/regions_arm.yaml"
+
+
+def test_focus_and_state_complete_regions_and_paths_through_used_files(tmp_path: Path) -> None:
+    """A component's --focus and diagram --state take a region; the states of a used
+    file's instances continue the using state's path (a nested use too)."""
+    regions = ["plain,Working", "plain,Working/Cycle", "plain,Working/Led", "plain,Working/Battery"]
+    assert complete(f"hfsmc run {REGIONS} -- --focus ") == regions
+    assert complete(f"hfsmc view --model {REGIONS} --focus W") == regions
+    assert complete(f"hfsmc diagram {REGIONS} --state Working/") == regions[1:]
+    legs = write_used_models(tmp_path)
+    used = ["plain,First", "plain,First/Hold", "plain,Second", "plain,Second/Hold"]
+    assert complete(f"hfsmc diagram {legs} --state ") == used
+    assert complete(f"hfsmc run {legs} -- --focus Se") == used[2:]
+    assert complete(f"hfsmc view --model {legs} --focus First/") == ["plain,First/Hold"]
 
 
 def test_sim_completes_its_own_options_and_files() -> None:

@@ -6,7 +6,8 @@ completes what click cannot know:
 
 - state paths for ``hfsmc diagram MODEL --state``, ``hfsmc view --focus`` (from
   ``--model``, else from the ``--replay`` trace) and ``hfsmc run MODEL --
-  --focus``, read from the model;
+  --focus``, read from the model: composite states and regions (``Mission/Watch``),
+  through the instances of used files (``TakeOff/Hold``);
 - the component's flags after ``hfsmc run MODEL --``;
 - the simulator's options and file arguments in ``hfsmc sim``.
 
@@ -90,8 +91,9 @@ def complete_state(ctx: click.Context, param: click.Parameter,
 
 def complete_focus(ctx: click.Context, param: click.Parameter,
                    incomplete: str) -> list[CompletionItem]:
-    """``--focus`` of ``hfsmc view``: from ``--model``, else from the ``--replay`` trace."""
-    paths = state_paths(ctx.params.get("model")) or trace_paths(ctx.params.get("replay"))
+    """``--focus`` of ``hfsmc view``: from ``--model``, else from the ``--replay`` trace
+    (whose regions are among the paths with children)."""
+    paths = state_paths(ctx.params.get("model"), regions=True) or trace_paths(ctx.params.get("replay"))
     return _matching(paths, incomplete)
 
 
@@ -110,8 +112,8 @@ def complete_run_args(ctx: click.Context, param: click.Parameter,
     """The component's flags after ``hfsmc run MODEL --``, and their values."""
     before: tuple[str, ...] = tuple(ctx.params.get(param.name or "") or ())
     last = before[-1] if before else ""
-    if last == "--focus":
-        return _matching(state_paths(ctx.params.get("model")), incomplete)
+    if last == "--focus":  # a component's --focus takes a region too
+        return _matching(state_paths(ctx.params.get("model"), regions=True), incomplete)
     if last in _FILE_FLAGS:
         return [CompletionItem(incomplete, type="file")]
     if last in _CHOICES:
