@@ -86,7 +86,7 @@ golden: setup
 	$(BIN)/python tests/regen_golden.py
 
 examples: setup
-	$(BIN)/hfsmc check --strict $(EXAMPLES)
+	$(BIN)/hfsmc check --strict $(EXAMPLES) $(wildcard examples/lib/*.yaml)
 
 clean:
 	rm -rf build dist *.egg-info .pytest_cache .mypy_cache .ruff_cache bench/_work

@@ -523,6 +523,12 @@ def check_layout(source: str) -> None:
 # every example
 
 
+def name_shown(s: State) -> str:
+    """The text line that names state s in a drawing: a used file's cluster names the file."""
+    used = s.automaton.instance if s.automaton else None
+    return f"{s.name} · {used.written}" if used else s.name
+
+
 @pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
 def test_example_svg_through_cli(example: Path, tmp_path: Path) -> None:
     out = tmp_path / f"{example.stem}.svg"
@@ -532,7 +538,7 @@ def test_example_svg_through_cli(example: Path, tmp_path: Path) -> None:
     texts = svg_texts(data)
     model = compile_model(example)
     for s in model.states():
-        assert s.name in texts, s.path
+        assert name_shown(s) in texts, s.path
     # at 100 %: fits the screen, text of 10 pt or more, unscaled
     root = etree.fromstring(data)
     width, height = (float(root.get(k, "").removesuffix("pt")) * 4 / 3 for k in ("width", "height"))
@@ -562,7 +568,7 @@ def test_example_svg_in_a_subprocess(example: Path, how: str, tmp_path: Path) ->
     assert proc.returncode == 0, proc.stderr
     texts = svg_texts(out.read_bytes())
     for s in compile_model(example).states():
-        assert s.name in texts, s.path
+        assert name_shown(s) in texts, s.path
 
 
 @pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)

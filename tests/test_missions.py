@@ -141,8 +141,10 @@ def fired_into(trace: list[dict[str, object]]) -> list[str]:
 
 
 def mission_seconds(trace: list[dict[str, object]]) -> float:
-    """Seconds from entering TakeOff to the final stop, in the component's time."""
-    start = next(int(str(r["t"])) for r in trace if r["ev"] == "enter" and r["state"] == "TakeOff")
+    """Seconds from the take-off command (entering TakeOff/Climb, once the vehicle is ready) to
+    the final stop, in the component's time."""
+    start = next(int(str(r["t"])) for r in trace
+                 if r["ev"] == "enter" and r["state"] == "TakeOff/Climb")
     end = next(int(str(r["t"])) for r in trace if r["ev"] == "stop" and r["reason"] == "final")
     return (end - start) / 1000
 
@@ -160,6 +162,9 @@ def test_follow_colors_flies_the_four_stages_and_lands_over_red(
                   and t.count("/") == 1]
         assert stages == ["Mission/FollowBlue", "Mission/FollowGreen2", "Mission/FollowRed",
                           "Mission/OverRed"], fired_into(f.trace)
+        # Take-off and landing by examples/lib's behaviours: paths continue into them.
+        assert [t for t in fired_into(f.trace) if not t.startswith("Mission/")] == [
+            "TakeOff/Climb", "TakeOff/Airborne", "Mission", "Land", "Land/Landed", "Done"]
         assert f.trace[-1] == {"t": f.trace[-1]["t"], "ev": "stop", "reason": "final"}
         report = json.loads((f.folder / "report.json").read_text())
         assert report["stages"] == ["green", "blue", "green", "red"]
@@ -195,6 +200,8 @@ def test_sigint_mid_flight_lands_and_disarms(tmp_path: Path, mission: list[str] 
         assert status == 130, (f.folder / "component.log").read_text()[-3000:]
         events = [(r["ev"], r.get("to") or r.get("state")) for r in f.trace]
         assert ("interrupt", "Land") in events and ("enter", "Land") in events
+        enters = [state for ev, state in events if ev == "enter"]
+        assert enters[-4:] == ["Land", "Land/Landing", "Land/Landed", "Done"], enters
         assert f.trace[-1]["reason"] == "sigint"
         assert truth["armed"] is False and truth["landed"] is True
 
@@ -240,7 +247,8 @@ def test_time_limit_lands_and_exits_124(tmp_path: Path) -> None:
     interrupt = [r for r in f.trace if r["ev"] == "interrupt"]
     assert interrupt == [{"t": 20000, "ev": "interrupt", "reason": "time_limit", "to": "Land"}]
     assert f.trace[-1]["ev"] == "stop" and f.trace[-1]["reason"] == "time_limit"
-    assert [r["state"] for r in f.trace if r["ev"] == "enter"][-2:] == ["Land", "Done"]
+    assert [r["state"] for r in f.trace if r["ev"] == "enter"][-4:] == [
+        "Land", "Land/Landing", "Land/Landed", "Done"]
     assert truth["armed"] is False and truth["landed"] is True and truth["mode"] == "LAND"
     assert "still ARMED" not in log and "stopped (time_limit)" in log
 
