@@ -4,6 +4,7 @@ with an equal IR; a hand-written model with nested regions goes both ways."""
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from typing import Any
 
 from hypothesis import HealthCheck, given, settings
@@ -36,21 +37,25 @@ def snippets(draw: st.DrawFn, kind: str) -> str:
     return "\n".join(lines)
 
 
+# What writes a snippet of a kind (`entry`, `when`, ...): `snippets` unless a test needs other code.
+Code = Callable[[str], st.SearchStrategy[str]]
+
+
 @st.composite
-def states(draw: st.DrawFn, depth: int) -> dict[str, Any]:
+def states(draw: st.DrawFn, depth: int, code: Code = snippets) -> dict[str, Any]:
     names = draw(st.lists(IDENT, min_size=1, max_size=4, unique=True))
     out: dict[str, Any] = {}
     for name in names:
         node: dict[str, Any] = {}
         for kind in ("entry", "during", "exit"):
             if draw(st.booleans()):
-                node[kind] = draw(snippets(kind))
+                node[kind] = draw(code(kind))
         if depth > 0 and draw(st.booleans()):
             if draw(st.integers(0, 2)) == 0:  # parallel regions, each a sub-automaton
                 regions = draw(st.lists(IDENT, min_size=2, max_size=2, unique=True))
-                node["regions"] = {r: draw(automata(depth - 1)) for r in regions}
+                node["regions"] = {r: draw(automata(depth - 1, code)) for r in regions}
             else:
-                node.update(draw(automata(depth - 1)))
+                node.update(draw(automata(depth - 1, code)))
         elif draw(st.booleans()):
             node["final"] = True
         if not node.get("final"):
@@ -58,11 +63,11 @@ def states(draw: st.DrawFn, depth: int) -> dict[str, Any]:
             for _ in range(draw(st.integers(0, 3))):
                 t: dict[str, Any] = {"to": draw(st.sampled_from(names))}
                 if draw(st.booleans()):
-                    t["when"] = draw(snippets("when"))
+                    t["when"] = draw(code("when"))
                 if "when" not in t or draw(st.booleans()):
                     t["after"] = draw(DURATION)
                 if draw(st.booleans()):
-                    t["do"] = draw(snippets("do"))
+                    t["do"] = draw(code("do"))
                 if draw(st.booleans()):
                     t["name"] = draw(TEXT)
                 trans.append(t)
@@ -73,9 +78,9 @@ def states(draw: st.DrawFn, depth: int) -> dict[str, Any]:
 
 
 @st.composite
-def automata(draw: st.DrawFn, depth: int) -> dict[str, Any]:
+def automata(draw: st.DrawFn, depth: int, code: Code = snippets) -> dict[str, Any]:
     """A sub-automaton or a region: states, initial, and maybe period and history."""
-    node: dict[str, Any] = {"states": draw(states(depth))}
+    node: dict[str, Any] = {"states": draw(states(depth, code))}
     node["initial"] = draw(st.sampled_from(sorted(node["states"])))
     if draw(st.booleans()):
         node["period"] = draw(PERIOD)
