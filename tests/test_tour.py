@@ -48,8 +48,9 @@ from tests.conftest import ROOT
 from tests.support import Tmux, free_port, wait_for_line
 
 ACTIVE = re.compile(r"● \w+")  # the live tree shows an active state
-# A state a --display run must reach before the test presses Ctrl+C, by model.
-MILESTONES = {"follow_colors": re.compile(r"● (TakeOff|Mission)\b")}
+# A state a --display run must reach before the test presses Ctrl+C, by model (follow_colors:
+# climbing, below TakeOff, which is active from the start while it waits for the vehicle).
+MILESTONES = {"follow_colors": re.compile(r"● (Climb|Mission)\b")}
 SIM_PORTS = (("udp", 14550), ("tcp", 8554))  # hfsmc sim's defaults: MAVLink, camera
 
 
