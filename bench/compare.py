@@ -14,9 +14,10 @@ the ratio is the median of the rounds' ratios (here / base).
   timed in its own process CPU time (``time.process_time_ns``): ns per instant, which
   for flat and nested is ns per transition, as in ``component.py``.
 * C++: as in ``cpp.py``, the difference of the children's CPU times (``wait4``) of a
-  small and a large ``--clock virtual`` run over the difference of instants; and,
-  with valgrind, instructions per instant (callgrind, 100,000 and 200,000 instants),
-  which do not move with the load.
+  small and a large ``--clock virtual`` run over the difference of instants.
+* Both, with valgrind: instructions per instant under callgrind (the difference of two
+  runs as processes: C++ 100,000 and 200,000 instants, Python 2,000 and 12,000 with a
+  fixed hash seed), which do not move with the load (``--no-callgrind`` skips them).
 
 Usage::
 
@@ -56,6 +57,7 @@ KEY = "revision_compare"
 SIDES = ("base", "here")
 PY_MODELS = ("flat", "flat_counted", "nested", "nested_counted", "chain20")
 CPP_MODELS = ("flat", "flat_counted", "nested", "nested_counted")
+PERIOD_MS = {"chain20": 100}  # of the root, when not 1 ms
 
 
 @dataclass
@@ -183,20 +185,28 @@ def cpp_calibrate(case: Case, seconds: float) -> None:
     case.sizes = (large // 10, large)
 
 
-def callgrind(exe: Path, small: int = 100_000, large: int = 200_000) -> float | None:
+def callgrind(case: Case, side: str) -> float | None:
+    """Instructions per instant under callgrind: the difference of two runs of the
+    component as a process (C++: 100,000 and 200,000 instants; Python: 2,000 and 12,000,
+    with a fixed hash seed), which start-up cancels from."""
     if shutil.which("valgrind") is None:
         return None
     import re
 
+    target = case.target[side]
+    cmd, sizes = ([str(target)], (100_000, 200_000)) if case.lang == "cpp" else \
+        ([sys.executable, str(target)], (2_000, 12_000))
+    period = PERIOD_MS.get(case.model, 1)
     counts = []
-    for n in (small, large):
-        p = run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", str(exe),
-                 "--clock", "virtual", "--until", f"{n - 1}ms"])
+    for n in sizes:
+        p = run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *cmd,
+                 "--clock", "virtual", "--until", f"{(n - 1) * period}ms"],
+                env={**os.environ, "PYTHONHASHSEED": "0"})
         m = re.search(r"refs:\s+([\d,]+)", p.err)
         if p.status != 0 or m is None:
             return None
         counts.append(int(m[1].replace(",", "")))
-    return (counts[1] - counts[0]) / (large - small)
+    return (counts[1] - counts[0]) / (sizes[1] - sizes[0])
 
 
 # ---------------------------------------------------------------------------
@@ -210,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--seconds", type=float, default=0.5, help="CPU of one timed run")
     ap.add_argument("--only", choices=["python", "cpp"], action="append")
+    ap.add_argument("--no-callgrind", dest="callgrind", action="store_false",
+                    help="skip the instruction counts (valgrind)")
     ap.add_argument("--json", type=Path, metavar="OUT",
                     help=f'merge the figures into OUT under the key "{KEY}"')
     ap.add_argument("--py-worker", nargs=2, metavar=("PATH", "N"), help=argparse.SUPPRESS)
@@ -239,7 +251,8 @@ def main(argv: list[str] | None = None) -> int:
             py_calibrate(case, ns.seconds)
         else:
             cpp_calibrate(case, ns.seconds)
-            case.instructions = {side: callgrind(case.target[side]) for side in SIDES}
+        if ns.callgrind:
+            case.instructions = {side: callgrind(case, side) for side in SIDES}
     log(f"built {len(cases)} models on both sides into {WORK.relative_to(HERE.parent)}/; "
         f"{ns.rounds} rounds, interleaved")
     for r in range(ns.rounds):

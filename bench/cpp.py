@@ -110,11 +110,11 @@ class Proc:
     err: str
 
 
-def run(cmd: list[str], cwd: Path | None = None) -> Proc:
+def run(cmd: list[str], cwd: Path | None = None, env: dict[str, str] | None = None) -> Proc:
     """Run ``cmd`` to its end; wall time around it, its CPU time from ``wait4``."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, stdout=out, stderr=err, cwd=cwd)
+        proc = subprocess.Popen(cmd, stdout=out, stderr=err, cwd=cwd, env=env)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         proc.returncode = code = os.waitstatus_to_exitcode(status)

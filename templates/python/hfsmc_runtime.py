@@ -199,6 +199,11 @@ class Engine:
         self.last: list[int] = list(m["initial"])
         self.deadline = [0] * a
         self.chain: list[int] = []
+        if not any(m["regions"]):
+            # Without regions the active sub-automata form one path, root first: each one
+            # activated comes last in pre-order and is left last in, so the chain is a stack.
+            self.activate = self._activate_last  # type: ignore[method-assign]
+            self.deactivate = self._deactivate_last  # type: ignore[method-assign]
 
     # --- called by generated code ----------------------------------------------------
     def enter(self, i: int) -> None:
@@ -238,6 +243,15 @@ class Engine:
             chain.pop()
         else:
             chain.remove(b)
+
+    def _activate_last(self, b: int) -> None:
+        """activate() of a model without regions (see setup)."""
+        self.chain.append(b)
+        self.deadline[b] = self.t
+
+    def _deactivate_last(self, b: int) -> None:
+        """deactivate() of a model without regions (see setup)."""
+        self.chain.pop()
 
     def fail(self, exc: BaseException, sid: int) -> None:
         """A snippet raised: report it, record it, ask for a stop with reason error."""

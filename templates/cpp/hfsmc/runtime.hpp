@@ -372,14 +372,23 @@ public:
     }
     // The active sub-automata in pre-order: they are numbered so (parents first, regions in
     // the order written), so the chain stays sorted.
+    // Without regions (or nested in none) the chain is a stack: that case inline, the
+    // others out of line, so the states' enter and exit functions stay small enough to
+    // be inlined in the tick.
     void activate(int b) {
         if (chain_.back() < b) chain_.push_back(b);
-        else chain_.insert(std::upper_bound(chain_.begin(), chain_.end(), b), b);
+        else chain_insert(b);
         deadline_[static_cast<std::size_t>(b)] = t;
     }
     void deactivate(int b) {
         if (chain_.back() == b) chain_.pop_back();
-        else chain_.erase(std::find(chain_.begin(), chain_.end(), b));
+        else chain_erase(b);
+    }
+    [[gnu::cold, gnu::noinline]] void chain_insert(int b) {
+        chain_.insert(std::upper_bound(chain_.begin(), chain_.end(), b), b);
+    }
+    [[gnu::cold, gnu::noinline]] void chain_erase(int b) {
+        chain_.erase(std::find(chain_.begin(), chain_.end(), b));
     }
     bool after(int i, long long us) const { return t - entered[static_cast<std::size_t>(i)] >= us; }
 
