@@ -124,9 +124,12 @@ def check(models: tuple[str, ...], fmt: str, strict: bool, dump_ir: bool, no_cxx
 @click.option("--depth", type=click.IntRange(min=0), metavar="N",
               help="Draw composite states more than N levels down as one node "
                    "(0: only the top level's states).")
+@click.option("--depfile", type=click.Path(dir_okay=False),
+              help="Also write a make depfile: the drawing depends on MODEL and the files "
+                   "its states use.")
 @_guard
 def diagram(model: str, output: str | None, state_path: str | None, rankdir: str,
-            depth: int | None) -> None:
+            depth: int | None, depfile: str | None) -> None:
     """Draw MODEL with Graphviz: sub-automata as nested clusters, arrows numbered in the
     order they are tried, the direction chosen to fit a screen."""
     from hfsmc.emit.dot import write_diagram
@@ -141,6 +144,10 @@ def diagram(model: str, output: str | None, state_path: str | None, rankdir: str
         sys.exit(1)
     out = Path(output) if output else Path(model).with_suffix(".svg")
     write_diagram(drawn, out, state_path, rankdir=rankdir, depth=depth)
+    if depfile:
+        from hfsmc.component import write_depfile
+
+        write_depfile(Path(depfile), [str(out)], drawn)
     note = "" if result.ok else " (drawn although its snippets have errors: check fails)"
     click.echo(f"wrote {out}{note}", err=True)
 

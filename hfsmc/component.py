@@ -41,10 +41,15 @@ def write_component(model: Model, target: str, folder: Path,
     files, executable, main = component_files(model, target)
     changed = write_tree(folder, files, executable)
     if depfile is not None:
-        outputs = " ".join(_make_escape(str(folder / f)) for f in sorted(files))
-        inputs = " ".join(_make_escape(f) for f in model_files(model))
-        write_atomic(depfile, f"{outputs}: {inputs}\n")
+        write_depfile(depfile, [str(folder / f) for f in sorted(files)], model)
     return WrittenComponent(folder, tuple(sorted(files)), tuple(sorted(changed)), folder / main)
+
+
+def write_depfile(depfile: Path, outputs: list[str], model: Model) -> None:
+    """A make depfile: ``outputs`` depend on the model's file and the files it uses."""
+    targets = " ".join(_make_escape(f) for f in outputs)
+    inputs = " ".join(_make_escape(f) for f in model_files(model))
+    write_atomic(depfile, f"{targets}: {inputs}\n")
 
 
 def model_files(model: Model) -> list[str]:

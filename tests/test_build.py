@@ -7,6 +7,7 @@ import py_compile
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -209,7 +210,10 @@ def test_config_and_param_override(tmp_path: Path) -> None:
 def test_examples_makefile_builds_once_then_nothing(tmp_path: Path) -> None:
     """examples/Makefile: a user's project generating, diagramming and running components."""
     project = tmp_path / "project"
-    shutil.copytree(ROOT / "examples", project, ignore=shutil.ignore_patterns("build"))
+    # One C++ example is enough to drive the C++ rule (test_cpp compiles every one of them);
+    # follow_colors uses examples/lib.
+    shutil.copytree(ROOT / "examples", project, ignore=shutil.ignore_patterns(
+        "build", "follow_colors_cpp", "monitor_area_cpp", "regions_arm_cpp"))
     tool = Path(sys.executable).parent / "hfsmc"
     make = ["make", "-C", str(project), f"HFSMC={tool}", f"PYTHON={sys.executable}"]
     first = subprocess.run(make, capture_output=True, text=True, timeout=300)
@@ -220,6 +224,18 @@ def test_examples_makefile_builds_once_then_nothing(tmp_path: Path) -> None:
     assert os.access(project / "build/blinker_cpp/build/blinker_cpp", os.X_OK)
     again = subprocess.run(make, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0 and "Nothing to be done" in again.stdout
+    # A used file changes: the component and the drawing of the model using it are made again.
+    lib = project / "lib" / "land.yaml"
+    later = time.time() + 5
+    os.utime(lib, (later, later))
+    used = subprocess.run(make, capture_output=True, text=True, timeout=300)
+    assert used.returncode == 0, used.stdout + used.stderr
+    remade = {(ln.split()[1], next(w for w in ln.split() if w.endswith(".yaml")))
+              for ln in used.stdout.splitlines() if ln.startswith(str(tool))}
+    users = [m.relative_to(project).as_posix() for m in project.glob("*/*.yaml")
+             if m.stem == m.parent.name and "../lib/land.yaml" in m.read_text("utf-8")]
+    assert "follow_colors/follow_colors.yaml" in users
+    assert remade == {(cmd, m) for m in users for cmd in ("build", "diagram")}, used.stdout
     run = subprocess.run([*make, "run-traffic_light", "RUN_ARGS=--clock virtual --until 9s"],
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
