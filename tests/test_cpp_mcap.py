@@ -182,7 +182,7 @@ def test_every_record_type_reads_back(writer: Path, tmp_path: Path) -> None:
 
 def test_a_file_cut_at_any_byte_reads_up_to_the_cut(writer: Path, tmp_path: Path) -> None:
     path = tmp_path / "ticks.mcap"
-    run(writer, "ticks", path, 4)
+    run(writer, "ticks", path, "4")
     data = path.read_bytes()
     full, error = streamed(io.BytesIO(data))
     assert error is None and messages(full) == tick_messages(4)

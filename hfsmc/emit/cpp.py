@@ -28,7 +28,7 @@ from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, Value
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
-                 "viewstate.hpp", "monitor.hpp")
+                 "viewstate.hpp", "monitor.hpp", "mcap.hpp")
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",)}
 INTERFACE_CLASSES = {"mavlink": "hfsmc::Mavlink", "camera": "hfsmc::Camera"}
