@@ -68,6 +68,7 @@ bench: setup
 	$(BIN)/python bench/component.py --json bench/results.json
 	$(BIN)/python bench/vision.py --json bench/results.json
 	$(BIN)/python bench/cpp.py --json bench/results.json
+	$(BIN)/python bench/mcap.py --json bench/results.json
 	$(BIN)/python bench/web.py --json bench/results.json
 
 # A longer run of the front end's fuzzer than `make test` does (crashes become

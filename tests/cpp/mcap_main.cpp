@@ -61,7 +61,8 @@ int all(const std::string& path) {
 
 int ticks(const std::string& path, unsigned n, bool stay_open) {
     Writer w(path);
-    std::uint16_t ch[3] = {w.add_channel("/a", "x-bytes"), w.add_channel("/b", "x-bytes"),
+    std::uint16_t ch[3] = {w.add_channel("/a", "x-bytes", 0, {{"unit", "\xc2\xb5s \xe6\x97\xa5"}}),
+                           w.add_channel("/b", "x-bytes"),
                            w.add_channel("/c", "x-bytes")};
     for (unsigned t = 0; t < n; ++t) {
         for (unsigned c = 0; c < 3; ++c) w.write(ch[c], 1000000ULL * t, payload(t, c));

@@ -75,6 +75,7 @@ public:
 
     // A Schema record; returns its id (1, 2, ...).  Id 0 means "no schema" for a channel.
     std::uint16_t add_schema(std::string_view name, std::string_view encoding, std::string_view data) {
+        if (schemas_.size() >= 0xFFFF) throw std::length_error("mcap: more than 65535 schemas");
         auto id = static_cast<std::uint16_t>(schemas_.size() + 1);
         std::size_t start = buf_.size();
         std::size_t at = begin(SCHEMA);
@@ -90,6 +91,7 @@ public:
     // A Channel record; returns its id (0, 1, ...).
     std::uint16_t add_channel(std::string_view topic, std::string_view message_encoding,
                               std::uint16_t schema_id = 0, const Metadata& metadata = {}) {
+        if (channels_.size() > 0xFFFF) throw std::length_error("mcap: more than 65536 channels");
         auto id = static_cast<std::uint16_t>(channels_.size());
         std::size_t start = buf_.size();
         std::size_t at = begin(CHANNEL);
@@ -231,15 +233,21 @@ private:
         buf_.append(MAGIC);
     }
 
-    static std::string le(std::uint64_t v, int n) {
-        std::string s(static_cast<std::size_t>(n), '\0');
-        for (int i = 0; i < n; ++i) s[static_cast<std::size_t>(i)] = static_cast<char>((v >> (8 * i)) & 0xFFU);
-        return s;
+    template <std::size_t N>
+    static std::array<char, N> le(std::uint64_t v) {  // little-endian, whatever the host
+        std::array<char, N> b{};
+        for (std::size_t i = 0; i < N; ++i) b[i] = static_cast<char>((v >> (8 * i)) & 0xFFU);
+        return b;
+    }
+    template <std::size_t N>
+    void put_le(std::uint64_t v) {
+        auto b = le<N>(v);
+        buf_.append(b.data(), N);
     }
     void raw(std::uint8_t v) { buf_.push_back(static_cast<char>(v)); }
-    void u16(std::uint16_t v) { buf_.append(le(v, 2)); }
-    void u32(std::uint32_t v) { buf_.append(le(v, 4)); }
-    void u64(std::uint64_t v) { buf_.append(le(v, 8)); }
+    void u16(std::uint16_t v) { put_le<2>(v); }
+    void u32(std::uint32_t v) { put_le<4>(v); }
+    void u64(std::uint64_t v) { put_le<8>(v); }
     void str(std::string_view s) {
         u32(static_cast<std::uint32_t>(s.size()));
         buf_.append(s);
@@ -260,7 +268,7 @@ private:
         u64(0);
         return at;
     }
-    void end(std::size_t at) { std::memcpy(&buf_[at], le(buf_.size() - at - 8, 8).data(), 8); }
+    void end(std::size_t at) { std::memcpy(&buf_[at], le<8>(buf_.size() - at - 8).data(), 8); }
     void put(const std::string& s) {
         if (!s.empty() && std::fwrite(s.data(), 1, s.size(), file_) != s.size()) fail();
     }
