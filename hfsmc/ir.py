@@ -226,6 +226,9 @@ class Model:
     span: Span = field(compare=False)
     on_interrupt_span: Span | None = field(default=None, compare=False)
     interrupt_timeout_span: Span | None = field(default=None, compare=False)
+    # States whose `use` could not be built (the error says why): checks that would only
+    # repeat it (done() there, active() paths below them) leave them out.
+    unresolved_uses: tuple[str, ...] = field(default=(), compare=False)
 
     def states(self) -> Iterator[State]:
         """Every state, depth first, parents before children, in model order (a state's

@@ -66,6 +66,7 @@ class _IrBuilder:
         self.doc = doc
         self.diags = diags
         self.uses = uses
+        self.unresolved: list[str] = []  # states whose `use` gave no sub-automaton
         self.data: dict[str, Any] = doc.data
 
     # -- helpers -----------------------------------------------------------
@@ -126,6 +127,7 @@ class _IrBuilder:
             file=self.doc.file,
             span=self.doc.span(()),
             on_interrupt_span=self.doc.span(("on_interrupt",)) if "on_interrupt" in d else None,
+            unresolved_uses=tuple(self.unresolved),
             interrupt_timeout_span=(self.doc.key_span(("interrupt_timeout",))
                                     if "interrupt_timeout" in d else None),
         )
@@ -260,7 +262,10 @@ class _IrBuilder:
         if self.uses is None:
             return ()
         auto = self.uses(self.doc, self.diags, node, path, spath, period_ms)
-        return () if auto is None else (auto,)
+        if auto is None:
+            self.unresolved.append(spath)
+            return ()
+        return (auto,)
 
     def state(self, name: str, node: dict[str, Any], path: PathKey, parent: str, period_ms: int) -> State:
         spath = f"{parent}/{name}" if parent else name

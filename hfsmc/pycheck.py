@@ -251,6 +251,8 @@ def check_active_path(model: Model, sn: Snippet, path: str, where: Span,
     wanted = path.strip("/")  # as the runtimes read it
     if wanted and model.find(wanted) is not None:
         return
+    if any(wanted.startswith(f"{u}/") for u in model.unresolved_uses):
+        return  # below a `use` that failed: its error says why
     paths = [s.path for s in model.states()]
     last = wanted.rpartition("/")[2]
     note = did_you_mean(wanted, paths)
@@ -269,7 +271,7 @@ def check_done(model: Model, sn: Snippet, where: Span, diags: Diagnostics) -> No
     if not sn.where:
         return  # functions and on_shutdown: the caller's state decides
     state = model.find(sn.where)
-    if state is not None and not state.automata:
+    if state is not None and not state.automata and state.path not in model.unresolved_uses:
         diags.warning("W215", f"done() in {sn.kind} of `{sn.where}` is always false: the state "
                       "has no sub-automaton", where,
                       "done() says whether the owning state's sub-automaton (every one of its "

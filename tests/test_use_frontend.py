@@ -325,3 +325,32 @@ def test_a_legacy_file_is_not_a_model_to_use(tmp_path: Path) -> None:
     result = compile_file(str(tmp_path / "main.yaml"))
     assert found(result) == [("E172", f"{tmp_path / 'main.yaml'}:5:12")], show(result.diagnostics)
     assert "convert it first" in result.diagnostics[0].notes[0]
+
+
+MISSING_USE = """\
+hfsm: 1
+name: m
+language: {language}
+initial: A
+states:
+  A:
+    use: lib/nowhere.yaml
+    transitions:
+      - {{to: B, when: {when}}}
+  B: {{final: true}}
+"""
+
+
+def test_a_use_that_failed_is_said_once(tmp_path: Path) -> None:
+    """done() in the using state and active() paths below it would only repeat the error."""
+    for language, when in (("python", 'done() or active("A/Climb")'),
+                           ("cpp", 'done() || active("A/Climb")')):
+        path = tmp_path / f"{language}.yaml"
+        path.write_text(MISSING_USE.format(language=language, when=f"'{when}'"), "utf-8")
+        r = compile_file(str(path))
+        assert [(d.code, str(d.span)) for d in r.diagnostics] == [("E170", f"{path}:7:10")], \
+            r.diagnostics
+    # a path that leads nowhere else is still an error
+    path.write_text(MISSING_USE.format(language="python", when="'active(\"B/Climb\")'"), "utf-8")
+    r = compile_file(str(path))
+    assert sorted(d.code for d in r.diagnostics) == ["E146", "E170"], r.diagnostics
