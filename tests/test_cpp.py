@@ -11,6 +11,7 @@ import json
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -73,7 +74,9 @@ def project(tmp_path_factory: pytest.TempPathFactory) -> Superbuild:
     hostile = models / "hostile_cpp.yaml"
     hostile.write_text(hostile_model("cpp"),
                        "utf-8")
-    return Superbuild(tmp_path_factory.mktemp("cpp"), [*examples("cpp"), hostile])
+    last = models / "last_cpp.yaml"
+    last.write_text(LAST_INSTANT, "utf-8")
+    return Superbuild(tmp_path_factory.mktemp("cpp"), [*examples("cpp"), hostile, last])
 
 
 def run(cmd: list[str], **kw: object) -> subprocess.CompletedProcess[str]:
@@ -297,6 +300,38 @@ def test_hfsmc_view_watches_a_cpp_component(project: Superbuild) -> None:
     assert view.returncode == 0, view.stderr
     assert "in Blinking/" in view.stdout
     assert "hfsmc view: component stopped (until)" in view.stdout + view.stderr
+
+
+# The transition that stops the run changes a variable: samples are 100 ms apart, and the
+# stop takes one more (tests/test_monitor.py checks the Python component alike).
+LAST_INSTANT = """\
+hfsm: 1
+name: last_cpp
+language: cpp
+variables: {legs: 0}
+initial: A
+states:
+  A: {transitions: [{to: Done, after: 2s, do: "legs += 2;"}]}
+  Done: {final: true}
+"""
+
+
+def test_the_last_sample_of_a_cpp_component_has_the_values_it_ended_with(project: Superbuild) -> None:
+    exe = project.executable(project.models[-1])
+    with subprocess.Popen([str(exe), "--monitor", "0"], stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True) as comp:
+        assert comp.stderr is not None
+        m = re.search(r"monitor: listening on 127\.0\.0\.1:(\d+)", comp.stderr.readline())
+        assert m
+        got = b""
+        with socket.create_connection(("127.0.0.1", int(m.group(1))), timeout=TIMEOUT) as sock:
+            while chunk := sock.recv(1 << 16):
+                got += chunk
+        assert comp.wait(timeout=TIMEOUT) == 0
+    msgs = [json.loads(line) for line in got.splitlines()]
+    assert msgs[-1] == {"type": "bye", "reason": "final"}
+    samples = [msg["variables"] for msg in msgs if msg["type"] == "sample"]
+    assert samples[0] == {"legs": "0"} and samples[-1] == {"legs": "2"}, samples[-3:]
 
 
 def test_hfsmc_run_compiles_a_cpp_model_into_the_cache_and_runs_it(tmp_path: Path) -> None:

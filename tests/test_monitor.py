@@ -532,6 +532,35 @@ def test_late_viewers_of_a_real_component(component: Callable[..., Component],
     assert "Traceback" not in comp.err()
 
 
+LAST_INSTANT = """\
+hfsm: 1
+name: last
+variables: {legs: 0}
+initial: A
+states:
+  A: {transitions: [{to: Done, after: 2s, do: "legs += 2"}]}
+  Done: {final: true}
+"""
+
+
+def test_the_last_sample_has_the_values_the_run_ended_with(tmp_path: Path,
+                                                           clients: Callable[..., Client]) -> None:
+    """A variable changed by the very transition that stops the run reaches the viewers
+    (samples are taken every 100 ms; the stop takes one more)."""
+    (tmp_path / "last.yaml").write_text(LAST_INSTANT, "utf-8")
+    subprocess.run([sys.executable, "-m", "hfsmc", "build", str(tmp_path / "last.yaml"), "-o",
+                    str(tmp_path / "last")], check=True, capture_output=True, timeout=60)
+    comp = Component(tmp_path / "last" / "last.py", tmp_path, "--clock", "real")
+    try:
+        raw = clients(comp.port)
+        msgs = raw.until(lambda m: m["type"] == "bye")
+        assert comp.proc.wait(10) == 0, comp.err()
+    finally:
+        comp.kill()
+    samples = [m["variables"] for m in msgs if m["type"] == "sample"]
+    assert samples[0] == {"legs": "0"} and samples[-1] == {"legs": "2"}, samples
+
+
 def test_viewer_in_a_terminal_attaches_late(component: Callable[..., Component],
                                             tmux: Callable[..., Tmux], tmp_path: Path) -> None:
     comp = component("--clock", "real", "--until", "5s")

@@ -468,6 +468,9 @@ class Engine:
         self.m["on_shutdown"]()
         self.warn_at_stop()
         self.status = 1 if self.stop_failed else EXIT_STATUS[reason]
+        if self.observers:  # the views end on the values the run ended with, not older ones
+            self.next_sample = 0.0
+            self.sample()
         self.finish(reason)
         if self.real:  # the virtual clock never overruns: nothing to tell
             share = 100 * self.overruns / max(self.ticks + self.overruns, 1)

@@ -668,6 +668,10 @@ private:
         // line, so that stderr, the trace and the live views all show it.
         for (const std::string& warning : m_._hfsm_warnings_at_stop()) log(warning);
         status_ = stop_failed_ ? 1 : exit_status(reason);
+        if (!observers_.empty()) {  // the views end on the values the run ended with
+            next_sample_ns_ = 0;
+            sample();
+        }
         finish(reason);
         if (real_) {  // the virtual clock never overruns: nothing to tell
             const double share = 100.0 * static_cast<double>(overruns_) /
