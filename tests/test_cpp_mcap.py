@@ -209,22 +209,24 @@ def test_a_file_cut_at_any_byte_reads_up_to_the_cut(writer: Path, tmp_path: Path
     assert ends == {"EndOfFile", "error", "UnicodeDecodeError"}, ends
 
 
+def kill_9_after(args: list[str], lines: int) -> list[str]:
+    """Run the writer with ``args``, read ``lines`` lines of its output, then kill -9 it."""
+    with subprocess.Popen(args, stdout=subprocess.PIPE, text=True) as proc:
+        try:
+            assert proc.stdout is not None
+            got = [proc.stdout.readline() for _ in range(lines)]
+            os.kill(proc.pid, signal.SIGKILL)
+            assert proc.wait(timeout=30) == -signal.SIGKILL
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    return got
+
+
 def test_kill_9_after_a_flush_leaves_every_tick(writer: Path, tmp_path: Path) -> None:
     path = tmp_path / "open.mcap"
-    proc = subprocess.Popen([str(writer), "ticks", str(path), "50", "open"], stdout=subprocess.PIPE,
-                            text=True)
-    try:
-        assert proc.stdout is not None
-        lines = [proc.stdout.readline() for _ in range(51)]
-        assert lines[-1] == "waiting\n", lines
-        os.kill(proc.pid, signal.SIGKILL)
-        assert proc.wait(timeout=30) == -signal.SIGKILL
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=30)
-        if proc.stdout is not None:
-            proc.stdout.close()
+    lines = kill_9_after([str(writer), "ticks", str(path), "50", "open"], 51)
+    assert lines[-1] == "waiting\n", lines
     with path.open("rb") as f:
         records, error = streamed(f)
     assert isinstance(error, EndOfFile)  # at a record boundary: no DataEnd, no footer
@@ -234,20 +236,9 @@ def test_kill_9_after_a_flush_leaves_every_tick(writer: Path, tmp_path: Path) ->
 
 def test_kill_9_mid_run_leaves_a_readable_prefix(writer: Path, tmp_path: Path) -> None:
     path = tmp_path / "run.mcap"
-    proc = subprocess.Popen([str(writer), "ticks", str(path), "1000000"], stdout=subprocess.PIPE,
-                            text=True)
-    try:
-        assert proc.stdout is not None
-        for _ in range(200):
-            assert proc.stdout.readline().startswith("tick ")
-        os.kill(proc.pid, signal.SIGKILL)  # the writer is still writing
-        assert proc.wait(timeout=30) == -signal.SIGKILL
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=30)
-        if proc.stdout is not None:
-            proc.stdout.close()
+    # killed while it is still writing
+    lines = kill_9_after([str(writer), "ticks", str(path), "1000000"], 200)
+    assert all(line.startswith("tick ") for line in lines), lines[-3:]
     with path.open("rb") as f:
         records, error = streamed(f)
     assert error is not None

@@ -256,9 +256,8 @@ def _instance_view(i: InstanceView) -> PythonInstanceView:
         b = inst.binding(p.name)
         if b.source is not None:
             links.append((p.name, b.source, p.type))
-        else:
-            value = float(b.value) if p.type == "float" and isinstance(b.value, int) else b.value
-            values[p.name] = _py_literal(value)
+        else:  # the front end gave a float parameter's int literal as a float
+            values[p.name] = _py_literal(b.value)
     interfaces = tuple((f.name, inst.binding(f.name).source or f.name) for f in inst.model.interfaces)
     return PythonInstanceView(
         i.number, unit_module(i.unit), inst.file, i.base, i.count, i.sid0, i.parent, i.prefix,

@@ -162,16 +162,16 @@ class Walk(ABC, Generic[S]):
         """Number the instances of used files, and say which one each state is in."""
         self.unit_of = [0] * len(self.states)  # per state: its instance's number, 0 for none
         self.next_sid: dict[int, int] = {}  # per instance: the number of its next snippet
-        units: dict[str, UnitView] = {}
-        found: list[tuple[Instance, int, int]] = []  # instance, base, end
+        units: dict[str, UnitView] = {}  # by used file
+        found: list[tuple[Instance, int, int]] = []  # instance, base, number of states
         for auto in self.model.automata():  # pre-order: an instance before those inside it
             inst = auto.instance
             if inst is None or not auto.states:
                 continue
             base = self.index[auto.states[0].path]
-            end = base + sum(1 for _ in _states_below(auto))
-            found.append((inst, base, end))
-            for i in range(base, end):
+            count = sum(1 for _ in _states_below(auto))
+            found.append((inst, base, count))
+            for i in range(base, base + count):
                 self.unit_of[i] = len(found)
             if inst.file not in units:
                 name = _identifier(Path(inst.file).stem)
@@ -181,6 +181,7 @@ class Walk(ABC, Generic[S]):
                     unique, k = f"{name}_{k}", k + 1
                 units[inst.file] = UnitView(unique, inst.file, inst.model)
             self.next_sid[len(found)] = 1 if inst.model.functions is not None else 0
+        self.unit_by_file = units
         self.units = tuple(units.values())
         self.found = found
 
@@ -188,10 +189,10 @@ class Walk(ABC, Generic[S]):
         """The instances, once every snippet is numbered (``machine`` does it)."""
         out: list[InstanceView] = []
         sid0 = len(self.snippets)
-        for number, (inst, base, _end) in enumerate(self.found, start=1):
+        for number, (inst, base, count) in enumerate(self.found, start=1):
             owner = base - 1  # the using state comes just before its sub-automaton's states
-            out.append(InstanceView(number, next(u.name for u in self.units if u.file == inst.file),
-                                    inst, owner, base, _end - base, self.unit_of[owner],
+            out.append(InstanceView(number, self.unit_by_file[inst.file].name,
+                                    inst, owner, base, count, self.unit_of[owner],
                                     self.states[owner].path, sid0, self.next_sid[number]))
             sid0 += self.next_sid[number]
         return tuple(out)
