@@ -17,9 +17,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Generic, TypeVar
 
+from hfsmc import __version__
 from hfsmc.durations import format_us
 from hfsmc.emit.comments import comment_text
 from hfsmc.ir import Automaton, Code, Instance, Model, State
+from hfsmc.model_sources import model_hash, model_sources
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,6 +133,9 @@ class MachineView(Generic[S]):
     on_interrupt: int  # index of the state to go to on an interrupt, or -1
     instances: tuple[InstanceView, ...]  # in pre-order
     units: tuple[UnitView, ...]  # one per used file, in order of first use
+    sources: tuple[tuple[str, str], ...]  # (path, text): the model, then each used file
+    model_hash: str  # of the sources (hfsmc/model_sources.py)
+    version: str  # of the hfsmc that generated the component
 
 
 class Walk(ABC, Generic[S]):
@@ -221,10 +226,12 @@ class Walk(ABC, Generic[S]):
         functions = self._own(self.snippet("functions", self.root, m.functions))
         states = tuple(self.state_views())
         on_shutdown = self._own(self.snippet("on_shutdown", self.root, m.on_shutdown))
+        sources = model_sources(m)
         return MachineView(functions, on_shutdown, states, tuple(self.automata),
                            tuple(self.snippets),
                            self.index[m.on_interrupt] if m.on_interrupt is not None else -1,
-                           self.instance_views(), self.units)
+                           self.instance_views(), self.units, sources, model_hash(sources),
+                           __version__)
 
     def _own(self, view: S | Snippet | None) -> S | None:
         """A snippet of the root: always the model's own."""

@@ -10,7 +10,7 @@ The URL is anything ``cv2.VideoCapture`` opens: MJPEG over HTTP
 (``http://127.0.0.1:8554/bottom.mjpg``), a device number (``0``), a file
 (replayed at its frame rate, from the start again at its end). A daemon
 grabber reads frames as they come and keeps only the latest, as one
-immutable pair (frame, time) replaced whole, so ``frame()`` and ``age()``
+immutable triple (frame, time, number) replaced whole, so ``frame()`` and ``age()``
 return at once. When the stream drops, the grabber says so once on stderr
 and reconnects with a growing pause (0.2 s, doubling up to 2 s); it says so
 again when frames are back.
@@ -28,7 +28,7 @@ import re
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import cv2
@@ -50,7 +50,50 @@ def connect(name: str, url: str | None, options: dict[str, str]) -> Camera:
     return Camera(name, url or DEFAULT_URL, options)
 
 
-class Camera:
+NO_FRAME: dict[str, Any] = {"count": 0, "age": math.inf}  # the snapshot before any frame
+
+
+class CameraQueries:
+    """What snippets call. Queries return the snapshot taken when the instant began
+    (docs/recording.md); the first time a snippet obtains a frame it is told to
+    ``on_frame`` (a recording)."""
+
+    name: str
+    _snap: dict[str, Any]
+    _frame: Any
+    _seen: Any
+    on_frame: Callable[[int, Any], None] | None
+
+    def frame(self) -> Any:
+        """The latest frame when the instant began (an H x W x 3 BGR numpy array); None
+        before the first. The same array until a newer one comes: copy it before drawing
+        on it for keeps."""
+        img = self._frame
+        if img is not None and img is not self._seen:
+            self._seen = img  # for the monitor's viewers (one assignment: no lock)
+            if self.on_frame is not None:
+                self.on_frame(int(self._snap["count"]), img)
+        return img
+
+    def _last_seen(self) -> Any:
+        """The latest frame a snippet obtained with ``frame()``; None before any. For the
+        monitor (hfsmc_monitor.py), which sends it to the viewers that ask for frames."""
+        return self._seen
+
+    def age(self) -> float:
+        """Seconds since the latest frame arrived (when the instant began); inf before the first."""
+        return float(self._snap["age"])
+
+    def ok(self) -> bool:
+        """Frames are coming: the latest is less than a second old."""
+        return self.age() < STALE_S
+
+    def count(self) -> int:
+        """Frames received so far (a new one since the last instant when it has grown)."""
+        return int(self._snap["count"])
+
+
+class Camera(CameraQueries):
     """The latest frame of a video stream (BGR numpy arrays)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str]) -> None:
@@ -68,9 +111,13 @@ class Camera:
                 self._say(f"option size: `{options[key]}` is not WxH (320x240): frames kept as they come")
             else:
                 self._say(f"unknown option `{key}` ignored (options: size)")
-        self._latest: tuple[Any, float] | None = None  # (frame, monotonic time), replaced whole
+        # (frame, monotonic time, its number), replaced whole by the grabber
+        self._latest: tuple[Any, float, int] | None = None
         self._count = 0
+        self._snap: dict[str, Any] = NO_FRAME
+        self._frame: Any = None  # the snapshot's frame
         self._seen: Any = None  # the latest frame a snippet obtained
+        self.on_frame: Callable[[int, Any], None] | None = None
         self._down = False  # said on stderr that the stream is down
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"camera {name}", daemon=True)
@@ -80,32 +127,14 @@ class Camera:
     def __repr__(self) -> str:
         return f"<camera {self.name} {self.url}>"
 
-    def frame(self) -> Any:
-        """The latest frame (an H x W x 3 BGR numpy array); None before the first.
-        The same array until a newer one comes: copy it before drawing on it for keeps."""
+    def snapshot(self) -> dict[str, Any]:
+        """Read the stream once for the instant that begins; queries return this."""
         latest = self._latest
         if latest is None:
-            return None
-        self._seen = latest[0]  # for the monitor's viewers (one assignment: no lock)
-        return latest[0]
-
-    def _last_seen(self) -> Any:
-        """The latest frame a snippet obtained with ``frame()``; None before any. For the
-        monitor (hfsmc_monitor.py), which sends it to the viewers that ask for frames."""
-        return self._seen
-
-    def age(self) -> float:
-        """Seconds since the latest frame arrived; inf before the first."""
-        latest = self._latest
-        return math.inf if latest is None else time.monotonic() - latest[1]
-
-    def ok(self) -> bool:
-        """Frames are coming: the latest is less than a second old."""
-        return self.age() < STALE_S
-
-    def count(self) -> int:
-        """Frames received so far (a new one since the last tick when it has grown)."""
-        return self._count
+            return self._snap
+        self._frame = latest[0]
+        self._snap = {"count": latest[2], "age": time.monotonic() - latest[1]}
+        return self._snap
 
     def close(self) -> None:
         """Stop the grabber (also run at exit)."""
@@ -168,8 +197,8 @@ class Camera:
                 return got
             if self._size is not None and (img.shape[1], img.shape[0]) != self._size:
                 img = cv2.resize(img, self._size, interpolation=cv2.INTER_AREA)
-            self._latest = (img, time.monotonic())
             self._count += 1
+            self._latest = (img, time.monotonic(), self._count)
             if not got:
                 got = True
                 if self._down and not self._stop.is_set():

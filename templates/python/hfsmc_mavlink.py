@@ -29,10 +29,13 @@ import socket
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from pymavlink import mavutil
+
+_MAV: Any = mavutil.mavlink
 
 DEFAULT_URL = "udpin:127.0.0.1:14550"  # the vehicle sends there, as ArduPilot SITL does for a GCS
 LINK_TIMEOUT_S = 2.0  # no heartbeat for that long: the link is lost (docs/interfaces.md)
@@ -90,14 +93,159 @@ class _Pending:
     quiet: bool  # log only a failure (message rates)
 
 
-class Vehicle:
+NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
+    "heartbeat_age": math.inf, "ready": False, "armed": False, "mode": "",
+    "position": (math.nan, math.nan, math.nan), "altitude": math.nan,
+    "velocity": (math.nan, math.nan, math.nan), "yaw": math.nan, "battery": -1,
+    "acks": {}, "vehicle": False, "type": 0}
+
+
+class VehicleQueries:
+    """What snippets call. Queries return the snapshot taken when the instant began
+    (docs/recording.md), so that every call of an instant sees the same vehicle; commands
+    are told to ``on_command`` (a recording, a playback), then sent by ``_command`` and
+    ``_target_local``, which a fake vehicle leaves empty."""
+
+    name: str
+    _snap: dict[str, Any]
+    on_command: Callable[[str, list[Any]], None] | None
+
+    # -- state (the instant's snapshot) ----------------------------------------------
+    def connected(self) -> bool:
+        """A heartbeat from the vehicle within the last 2 s."""
+        return bool(self._snap["heartbeat_age"] < LINK_TIMEOUT_S)
+
+    def heartbeat_age(self) -> float:
+        """Seconds since the vehicle's last heartbeat; inf before the first."""
+        return float(self._snap["heartbeat_age"])
+
+    def ready(self) -> bool:
+        """The vehicle would accept GUIDED: connected, a 3D GPS fix, an absolute EKF position."""
+        return bool(self._snap["ready"])
+
+    def armed(self) -> bool:
+        """The vehicle's last heartbeat says its motors are armed."""
+        return bool(self._snap["armed"])
+
+    def mode(self) -> str:
+        """The flight mode's name (GUIDED, LAND, RTL, ...); "" before the first heartbeat."""
+        return str(self._snap["mode"])
+
+    def position(self) -> tuple[float, float, float]:
+        """(north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any."""
+        return self._snap["position"]  # type: ignore[no-any-return]
+
+    def altitude(self) -> float:
+        """m above home (GLOBAL_POSITION_INT.relative_alt, else -down); NaN before any."""
+        return float(self._snap["altitude"])
+
+    def velocity(self) -> tuple[float, float, float]:
+        """(vn, ve, vd) in m/s (LOCAL_POSITION_NED); NaN before any."""
+        return self._snap["velocity"]  # type: ignore[no-any-return]
+
+    def yaw(self) -> float:
+        """Heading in rad (ATTITUDE), 0 north, positive clockwise; NaN before any."""
+        return float(self._snap["yaw"])
+
+    def battery(self) -> int:
+        """Battery remaining in percent (SYS_STATUS); -1 when unknown."""
+        return int(self._snap["battery"])
+
+    def last_ack(self, command: str) -> str:
+        """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
+        accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
+        pending, timeout, not_sent; "" when never sent."""
+        return str(self._snap["acks"].get(command, ""))
+
+    # -- commands (send and return) --------------------------------------------
+    def set_mode(self, name: str) -> None:
+        """Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode)."""
+        wanted = name.strip().upper()
+        numbers = {v: k for k, v in modes(int(self._snap["type"])).items()}
+        if wanted not in numbers:
+            raise ValueError(f"{self.name}: unknown mode `{name}` (modes: {', '.join(numbers)})")
+        self._issue("set_mode", [name], ack=True)
+        self._command("set_mode", f"set_mode {wanted}", _MAV.MAV_CMD_DO_SET_MODE,
+                      MODE_FLAG_CUSTOM_MODE_ENABLED, numbers[wanted])
+
+    def arm(self) -> None:
+        """Arm the motors (MAV_CMD_COMPONENT_ARM_DISARM 1)."""
+        self._issue("arm", [], ack=True)
+        self._command("arm", "arm", _MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+
+    def disarm(self) -> None:
+        """Disarm the motors (MAV_CMD_COMPONENT_ARM_DISARM 0; the vehicle refuses in flight)."""
+        self._issue("disarm", [], ack=True)
+        self._command("disarm", "disarm", _MAV.MAV_CMD_COMPONENT_ARM_DISARM, 0)
+
+    def takeoff(self, alt: float) -> None:
+        """Climb to ``alt`` m above home (MAV_CMD_NAV_TAKEOFF; GUIDED and armed)."""
+        self._issue("takeoff", [float(alt)], ack=True)
+        self._command("takeoff", "takeoff", _MAV.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, float(alt))
+
+    def land(self) -> None:
+        """Land where the vehicle is (MAV_CMD_NAV_LAND: LAND mode)."""
+        self._issue("land", [], ack=True)
+        self._command("land", "land", _MAV.MAV_CMD_NAV_LAND)
+
+    def rtl(self) -> None:
+        """Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode)."""
+        self._issue("rtl", [], ack=True)
+        self._command("rtl", "rtl", _MAV.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+
+    def hold(self) -> None:
+        """Stop where the vehicle is: a zero velocity target (GUIDED)."""
+        self._issue("hold", [])
+        self._target_local(MAV_FRAME_BODY_OFFSET_NED, VELOCITY_MASK,
+                           (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
+
+    def set_velocity(self, vx: float, vy: float, vz: float, yaw_rate: float) -> None:
+        """Velocity target in the body frame: m/s forward, right, down; rad/s clockwise.
+        ArduPilot stops the vehicle when no new target comes for 3 s."""
+        v = (float(vx), float(vy), float(vz))
+        self._issue("set_velocity", [*v, float(yaw_rate)])
+        self._target_local(MAV_FRAME_BODY_OFFSET_NED, VELOCITY_MASK, (0.0, 0.0, 0.0), v,
+                           float(yaw_rate))
+
+    def goto(self, north: float, east: float, alt: float) -> None:
+        """Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt)."""
+        self._issue("goto", [float(north), float(east), float(alt)])
+        self._target_local(MAV_FRAME_LOCAL_NED, POSITION_MASK,
+                           (float(north), float(east), -float(alt)), (0.0, 0.0, 0.0), 0.0)
+
+    def _issue(self, call: str, args: list[Any], ack: bool = False) -> None:
+        """Tell the command to whoever listens; a command that is acknowledged says
+        `pending` (or `not_sent`: no vehicle heard) from now on in this instant."""
+        if self.on_command is not None:
+            self.on_command(call, args)
+        if ack:
+            status = "pending" if self._snap["vehicle"] else "not_sent"
+            self._snap = {**self._snap, "acks": {**self._snap["acks"], call: status}}
+
+    def _command(self, name: str, label: str, command: int, *params: float,
+                 quiet: bool = False) -> None:
+        """Send a COMMAND_LONG (the live vehicle)."""
+
+    def _target_local(self, frame: int, mask: int, pos: tuple[float, float, float],
+                      vel: tuple[float, float, float], yaw_rate: float) -> None:
+        """Send a SET_POSITION_TARGET_LOCAL_NED (the live vehicle)."""
+
+
+def modes(vehicle_type: int) -> dict[int, str]:
+    """Flight modes by number for a HEARTBEAT type (Copter's when unknown)."""
+    table = mavutil.mode_mapping_bynumber(vehicle_type) if vehicle_type else None
+    return dict(table or mavutil.mode_mapping_acm)
+
+
+class Vehicle(VehicleQueries):
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str]) -> None:
         self.name = name
         self.url = url
-        self._mavutil: Any = mavutil
-        self._mav: Any = mavutil.mavlink
+        self._snap = NEVER_HEARD
+        self.on_command = None
+        self._mav: Any = _MAV
         self._rate = _option(name, options, "rate", FAST_RATE_HZ)
         self._ack_timeout = _option(name, options, "ack_timeout", ACK_TIMEOUT_S)
         sysid = int(_option(name, options, "source_system", 255.0))
@@ -140,113 +288,33 @@ class Vehicle:
     def __repr__(self) -> str:
         return f"<mavlink {self.name} {self.url}>"
 
-    # -- state (never waits) -------------------------------------------------
-    def connected(self) -> bool:
-        """A heartbeat from the vehicle within the last 2 s."""
-        return self.heartbeat_age() < LINK_TIMEOUT_S
-
-    def heartbeat_age(self) -> float:
-        """Seconds since the vehicle's last heartbeat; inf before the first."""
+    def snapshot(self) -> dict[str, Any]:
+        """Read the vehicle once for the instant that begins; queries return this."""
         at = self._heartbeat_at
-        return math.inf if at is None else time.monotonic() - at
-
-    def ready(self) -> bool:
-        """The vehicle would accept GUIDED: connected, a 3D GPS fix, an absolute EKF position."""
-        flags = self._ekf_flags
-        if self.armed():
+        age = math.inf if at is None else time.monotonic() - at
+        flags, hb = self._ekf_flags, self._heartbeat
+        armed = bool(hb[2] & MODE_FLAG_SAFETY_ARMED)
+        if armed:
             position = bool(flags & EKF_POS_HORIZ_ABS) and not flags & EKF_CONST_POS_MODE
         else:
             position = bool(flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS))
-        return self.connected() and self._gps_fix >= GPS_FIX_3D and position
-
-    def armed(self) -> bool:
-        """The vehicle's last heartbeat says its motors are armed."""
-        return bool(self._heartbeat[2] & MODE_FLAG_SAFETY_ARMED)
-
-    def mode(self) -> str:
-        """The flight mode's name (GUIDED, LAND, RTL, ...); "" before the first heartbeat."""
-        if self._heartbeat_at is None:
-            return ""
-        custom = self._heartbeat[3]
-        return self._modes().get(custom, f"MODE{custom}")
-
-    def position(self) -> tuple[float, float, float]:
-        """(north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any."""
-        return self._position
-
-    def altitude(self) -> float:
-        """m above home (GLOBAL_POSITION_INT.relative_alt, else -down); NaN before any."""
         rel = self._relative_alt
-        return -self._position[2] if rel is None else rel
-
-    def velocity(self) -> tuple[float, float, float]:
-        """(vn, ve, vd) in m/s (LOCAL_POSITION_NED); NaN before any."""
-        return self._velocity
-
-    def yaw(self) -> float:
-        """Heading in rad (ATTITUDE), 0 north, positive clockwise; NaN before any."""
-        return self._yaw
-
-    def battery(self) -> int:
-        """Battery remaining in percent (SYS_STATUS); -1 when unknown."""
-        return self._battery
-
-    def last_ack(self, command: str) -> str:
-        """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
-        accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
-        pending, timeout, not_sent; "" when never sent."""
-        return self._acks.get(command, "")  # one dict read: atomic, no lock to wait for
-
-    # -- commands (send and return) --------------------------------------------
-    def set_mode(self, name: str) -> None:
-        """Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode)."""
-        wanted = name.strip().upper()
-        numbers = {v: k for k, v in self._modes().items()}
-        if wanted not in numbers:
-            raise ValueError(f"{self.name}: unknown mode `{name}` (modes: {', '.join(numbers)})")
-        self._command("set_mode", f"set_mode {wanted}", self._mav.MAV_CMD_DO_SET_MODE,
-                      MODE_FLAG_CUSTOM_MODE_ENABLED, numbers[wanted])
-
-    def arm(self) -> None:
-        """Arm the motors (MAV_CMD_COMPONENT_ARM_DISARM 1)."""
-        self._command("arm", "arm", self._mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-
-    def disarm(self) -> None:
-        """Disarm the motors (MAV_CMD_COMPONENT_ARM_DISARM 0; the vehicle refuses in flight)."""
-        self._command("disarm", "disarm", self._mav.MAV_CMD_COMPONENT_ARM_DISARM, 0)
-
-    def takeoff(self, alt: float) -> None:
-        """Climb to ``alt`` m above home (MAV_CMD_NAV_TAKEOFF; GUIDED and armed)."""
-        self._command("takeoff", "takeoff", self._mav.MAV_CMD_NAV_TAKEOFF,
-                      0, 0, 0, 0, 0, 0, float(alt))
-
-    def land(self) -> None:
-        """Land where the vehicle is (MAV_CMD_NAV_LAND: LAND mode)."""
-        self._command("land", "land", self._mav.MAV_CMD_NAV_LAND)
-
-    def rtl(self) -> None:
-        """Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode)."""
-        self._command("rtl", "rtl", self._mav.MAV_CMD_NAV_RETURN_TO_LAUNCH)
-
-    def hold(self) -> None:
-        """Stop where the vehicle is: a zero velocity target (GUIDED)."""
-        self.set_velocity(0.0, 0.0, 0.0, 0.0)
-
-    def set_velocity(self, vx: float, vy: float, vz: float, yaw_rate: float) -> None:
-        """Velocity target in the body frame: m/s forward, right, down; rad/s clockwise.
-        ArduPilot stops the vehicle when no new target comes for 3 s."""
-        self._target_local(MAV_FRAME_BODY_OFFSET_NED, VELOCITY_MASK,
-                           (0.0, 0.0, 0.0), (vx, vy, vz), yaw_rate)
-
-    def goto(self, north: float, east: float, alt: float) -> None:
-        """Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt)."""
-        self._target_local(MAV_FRAME_LOCAL_NED, POSITION_MASK,
-                           (north, east, -alt), (0.0, 0.0, 0.0), 0.0)
+        pos = self._position
+        self._snap = {
+            "heartbeat_age": age,
+            "ready": age < LINK_TIMEOUT_S and self._gps_fix >= GPS_FIX_3D and position,
+            "armed": armed,
+            "mode": "" if at is None else modes(hb[0]).get(hb[3], f"MODE{hb[3]}"),
+            "position": pos, "altitude": -pos[2] if rel is None else rel,
+            "velocity": self._velocity, "yaw": self._yaw, "battery": self._battery,
+            "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0]}
+        return self._snap
 
     def warning_at_stop(self) -> str | None:
         """What the component says when it stops with the vehicle still armed (then nothing
         lands it: --until, an error without on_interrupt...); None when disarmed."""
-        if not self.armed():
+        now = self.snapshot()  # the vehicle as it is, not as the last instant saw it
+        if not now["armed"]:
             return None
         link = "" if self.connected() else f" (link lost {self.heartbeat_age():.0f} s ago)"
         return (f"WARNING: ARMED in {self.mode()} at {self.altitude():.1f} m{link} "
@@ -398,7 +466,8 @@ class Vehicle:
                            int(msg.custom_mode))
         self._heartbeat_at = time.monotonic()
         if first:
-            self._say(f"vehicle {source[0]}/{source[1]} on {self.url}, mode {self.mode()}")
+            mode = modes(self._heartbeat[0]).get(self._heartbeat[3], f"MODE{self._heartbeat[3]}")
+            self._say(f"vehicle {source[0]}/{source[1]} on {self.url}, mode {mode}")
             self._request_rates()
         elif self._lost:
             self._lost = False
@@ -441,17 +510,14 @@ class Vehicle:
             self._say(f"{p.label}: no acknowledgement in {self._ack_timeout:g} s")
 
     def _watch_link(self) -> None:
-        if not self._lost and self._heartbeat_at is not None and not self.connected():
+        at = self._heartbeat_at
+        if not self._lost and at is not None and time.monotonic() - at >= LINK_TIMEOUT_S:
             self._lost = True
             self._gps_fix = 0  # whatever answers next says afresh whether it is ready
             self._ekf_flags = 0
             self._say(f"link lost: no heartbeat for {LINK_TIMEOUT_S:g} s")
 
     # -- helpers -------------------------------------------------------------------
-    def _modes(self) -> dict[int, str]:
-        modes = self._mavutil.mode_mapping_bynumber(self._heartbeat[0]) if self._heartbeat[0] else None
-        return dict(modes or self._mavutil.mode_mapping_acm)
-
     def _say(self, text: str) -> None:
         with contextlib.suppress(ValueError, OSError):  # stderr closed at exit: nothing to tell
             sys.stderr.write(f"{self.name}: {text}\n")

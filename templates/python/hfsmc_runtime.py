@@ -159,7 +159,14 @@ class Engine:
         self.finished = False
         self.status = 0
         self.overruns = 0
-        self.ticks = 0  # ticks run on the real clock (for the summary at stop)
+        self.ticks = 0  # sub-automaton ticks run since start
+        self.recorder: Any = None  # --record: hfsmc_record.Recorder
+        self.playback: Any = None  # --playback: hfsmc_playback.Playback
+        self.inputs: list[tuple[str, str, Any]] = []  # (name, type, interface) with snapshots
+        self.wiring: dict[str, dict[str, Any]] = {}  # each interface's type, url, options
+        self.snap_t = -1  # the time of the interfaces' last snapshot
+        self.next_signal: tuple[int, int, str] | None = None  # playback: (ticks, t, reason)
+        self.watched = False  # something to do after each tick: the real clock, a playback
         self.real = False
         self.clock_start = time.monotonic_ns()
         self.wakeup: socket.socket | None = None
@@ -199,6 +206,9 @@ class Engine:
         self.last: list[int] = list(m["initial"])
         self.deadline = [0] * a
         self.chain: list[int] = []
+        # Each sub-automaton's path: its owner's path and its region ("" for the root).
+        self.auto_paths = tuple("/".join(x for x in (self.paths[o] if o >= 0 else "", r or "") if x)
+                                for o, r in zip(m["owners"], m["regions"], strict=True))
         if not any(m["regions"]):
             # Without regions the active sub-automata form one path, root first: each one
             # activated comes last in pre-order and is left last in, so the chain is a stack.
@@ -312,6 +322,8 @@ class Engine:
     def emit(self, rec: dict[str, Any]) -> None:
         if self.trace is not None:
             self.trace.write(rec)
+        if self.recorder is not None:
+            self.recorder.trace(self.t, rec)
         for o in self.observers:
             o.record(rec)
 
@@ -323,12 +335,14 @@ class Engine:
         self.timeout_at: int | None = None
         self.next_sample = 0.0
         self.clock_start = time.monotonic_ns()
-        self.recording = self.trace is not None or bool(self.observers)
+        self.recording = self.trace is not None or bool(self.observers) or self.recorder is not None
+        self.watched = self.real or self.playback is not None
         if self.recording:
             self.emit({"t": 0, "ev": "start", "name": self.name})
         self.chain = [0]
         self.deadline[0] = 0
         self.owner = self.root
+        self.fresh()
         self.ENTER[self.m["initial"][0]]()
         if self.trace_variables:
             self.trace_values()
@@ -343,8 +357,11 @@ class Engine:
         """Run instants until a stop request: each waits for the earliest deadline of
         the active chain, then ticks every sub-automaton due then, parents first."""
         chain, deadline, period = self.chain, self.deadline, self.period_us
-        tick, cur, real = self.TICK, self.cur, self.real
+        tick, cur, real, watched = self.TICK, self.cur, self.real, self.watched
+        inputs, recorder = self.inputs, self.recorder
         while True:
+            if self.next_signal is not None:
+                self.inject_signal()
             if self.signal_reason is not None:  # came between two instants
                 return
             t = deadline[chain[0]] if len(chain) == 1 else min([deadline[a] for a in chain])
@@ -352,6 +369,8 @@ class Engine:
             if limit is not None and t > limit:
                 if not real or self.wait(limit):
                     self.t = limit
+                    if inputs:
+                        self.fresh()
                     if self.limit_why == "time_limit":  # stopped as by a signal, at the boundary
                         self.time_limit_us = None
                         self.set_limit()
@@ -362,15 +381,17 @@ class Engine:
             if real and not self.wait(t):
                 return
             self.t = t
+            if inputs:
+                self.fresh()
             k = 0
             while k < len(chain):
                 a = chain[k]
                 if deadline[a] <= t:
                     tick[cur[a]]()
                     deadline[a] = t + period[a]
-                    if real:
-                        self.ticks += 1
-                        self.skip_missed(a)
+                    self.ticks += 1
+                    if watched:
+                        self.after_tick(a)
                     if self.request is not None or self.signal_reason is not None:
                         if self.trace_variables:
                             self.trace_values()
@@ -378,8 +399,45 @@ class Engine:
                 k += 1
             if self.trace_variables:
                 self.trace_values()
+            if recorder is not None:
+                recorder.flush()
             if self.observers:
                 self.sample()
+
+    def fresh(self) -> None:
+        """The interfaces' snapshot for the instant at self.t, once (docs/recording.md)."""
+        if self.snap_t == self.t:
+            return
+        self.snap_t = self.t
+        if self.playback is not None:
+            self.playback.advance(self.t)
+        for name, kind, iface in self.inputs:
+            values = iface.snapshot()
+            if self.recorder is not None:
+                self.recorder.snapshot(self.t, name, kind, values)
+
+    def after_tick(self, a: int) -> None:
+        """The real clock skips the ticks sub-automaton ``a`` missed; a playback does the
+        same where the recorded run did, and acts on its signals where that run did."""
+        if self.real:
+            self.skip_missed(a)
+            return
+        skip = self.playback.skips.get((self.t, self.auto_paths[a]))
+        if skip is not None:
+            self.deadline[a] = skip[0]
+            self.overruns += skip[1]
+        if self.next_signal is not None:
+            self.inject_signal()
+
+    def inject_signal(self) -> None:
+        assert self.next_signal is not None
+        ticks, t, reason = self.next_signal
+        if self.ticks >= ticks:
+            self.signal_reason = reason
+            self.t = max(self.t, t)
+            signals = self.playback.signals
+            signals.pop(0)
+            self.next_signal = signals[0] if signals else None
 
     def set_limit(self) -> None:
         """The earliest of --until, --time-limit and the interrupt's timeout: the stop due
@@ -423,11 +481,17 @@ class Engine:
             k = (now - nxt + p - 1) // p
             self.deadline[a] = nxt + k * p
             self.overruns += k
+            if self.recorder is not None:
+                self.recorder.skip(self.t, self.auto_paths[a], nxt + k * p, k)
 
     def boundary(self) -> bool:
         """Act on stop requests between ticks. True when something was done."""
         reason, self.request = self.request, None
         sig, self.signal_reason = self.signal_reason, None
+        if sig is not None and self.recorder is not None:
+            self.recorder.signal(self.t, sig, self.ticks)
+        if (reason is not None or sig is not None) and self.inputs:
+            self.fresh()  # a stop or an interrupt at a time no instant ran at
         # Several requests at one boundary: an error first, then the root's final
         # state, then a signal, then shutdown() or the time limit.
         if reason == "error" and self.interrupting is not None:
@@ -497,6 +561,10 @@ class Engine:
             self.emit({"t": self.t // 1000, "ev": "stop", "reason": reason})
         if self.trace is not None:
             self.trace.close()
+        if self.recorder is not None:
+            self.recorder.close()
+        if self.playback is not None:
+            self.playback.close()
         self.finished = True  # from now on a signal only ends the process, with self.status
         for o in self.observers:
             try:
@@ -750,6 +818,9 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
     p.add_argument("--time-limit", metavar="DURATION",
                    help="after that much time, stop as on SIGINT: through on_interrupt "
                         "(a drone lands), exit status 124")
+    p.add_argument("--record", metavar="FILE",
+                   help="record what the automaton receives, for `hfsmc replay` (MCAP)")
+    p.add_argument("--playback", metavar="DIR", help=argparse.SUPPRESS)  # hfsmc replay/test
     args, extra = p.parse_known_args(list(argv))
     if extra:  # one line, as the C++ component says it, with a "did you mean"
         flag = extra[0].partition("=")[0]
@@ -878,9 +949,52 @@ def _configure(engine: Engine, args: argparse.Namespace, here: str) -> None:
         given = wired.get(name) or {}
         extra = given.get("options") or {}
         where = given.get("url", url)
-        ns[name] = make_interface(name, str(given.get("type", kind)),
-                                  None if where is None else str(where), {**options, **extra})
+        kind = str(given.get("type", kind))
+        where = None if where is None else str(where)
+        engine.wiring[name] = {"type": kind, "url": where, "options": {**options, **extra}}
+        fake = engine.playback.fake(name, kind) if engine.playback is not None else None
+        ns[name] = fake if fake is not None else make_interface(name, kind, where,
+                                                                {**options, **extra})
+        if callable(getattr(ns[name], "snapshot", None)):
+            engine.inputs.append((name, kind, ns[name]))
     bind_instances(engine)
+
+
+def _record(engine: Engine, args: argparse.Namespace, until: int | None,
+            time_limit: int | None) -> None:
+    """--record FILE: open the recording and hook the interfaces to it."""
+    try:
+        import hfsmc_record  # type: ignore[import-not-found]  # beside the component
+    except ImportError as e:
+        raise StartError(f"--record needs the Python module `{e.name}`, which is not "
+                         "installed: pip install mcap") from None
+    m, ns = engine.m, engine.m["namespace"]
+    run = {"component": engine.name, "language": "python", "hfsmc": m["version"],
+           "model_hash": m["model_hash"], "clock": args.clock,
+           "until_us": "" if until is None else str(until),
+           "time_limit_us": "" if time_limit is None else str(time_limit)}
+    try:
+        rec = hfsmc_record.Recorder(args.record, run, {p: ns[p] for p, *_ in m["parameters"]},
+                                    engine.wiring, m["sources"])
+    except OSError as e:
+        raise UsageError(f"--record {args.record}: {e.strerror}") from None
+    engine.recorder = rec
+    for name, _kind, iface in engine.inputs:
+        _hook(engine, name, iface)
+
+
+def _hook(engine: Engine, name: str, iface: Any) -> None:
+    """Tell the recording and the playback what the snippets do with an interface."""
+    rec, pb = engine.recorder, engine.playback
+    if rec is not None and hasattr(iface, "on_frame"):
+        iface.on_frame = lambda count, image: rec.frame(engine.t, name, count, image)
+    if hasattr(iface, "on_command"):
+        def told(call: str, args: list[Any]) -> None:
+            if rec is not None:
+                rec.command(engine.t, name, call, args)
+            if pb is not None:
+                pb.command(engine.t, name, call, args)
+        iface.on_command = told
 
 
 def main(engine: Engine, argv: Sequence[str], here: str) -> int:
@@ -890,7 +1004,21 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
         until = parse_duration_us(args.until) if args.until else None
         time_limit = parse_duration_us(args.time_limit) if args.time_limit else None
         _check_focus(engine, args.focus)
+        if args.playback is not None:
+            import hfsmc_playback  # type: ignore[import-not-found]  # beside the component
+            try:
+                engine.playback = hfsmc_playback.Playback(args.playback)
+            except hfsmc_playback.PlaybackError as e:
+                raise UsageError(f"--playback: {e}") from None
+            args.clock = "virtual"
+            signals = engine.playback.signals
+            engine.next_signal = signals[0] if signals else None
         _configure(engine, args, here)
+        if args.record:
+            _record(engine, args, until, time_limit)
+        elif engine.playback is not None:
+            for name, _kind, iface in engine.inputs:
+                _hook(engine, name, iface)
         if args.trace_variables and not args.trace:
             raise UsageError("--trace-variables needs --trace FILE")
         if args.trace:
@@ -907,7 +1035,14 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
         sys.stderr.write(f"{engine.name}: error: cannot start: {e}\n")
         return 1
     engine.install_signals()
-    return engine.run(args.clock, until, time_limit)
+    if engine.playback is None:
+        return engine.run(args.clock, until, time_limit)
+    import hfsmc_playback
+    try:
+        return engine.run(args.clock, until, time_limit)
+    except hfsmc_playback.PlaybackError as e:  # a frame that is not a PNG after all
+        sys.stderr.write(f"{engine.name}: --playback: {e}\n")
+        return 2
 
 
 def _check_focus(engine: Engine, focus: str | None) -> None:

@@ -1,0 +1,34 @@
+"""The text a model was built from: the model file and every file it uses, and their hash.
+
+A recording carries them (schemas/recording.md: `hfsmc.sources`, `model_hash`), so that a
+run can be replayed with exactly the model that made it, or told apart from a changed one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+
+from hfsmc.frontend import read_text
+from hfsmc.ir import Model
+
+
+def model_sources(model: Model) -> tuple[tuple[str, str], ...]:
+    """(path, text) of the model file, then of every file it uses in the order first used
+    (nested uses too); paths relative to the model's folder, with `/` separators."""
+    home = os.path.dirname(model.file) or "."
+    files = [model.file]
+    seen = {os.path.realpath(model.file)}
+    for auto in model.automata():
+        if auto.instance is not None and os.path.realpath(auto.instance.file) not in seen:
+            seen.add(os.path.realpath(auto.instance.file))
+            files.append(auto.instance.file)
+    return tuple((os.path.relpath(f, home).replace(os.sep, "/"), read_text(f)) for f in files)
+
+
+def model_hash(sources: tuple[tuple[str, str], ...]) -> str:
+    """``sha256:`` and the hex digest of each path and text, NUL after each."""
+    h = hashlib.sha256()
+    for path, text in sources:
+        h.update(path.encode() + b"\0" + text.encode() + b"\0")
+    return "sha256:" + h.hexdigest()
