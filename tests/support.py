@@ -538,3 +538,24 @@ def compile_observers(out: Path, extra: list[str]) -> Path:
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=240, check=False)
     assert done.returncode == 0, done.stderr
     return out
+
+
+class Live:
+    """A driver (a vehicle, a camera) as a snippet sees it when every call is an instant
+    of its own: a snapshot before each public call (docs/recording.md)."""
+
+    def __init__(self, driver: Any) -> None:
+        object.__setattr__(self, "_driver", driver)
+
+    def __getattr__(self, name: str) -> Any:
+        attr = getattr(self._driver, name)
+        if name.startswith("_") or name in ("snapshot", "close") or not callable(attr):
+            return attr
+
+        def call(*args: Any, **kwargs: Any) -> Any:
+            self._driver.snapshot()
+            return getattr(self._driver, name)(*args, **kwargs)
+        return call
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        setattr(self._driver, name, value)

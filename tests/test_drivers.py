@@ -25,7 +25,7 @@ import pytest
 from pymavlink import mavutil
 
 from tests.conftest import ROOT
-from tests.support import Worker, free_port, simulator, wait_until
+from tests.support import Live, Worker, free_port, simulator, wait_until
 
 hfsmc_mavlink = importlib.import_module("hfsmc.templates.python.hfsmc_mavlink")
 hfsmc_camera = importlib.import_module("hfsmc.templates.python.hfsmc_camera")
@@ -147,7 +147,7 @@ class FakeVehicle(Worker):
 def link() -> Iterator[tuple[Any, FakeVehicle]]:
     """A vehicle interface connected to a fake vehicle."""
     port = free_port(socket.SOCK_DGRAM)
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
+    drone = Live(hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {}))
     fake = FakeVehicle(port)
     try:
         assert wait_until(drone.connected, 5)
@@ -159,7 +159,7 @@ def link() -> Iterator[tuple[Any, FakeVehicle]]:
 
 # -- the mavlink interface ------------------------------------------------------------------
 def test_before_any_vehicle_everything_answers_at_once(capsys: pytest.CaptureFixture[str]) -> None:
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port(socket.SOCK_DGRAM)}", {})
+    drone = Live(hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port(socket.SOCK_DGRAM)}", {}))
     try:
         assert not drone.connected() and not drone.ready() and not drone.armed()
         assert drone.heartbeat_age() == math.inf
@@ -380,7 +380,7 @@ def test_queries_and_commands_never_touch_the_socket(link: tuple[Any, FakeVehicl
 
 def test_gcs_heartbeats_do_not_count_as_the_vehicle() -> None:
     port = free_port(socket.SOCK_DGRAM)
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
+    drone = Live(hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {}))
     gcs: Any = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255)
     try:
         for _ in range(5):
@@ -394,7 +394,7 @@ def test_gcs_heartbeats_do_not_count_as_the_vehicle() -> None:
 
 def test_close_frees_the_port_and_a_taken_port_is_said(capsys: pytest.CaptureFixture[str]) -> None:
     port = free_port(socket.SOCK_DGRAM)
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {"rate": "50"})
+    drone = Live(hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {"rate": "50"}))
     drone.close()
     assert not drone._thread.is_alive()
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held:
@@ -406,8 +406,8 @@ def test_close_frees_the_port_and_a_taken_port_is_said(capsys: pytest.CaptureFix
 
 
 def test_bad_options_are_said_and_replaced(capsys: pytest.CaptureFixture[str]) -> None:
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port(socket.SOCK_DGRAM)}",
-                                  {"rate": "fast", "colour": "red"})
+    drone = Live(hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{free_port(socket.SOCK_DGRAM)}",
+                                  {"rate": "fast", "colour": "red"}))
     drone.close()
     assert capsys.readouterr().err.splitlines() == [
         "drone: option rate: `fast` is not a positive number, 20 used",
@@ -468,9 +468,9 @@ def mjpeg(port: int) -> Iterator[MjpegServer]:
 def test_camera_serves_the_latest_frame(capsys: pytest.CaptureFixture[str]) -> None:
     port = free_port(socket.SOCK_STREAM)
     with mjpeg(port):
-        camera = hfsmc_camera.connect("camera", f"http://127.0.0.1:{port}/bottom.mjpg", {})
-        small = hfsmc_camera.connect("small", f"http://127.0.0.1:{port}/bottom.mjpg",
-                                     {"size": "160x120"})
+        camera = Live(hfsmc_camera.connect("camera", f"http://127.0.0.1:{port}/bottom.mjpg", {}))
+        small = Live(hfsmc_camera.connect("small", f"http://127.0.0.1:{port}/bottom.mjpg",
+                                     {"size": "160x120"}))
         try:
             assert wait_until(lambda: camera.frame() is not None and small.frame() is not None, 10)
             frame = camera.frame()
@@ -488,7 +488,7 @@ def test_camera_serves_the_latest_frame(capsys: pytest.CaptureFixture[str]) -> N
 
 def test_camera_reconnects_when_the_stream_comes_back(capsys: pytest.CaptureFixture[str]) -> None:
     port = free_port(socket.SOCK_STREAM)
-    camera = hfsmc_camera.connect("camera", f"http://127.0.0.1:{port}/bottom.mjpg", {})
+    camera = Live(hfsmc_camera.connect("camera", f"http://127.0.0.1:{port}/bottom.mjpg", {}))
     try:
         time.sleep(0.3)  # nobody serves yet
         assert camera.frame() is None and camera.age() == math.inf and not camera.ok()
@@ -525,7 +525,7 @@ def test_camera_plays_a_file_at_its_rate_and_loops(tmp_path: Path) -> None:
     for i in range(6):
         writer.write(np.full((48, 64, 3), (0, 0, 40 * i), np.uint8))
     writer.release()
-    camera = hfsmc_camera.connect("camera", str(video), {"size": "32x24"})
+    camera = Live(hfsmc_camera.connect("camera", str(video), {"size": "32x24"}))
     try:
         assert wait_until(lambda: camera.count() >= 1, 5)
         assert camera.frame().shape == (24, 32, 3)
@@ -537,7 +537,7 @@ def test_camera_plays_a_file_at_its_rate_and_loops(tmp_path: Path) -> None:
 
 
 def test_camera_without_a_device_and_bad_size(capsys: pytest.CaptureFixture[str]) -> None:
-    camera = hfsmc_camera.connect("camera", "63", {"size": "big"})
+    camera = Live(hfsmc_camera.connect("camera", "63", {"size": "big"}))
     try:
         time.sleep(0.3)
         assert camera.frame() is None and not camera.ok()
@@ -639,7 +639,7 @@ def test_takeoff_to_three_metres_and_land_in_the_simulator(tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]) -> None:
     port = free_port(socket.SOCK_DGRAM)
     truth = tmp_path / "truth.json"
-    drone = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
+    drone = Live(hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {}))
     try:
         with simulator(tmp_path, port, "--no-camera", "--truth", str(truth)):
             assert wait_until(drone.connected, 10)

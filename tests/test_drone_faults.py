@@ -41,7 +41,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from tests.conftest import ROOT
-from tests.support import Worker, close_pipes, free_port, interrupt, wait_until
+from tests.support import Live, Worker, close_pipes, free_port, interrupt, wait_until
 from tests.test_cpp_drivers import FLAGS, SAN_ENV, SANITIZE, tool, write_include
 
 hfsmc_mavlink = importlib.import_module("hfsmc.templates.python.hfsmc_mavlink")
@@ -342,7 +342,7 @@ class PyDrone:
 
     def __init__(self, port: int) -> None:
         self._said: list[str] = []
-        self.v: Any = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
+        self.v: Any = Live(hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {}))
         self.v._say = lambda text: self._said.append(f"drone: {text}")
         self._history: list[Sample] = []
         self._start = time.monotonic()
