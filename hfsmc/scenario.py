@@ -1,0 +1,747 @@
+"""Scenario files for `hfsmc test` (docs/testing.md): the model, read with positions.
+
+A scenario names a model (or a model per language), parameter overrides, a time
+bound, scripted interface values over time and expectations on what the run
+does.  :func:`load_scenario` reads one (ruamel.yaml's round-trip loader, as the
+model front end does, so every value keeps its file:line:col) and checks its
+shape; :func:`check_against_model` then checks its names against the compiled
+model (states, parameters, interfaces, commands).  Every mistake is a
+:class:`~hfsmc.errors.Diagnostic` with a code E190-E199; all of them are
+collected before :class:`ScenarioError` is raised.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from hfsmc.durations import has_unit, parse_us
+from hfsmc.errors import Diagnostics, HfsmcError, Span, did_you_mean
+from hfsmc.frontend import read_text
+from hfsmc.frontend.source import Document, PathKey
+from hfsmc.frontend.yaml import load_yaml
+from hfsmc.ir import Model
+
+Language = Literal["python", "cpp"]
+LANGUAGES: tuple[Language, ...] = ("python", "cpp")
+
+# What a scenario may script, per interface type (schemas/recording.md's snapshot
+# fields, with `connected` for heartbeat_age and `image` for a camera's frames).
+MAVLINK_FIELDS: dict[str, str] = {
+    "connected": "bool", "heartbeat_age": "number", "ready": "bool", "armed": "bool",
+    "vehicle": "bool", "mode": "str", "type": "int", "position": "vector",
+    "velocity": "vector", "altitude": "number", "yaw": "number", "battery": "int",
+    "acks": "acks",
+}
+CAMERA_FIELDS: dict[str, str] = {"image": "image", "rate": "number"}
+FIELDS = {"mavlink": MAVLINK_FIELDS, "camera": CAMERA_FIELDS}
+RAMPABLE = frozenset({"number", "vector"})
+ACK_COMMANDS = ("arm", "disarm", "takeoff", "land", "rtl", "set_mode")
+ACK_OUTCOMES = ("accepted", "denied", "temporarily_rejected", "unsupported", "failed",
+                "cancelled", "pending", "timeout", "not_sent")
+COMMANDS: dict[str, tuple[str, ...]] = {
+    "mavlink": ("set_mode", "arm", "disarm", "takeoff", "land", "rtl", "hold", "set_velocity",
+                "goto"),
+    "camera": (),
+}
+STOP_REASONS = ("final", "until", "shutdown", "sigint", "sigterm", "error", "timeout",
+                "time_limit")
+DEFAULT_UNTIL_US = 600_000_000  # 10 min of virtual time
+
+TOP_KEYS = ("name", "description", "model", "languages", "parameters", "until", "inputs",
+            "expect")
+# An expectation is one mapping: one of these kinds, and the modifiers it takes.
+_WINDOW = ("after", "before", "between")
+KINDS: dict[str, tuple[str, ...]] = {
+    "entered": (*_WINDOW, "count"),
+    "not_entered": _WINDOW,
+    "active": ("at",),
+    "stop": _WINDOW,
+    "log": (*_WINDOW, "count"),
+    "log_matches": (*_WINDOW, "count"),
+    "command": ("args", *_WINDOW, "count"),
+    "error": (*_WINDOW, "count"),
+    "trace": (),
+}
+ENTRY_KEYS = ("at", "from", "to")
+
+
+class ScenarioError(HfsmcError):
+    """A scenario file that cannot be run as written (exit status 2)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Ramp:
+    """A value moving linearly from ``start`` to ``end`` over an entry's span."""
+
+    start: float | tuple[float, ...]
+    end: float | tuple[float, ...]
+
+
+Scalar = bool | int | float | str | None | tuple[float, ...] | tuple[tuple[str, str], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Setting:
+    field: str
+    value: Any  # a Scalar, or a Ramp
+    span: Span
+
+
+@dataclass(frozen=True, slots=True)
+class Entry:
+    """Values an interface takes from ``start_us`` on (until ``end_us``, then what held before)."""
+
+    interface: str
+    start_us: int
+    end_us: int | None
+    settings: tuple[Setting, ...]
+    span: Span
+    interface_span: Span  # the interface's name under `inputs`
+
+
+@dataclass(frozen=True, slots=True)
+class Expectation:
+    kind: str
+    subject: str  # state path, text, regex, `drone.land`, stop reason, trace file (resolved)
+    span: Span  # the expectation's kind key (`entered:`)
+    subject_span: Span  # the value after it
+    after_us: int | None = None
+    before_us: int | None = None
+    at_us: int | None = None
+    count: int | None = None
+    args: tuple[Any, ...] | None = None
+
+    def describe(self) -> str:
+        """The expectation in words, as the failure report says it."""
+        what = {
+            "entered": f"`{self.subject}` entered",
+            "not_entered": f"`{self.subject}` never entered",
+            "active": f"`{self.subject}` active",
+            "stop": f"the run stops ({self.subject})",
+            "log": f"a log line containing {self.subject!r}",
+            "log_matches": f"a log line matching /{self.subject}/",
+            "command": f"command {self.subject}"
+                       + (f"({', '.join(_show(a) for a in self.args)})" if self.args is not None else ""),
+            "error": f"an error in a snippet ({self.subject})",
+            "trace": f"the trace equal to {self.subject}",
+        }[self.kind]
+        return what + window_words(self)
+
+
+def window_words(e: Expectation) -> str:
+    parts = []
+    if e.count is not None:
+        parts.append(f" {e.count} time(s)")
+    if e.at_us is not None:
+        parts.append(f" at {_secs(e.at_us)}")
+    if e.after_us is not None and e.before_us is not None:
+        parts.append(f" between {_secs(e.after_us)} and {_secs(e.before_us)}")
+    elif e.after_us is not None:
+        parts.append(f" at or after {_secs(e.after_us)}")
+    elif e.before_us is not None:
+        parts.append(f" by {_secs(e.before_us)}")
+    return "".join(parts)
+
+
+def _secs(us: int) -> str:
+    return f"{us / 1e6:g} s"
+
+
+def _show(v: Any) -> str:
+    return f"{v!r}" if isinstance(v, str) else str(v)
+
+
+@dataclass(frozen=True, slots=True)
+class ModelRef:
+    language: Language
+    path: str  # resolved: relative to the current folder, or absolute
+    span: Span
+
+
+@dataclass(frozen=True, slots=True)
+class Override:
+    name: str
+    value: bool | int | float | str
+    span: Span
+
+
+@dataclass(frozen=True, slots=True)
+class Scenario:
+    file: str
+    name: str
+    models: tuple[ModelRef, ...]
+    languages: tuple[Language, ...]
+    parameters: tuple[Override, ...]
+    until_us: int
+    inputs: tuple[Entry, ...]
+    expect: tuple[Expectation, ...]
+    lines: tuple[str, ...]
+    model_span: Span
+
+    def model_for(self, language: Language) -> ModelRef:
+        return next(m for m in self.models if m.language == language)
+
+
+# ---------------------------------------------------------------------------
+# reading
+
+
+def load_scenario(path: str) -> Scenario:
+    """Read and check the shape of one scenario file; raise :class:`ScenarioError`."""
+    diags = Diagnostics()
+    scenario = read_scenario(path, diags)
+    if diags.has_errors or scenario is None:
+        raise ScenarioError(diags.sorted())
+    return scenario
+
+
+def read_scenario(path: str, diags: Diagnostics) -> Scenario | None:
+    """Read one scenario file, its shape's problems into ``diags``; None when it cannot be
+    read at all (or names no model). Raises :class:`HfsmcError` for unreadable YAML."""
+    text = read_text(path)
+    doc = load_yaml(path, text, diags)
+    if diags.has_errors:
+        return None
+    if not isinstance(doc.data, dict):
+        diags.error("E191", "a scenario is a mapping (model:, inputs:, expect:...)", doc.span(()))
+        return None
+    return _Reader(doc, diags, Path(path).parent).scenario()
+
+
+class _Reader:
+    def __init__(self, doc: Document, diags: Diagnostics, folder: Path) -> None:
+        self.doc = doc
+        self.diags = diags
+        self.folder = folder
+
+    # -- helpers
+
+    def at(self, path: PathKey) -> Span:
+        return self.doc.span(path)
+
+    def key_at(self, path: PathKey) -> Span:
+        return self.doc.key_span(path)
+
+    def error(self, code: str, message: str, span: Span, *notes: str) -> None:
+        self.diags.error(code, message, span, *notes)
+
+    def keys(self, value: dict[str, Any], path: PathKey, allowed: tuple[str, ...], what: str) -> None:
+        for k in value:
+            if k not in allowed:
+                note = did_you_mean(k, allowed)
+                self.error("E190", f"unknown key `{k}` in {what}", self.key_at((*path, k)),
+                           *([note] if note else []), f"{what} takes: {', '.join(allowed)}")
+
+    def mapping(self, value: Any, path: PathKey, what: str) -> dict[str, Any] | None:
+        if isinstance(value, dict):
+            return value
+        self.error("E191", f"{what} must be a mapping, not {_kind(value)}", self.at(path))
+        return None
+
+    def duration(self, value: Any, path: PathKey, what: str) -> int | None:
+        us = parse_us(value)
+        if us is None or isinstance(value, (int, float)) or not has_unit(value):
+            hint = "write a time with its unit: `30s`, `500ms`, `1.5m`"
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                self.error("E193", f"{what}: a bare number ({value}) has no unit", self.at(path), hint)
+            else:
+                self.error("E193", f"{what}: `{value}` is not a time", self.at(path), hint)
+            return None
+        return us
+
+    # -- the document
+
+    def scenario(self) -> Scenario | None:
+        data: dict[str, Any] = self.doc.data
+        self.keys(data, (), TOP_KEYS, "a scenario")
+        name = data.get("name", Path(self.doc.file).stem)
+        if not isinstance(name, str):
+            self.error("E191", f"`name` must be a string, not {_kind(name)}", self.at(("name",)))
+            name = Path(self.doc.file).stem
+        if "description" in data and not isinstance(data["description"], str):
+            self.error("E191", "`description` must be a string", self.at(("description",)))
+        models = self.models(data)
+        languages = self.languages(data, models)
+        until = DEFAULT_UNTIL_US
+        if "until" in data:
+            until = self.duration(data["until"], ("until",), "`until`") or DEFAULT_UNTIL_US
+            if until == 0:
+                self.error("E193", "`until` must be after 0 s", self.at(("until",)))
+        overrides = self.parameters(data)
+        inputs = self.inputs(data, until)
+        expect = self.expectations(data, until)
+        if models is None:
+            return None
+        return Scenario(self.doc.file, name, models, languages, overrides, until, inputs, expect,
+                        tuple(self.doc.lines), self.key_at(("model",)))
+
+    def models(self, data: dict[str, Any]) -> tuple[ModelRef, ...] | None:
+        if "model" not in data:
+            self.error("E192", "missing key `model`: the model to test, relative to this file",
+                       self.at(()), "`model: ../mission.yaml`, or one per language: "
+                       "`model: {python: ../m.yaml, cpp: ../m_cpp/m_cpp.yaml}`")
+            return None
+        value = data["model"]
+        written: list[tuple[Language | None, str, PathKey]] = []
+        if isinstance(value, str):
+            written.append((None, value, ("model",)))
+        elif isinstance(value, dict):
+            self.keys(value, ("model",), LANGUAGES, "`model`")
+            for one in LANGUAGES:
+                if one in value:
+                    if isinstance(value[one], str):
+                        written.append((one, value[one], ("model", one)))
+                    else:
+                        self.error("E191", f"`model.{one}` must be a path", self.at(("model", one)))
+            if not value:
+                self.error("E192", "`model` names no model", self.at(("model",)))
+        else:
+            self.error("E191", f"`model` must be a path or a mapping language: path, not "
+                       f"{_kind(value)}", self.at(("model",)))
+        refs = []
+        for lang, rel, path in written:
+            file = self.folder / rel
+            span = self.at(path)
+            if not file.is_file():
+                self.error("E194", f"the model `{rel}` does not exist (read relative to the "
+                           "scenario's folder)", span)
+                continue
+            found: Language | None = lang or _model_language(file)
+            if found is None:
+                self.error("E194", f"`{rel}` is not a YAML or XML model with `language:`", span)
+                continue
+            if lang is not None and _model_language(file) not in (lang, None):
+                self.error("E194", f"`{rel}` is a model of language `{_model_language(file)}`, "
+                           f"given as `{lang}`", span)
+                continue
+            refs.append(ModelRef(found, _display(file), span))
+        if not refs:
+            return None
+        return tuple(refs)
+
+    def languages(self, data: dict[str, Any], models: tuple[ModelRef, ...] | None) -> tuple[Language, ...]:
+        given = tuple(m.language for m in models or ())
+        if "languages" not in data:
+            return given
+        value = data["languages"]
+        items = [value] if isinstance(value, str) else value
+        if value == "both":
+            items = list(LANGUAGES)
+        if not isinstance(items, list) or not items:
+            self.error("E191", "`languages` must be python, cpp, both or a list of them",
+                       self.at(("languages",)))
+            return given
+        out: list[Language] = []
+        for i, lang in enumerate(items):
+            path: PathKey = ("languages",) if isinstance(value, str) else ("languages", i)
+            if lang not in LANGUAGES:
+                self.error("E193", f"unknown language `{lang}`: python or cpp", self.at(path))
+            elif models is not None and lang not in given:
+                self.error("E194", f"no model given for `{lang}`: write "
+                           "`model: {python: ..., cpp: ...}`", self.at(path))
+            elif lang not in out:
+                out.append(lang)
+        return tuple(out) or given
+
+    def parameters(self, data: dict[str, Any]) -> tuple[Override, ...]:
+        if "parameters" not in data:
+            return ()
+        value = self.mapping(data["parameters"], ("parameters",), "`parameters`")
+        out = []
+        for name, v in (value or {}).items():
+            path = ("parameters", name)
+            if isinstance(v, (bool, int, float, str)):
+                out.append(Override(name, v, self.key_at(path)))
+            else:
+                self.error("E196", f"parameter `{name}`: only bool, int, float and str parameters "
+                           f"can be set, not {_kind(v)}", self.at(path))
+        return tuple(out)
+
+    # -- inputs
+
+    def inputs(self, data: dict[str, Any], until: int) -> tuple[Entry, ...]:
+        if "inputs" not in data:
+            return ()
+        value = self.mapping(data["inputs"], ("inputs",), "`inputs`")
+        out: list[Entry] = []
+        for iface, entries in (value or {}).items():
+            path: PathKey = ("inputs", iface)
+            if not isinstance(entries, list):
+                self.error("E191", f"`inputs.{iface}` must be a list of entries "
+                           "(`- {at: 0s, connected: true}`)", self.at(path))
+                continue
+            for i, entry in enumerate(entries):
+                e = self.entry(iface, entry, (*path, i), until)
+                if e is not None:
+                    out.append(e)
+        return tuple(out)
+
+    def entry(self, iface: str, entry: Any, path: PathKey, until: int) -> Entry | None:
+        m = self.mapping(entry, path, "an input entry")
+        if m is None:
+            return None
+        has_at, has_from = "at" in m, "from" in m
+        if has_at == has_from:
+            self.error("E192" if not has_at else "E193",
+                       "an input entry starts with `at: TIME` (from then on) or `from: TIME` "
+                       "(with `to: TIME`: over that span)", self.at(path))
+            return None
+        if has_at and "to" in m:
+            self.error("E193", "`to` goes with `from`, not `at`", self.key_at((*path, "to")))
+        start = self.duration(m["at" if has_at else "from"], (*path, "at" if has_at else "from"),
+                              "the entry's time")
+        end = None
+        if "to" in m:
+            end = self.duration(m["to"], (*path, "to"), "`to`")
+            if end is not None and start is not None and end <= start:
+                self.error("E193", f"`to` ({_secs(end)}) must come after `from` "
+                           f"({_secs(start)})", self.at((*path, "to")))
+                return None
+        if start is None:
+            return None
+        if start > until:
+            self.error("E193", f"the entry starts at {_secs(start)}, after `until` "
+                       f"({_secs(until)}): it would never be seen", self.at(path))
+        settings = []
+        for key, v in m.items():
+            if key in ENTRY_KEYS:
+                continue
+            s = self.setting(key, v, (*path, key), end is not None)
+            if s is not None:
+                settings.append(s)
+        if not settings and not self.diags.has_errors:
+            self.error("E192", "the entry sets no value", self.at(path))
+        return Entry(iface, start, end, tuple(settings), self.at(path), self.key_at(path[:2]))
+
+    def setting(self, key: str, v: Any, path: PathKey, span_entry: bool) -> Setting | None:
+        kind = MAVLINK_FIELDS.get(key) or CAMERA_FIELDS.get(key)
+        if kind is None:
+            allowed = tuple(MAVLINK_FIELDS) + tuple(CAMERA_FIELDS)
+            note = did_you_mean(key, allowed)
+            self.error("E190", f"unknown input `{key}`", self.key_at(path), *([note] if note else []),
+                       f"a mavlink interface takes: {', '.join(MAVLINK_FIELDS)}; a camera: "
+                       f"{', '.join(CAMERA_FIELDS)} (and every entry at/from/to)")
+            return None
+        span = self.at(path)
+        if isinstance(v, dict) and "ramp" in v:
+            if kind not in RAMPABLE:
+                self.error("E193", f"`{key}` cannot ramp: only numbers and vectors do", span)
+                return None
+            if not span_entry:
+                self.error("E193", "a ramp needs a span: `from: TIME, to: TIME`", span)
+                return None
+            self.keys(v, path, ("ramp",), "a ramp")
+            r = v["ramp"]
+            if not isinstance(r, list) or len(r) != 2:
+                self.error("E191", "`ramp` takes [START, END]", self.at((*path, "ramp")))
+                return None
+            a = self.value(key, kind, r[0], (*path, "ramp", 0))
+            b = self.value(key, kind, r[1], (*path, "ramp", 1))
+            if a is None or b is None:
+                return None
+            assert isinstance(a, (float, tuple)) and isinstance(b, (float, tuple))
+            return Setting(key, Ramp(a, b), span)  # type: ignore[arg-type]
+        value = self.value(key, kind, v, path)
+        if value is None and not (kind == "image" and v is None):
+            return None
+        return Setting(key, value, span)
+
+    def value(self, key: str, kind: str, v: Any, path: PathKey) -> Scalar:
+        span = self.at(path)
+        bad = None
+        if kind == "bool":
+            if isinstance(v, bool):
+                return v
+            bad = "true or false"
+        elif kind == "int":
+            if isinstance(v, int) and not isinstance(v, bool):
+                return v
+            bad = "an integer"
+        elif kind == "number":
+            num = _number(v)
+            if num is not None:
+                if key == "rate" and not (math.isfinite(num) and num > 0):
+                    self.error("E193", "`rate` (frames per second) must be above 0", span)
+                    return None
+                return num
+            bad = "a number (.nan and .inf are numbers too)"
+        elif kind == "str":
+            if isinstance(v, str):
+                return v
+            bad = "a string"
+        elif kind == "vector":
+            if isinstance(v, list) and len(v) == 3 and all(_number(x) is not None for x in v):
+                return tuple(float(_number(x)) for x in v)  # type: ignore[arg-type]
+            bad = "[north, east, down] (three numbers, m or m/s)"
+        elif kind == "acks":
+            return self.acks(v, path)
+        elif kind == "image":
+            return self.image(v, path)
+        self.error("E191", f"`{key}` must be {bad}, not {_kind(v)}", span)
+        return None
+
+    def acks(self, v: Any, path: PathKey) -> Scalar:
+        m = self.mapping(v, path, "`acks`")
+        if m is None:
+            return None
+        out = []
+        for cmd, outcome in m.items():
+            if cmd not in ACK_COMMANDS:
+                note = did_you_mean(cmd, ACK_COMMANDS)
+                self.error("E193", f"no acknowledgement for `{cmd}`", self.key_at((*path, cmd)),
+                           *([note] if note else []), f"commands acknowledged: {', '.join(ACK_COMMANDS)}")
+            elif outcome not in ACK_OUTCOMES:
+                note = did_you_mean(str(outcome), ACK_OUTCOMES)
+                self.error("E193", f"`{outcome}` is not an outcome", self.at((*path, cmd)),
+                           *([note] if note else []), f"outcomes: {', '.join(ACK_OUTCOMES)}")
+            else:
+                out.append((cmd, outcome))
+        return tuple(out)
+
+    def image(self, v: Any, path: PathKey) -> Scalar:
+        if v is None:
+            return None
+        if not isinstance(v, str):
+            self.error("E191", f"`image` must be a file name (or null: no more frames), not "
+                       f"{_kind(v)}", self.at(path))
+            return None
+        file = self.folder / v
+        if not file.is_file():
+            self.error("E198", f"the image `{v}` does not exist (read relative to the scenario's "
+                       "folder)", self.at(path))
+            return None
+        return _display(file)
+
+    # -- expectations
+
+    def expectations(self, data: dict[str, Any], until: int) -> tuple[Expectation, ...]:
+        if "expect" not in data:
+            return ()
+        value = data["expect"]
+        if not isinstance(value, list):
+            self.error("E191", "`expect` must be a list of expectations "
+                       "(`- entered: Mission`)", self.at(("expect",)))
+            return ()
+        out = []
+        for i, item in enumerate(value):
+            e = self.expectation(item, ("expect", i), until)
+            if e is not None:
+                out.append(e)
+        return tuple(out)
+
+    def expectation(self, item: Any, path: PathKey, until: int) -> Expectation | None:
+        m = self.mapping(item, path, "an expectation")
+        if m is None:
+            return None
+        kinds = [k for k in m if k in KINDS]
+        if len(kinds) != 1:
+            unknown = [k for k in m if k not in KINDS and k not in _MODIFIERS]
+            if unknown and not kinds:
+                note = did_you_mean(unknown[0], KINDS)
+                self.error("E190", f"unknown expectation `{unknown[0]}`",
+                           self.key_at((*path, unknown[0])), *([note] if note else []),
+                           f"expectations: {', '.join(KINDS)}")
+            else:
+                self.error("E193", "an expectation has exactly one of: " + ", ".join(KINDS)
+                           + (f" (this one has {', '.join(kinds)})" if kinds else ""), self.at(path))
+            return None
+        kind = kinds[0]
+        self.keys(m, path, (kind, *KINDS[kind]), f"a `{kind}` expectation")
+        kpath = (*path, kind)
+        subject = self.subject(kind, m[kind], kpath)
+        if subject is None:
+            return None
+        times: dict[str, int | None] = {}
+        for mod in ("after", "before", "at"):
+            if mod in m and mod in KINDS[kind]:
+                times[mod] = self.duration(m[mod], (*path, mod), f"`{mod}`")
+        if "between" in m and "after" in KINDS[kind]:
+            b = m["between"]
+            if "after" in m or "before" in m:
+                self.error("E193", "`between` replaces `after` and `before`: write one or the "
+                           "other", self.key_at((*path, "between")))
+            elif not isinstance(b, list) or len(b) != 2:
+                self.error("E191", "`between` takes [FROM, TO]", self.at((*path, "between")))
+            else:
+                times["after"] = self.duration(b[0], (*path, "between", 0), "`between`")
+                times["before"] = self.duration(b[1], (*path, "between", 1), "`between`")
+        after, before = times.get("after"), times.get("before")
+        if after is not None and before is not None and after > before:
+            self.error("E193", f"the window's start ({_secs(after)}) is later than its end "
+                       f"({_secs(before)})", self.at((*path, "between" if "between" in m else "after")))
+        for mod, us in times.items():
+            if us is not None and us > until and not (kind == "not_entered" or mod == "before"):
+                where = (*path, mod) if mod in m else (*path, "between", 0)
+                self.error("E193", f"{_secs(us)} is after `until` ({_secs(until)}): "
+                           "the run never gets there", self.at(where))
+        if kind == "active" and "at" not in m:
+            self.error("E192", "`active` needs `at: TIME`", self.key_at(kpath))
+        count = None
+        if "count" in m and "count" in KINDS[kind]:
+            c = m["count"]
+            if isinstance(c, int) and not isinstance(c, bool) and c >= 0:
+                count = c
+            else:
+                self.error("E191", "`count` must be a whole number (0: never)", self.at((*path, "count")))
+        args = None
+        if "args" in m and kind == "command":
+            a = m["args"]
+            if isinstance(a, list) and all(_number(x) is not None or isinstance(x, str) for x in a):
+                args = tuple(a)
+            else:
+                self.error("E191", "`args` must be a list of numbers and strings",
+                           self.at((*path, "args")))
+        return Expectation(kind, subject, self.key_at(kpath), self.at(kpath), after, before, times.get("at"),
+                           count, args)
+
+    def subject(self, kind: str, v: Any, path: PathKey) -> str | None:
+        span = self.at(path)
+        if kind == "trace":
+            if not isinstance(v, str) or not (self.folder / v).is_file():
+                self.error("E198", f"the trace file `{v}` does not exist (read relative to the "
+                           "scenario's folder)", span)
+                return None
+            return _display(self.folder / v)
+        if kind == "stop":
+            if v == "any" or v in STOP_REASONS:
+                return str(v)
+            note = did_you_mean(str(v), STOP_REASONS)
+            self.error("E193", f"`{v}` is not a stop reason", span, *([note] if note else []),
+                       f"reasons: any, {', '.join(STOP_REASONS)}")
+            return None
+        if not isinstance(v, str) or not v:
+            self.error("E191", f"`{kind}` must be a non-empty string, not {_kind(v)}", span)
+            return None
+        if kind == "log_matches":
+            try:
+                re.compile(v)
+            except re.error as e:
+                self.error("E193", f"not a regular expression: {e}", span)
+                return None
+        if kind == "command" and not re.fullmatch(r"[A-Za-z_]\w*\.[A-Za-z_]\w*", v):
+            self.error("E193", f"`{v}`: write INTERFACE.COMMAND (`drone.land`)", span)
+            return None
+        return v
+
+
+_MODIFIERS = frozenset(m for mods in KINDS.values() for m in mods)
+
+
+def _number(v: Any) -> float | None:
+    if isinstance(v, bool):
+        return None
+    if isinstance(v, (int, float)):
+        return float(v)
+    return None
+
+
+def _kind(v: Any) -> str:
+    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean", int: "a number",
+            float: "a number", type(None): "null"}.get(type(v), type(v).__name__)
+
+
+def _display(file: Path) -> str:
+    return str(file) if file.is_absolute() else str(Path(*file.parts))
+
+
+def _model_language(file: Path) -> Language | None:
+    """The `language:` a model file declares (python when it says none), by a light read."""
+    try:
+        text = file.read_text("utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None
+    m = re.search(r"^language:\s*[\"']?(python|cpp)[\"']?\s*(#.*)?$", text, re.MULTILINE) \
+        or re.search(r"\blanguage=[\"'](python|cpp)[\"']", text)
+    if m:
+        return m.group(1)  # type: ignore[return-value]
+    return "python"
+
+
+# ---------------------------------------------------------------------------
+# checking the names against the model
+
+
+def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
+    """The scenario's states, parameters, interfaces and commands against one model."""
+    where = f"the model `{model.name}`" if len(sc.models) > 1 else "the model"
+    params = {p.name: p for p in model.parameters}
+    for o in sc.parameters:
+        p = params.get(o.name)
+        if p is None:
+            note = did_you_mean(o.name, params)
+            diags.error("E196", f"{where} has no parameter `{o.name}`", o.span,
+                        *([note] if note else []))
+        elif not _fits(p.type, o.value):
+            diags.error("E196", f"parameter `{o.name}` is a {p.type}; {o.value!r} is not", o.span)
+    interfaces = {i.name: i for i in model.interfaces}
+    said: set[str] = set()
+    for e in sc.inputs:
+        iface = interfaces.get(e.interface)
+        if iface is None or FIELDS.get(iface.type) is None:
+            if e.interface in said:
+                continue
+            said.add(e.interface)
+        if iface is None:
+            note = did_you_mean(e.interface, interfaces)
+            diags.error("E195", f"{where} has no interface `{e.interface}`", e.interface_span,
+                        *([note] if note else []))
+            continue
+        fields = FIELDS.get(iface.type)
+        if fields is None:
+            diags.error("E195", f"`{e.interface}` is a {iface.type} interface: scenarios script "
+                        "mavlink and camera interfaces", e.interface_span)
+            continue
+        for s in e.settings:
+            if s.field not in fields:
+                diags.error("E195", f"`{s.field}` is not an input of a {iface.type} interface "
+                            f"(`{e.interface}`)", s.span, f"it takes: {', '.join(fields)}")
+    states = {s.path for s in model.states()}
+    for x in sc.expect:
+        if x.kind in ("entered", "not_entered", "active") or (x.kind == "error" and x.subject != "any"):
+            if x.subject not in states and not (x.kind == "error" and x.subject == ""):
+                note = did_you_mean(x.subject, states)
+                diags.error("E197", f"{where} has no state `{x.subject}`", x.subject_span,
+                            *([note] if note else []))
+        elif x.kind == "command":
+            iname, call = x.subject.split(".")
+            iface = interfaces.get(iname)
+            if iface is None:
+                note = did_you_mean(iname, interfaces)
+                diags.error("E195", f"{where} has no interface `{iname}`", x.subject_span,
+                            *([note] if note else []))
+            elif _call(call) not in COMMANDS.get(iface.type, ()):
+                commands = COMMANDS.get(iface.type, ())
+                note = did_you_mean(call, commands)
+                diags.error("E199", f"`{call}` is not a command of a {iface.type} interface",
+                            x.subject_span, *([note] if note else []),
+                            f"commands: {', '.join(commands) or 'none'}")
+
+
+def _call(name: str) -> str:
+    return "goto" if name == "go_to" else name
+
+
+def _fits(kind: str, v: object) -> bool:
+    checks: dict[str, Callable[[object], bool]] = {
+        "bool": lambda x: isinstance(x, bool),
+        "int": lambda x: isinstance(x, int) and not isinstance(x, bool),
+        "float": lambda x: isinstance(x, (int, float)) and not isinstance(x, bool),
+        "str": lambda x: isinstance(x, str),
+    }
+    check = checks.get(kind)
+    return check is not None and check(v)
+
+
+def grid_us(models: list[Model]) -> int:
+    """The step of scripted values: the greatest common divisor of every period of the
+    models (the instants all fall on it), 10 ms at the finest."""
+    step = 0
+    for model in models:
+        for a in model.automata():
+            step = math.gcd(step, a.period_ms)
+    return max(step, 10) * 1000 if step else 10_000

@@ -1,0 +1,227 @@
+"""A scenario's scripted inputs become a playback folder (schemas/recording.md, "Playback").
+
+The entries of a scenario are evaluated on a time grid (the models' instants:
+:func:`hfsmc.scenario.grid_us`) plus every entry's own start and end, and each
+interface's snapshot is written to ``inputs.jsonl`` whenever one of its values
+changes.  At a time where several entries set a value, the one that started
+last wins (the later in the file at equal starts); a span (``from``/``to``)
+holds its values until ``to`` and then gives way to what held before, except a
+ramp, which keeps its end value.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hfsmc.errors import Diagnostics
+from hfsmc.scenario import Entry, Ramp, Scenario, ScenarioError, Setting
+
+DEFAULT_RATE = 10.0  # frames per second of a scripted camera
+
+
+@dataclass(frozen=True, slots=True)
+class _Source:
+    entry: Entry
+    setting: Setting
+    order: int  # position in the file
+
+    def applies(self, t: int) -> bool:
+        e = self.entry
+        if t < e.start_us:
+            return False
+        return e.end_us is None or t < e.end_us or isinstance(self.setting.value, Ramp)
+
+    @property
+    def rank(self) -> tuple[int, int]:
+        return (self.entry.start_us, self.order)
+
+
+def _winner(sources: list[_Source], t: int) -> _Source | None:
+    best: _Source | None = None
+    for s in sources:
+        if s.applies(t) and (best is None or s.rank > best.rank):
+            best = s
+    return best
+
+
+def _ramp(r: Ramp, e: Entry, t: int) -> Any:
+    assert e.end_us is not None
+    f = min(1.0, (t - e.start_us) / (e.end_us - e.start_us))
+    if isinstance(r.start, tuple) and isinstance(r.end, tuple):
+        return [a + (b - a) * f for a, b in zip(r.start, r.end, strict=True)]
+    assert isinstance(r.start, float) and isinstance(r.end, float)
+    return r.start + (r.end - r.start) * f
+
+
+def _value(src: _Source, t: int) -> Any:
+    v = src.setting.value
+    if isinstance(v, Ramp):
+        return _ramp(v, src.entry, t)
+    if isinstance(v, tuple):
+        return list(v)
+    return v
+
+
+class _Mavlink:
+    """A mavlink interface's snapshot fields over time."""
+
+    def __init__(self, sources: list[_Source]) -> None:
+        self.fields: dict[str, list[_Source]] = {}
+        for s in sources:
+            f = s.setting.field
+            if f == "connected":
+                self.fields.setdefault("heartbeat_age", []).append(s)
+                if s.setting.value is True:
+                    self.fields.setdefault("vehicle", []).append(s)
+            elif f == "acks":
+                assert isinstance(s.setting.value, tuple)
+                for cmd, outcome in s.setting.value:
+                    one = Setting(f"acks.{cmd}", outcome, s.setting.span)
+                    self.fields.setdefault(one.field, []).append(_Source(s.entry, one, s.order))
+            else:
+                self.fields.setdefault(f, []).append(s)
+
+    def at(self, t: int) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        acks: dict[str, Any] = {}
+        for name, sources in self.fields.items():
+            w = _winner(sources, t)
+            if w is None:
+                continue
+            value: Any
+            if w.setting.field == "connected":
+                value = 0.0 if name == "heartbeat_age" and w.setting.value else (
+                    True if name == "vehicle" else (t - w.entry.start_us) / 1e6)
+            else:
+                value = _value(w, t)
+            if name.startswith("acks."):
+                acks[name[5:]] = value
+            else:
+                out[name] = value
+        if acks:
+            out["acks"] = dict(sorted(acks.items()))
+        return out
+
+
+class _Camera:
+    """A camera interface's frames: each image entry delivers its frame at `rate`."""
+
+    def __init__(self, sources: list[_Source], frames: dict[str, str]) -> None:
+        self.images = [s for s in sources if s.setting.field == "image"]
+        self.rates = [s for s in sources if s.setting.field == "rate"]
+        self.frames = frames  # image path -> its PNG's name in the folder
+        self.count = 0
+        self.last: int | None = None
+        self.frame: str | None = None
+        self.prev: int | None = None
+
+    def _period(self, t: int) -> float:
+        w = _winner(self.rates, t)
+        rate = float(w.setting.value) if w is not None else DEFAULT_RATE
+        return 1e6 / rate
+
+    def at(self, t: int) -> dict[str, Any]:
+        w = _winner(self.images, t)
+        if w is not None and isinstance(w.setting.value, str):
+            start, period = w.entry.start_us, self._period(t)
+
+            def upto(x: int | None) -> int:
+                return 0 if x is None or x < start else math.floor((x - start) / period) + 1
+
+            n = upto(t) - upto(self.prev)
+            if n > 0:
+                self.count += n
+                self.last = start + round((upto(t) - 1) * period)
+                self.frame = self.frames[w.setting.value]
+        self.prev = t
+        if self.last is None:
+            return {}
+        return {"count": self.count, "age": (t - self.last) / 1e6, "frame": self.frame}
+
+
+def _times(sc: Scenario, step: int) -> list[int]:
+    times = set(range(0, sc.until_us + 1, step))
+    for e in sc.inputs:
+        times.add(e.start_us)
+        if e.end_us is not None and e.end_us <= sc.until_us:
+            times.add(e.end_us)
+    return sorted(t for t in times if t <= sc.until_us)
+
+
+def _json(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
+    if isinstance(v, list):
+        return [_json(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _json(x) for k, x in v.items()}
+    return v
+
+
+def snapshots(sc: Scenario, types: dict[str, str], step: int,
+              frames: dict[str, str]) -> Iterator[dict[str, Any]]:
+    """The playback entries of ``sc``'s inputs, in time order: one per interface and time at
+    which one of its values changed, with the values that changed."""
+    by_iface: dict[str, list[_Source]] = {}
+    for order, e in enumerate(sc.inputs):
+        for s in e.settings:
+            by_iface.setdefault(e.interface, []).append(_Source(e, s, order))
+    makers: dict[str, _Mavlink | _Camera] = {}
+    for name, sources in by_iface.items():
+        makers[name] = _Camera(sources, frames) if types[name] == "camera" else _Mavlink(sources)
+    shown: dict[str, dict[str, Any]] = {name: {} for name in makers}
+    for t in _times(sc, step):
+        for name, maker in makers.items():
+            now = {k: _json(v) for k, v in maker.at(t).items()}
+            changed = {k: v for k, v in now.items() if shown[name].get(k, _UNSET) != v}
+            if isinstance(maker, _Camera) and "count" in changed:
+                changed["frame"] = now["frame"]  # a new frame: name its picture with it
+            if changed:
+                shown[name].update(changed)
+                yield {"t": t, "kind": "snapshot", "interface": name, "values": changed}
+
+
+_UNSET = object()
+
+
+def write_playback(sc: Scenario, types: dict[str, str], step: int, folder: Path) -> int:
+    """Write ``folder/inputs.jsonl`` and the camera pictures (PNG); the number of entries."""
+    folder.mkdir(parents=True, exist_ok=True)
+    frames = _write_frames(sc, types, folder)
+    n = 0
+    with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
+        for item in snapshots(sc, types, step, frames):
+            f.write(json.dumps(item, separators=(",", ":")) + "\n")
+            n += 1
+    return n
+
+
+def _write_frames(sc: Scenario, types: dict[str, str], folder: Path) -> dict[str, str]:
+    """Each image the scenario names, read with OpenCV and written once as BGR PNG."""
+    images = list(dict.fromkeys(
+        s.value for e in sc.inputs if types.get(e.interface) == "camera"
+        for s in e.settings if s.field == "image" and isinstance(s.value, str)))
+    if not images:
+        return {}
+    import cv2
+
+    diags = Diagnostics()
+    out: dict[str, str] = {}
+    for k, path in enumerate(images, 1):
+        picture = cv2.imread(path, cv2.IMREAD_COLOR)
+        if picture is None:
+            span = next(s.span for e in sc.inputs for s in e.settings if s.value == path)
+            diags.error("E198", f"`{path}` is not an image OpenCV can read (PNG, JPEG...)", span)
+            continue
+        name = f"frame{k}.png"
+        if not cv2.imwrite(str(folder / name), picture):
+            raise OSError(f"cannot write {folder / name}")
+        out[path] = name
+    if diags.has_errors:
+        raise ScenarioError(diags.sorted())
+    return out
