@@ -270,6 +270,29 @@ def view(target: str | None, replay: str | None, model: str | None, speed: float
                       model=model, web=web))
 
 
+@main.command("test")
+@click.argument("scenarios", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("-t", "--target", type=click.Choice(["python", "cpp"]),
+              help="Run only this language's models (default: every language a scenario names).")
+@click.option("--junit", metavar="FILE", type=click.Path(dir_okay=False),
+              help="Also write a JUnit XML report (for CI).")
+@click.option("--keep", metavar="DIR", type=click.Path(file_okay=False),
+              help="Keep each run's folder (inputs, trace, commands, stderr) under DIR.")
+@click.option("--timeout", type=click.FloatRange(min=0, min_open=True), default=300.0,
+              show_default=True, help="Seconds of real time a run may take before it is killed.")
+@_guard
+def test(scenarios: tuple[str, ...], target: str | None, junit: str | None, keep: str | None,
+         timeout: float) -> None:
+    """Run models against scenario files (scripted inputs, expectations) on the virtual clock.
+
+    One line per scenario and language, then the failures (docs/testing.md). Exit
+    status: 0 all passed, 1 a scenario failed, 2 a scenario or its model has errors."""
+    from hfsmc.commands.scenario_run import run_all
+
+    sys.exit(run_all(list(scenarios), target, junit, keep, timeout, click.echo,
+                     lambda s: click.echo(s, err=True), sys.stdout.isatty()))
+
+
 @main.command(cls=completion.SimCommand,
               context_settings={"ignore_unknown_options": True, "help_option_names": []})
 @click.argument("args", nargs=-1, type=click.UNPROCESSED,

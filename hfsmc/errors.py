@@ -74,6 +74,17 @@ CODES: dict[str, str] = {
     "E182": "`with` binds an interface to an interface of another type",
     "E183": "interface of the used model left unbound, and the using model has none of that name and type",
     "E184": "`with` without `use`",
+    # scenario files (hfsmc test, docs/testing.md)
+    "E190": "unknown key in a scenario file",
+    "E191": "wrong type of a value in a scenario file",
+    "E192": "missing key in a scenario file",
+    "E193": "invalid value in a scenario file (a time without unit, a span that ends before it starts...)",
+    "E194": "a scenario's model does not exist, or is not of the language given",
+    "E195": "a scenario scripts an interface, or a value, the model does not have",
+    "E196": "a scenario sets a parameter the model does not have, or with a value of another type",
+    "E197": "a scenario expects a state the model does not have",
+    "E198": "a file a scenario names (image, trace) does not exist or cannot be read",
+    "E199": "a scenario expects a command the interface does not have",
     # snippets
     "E140": "syntax error in a Python snippet",
     "E141": "undefined name in a Python snippet",
