@@ -28,7 +28,8 @@ from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, Value
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
-                 "viewstate.hpp", "monitor.hpp", "mcap.hpp")
+                 "viewstate.hpp", "monitor.hpp", "mcap.hpp", "record.hpp", "playback.hpp",
+                 "jsonread.hpp")
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",)}
 INTERFACE_CLASSES = {"mavlink": "hfsmc::Mavlink", "camera": "hfsmc::Camera"}
@@ -190,6 +191,9 @@ class CppComponentView:
     instances: tuple[CppInstanceView, ...]
     line_back: str  # a #line back into the generated file (numbered after rendering)
     config: str  # the body of NAME.yaml
+    sources: tuple[tuple[str, str], ...]  # (path, text) as C++ string literals, for --record
+    hash_literal: str  # the sources' hash
+    version_literal: str  # hfsmc's version
 
 
 class CppWalk(Walk[CppSnippet]):
@@ -311,6 +315,9 @@ class CppWalk(Walk[CppSnippet]):
             instances=tuple(self.instance_view(i, units[i.unit]) for i in machine.instances),
             line_back=_BACK,
             config=component_config(m),
+            sources=tuple((cpp_string(path), cpp_string(text)) for path, text in machine.sources),
+            hash_literal=cpp_string(machine.model_hash),
+            version_literal=cpp_string(machine.version),
         )
 
 

@@ -16,6 +16,11 @@
 // destructor waits at most 1 s for it (as the Python driver's join does); a
 // grabber stuck in a network read (2 s at most) is then left to finish alone.
 //
+// The automaton sees one snapshot per instant (docs/recording.md): frame(), age(),
+// ok() and count() return what was the latest when the instant began. With --record
+// the first frame() of each frame writes it to the recording (lossless PNG); with
+// --playback DIR the camera is a fake fed from DIR/inputs.jsonl (PNG files in DIR).
+//
 // Options: `size: WxH` resizes every frame (320x240).
 #pragma once
 
@@ -47,11 +52,13 @@
 
 #include "json.hpp"
 #include "observer.hpp"
+#include "playback.hpp"
+#include "record.hpp"
 #include "thread.hpp"
 
 namespace hfsmc {
 
-class Camera : public Feed {
+class Camera : public Feed, public Source {
  public:
   static constexpr const char* kDefaultUrl = "0";  // the first video device
   static constexpr double kBackoffMinS = 0.2;
@@ -76,6 +83,7 @@ class Camera : public Feed {
     ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);  // AV_LOG_QUIET, unless set
     g_->name = name;
     g_->url = url.empty() ? kDefaultUrl : url;
+    options_ = options;
     for (const auto& kv : options) {
       int w = 0, h = 0;
       if (kv.first == "size" && parse_size(kv.second, &w, &h)) {
@@ -87,6 +95,14 @@ class Camera : public Feed {
         g_->say("unknown option `" + kv.first + "` ignored (options: size)");
       }
     }
+    if (playback::Inputs* inputs = playback::current()) {  // a fake fed from the inputs
+      inputs_ = inputs;
+      Fed scratch;  // every entry checked now: a bad value is said before the run
+      for (const playback::Entry& e : inputs->entries(name)) apply(scratch, e);
+      register_feed(this);
+      register_source(this);
+      return;
+    }
     std::shared_ptr<Grabber> g = g_;
     thread_ = quiet_thread([g] {
       g->run();
@@ -95,9 +111,11 @@ class Camera : public Feed {
       g->wake.notify_all();
     });
     register_feed(this);
+    register_source(this);
   }
 
   ~Camera() override {
+    unregister_source(this);
     unregister_feed(this);
     close();
   }
@@ -111,26 +129,63 @@ class Camera : public Feed {
   /// The latest frame (H x W, CV_8UC3, BGR); an empty Mat before the first. The
   /// same pixels until a newer frame comes: clone it before drawing on it for keeps.
   cv::Mat frame() const {
+    if (snap_count_ != 0 && snap_count_ != recorded_) record_frame();
     std::lock_guard<std::mutex> lock(g_->mutex);
-    g_->seen = g_->latest;  // for the monitor's viewers: a header copy
-    g_->seen_count = g_->count;
-    return g_->latest;
+    g_->seen = snap_frame_;  // for the monitor's viewers: a header copy
+    g_->seen_count = snap_count_;
+    return snap_frame_;
   }
 
   /// Seconds since the latest frame arrived; +inf before the first.
-  double age() const {
-    std::lock_guard<std::mutex> lock(g_->mutex);
-    if (g_->count == 0) return std::numeric_limits<double>::infinity();
-    return std::chrono::duration<double>(Clock::now() - g_->at).count();
-  }
+  double age() const { return snap_age_; }
 
   /// Frames are coming: the latest is less than a second old.
   bool ok() const { return age() < kStaleS; }
 
   /// Frames received so far (a new one since the last tick when it has grown).
-  long count() const {
-    std::lock_guard<std::mutex> lock(g_->mutex);
-    return g_->count;
+  long count() const { return snap_count_; }
+
+  // -- Source: the snapshot of each instant ---------------------------------------------
+  const std::string& source_name() const override { return g_->name; }
+  const char* source_type() const override { return "camera"; }
+  std::string source_config() const override {
+    std::string options;
+    for (const auto& kv : options_)
+      options += (options.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
+    return "{\"type\":\"camera\",\"url\":" + json_string(g_->url) + ",\"options\":{" + options + "}}";
+  }
+  void take_snapshot(long long t_us) override {
+    snapshot_t_ = t_us;
+    if (inputs_ == nullptr) {
+      std::lock_guard<std::mutex> lock(g_->mutex);
+      snap_frame_ = g_->latest;
+      snap_count_ = g_->count;
+      snap_age_ = g_->count == 0 ? std::numeric_limits<double>::infinity()
+                                 : std::chrono::duration<double>(Clock::now() - g_->at).count();
+      return;
+    }
+    const std::vector<playback::Entry>& entries = inputs_->entries(g_->name);
+    for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
+    if (fed_.file != loaded_) {  // a new picture: read it once (the exact pixels of the PNG)
+      loaded_ = fed_.file;
+      image_ = cv::Mat();
+      if (!loaded_.empty()) {
+        try {
+          image_ = cv::imread(loaded_, cv::IMREAD_COLOR);
+        } catch (const cv::Exception&) {
+        }
+        if (image_.empty()) {
+          std::fprintf(stderr, "%s: %s: not an image\n", inputs_->where(fed_.line).c_str(), loaded_.c_str());
+          std::exit(2);
+        }
+      }
+    }
+    snap_frame_ = image_;
+    snap_count_ = fed_.count;
+    snap_age_ = fed_.age;
+  }
+  std::string snapshot_fields() const override {
+    return "\"count\":" + std::to_string(snap_count_) + ",\"age\":" + json_number(snap_age_);
   }
 
   /// Stop the grabber (also done by the destructor); waits 1 s at most.
@@ -182,6 +237,43 @@ class Camera : public Feed {
   void feed_reset() override { feed_sent_ = -1; }
 
   using Clock = std::chrono::steady_clock;
+
+  struct Fed {  // with --playback: the entries applied so far
+    long count = 0;
+    double age = std::numeric_limits<double>::infinity();
+    std::string file;  // the frame's PNG ("": none)
+    int line = 0;  // where it was given
+  };
+
+  /// A playback entry over `f` (schemas/recording.md); a bad value throws InputError.
+  void apply(Fed& f, const playback::Entry& e) const {
+    const playback::Inputs& in = *inputs_;
+    for (const auto& [key, v] : e.values.members) {
+      if (key == "count") {
+        f.count = static_cast<long>(in.whole(v, "count", e.line));
+      } else if (key == "age") {
+        f.age = in.number(v, "age", e.line);
+      } else if (key == "frame") {
+        f.file = v.kind == json::Value::NUL ? std::string() : in.frame_file(v, e.line);
+        f.line = e.line;
+      }
+      // other fields (`t`, ...) are not part of what the automaton sees
+    }
+  }
+
+  /// The recording gets the frame of this instant, once (lossless PNG, base64).
+  void record_frame() const {
+    recorded_ = snap_count_;
+    Recorder* r = recorder();
+    if (r == nullptr || snap_frame_.empty()) return;
+    std::vector<uchar> png;
+    try {
+      if (!cv::imencode(".png", snap_frame_, png, {cv::IMWRITE_PNG_COMPRESSION, 1})) return;
+    } catch (const cv::Exception&) {
+      return;
+    }
+    r->frame(*this, snapshot_t_, snap_count_, base64(png));
+  }
 
   static std::string base64(const std::vector<uchar>& data) {
     static const char digits[] =
@@ -388,6 +480,16 @@ class Camera : public Feed {
   }
 
   std::shared_ptr<Grabber> g_;
+  std::map<std::string, std::string> options_;
+  cv::Mat snap_frame_;  // the snapshot: the automaton's thread only
+  long snap_count_ = 0;
+  double snap_age_ = std::numeric_limits<double>::infinity();
+  mutable long recorded_ = 0;  // the number of the last frame recorded
+  playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake
+  Fed fed_;
+  std::size_t next_ = 0;  // the next entry to apply
+  std::string loaded_;  // the PNG image_ holds
+  cv::Mat image_;
   long feed_sent_ = -1;  // the number of the frame last sent (the monitor's thread only)
   std::thread thread_;
 };

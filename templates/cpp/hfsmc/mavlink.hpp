@@ -11,6 +11,12 @@
 // waits on the network: a query copies the state at hand, a command sends one
 // datagram on a non-blocking socket and returns.
 //
+// The automaton sees one snapshot per instant (docs/recording.md): the engine calls
+// take_snapshot() when an instant begins, and every query reads that copy. A command
+// is sent at once; its last_ack() says `pending` (or `not_sent`) until the next
+// snapshot. With --playback DIR the vehicle is a fake: no socket, no thread, its
+// snapshots from DIR/inputs.jsonl, its commands appended to DIR/commands.jsonl.
+//
 // Two mutexes, never held together and never while waiting: `state_` guards
 // the telemetry, `link_` the MAVLink parser and sender state, the socket's
 // peer and the commands waiting for an answer. Each datagram is parsed from
@@ -68,11 +74,13 @@
 
 #include "json.hpp"
 #include "observer.hpp"
+#include "playback.hpp"
+#include "record.hpp"
 #include "thread.hpp"
 
 namespace hfsmc {
 
-class Mavlink : public Feed {
+class Mavlink : public Feed, public Source {
  public:
   static constexpr const char* kDefaultUrl = "udpin:127.0.0.1:14550";
   static constexpr double kLinkTimeoutS = 2.0;   // no heartbeat for that long: link lost
@@ -86,7 +94,7 @@ class Mavlink : public Feed {
 
   Mavlink(const std::string& name, const std::string& url,
           const std::map<std::string, std::string>& options)
-      : name_(name), url_(url.empty() ? kDefaultUrl : url), start_(Clock::now()) {
+      : name_(name), url_(url.empty() ? kDefaultUrl : url), options_(options), start_(Clock::now()) {
     rate_ = option(options, "rate", kFastRateHz);
     ack_timeout_ = option(options, "ack_timeout", kAckTimeoutS);
     double sysid = std::trunc(option(options, "source_system", 255.0));
@@ -101,6 +109,13 @@ class Mavlink : public Feed {
             "` ignored (options: rate, ack_timeout, source_system)");
       }
     }
+    if (playback::Inputs* inputs = playback::current()) {  // a fake fed from the inputs
+      inputs_ = inputs;
+      Snap scratch;  // every entry checked now: a bad value is said before the run
+      for (const playback::Entry& e : inputs->entries(name_)) apply(scratch, e);
+      register_source(this);
+      return;
+    }
     std::string why = open_socket();
     if (!why.empty()) {
       say("cannot open " + url_ + ": " + why);
@@ -108,9 +123,11 @@ class Mavlink : public Feed {
     }
     reader_ = quiet_thread([this] { run(); });
     register_feed(this);
+    register_source(this);
   }
 
   ~Mavlink() override {
+    unregister_source(this);
     unregister_feed(this);
     close();
   }
@@ -136,82 +153,79 @@ class Mavlink : public Feed {
   const std::string& name() const { return name_; }
   const std::string& url() const { return url_; }
 
-  // -- state (never waits on the network) -------------------------------------
+  // -- state: the snapshot of the instant (never waits on the network) ----------------
   /// A heartbeat from the vehicle within the last 2 s.
-  bool connected() const { return heartbeat_age() < kLinkTimeoutS; }
+  bool connected() const { return snap_.heartbeat_age < kLinkTimeoutS; }
 
   /// Seconds since the vehicle's last heartbeat; +inf before the first.
-  double heartbeat_age() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.heartbeat_seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
-  }
+  double heartbeat_age() const { return snap_.heartbeat_age; }
 
   /// The vehicle would accept GUIDED: connected, a 3D GPS fix, an absolute EKF position
   /// (while disarmed a predicted one will do; once armed not in constant-position mode).
-  bool ready() const {
-    uint16_t flags;
-    int fix;
-    bool is_armed;
-    {
-      std::lock_guard<std::mutex> lock(state_);
-      flags = s_.ekf_flags;
-      fix = s_.gps_fix;
-      is_armed = s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
-    }
-    bool position = is_armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
-                             : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
-    return connected() && fix >= GPS_FIX_TYPE_3D_FIX && position;
-  }
+  bool ready() const { return snap_.ready; }
 
   /// The vehicle's last heartbeat says its motors are armed.
-  bool armed() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
-  }
+  bool armed() const { return snap_.armed; }
 
   /// The flight mode's name (GUIDED, LAND, RTL, ...); "" before the first heartbeat.
-  std::string mode() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.heartbeat_seen ? mode_name(s_.type, s_.custom_mode) : std::string();
-  }
+  std::string mode() const { return snap_.mode; }
 
   /// (north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any.
-  Eigen::Vector3d position() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.position;
-  }
+  Eigen::Vector3d position() const { return snap_.position; }
 
   /// m above home (GLOBAL_POSITION_INT.relative_alt, else -down); NaN before any.
-  double altitude() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.relative_alt_seen ? s_.relative_alt : -s_.position.z();
-  }
+  double altitude() const { return snap_.altitude; }
 
   /// (vn, ve, vd) in m/s (LOCAL_POSITION_NED); NaN before any.
-  Eigen::Vector3d velocity() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.velocity;
-  }
+  Eigen::Vector3d velocity() const { return snap_.velocity; }
 
   /// Heading in rad (ATTITUDE), 0 north, positive clockwise; NaN before any.
-  double yaw() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.yaw;
-  }
+  double yaw() const { return snap_.yaw; }
 
   /// Battery remaining in percent (SYS_STATUS); -1 when unknown.
-  int battery() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.battery;
-  }
+  int battery() const { return snap_.battery; }
 
   /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
   /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
   /// pending, timeout, not_sent; "" when never sent.
   std::string last_ack(const std::string& command) const {
-    std::lock_guard<std::mutex> lock(link_);
-    auto it = acks_.find(command);
-    return it == acks_.end() ? std::string() : it->second;
+    auto it = snap_.acks.find(command);
+    return it == snap_.acks.end() ? std::string() : it->second;
+  }
+
+  // -- Source: the snapshot of each instant ---------------------------------------------
+  const std::string& source_name() const override { return name_; }
+  const char* source_type() const override { return "mavlink"; }
+  std::string source_config() const override {
+    std::string options;
+    for (const auto& kv : options_)
+      options += (options.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
+    return "{\"type\":\"mavlink\",\"url\":" + json_string(url_) + ",\"options\":{" + options + "}}";
+  }
+  void take_snapshot(long long t_us) override {
+    snapshot_t_ = t_us;
+    if (inputs_ == nullptr) {
+      snap_ = live_snapshot();
+      return;
+    }
+    const std::vector<playback::Entry>& entries = inputs_->entries(name_);
+    for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
+    snap_ = fed_;
+  }
+  std::string snapshot_fields() const override {
+    const auto triple = [](const Eigen::Vector3d& v) {
+      return "[" + json_number(v.x()) + "," + json_number(v.y()) + "," + json_number(v.z()) + "]";
+    };
+    std::string acks;
+    for (const auto& kv : snap_.acks)
+      acks += (acks.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
+    return "\"heartbeat_age\":" + json_number(snap_.heartbeat_age) +
+           ",\"ready\":" + (snap_.ready ? "true" : "false") + ",\"armed\":" + (snap_.armed ? "true" : "false") +
+           ",\"mode\":" + json_string(snap_.mode) + ",\"position\":" + triple(snap_.position) +
+           ",\"altitude\":" + json_number(snap_.altitude) + ",\"velocity\":" + triple(snap_.velocity) +
+           ",\"yaw\":" + json_number(snap_.yaw) + ",\"battery\":" + std::to_string(snap_.battery) +
+           ",\"acks\":{" + acks + "},\"vehicle\":" + (snap_.vehicle ? "true" : "false") +
+           ",\"type\":" + std::to_string(snap_.type);
   }
 
   // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
@@ -219,7 +233,7 @@ class Mavlink : public Feed {
   /// An unknown name throws std::invalid_argument (Python: ValueError).
   bool set_mode(const std::string& name) {
     std::string wanted = upper(strip(name));
-    const ModeTable table = modes(vehicle_type());
+    const ModeTable table = modes(static_cast<uint8_t>(snap_.type));
     const Mode* found = nullptr;
     std::string names;
     for (const Mode* m = table.first; m != table.second; ++m) {
@@ -229,41 +243,61 @@ class Mavlink : public Feed {
     if (found == nullptr) {
       throw std::invalid_argument(name_ + ": unknown mode `" + name + "` (modes: " + names + ")");
     }
+    sent("set_mode", "[" + json_string(name) + "]");
     return command("set_mode", "set_mode " + wanted, MAV_CMD_DO_SET_MODE,
                    {MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, static_cast<float>(found->number)});
   }
 
   /// Arm the motors (MAV_CMD_COMPONENT_ARM_DISARM 1).
-  bool arm() { return command("arm", "arm", MAV_CMD_COMPONENT_ARM_DISARM, {1}); }
+  bool arm() {
+    sent("arm", "[]");
+    return command("arm", "arm", MAV_CMD_COMPONENT_ARM_DISARM, {1});
+  }
 
   /// Disarm the motors (MAV_CMD_COMPONENT_ARM_DISARM 0; the vehicle refuses in flight).
-  bool disarm() { return command("disarm", "disarm", MAV_CMD_COMPONENT_ARM_DISARM, {0}); }
+  bool disarm() {
+    sent("disarm", "[]");
+    return command("disarm", "disarm", MAV_CMD_COMPONENT_ARM_DISARM, {0});
+  }
 
   /// Climb to `alt` m above home (MAV_CMD_NAV_TAKEOFF; GUIDED and armed).
   bool takeoff(double alt) {
+    sent("takeoff", "[" + json_number(alt) + "]");
     return command("takeoff", "takeoff", MAV_CMD_NAV_TAKEOFF,
                    {0, 0, 0, 0, 0, 0, static_cast<float>(alt)});
   }
 
   /// Land where the vehicle is (MAV_CMD_NAV_LAND: LAND mode).
-  bool land() { return command("land", "land", MAV_CMD_NAV_LAND, {}); }
+  bool land() {
+    sent("land", "[]");
+    return command("land", "land", MAV_CMD_NAV_LAND, {});
+  }
 
   /// Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode).
-  bool rtl() { return command("rtl", "rtl", MAV_CMD_NAV_RETURN_TO_LAUNCH, {}); }
+  bool rtl() {
+    sent("rtl", "[]");
+    return command("rtl", "rtl", MAV_CMD_NAV_RETURN_TO_LAUNCH, {});
+  }
 
   /// Stop where the vehicle is: a zero velocity target (GUIDED).
-  bool hold() { return set_velocity(0, 0, 0, 0); }
+  bool hold() {
+    sent("hold", "[]");
+    return target_local(MAV_FRAME_BODY_OFFSET_NED, kVelocityMask, {0, 0, 0}, {0, 0, 0}, 0);
+  }
 
   /// Velocity target in the body frame: m/s forward, right, down; rad/s clockwise.
   /// ArduPilot stops the vehicle when no new target comes for 3 s.
   bool set_velocity(double vx, double vy, double vz, double yaw_rate) {
+    sent("set_velocity", "[" + json_number(vx) + "," + json_number(vy) + "," + json_number(vz) + "," +
+                             json_number(yaw_rate) + "]");
     return target_local(MAV_FRAME_BODY_OFFSET_NED, kVelocityMask, {0, 0, 0}, {vx, vy, vz},
                         yaw_rate);
   }
 
   /// Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt).
-  /// `goto` in Python; a C++ keyword, hence the underscore.
+  /// `goto` in Python; a C++ keyword, hence the underscore (recorded as `goto`).
   bool go_to(double north, double east, double alt) {
+    sent("goto", "[" + json_number(north) + "," + json_number(east) + "," + json_number(alt) + "]");
     return target_local(MAV_FRAME_LOCAL_NED, kPositionMask, {north, east, -alt}, {0, 0, 0}, 0);
   }
 
@@ -282,6 +316,7 @@ class Mavlink : public Feed {
   std::string feed_name() const override { return name_; }
   /// A `vehicle` message (schemas/monitor.md) from the state at hand: no request is sent.
   std::string feed_message(long long t_ms) override {
+    const Snap now = live_snapshot();  // the monitor's thread: never the automaton's snapshot
     auto num = [](double x, const char* format) {
       if (!std::isfinite(x)) return std::string("null");
       char b[64];
@@ -293,13 +328,14 @@ class Mavlink : public Feed {
         return std::string("null");
       return "[" + num(v.x(), "%.3f") + "," + num(v.y(), "%.3f") + "," + num(v.z(), "%.3f") + "]";
     };
-    const int percent = battery();
+    const int percent = now.battery;
     return "{\"type\":\"vehicle\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
-           ",\"connected\":" + (connected() ? "true" : "false") + ",\"mode\":" + json_string(mode()) +
-           ",\"armed\":" + (armed() ? "true" : "false") + ",\"altitude\":" + num(altitude(), "%.3f") +
-           ",\"position\":" + triple(position()) + ",\"velocity\":" + triple(velocity()) +
+           ",\"connected\":" + (now.heartbeat_age < kLinkTimeoutS ? "true" : "false") +
+           ",\"mode\":" + json_string(now.mode) + ",\"armed\":" + (now.armed ? "true" : "false") +
+           ",\"altitude\":" + num(now.altitude, "%.3f") + ",\"position\":" + triple(now.position) +
+           ",\"velocity\":" + triple(now.velocity) +
            ",\"battery\":" + (percent >= 0 ? std::to_string(percent) : std::string("null")) +
-           ",\"link_age\":" + num(heartbeat_age(), "%.2f") + "}";
+           ",\"link_age\":" + num(now.heartbeat_age, "%.2f") + "}";
   }
 
   using Clock = std::chrono::steady_clock;
@@ -344,6 +380,78 @@ class Mavlink : public Feed {
     uint16_t ekf_flags = 0;
   };
 
+  struct Snap {  // what the automaton sees during one instant
+    double heartbeat_age = kInf;
+    bool ready = false, armed = false;
+    std::string mode;
+    Eigen::Vector3d position{kNaN, kNaN, kNaN};
+    double altitude = kNaN;
+    Eigen::Vector3d velocity{kNaN, kNaN, kNaN};
+    double yaw = kNaN;
+    int battery = -1;
+    std::map<std::string, std::string> acks;
+    bool vehicle = false;  // a vehicle has been heard: commands are sent
+    int type = 0;  // its HEARTBEAT type (the mode names)
+  };
+
+  /// The state at hand, as a snapshot (any thread).
+  Snap live_snapshot() const {
+    Snap n;
+    uint16_t flags;
+    int fix;
+    {
+      std::lock_guard<std::mutex> lock(state_);
+      n.heartbeat_age = s_.heartbeat_seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
+      n.armed = s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
+      n.mode = s_.heartbeat_seen ? mode_name(s_.type, s_.custom_mode) : std::string();
+      n.position = s_.position;
+      n.altitude = s_.relative_alt_seen ? s_.relative_alt : -s_.position.z();
+      n.velocity = s_.velocity;
+      n.yaw = s_.yaw;
+      n.battery = s_.battery;
+      n.vehicle = s_.target_seen;
+      n.type = s_.type;
+      flags = s_.ekf_flags;
+      fix = s_.gps_fix;
+    }
+    bool position = n.armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
+                            : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
+    n.ready = n.heartbeat_age < kLinkTimeoutS && fix >= GPS_FIX_TYPE_3D_FIX && position;
+    std::lock_guard<std::mutex> lock(link_);
+    n.acks = acks_;
+    return n;
+  }
+
+  /// A playback entry over `s` (schemas/recording.md); a bad value throws InputError.
+  void apply(Snap& s, const playback::Entry& e) const {
+    const playback::Inputs& in = *inputs_;
+    for (const auto& [key, v] : e.values.members) {
+      const char* k = key.c_str();
+      const auto vector = [&]() {
+        if (v.kind != json::Value::ARRAY || v.items.size() != 3) in.bad(e.line, "`" + key + "` must be [x, y, z]");
+        return Eigen::Vector3d(in.number(v.items[0], k, e.line), in.number(v.items[1], k, e.line),
+                               in.number(v.items[2], k, e.line));
+      };
+      if (key == "heartbeat_age") s.heartbeat_age = in.number(v, k, e.line);
+      else if (key == "ready") s.ready = in.boolean(v, k, e.line);
+      else if (key == "armed") s.armed = in.boolean(v, k, e.line);
+      else if (key == "mode") s.mode = in.text(v, k, e.line);
+      else if (key == "position") s.position = vector();
+      else if (key == "altitude") s.altitude = in.number(v, k, e.line);
+      else if (key == "velocity") s.velocity = vector();
+      else if (key == "yaw") s.yaw = in.number(v, k, e.line);
+      else if (key == "battery") s.battery = static_cast<int>(in.whole(v, k, e.line));
+      else if (key == "vehicle") s.vehicle = in.boolean(v, k, e.line);
+      else if (key == "type") s.type = static_cast<int>(in.whole(v, k, e.line));
+      else if (key == "acks") {
+        if (v.kind != json::Value::OBJECT) in.bad(e.line, "`acks` must be an object");
+        s.acks.clear();
+        for (const auto& [command, outcome] : v.members) s.acks[command] = in.text(outcome, "acks", e.line);
+      }
+      // other fields (`t`, ...) are not part of what the automaton sees
+    }
+  }
+
   struct Mode {
     uint32_t number;
     const char* name;
@@ -363,12 +471,22 @@ class Mavlink : public Feed {
     return s_.type;
   }
 
+  /// A COMMAND_LONG: sent when a vehicle has been heard (the snapshot says so; the
+  /// reader thread's own, `quiet`, ask the state at hand), its outcome awaited.
   bool command(const std::string& name, const std::string& label, uint16_t cmd,
                std::initializer_list<float> params, bool quiet = false) {
     Pending p{name, label, cmd, {0, 0, 0, 0, 0, 0, 0}, {}, {}, true, quiet};
     std::copy(params.begin(), params.end(), p.params);
-    uint8_t system, component;
-    bool known = target(&system, &component);
+    uint8_t system = 0, component = 0;
+    bool known = inputs_ == nullptr && target(&system, &component);
+    if (!quiet) {
+      known = known && snap_.vehicle;
+      snap_.acks[name] = snap_.vehicle ? "pending" : "not_sent";
+      if (inputs_ != nullptr) {
+        if (!snap_.vehicle) say(label + ": not sent, no vehicle yet (no heartbeat)");
+        return snap_.vehicle;
+      }
+    }
     {
       std::lock_guard<std::mutex> lock(link_);
       if (known) {
@@ -395,8 +513,9 @@ class Mavlink : public Feed {
 
   bool target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Eigen::Vector3d vel,
                     double yaw_rate) {
+    if (!snap_.vehicle) return false;  // a stream of targets: nothing to say
     uint8_t system, component;
-    if (!target(&system, &component)) return false;  // a stream of targets: nothing to say
+    if (inputs_ != nullptr || !target(&system, &component)) return true;
     auto boot_ms = static_cast<uint32_t>(
         std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - start_).count());
     std::lock_guard<std::mutex> lock(link_);
@@ -829,7 +948,12 @@ class Mavlink : public Feed {
 
   const std::string name_;
   const std::string url_;
+  const std::map<std::string, std::string> options_;
   const Clock::time_point start_;
+  Snap snap_;  // the automaton's thread only
+  playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake
+  Snap fed_;  // with --playback: the entries applied so far
+  std::size_t next_ = 0;  // the next entry to apply
   double rate_ = kFastRateHz;
   double ack_timeout_ = kAckTimeoutS;
   uint8_t sysid_ = 255;

@@ -7,7 +7,9 @@
 // automaton as straight code (per state: enter, exit, tick; dispatch through
 // a switch); Engine<M> runs it: one thread, absolute deadlines per active
 // sub-automaton, parents before children at the same instant, stop requests
-// acted on at tick boundaries.
+// acted on at tick boundaries. When an instant begins, every interface takes its
+// snapshot of the world (record.hpp); --record writes the run to an MCAP file and
+// --playback DIR feeds it from DIR/inputs.jsonl (docs/recording.md).
 #pragma once
 
 #include <cxxabi.h>
@@ -36,6 +38,8 @@
 
 #include "hfsmc/json.hpp"
 #include "hfsmc/observer.hpp"
+#include "hfsmc/playback.hpp"
+#include "hfsmc/record.hpp"
 
 namespace hfsmc {
 
@@ -108,6 +112,10 @@ struct Tables {
     int on_interrupt;  // state index, or -1
     long long interrupt_timeout_us;  // -1 when none
     const ParameterInfo* parameter_info;  // n_parameters of them, or nullptr
+    const char* version;  // of the hfsmc that generated it
+    const char* model_hash;  // "sha256:" + hex, of the sources (schemas/recording.md)
+    const char* const* sources;  // path, text, path, text...: the model, then each used file
+    int n_sources;
 };
 
 // An interface this component cannot drive (ROS topics and ICE from legacy models):
@@ -475,7 +483,9 @@ public:
         signals::real = real ? 1 : 0;
         signals::trace = trace_.get();
         signals::start_ns = start_ns_ = signals::monotonic_ns();
-        recording_ = trace_ != nullptr || !observers_.empty();
+        rec_ = recorder();
+        pb_ = playback::current();
+        recording_ = trace_ != nullptr || !observers_.empty() || rec_ != nullptr;
         if (!observers_.empty()) {
             const Structure s = structure();
             for (auto& o : observers_) o->start(s);
@@ -489,8 +499,10 @@ public:
         chain_.assign(1, 0);
         deadline_[0] = 0;
         owner = root_;
+        world();
         m_._hfsm_enter(tb_.automata[0].initial);
         trace_values();
+        if (rec_) rec_->flush_tick();
         set_limit();
         while (!stopping_) {
             if (boundary()) continue;
@@ -513,6 +525,7 @@ private:
 
     void emit(Record& r) {
         if (trace_) trace_->write(r.json + "\n");
+        if (rec_) rec_->trace(t, r.json);
         for (auto& o : observers_) o->record(r);
     }
 
@@ -520,6 +533,7 @@ private:
     // chain, then ticks every sub-automaton due then, parents first.
     void instants() {
         for (;;) {
+            if (pb_ && playback_signal(false)) return;
             if (signals::pending != 0) return;  // came between two instants
             long long due = deadline_[static_cast<std::size_t>(chain_[0])];
             for (std::size_t k = 1; k < chain_.size(); ++k)
@@ -539,22 +553,27 @@ private:
             }
             if (real_ && !wait(due)) return;
             set_time(due);
+            if (t != snap_t_) world();  // the first instant shares the start's snapshot (0 s)
             for (std::size_t k = 0; k < chain_.size(); ++k) {
                 const auto a = static_cast<std::size_t>(chain_[k]);
                 if (deadline_[a] <= due) {
                     m_._hfsm_tick(cur[a]);
                     deadline_[a] = due + period_us_[a];
-                    if (real_) {
-                        ++ticks_;
-                        skip_missed(a);
+                    ++ticks_;
+                    if (real_) skip_missed(a);
+                    if (pb_) {
+                        playback_skip(a);
+                        playback_signal(true);
                     }
                     if (request_ != nullptr || signals::pending != 0) {
                         trace_values();
+                        if (rec_) rec_->flush_tick();
                         return;
                     }
                 }
             }
             trace_values();
+            if (rec_) rec_->flush_tick();
             if (!observers_.empty()) sample();
         }
     }
@@ -609,7 +628,57 @@ private:
             const long long k = (now - nxt + p - 1) / p;
             deadline_[a] = nxt + k * p;
             overruns_ += k;
+            if (rec_) rec_->skip(t, automaton_path(a), deadline_[a], k);
         }
+    }
+
+    // "" for the root, the owner's path for a state's sub-automaton, OWNER/REGION for a region.
+    std::string automaton_path(std::size_t a) const {
+        const AutomatonInfo& info = tb_.automata[a];
+        if (info.owner < 0) return "";
+        std::string path = tb_.states[info.owner].path;
+        return info.region ? path + "/" + info.region : path;
+    }
+
+    // Every interface takes its snapshot of instant t (docs/recording.md), recorded.
+    void world() {
+        snap_t_ = t;
+        for (Source* s : sources()) {
+            s->take_snapshot(t);
+            if (rec_) rec_->snapshot(*s, t);
+        }
+    }
+
+    // --playback: the recorded skip of sub-automaton a at this instant, after its tick.
+    void playback_skip(std::size_t a) {
+        const std::vector<playback::Skip>& skips = pb_->skips();
+        while (next_skip_ < skips.size() && skips[next_skip_].t < t) ++next_skip_;  // not met (a changed model)
+        if (next_skip_ >= skips.size() || skips[next_skip_].t != t) return;
+        const playback::Skip& s = skips[next_skip_];
+        if (s.automaton != automaton_path(a)) return;
+        ++next_skip_;
+        deadline_[a] = s.deadline;
+        overruns_ += s.missed;
+        if (rec_) rec_->skip(t, s.automaton, s.deadline, s.missed);
+    }
+
+    // --playback: the next signal, once its ticks have run: acted on at its time (within
+    // the instant: at the instant's time only). True when it came.
+    bool playback_signal(bool within) {
+        const std::vector<playback::Signal>& all = pb_->signals();
+        if (next_signal_ >= all.size()) return false;
+        const playback::Signal& s = all[next_signal_];
+        if (s.ticks > ticks_ || (within && s.t > t)) return false;
+        ++next_signal_;
+        set_time(std::max(t, s.t));
+        if (s.reason == "time_limit") {
+            time_limit_us_ = -1;
+            set_limit();
+            if (request_ == nullptr) request_ = "time_limit";
+        } else {
+            signals::pending = s.reason == "sigint" ? SIGINT : SIGTERM;
+        }
+        return true;
     }
 
     // Act on stop requests between ticks. True when something was done.
@@ -627,6 +696,7 @@ private:
             stop(interrupting_.empty() ? "final" : interrupting_);
         } else if (reason == "error" || !sig_reason.empty() || reason == "shutdown" || reason == "time_limit") {
             const std::string why = reason == "error" ? "error" : !sig_reason.empty() ? sig_reason : reason;
+            if (rec_ && why != "error" && why != "shutdown") rec_->signal(t, why, ticks_);
             if (tb_.on_interrupt >= 0) interrupt(why);
             else stop(why);
         } else {
@@ -636,6 +706,7 @@ private:
     }
 
     void interrupt(const std::string& reason) {
+        if (t != snap_t_) world();  // a time no instant ran at: the world as it is now
         const int target = tb_.on_interrupt;
         interrupting_ = reason;
         signals::hard = 1;
@@ -658,6 +729,7 @@ private:
     }
 
     void stop(const std::string& reason) {
+        if (t != snap_t_) world();  // a time no instant ran at: the world as it is now
         stopping_ = true;
         signals::hard = 1;
         request_ = nullptr;
@@ -692,6 +764,7 @@ private:
         }
         signals::trace = nullptr;
         if (trace_) trace_->close();
+        if (rec_) rec_->close();
         signals::status = status_;
         signals::finished = 1;
         for (auto& o : observers_) {
@@ -717,8 +790,10 @@ private:
         }
         if (body.empty()) return;
         traced_ = std::move(values);
-        trace_->write("{\"t\":" + std::to_string(t / 1000) + ",\"ev\":\"variables\",\"values\":{" +
-                      body + "}}\n");
+        const std::string line = "{\"t\":" + std::to_string(t / 1000) + ",\"ev\":\"variables\",\"values\":{" +
+                                 body + "}}";
+        trace_->write(line + "\n");
+        if (rec_) rec_->trace(t, line);
     }
 
     void sample() {
@@ -774,11 +849,15 @@ private:
     bool trace_variables_ = false;
     std::vector<std::string> traced_;  // the values of the last `variables` record
     std::vector<std::unique_ptr<Observer>> observers_;
+    Recorder* rec_ = nullptr;  // --record
+    playback::Inputs* pb_ = nullptr;  // --playback
+    long long snap_t_ = -1;  // the time of the interfaces' snapshot
+    std::size_t next_skip_ = 0, next_signal_ = 0;  // --playback: the next to act on
 };
 
 // --- start-up (hfsmc_runtime.cpp) ---------------------------------------------------------
 struct Options {
-    std::string config, focus, monitor, trace, clock = "real", until, time_limit;
+    std::string config, focus, monitor, trace, clock = "real", until, time_limit, record, playback;
     std::vector<std::string> params;
     bool display = false, autofocus = true, trace_variables = false;
 };
@@ -798,6 +877,8 @@ int main(const Tables& tb, int argc, char** argv) {
     // Until the engine takes them over, signals end the process quietly.
     std::signal(SIGINT, [](int) { _exit(130); });
     std::signal(SIGTERM, [](int) { _exit(143); });
+    std::unique_ptr<playback::Inputs> inputs;  // both outlive the automaton's interfaces
+    std::unique_ptr<Recorder> rec;
     std::unique_ptr<M> m;
     Options o;
     long long until = -1, time_limit = -1;
@@ -807,10 +888,36 @@ int main(const Tables& tb, int argc, char** argv) {
         if (help) return 0;
         if (!o.until.empty()) until = parse_duration_us(o.until);
         if (!o.time_limit.empty()) time_limit = parse_duration_us(o.time_limit);
+        if (!o.playback.empty()) {  // the interfaces become fakes fed from DIR, on the virtual clock
+            inputs = std::make_unique<playback::Inputs>(o.playback);
+            playback::current() = inputs.get();
+            o.clock = "virtual";
+        }
         m = std::make_unique<M>(*config);
         if (!o.trace.empty()) m->_hfsm.set_trace(open_trace(o));
         m->_hfsm.set_trace_variables(o.trace_variables);
         for (auto& observer : open_observers(o)) m->_hfsm.add_observer(std::move(observer));
+        if (!o.record.empty()) {
+            try {
+                rec = std::make_unique<Recorder>(o.record);
+            } catch (const std::exception& e) {
+                throw UsageError(std::string("--record: ") + e.what());
+            }
+            Recorder::Run run;
+            run.component = tb.name;
+            run.version = tb.version;
+            run.model_hash = tb.model_hash;
+            run.clock = o.clock;
+            run.until_us = until;
+            run.time_limit_us = time_limit;
+            run.parameters = m->_hfsm_parameters_json();
+            for (int k = 0; k + 1 < 2 * tb.n_sources; k += 2) run.sources.emplace_back(tb.sources[k], tb.sources[k + 1]);
+            rec->start(run);
+            recorder() = rec.get();
+        }
+    } catch (const playback::InputError& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return 2;
     } catch (const UsageError& e) {
         std::fprintf(stderr, "%s: %s\n", tb.name, e.what());
         return 2;
