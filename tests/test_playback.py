@@ -194,7 +194,7 @@ def test_a_recording_holds_what_came_in_and_the_trace(probe: Path, tmp_path: Pat
     assert [f["count"] for f in frames] == [1] and frames[0]["format"] == "png"
     got = cv2.imdecode(np.frombuffer(base64.b64decode(frames[0]["data"]), np.uint8),
                        cv2.IMREAD_UNCHANGED)
-    assert got.shape == f1.shape and (got == f1).all()
+    assert got is not None and np.array_equal(got, f1)
     commands = [(m["t"], m["call"], m["args"]) for topic, m in msgs
                 if topic == "/hfsmc/command/drone"]
     played = [json.loads(x) for x in (pb / "commands.jsonl").read_text().splitlines()]
