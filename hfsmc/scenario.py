@@ -52,8 +52,8 @@ STOP_REASONS = ("final", "until", "shutdown", "sigint", "sigterm", "error", "tim
                 "time_limit")
 DEFAULT_UNTIL_US = 600_000_000  # 10 min of virtual time
 
-TOP_KEYS = ("name", "description", "model", "languages", "parameters", "until", "inputs",
-            "expect")
+TOP_KEYS = ("name", "description", "model", "languages", "parameters", "until", "time_limit",
+            "inputs", "expect")
 # An expectation is one mapping: one of these kinds, and the modifiers it takes.
 _WINDOW = ("after", "before", "between")
 KINDS: dict[str, tuple[str, ...]] = {
@@ -178,6 +178,7 @@ class Scenario:
     languages: tuple[Language, ...]
     parameters: tuple[Override, ...]
     until_us: int
+    time_limit_us: int | None
     inputs: tuple[Entry, ...]
     expect: tuple[Expectation, ...]
     lines: tuple[str, ...]
@@ -272,13 +273,18 @@ class _Reader:
             until = self.duration(data["until"], ("until",), "`until`") or DEFAULT_UNTIL_US
             if until == 0:
                 self.error("E193", "`until` must be after 0 s", self.at(("until",)))
+        time_limit = None
+        if "time_limit" in data:
+            time_limit = self.duration(data["time_limit"], ("time_limit",), "`time_limit`")
+            if time_limit == 0:
+                self.error("E193", "`time_limit` must be after 0 s", self.at(("time_limit",)))
         overrides = self.parameters(data)
         inputs = self.inputs(data, until)
         expect = self.expectations(data, until)
         if models is None:
             return None
-        return Scenario(self.doc.file, name, models, languages, overrides, until, inputs, expect,
-                        tuple(self.doc.lines), self.key_at(("model",)))
+        return Scenario(self.doc.file, name, models, languages, overrides, until, time_limit, inputs,
+                        expect, tuple(self.doc.lines), self.key_at(("model",)))
 
     def models(self, data: dict[str, Any]) -> tuple[ModelRef, ...] | None:
         if "model" not in data:

@@ -173,6 +173,8 @@ def run_one(sc: Scenario, model: Model, language: str, component: Component, fol
     trace = folder / "trace.jsonl"
     args = [*component.command, "--playback", str(folder.resolve()), "--clock", "virtual",
             "--trace", str(trace.resolve()), "--until", format_us(sc.until_us)]
+    if sc.time_limit_us is not None:
+        args += ["--time-limit", format_us(sc.time_limit_us)]
     for o in sc.parameters:
         value = ("true" if o.value else "false") if isinstance(o.value, bool) else str(o.value)
         args += ["--param", f"{o.name}={value}"]
