@@ -270,6 +270,39 @@ def view(target: str | None, replay: str | None, model: str | None, speed: float
                       model=model, web=web))
 
 
+@main.command()
+@click.argument("recording", type=click.Path(dir_okay=False))
+@click.option("--model", "model_arg", metavar="MODEL", type=click.Path(dir_okay=False),
+              help="Replay this model (a changed version, or the twin in the other language) "
+                   "instead of the recorded one.")
+@click.option("-t", "--target", type=click.Choice(["python", "cpp"]),
+              help="The component's language (default: the model's; the recorded model's is "
+                   "the recording's).")
+@_guard
+def replay(recording: str, model_arg: str | None, target: str | None) -> None:
+    """Run a recorded run again (a component's --record FILE) on the virtual clock, fed from
+    the recording, and compare its trace and commands with the recorded ones.
+
+    Exit status 0: identical; 1: different (the first difference is shown), or the
+    recording cannot be replayed."""
+    from hfsmc.commands.replay import ReplayFailed, render
+    from hfsmc.commands.replay import replay as run_replay
+    from hfsmc.recording import RecordingError
+
+    try:
+        report = run_replay(recording, model_arg, target)
+    except RecordingError as e:
+        click.echo(f"{recording}: {e}", err=True)
+        sys.exit(1)
+    except ReplayFailed as e:
+        click.echo(f"hfsmc replay: {e}", err=True)
+        for line in e.details:
+            click.echo(f"  {line}", err=True)
+        sys.exit(1)
+    render(report)
+    sys.exit(report.status)
+
+
 @main.command("test")
 @click.argument("scenarios", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("-t", "--target", type=click.Choice(["python", "cpp"]),

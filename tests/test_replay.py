@@ -1,0 +1,205 @@
+"""`hfsmc replay RECORDING`: a recorded run run again from the recording, and compared.
+
+The cheap recordings are made by the Python component of a small model in `--playback` of a
+hand-written script, with `--record` (deterministic, about a second); one real simulated
+follow_colors flight (slow) is replayed with the same model, a changed threshold and the
+C++ twin.  Broken files (cut, corrupted, not MCAP) are read at the unit level."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer
+
+from hfsmc.commands.replay import NOT_EVIDENCE, write_sources
+from hfsmc.recording import RecordingError, read_recording
+
+HOP = """\
+hfsm: 1
+name: hop
+language: python
+interfaces:
+  drone: {type: mavlink, url: "udpin:127.0.0.1:0"}
+parameters:
+  height: {type: float, default: 2.0}
+period: 100ms
+initial: Wait
+states:
+  Wait:
+    transitions:
+      - {to: Climb, when: drone.ready(), do: "drone.arm(); drone.takeoff(height)"}
+  Climb:
+    during: drone.set_velocity(0.0, 0.0, -1.0, 0.0)
+    transitions:
+      - {to: Done, when: drone.altitude() > height}
+  Done: {final: true}
+"""
+# The vehicle as the script has it: ready at 0.3 s, climbing past 2 m at 1 s.
+INPUTS = [
+    {"t": 0, "kind": "snapshot", "interface": "drone",
+     "values": {"vehicle": True, "heartbeat_age": 0.1, "altitude": 0.0}},
+    {"t": 300000, "kind": "snapshot", "interface": "drone", "values": {"ready": True}},
+    {"t": 500000, "kind": "snapshot", "interface": "drone",
+     "values": {"armed": True, "altitude": 0.5}},
+    {"t": 800000, "kind": "snapshot", "interface": "drone", "values": {"altitude": 1.5}},
+    {"t": 1000000, "kind": "snapshot", "interface": "drone", "values": {"altitude": 2.5}},
+]
+
+
+def hfsmc(*args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "XDG_CACHE_HOME": str(cwd / "cache")}
+    return subprocess.run([sys.executable, "-m", "hfsmc", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=timeout, stdin=subprocess.DEVNULL, env=env)
+
+
+@pytest.fixture(scope="module")
+def hop(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder with hop.yaml and hop.mcap: its run in --playback of INPUTS, recorded."""
+    d = tmp_path_factory.mktemp("hop")
+    (d / "hop.yaml").write_text(HOP)
+    r = hfsmc("build", "hop.yaml", "-o", "component", cwd=d)
+    assert r.returncode == 0, r.stderr
+    (d / "script").mkdir()
+    (d / "script" / "inputs.jsonl").write_text("".join(json.dumps(e) + "\n" for e in INPUTS))
+    run = subprocess.run([sys.executable, str(d / "component" / "hop.py"), "--playback", "script",
+                          "--record", "hop.mcap", "--until", "5s"], cwd=d, capture_output=True,
+                         text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    return d
+
+
+def test_replay_of_the_recorded_model_is_identical(hop: Path) -> None:
+    r = hfsmc("replay", "hop.mcap", cwd=hop)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout == ("replay of hop.mcap (python -> python): identical: 10 trace records, "
+                        "9 commands, 0-1.000 s\n")
+    # The same model given with --model: its hash is the recorded one.
+    r = hfsmc("replay", "hop.mcap", "--model", "hop.yaml", cwd=hop)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.startswith("hop.yaml is the recorded model (sha256:"), r.stdout
+
+
+def test_a_changed_condition_is_the_first_difference(hop: Path) -> None:
+    (hop / "higher.yaml").write_text(HOP.replace("altitude() > height", "altitude() > height + 1"))
+    r = hfsmc("replay", "hop.mcap", "--model", "higher.yaml", cwd=hop)
+    assert r.returncode == 1, r.stdout + r.stderr
+    lines = r.stdout.splitlines()
+    assert re.fullmatch(r"higher\.yaml is not the recorded model \(changed: higher\.yaml; hash "
+                        r"sha256:\w+\.\.\. against the recorded sha256:\w+\.\.\.\)", lines[0])
+    assert lines[1:6] == [
+        "replay of hop.mcap (python -> python): different",
+        "at 1.000 s in Climb (trace record 6):",
+        "  recorded: took Climb -> Done (when: drone.altitude() > height; hop.yaml:17)",
+        "  now:      not taken: Climb -> Done (when: drone.altitude() > height + 1; "
+        "higher.yaml:17)",
+        '  instead:  {"t":1000,"ev":"exit","state":"Climb"} (the replay reached the end of the '
+        "recording and stopped)"], r.stdout
+    assert lines[-1] == NOT_EVIDENCE
+
+
+def test_a_changed_command_is_the_first_difference(hop: Path) -> None:
+    (hop / "taller.yaml").write_text(HOP.replace("takeoff(height)", "takeoff(height + 1)"))
+    r = hfsmc("replay", "hop.mcap", "--model", "taller.yaml", cwd=hop)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert r.stdout.splitlines()[1:] == [
+        "replay of hop.mcap (python -> python): different",
+        "at 0.300 s (command 2):",
+        "  recorded: drone.takeoff(2.0) at 0.300 s",
+        "  now:      drone.takeoff(3.0) at 0.300 s",
+        "  the trace is the same up to this command",
+        "  active when the instant began: Wait",
+        NOT_EVIDENCE]
+
+
+def test_a_model_in_the_other_language_needs_its_twin(hop: Path) -> None:
+    r = hfsmc("replay", "hop.mcap", "-t", "cpp", cwd=hop)
+    assert r.returncode == 2
+    assert r.stderr == ("hfsmc: error: -t cpp: the snippets of the recorded model (hop.yaml) "
+                        "are python; give the model's cpp twin with --model\n")
+
+
+def test_a_cut_recording_replays_up_to_the_cut(hop: Path, tmp_path: Path) -> None:
+    data = (hop / "hop.mcap").read_bytes()
+    whole = read_recording(hop / "hop.mcap")
+    assert not whole.cut
+    metadata_end = None
+    for n in range(8, len(data), 23):  # every 23rd byte: inside every kind of record
+        (tmp_path / "cut.mcap").write_bytes(data[:n])
+        try:
+            rec = read_recording(tmp_path / "cut.mcap")
+        except RecordingError as e:
+            assert "cut" in str(e) or "no hfsmc" in str(e), str(e)
+            continue
+        metadata_end = metadata_end or n
+        assert rec.cut and rec.sources == whole.sources
+        assert rec.trace == whole.trace[:len(rec.trace)]
+        assert rec.commands == whole.commands[:len(rec.commands)]
+        assert rec.snapshots == whole.snapshots[:len(rec.snapshots)]
+    assert metadata_end is not None
+    # Cut in the middle of the run: replayed up to there, and said so.
+    (tmp_path / "cut.mcap").write_bytes(data[:len(data) * 2 // 3])
+    rec = read_recording(tmp_path / "cut.mcap")
+    assert 0 < len(rec.trace) < len(whole.trace)
+    (tmp_path / "hop.yaml").write_text(HOP)
+    r = hfsmc("replay", "cut.mcap", cwd=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0] == (f"the recording ends at {rec.end_us / 1e6:.3f} s (cut: the component "
+                        "did not close it)")
+    assert lines[1].startswith("replay of cut.mcap (python -> python): identical up to the "
+                               f"cut: {len(rec.trace)} trace records, {len(rec.commands)} "
+                               "commands"), lines
+    # Cut before the metadata is complete: nothing to replay.
+    (tmp_path / "early.mcap").write_bytes(data[:40])
+    r = hfsmc("replay", "early.mcap", cwd=tmp_path)
+    assert (r.returncode, r.stdout) == (1, "")
+    assert r.stderr.startswith("early.mcap: ") and "cut" in r.stderr and \
+        len(r.stderr.splitlines()) == 1, r.stderr
+
+
+def test_broken_files_are_said_in_one_line(hop: Path, tmp_path: Path) -> None:
+    data = bytearray((hop / "hop.mcap").read_bytes())
+    last_trace = data.rfind(b'"ev":"stop"')
+    data[last_trace + 6] ^= 0x20  # "stop" -> "Stop": the file's checksum no longer matches
+    (tmp_path / "corrupted.mcap").write_bytes(bytes(data))
+    (tmp_path / "model.yaml").write_text(HOP)
+    with (tmp_path / "other.mcap").open("wb") as f:  # an MCAP file, not a recording
+        w = Writer(f)
+        w.start()
+        w.add_metadata("something", {"a": "b"})
+        w.finish()  # type: ignore[no-untyped-call]
+    with (tmp_path / "newer.mcap").open("wb") as f:  # a later recording version
+        w = Writer(f)
+        w.start()
+        for name in ("hfsmc.parameters", "hfsmc.interfaces"):
+            w.add_metadata(name, {})
+        w.add_metadata("hfsmc.run", {"recording": "2", "language": "python"})
+        w.add_metadata("hfsmc.sources", {"model.yaml": HOP})
+        w.finish()  # type: ignore[no-untyped-call]
+    for name, message in [
+            ("corrupted.mcap", "corrupted: its data does not match its checksum"),
+            ("model.yaml", "not an MCAP file (a recording is written by a component's "
+                           "--record FILE)"),
+            ("other.mcap", "not an hfsmc recording, or cut before its metadata: no hfsmc.run, "
+                           "hfsmc.parameters, hfsmc.interfaces, hfsmc.sources metadata"),
+            ("newer.mcap", "recording version `2`: this hfsmc reads version 1 (a newer hfsmc "
+                           "wrote it?)"),
+            ("missing.mcap", "cannot read it: No such file or directory")]:
+        r = hfsmc("replay", name, cwd=tmp_path)
+        assert (r.returncode, r.stdout, r.stderr) == (1, "", f"{name}: {message}\n")
+
+
+def test_sources_are_written_keeping_their_relative_paths(tmp_path: Path) -> None:
+    main = write_sources([("m.yaml", "a"), ("../../lib/x.yaml", "b"), ("sub/y.yaml", "c")],
+                         tmp_path)
+    assert main.read_text() == "a"
+    assert (main.parent / "../../lib/x.yaml").read_text() == "b"
+    assert (main.parent / "sub/y.yaml").read_text() == "c"
+    with pytest.raises(RecordingError, match="absolute"):
+        write_sources([("m.yaml", "a"), ("/etc/x.yaml", "b")], tmp_path)
