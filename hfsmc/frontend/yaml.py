@@ -1,16 +1,15 @@
-"""YAML front end: ruamel.yaml's round-trip loader, which keeps positions."""
+"""YAML front end: libyaml's C parser where it reads the document as ruamel.yaml
+would (:mod:`hfsmc.frontend.yaml_c`), ruamel.yaml's round-trip loader, which keeps
+positions, for everything else."""
 
 from __future__ import annotations
 
-import datetime
-import re
 import warnings
-from typing import Any, NoReturn
+from typing import Any, Literal, NoReturn
 
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
 from ruamel.yaml.error import MarkedYAMLError, ReusedAnchorWarning, YAMLError
-from ruamel.yaml.scalarint import ScalarInt
 from ruamel.yaml.scalarstring import (
     DoubleQuotedScalarString,
     FoldedScalarString,
@@ -19,9 +18,13 @@ from ruamel.yaml.scalarstring import (
 )
 
 from hfsmc.errors import Diagnostic, Diagnostics, ParseError, Span, fail
-from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, YAML11_BOOLS, Document, PathKey, split_lines
+from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, Document, PathKey, split_lines
+from hfsmc.frontend.yaml_c import load_c
 from hfsmc.frontend.yaml_syntax import explain
 from hfsmc.frontend.yaml_traps import PropertyScan, WatchedParser, may_have_properties
+from hfsmc.frontend.yaml_values import record_value, scalar
+
+Parser = Literal["auto", "libyaml", "ruamel"]
 
 
 def _yaml() -> YAML:
@@ -37,8 +40,29 @@ def load_yaml(file: str, text: str, diags: Diagnostics) -> Document:
     Raises :class:`ParseError` for malformed YAML (position of the problem).
     Non-fatal oddities (non-string keys) go to ``diags``.
     """
+    return load_yaml_with(file, text, diags)[0]
+
+
+def load_yaml_with(file: str, text: str, diags: Diagnostics,
+                   parser: Parser = "auto") -> tuple[Document, str]:
+    """:func:`load_yaml`, saying which parser read the document ("libyaml" or
+    "ruamel: " and why libyaml did not).  ``parser`` forces one: "libyaml" raises
+    RuntimeError where the C path would hand the document to ruamel.yaml."""
     lines = split_lines(text)
     doc = Document(file, "yaml", lines)
+    if parser != "ruamel":
+        why = load_c(doc, text)
+        if why is None:
+            return doc, "libyaml"
+        if parser == "libyaml":
+            raise RuntimeError(f"libyaml cannot take this document: {why}")
+    else:
+        why = "asked for"
+    return _load_ruamel(doc, text, diags), f"ruamel: {why}"
+
+
+def _load_ruamel(doc: Document, text: str, diags: Diagnostics) -> Document:
+    file, lines = doc.file, doc.lines
     y = _yaml()
     scan: PropertyScan | None = None
     if may_have_properties(text):
@@ -244,79 +268,21 @@ class _Walker:
                     self._record_value(ip, item, il, ic)
                     stack.append((item, (seq, i), ip, depth + 1))
             else:
-                holder[slot] = _scalar(node)
+                holder[slot] = scalar(node)
         return out[0]
 
     def _record_value(self, path: PathKey, value: Any, line: int, col: int) -> None:
-        """Position of the first character of a value's content."""
-        lines = self.doc.lines
-        if type(value) is str and value in YAML11_BOOLS:
-            self.doc.yaml11[path] = value
-        elif type(value) is ScalarInt and line < len(lines):
-            m = _LEADING_ZERO.match(lines[line], col)
-            if m is not None:
-                self.doc.yaml11[path] = m.group(0)
-        if (type(value) is str and line < len(lines)
-                and lines[line][col:col + len(value)] != value):
-            # a plain scalar folded over several lines
-            self.doc.segments[path] = _segments(lines, value, line, col)
-        if isinstance(value, (LiteralScalarString, FoldedScalarString)):
-            # The mark is on the `|`/`>` indicator; the content starts on the next
-            # non-blank line, at the block's indentation.
-            lines = self.doc.lines
-            ln = line + 1
-            while ln < len(lines) and not lines[ln].strip():
-                ln += 1
-            indent = len(lines[ln]) - len(lines[ln].lstrip(" ")) if ln < len(lines) else col
-            self.doc.spans[path] = self._span(ln, indent)
-            self.doc.cont_cols[path] = indent + 1
-            if isinstance(value, FoldedScalarString):
-                self.doc.segments[path] = _segments(lines, str(value), ln, indent)
-            return
-        if isinstance(value, (DoubleQuotedScalarString, SingleQuotedScalarString)):
-            col += 1
-        self.doc.spans[path] = self._span(line, col)
+        record_value(self.doc, path, value, _style(value), line, col)
 
 
-_LEADING_ZERO = re.compile(r"[-+]?0[0-9]+(?![0-9.eE_:])")
-
-
-def _segments(lines: list[str], text: str, line: int, col: int) -> tuple[tuple[int, int, int], ...]:
-    """Where each source line of a folded scalar starts in its value.
-
-    Folding turns line breaks into spaces but keeps each line's text, so every
-    source line is found verbatim, in order.  Stops at the first line that is
-    not (a comment, a closing bracket): positions after it fall back to the
-    plain line arithmetic of :class:`hfsmc.ir.Code`.
-    """
-    segs: list[tuple[int, int, int]] = []
-    pos, end, ln = 0, len(text.rstrip()), line
-    while ln < len(lines) and pos < end:
-        src = lines[ln]
-        start = col if ln == line else len(src) - len(src.lstrip(" "))
-        chunk = src[start:].rstrip()
-        if chunk:
-            idx = text.find(chunk, pos)
-            if idx < 0:
-                break
-            segs.append((idx, ln + 1, start + 1))
-            pos = idx + len(chunk)
-        ln += 1
-    return tuple(segs)
-
-
-def _scalar(v: Any) -> Any:
-    if v is None or isinstance(v, bool):
-        return v
-    if isinstance(v, int):
-        return int(v)
-    if isinstance(v, float):
-        return float(v)
-    if isinstance(v, str):
-        return str(v)
-    if isinstance(v, (datetime.date, datetime.datetime)):
-        return v.isoformat()
-    if isinstance(v, bytes):
-        return v.decode("latin-1")
-    # tagged scalars and anything exotic: keep their text
-    return str(getattr(v, "value", v))
+def _style(value: Any) -> str | None:
+    """The style a preserved-quotes scalar was written in (None: plain)."""
+    if isinstance(value, LiteralScalarString):
+        return "|"
+    if isinstance(value, FoldedScalarString):
+        return ">"
+    if isinstance(value, DoubleQuotedScalarString):
+        return '"'
+    if isinstance(value, SingleQuotedScalarString):
+        return "'"
+    return None
