@@ -10,10 +10,12 @@ The URL is anything ``cv2.VideoCapture`` opens: MJPEG over HTTP
 (``http://127.0.0.1:8554/bottom.mjpg``), a device number (``0``), a file
 (replayed at its frame rate, from the start again at its end). A daemon
 grabber reads frames as they come and keeps only the latest, as one
-immutable triple (frame, time, number) replaced whole, so ``frame()`` and ``age()``
+immutable tuple (frame, time, number, JPEG) replaced whole, so ``frame()`` and ``age()``
 return at once. When the stream drops, the grabber says so once on stderr
 and reconnects with a growing pause (0.2 s, doubling up to 2 s); it says so
-again when frames are back.
+again when frames are back. An MJPEG stream is read as the JPEG of each frame
+and decoded here (``cv2.imdecode``): a recording keeps that JPEG as it came, so
+a replay computes on the same pixels (docs/recording.md).
 
 Options: ``size: WxH`` resizes every frame (``320x240``).
 """
@@ -62,7 +64,8 @@ class CameraQueries:
     _snap: dict[str, Any]
     _frame: Any
     _seen: Any
-    on_frame: Callable[[int, Any], None] | None
+    _jpeg: Any  # the frame's JPEG as the camera sent it, or None
+    on_frame: Callable[[int, Any, Any], None] | None
 
     def frame(self) -> Any:
         """The latest frame when the instant began (an H x W x 3 BGR numpy array); None
@@ -72,7 +75,7 @@ class CameraQueries:
         if img is not None and img is not self._seen:
             self._seen = img  # for the monitor's viewers (one assignment: no lock)
             if self.on_frame is not None:
-                self.on_frame(int(self._snap["count"]), img)
+                self.on_frame(int(self._snap["count"]), img, self._jpeg)
         return img
 
     def _last_seen(self) -> Any:
@@ -111,13 +114,15 @@ class Camera(CameraQueries):
                 self._say(f"option size: `{options[key]}` is not WxH (320x240): frames kept as they come")
             else:
                 self._say(f"unknown option `{key}` ignored (options: size)")
-        # (frame, monotonic time, its number), replaced whole by the grabber
-        self._latest: tuple[Any, float, int] | None = None
+        # (frame, monotonic time, its number, its JPEG or None), replaced whole by the grabber
+        self._latest: tuple[Any, float, int, Any] | None = None
+        self._raw: bool | None = None  # MJPEG read as JPEG packets: None until tried
+        self._jpeg: Any = None  # the snapshot's frame as JPEG, when it came so
         self._count = 0
         self._snap: dict[str, Any] = NO_FRAME
         self._frame: Any = None  # the snapshot's frame
         self._seen: Any = None  # the latest frame a snippet obtained
-        self.on_frame: Callable[[int, Any], None] | None = None
+        self.on_frame: Callable[[int, Any, Any], None] | None = None
         self._down = False  # said on stderr that the stream is down
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"camera {name}", daemon=True)
@@ -132,7 +137,7 @@ class Camera(CameraQueries):
         latest = self._latest
         if latest is None:
             return self._snap
-        self._frame = latest[0]
+        self._frame, self._jpeg = latest[0], latest[3]
         self._snap = {"count": latest[2], "age": time.monotonic() - latest[1]}
         return self._snap
 
@@ -154,6 +159,8 @@ class Camera(CameraQueries):
                     cap.release()
             if self._stop.is_set():
                 return
+            if self._raw is False and not got:  # not MJPEG after all: decoded frames, at once
+                continue
             if got:
                 pause = BACKOFF_MIN_S
             if not self._down:
@@ -175,6 +182,9 @@ class Camera(CameraQueries):
                     cap = cv2.VideoCapture(self.url, cv2.CAP_FFMPEG,
                                            [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, OPEN_TIMEOUT_MS,
                                             cv2.CAP_PROP_READ_TIMEOUT_MSEC, READ_TIMEOUT_MS])
+                    # MJPEG: take each frame's JPEG as it came (recorded as is, decoded here).
+                    if self._raw is not False and cap.isOpened():
+                        self._raw = bool(cap.set(cv2.CAP_PROP_FORMAT, -1))
             except cv2.error:
                 return None
         if not cap.isOpened():
@@ -188,6 +198,7 @@ class Camera(CameraQueries):
         fps = cap.get(cv2.CAP_PROP_FPS) if os.path.exists(self.url) else 0.0
         step = 1.0 / fps if 0 < fps < 1000 else 0.0  # a file plays at its rate
         got = False
+        raw = bool(self._raw) and not os.path.exists(self.url) and not self.url.isdigit()
         while not self._stop.is_set():
             try:
                 ok, img = cap.read()
@@ -195,10 +206,20 @@ class Camera(CameraQueries):
                 ok, img = False, None
             if not ok or img is None:
                 return got
+            jpeg = None
+            if raw:
+                if img.ndim != 2 or img.shape[0] != 1 or bytes(img[0, :2]) != b"\xff\xd8":
+                    self._raw = False  # another codec: open it again, decoded by OpenCV
+                    return got
+                jpeg = img
+                img = cv2.imdecode(jpeg, cv2.IMREAD_COLOR)
+                if img is None:  # a damaged frame: the next one will do
+                    continue
             if self._size is not None and (img.shape[1], img.shape[0]) != self._size:
                 img = cv2.resize(img, self._size, interpolation=cv2.INTER_AREA)
+                jpeg = None  # the automaton sees other pixels than the JPEG's
             self._count += 1
-            self._latest = (img, time.monotonic(), self._count)
+            self._latest = (img, time.monotonic(), self._count, jpeg)
             if not got:
                 got = True
                 if self._down and not self._stop.is_set():

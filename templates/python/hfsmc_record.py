@@ -16,6 +16,7 @@ import json
 import math
 import sys
 import time
+import zlib
 from collections.abc import Callable
 from typing import IO, Any
 
@@ -48,7 +49,8 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
             "frame_id": {"type": "string"},
             "data": {"type": "string", "contentEncoding": "base64"},
             "format": {"type": "string"},
-            "count": {"type": "integer", "description": "the camera's frame number"}}},
+            "count": {"type": "integer", "description": "the camera's frame number"},
+            "crc32": {"type": "integer", "description": "CRC-32 of the decoded BGR pixels"}}},
     "hfsmc.Command": {
         "title": "A command a snippet sent to an interface", "type": "object", "properties": {
             "t": {"type": "integer"}, "call": {"type": "string"}, "args": {"type": "array"}}},
@@ -124,16 +126,22 @@ class Recorder:
         self._write(f"/hfsmc/interface/{name}", f"hfsmc.{kind}.Snapshot", t_us,
                     {"t": t_us, **plain(values)})
 
-    def frame(self, t_us: int, name: str, count: int, image: Any) -> None:
-        import cv2  # the camera interface has it
-        ok, png = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-        if not ok:
-            return
+    def frame(self, t_us: int, name: str, count: int, image: Any, jpeg: Any) -> None:
+        """Frame ``count`` of camera ``name``: its JPEG as the camera sent it, else a PNG
+        of its pixels; lossless either way, with the CRC-32 of the pixels (BGR rows)."""
+        if jpeg is not None:
+            data, kind = jpeg.tobytes(), "jpeg"
+        else:
+            import cv2  # the camera interface has it
+            ok, png = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+            if not ok:
+                return
+            data, kind = png.tobytes(), "png"
         at = self.start_ns + t_us * 1000
         self._write(f"/hfsmc/frame/{name}", "foxglove.CompressedImage", t_us, {
             "timestamp": {"sec": at // 1_000_000_000, "nsec": at % 1_000_000_000},
-            "frame_id": name, "format": "png",
-            "data": base64.b64encode(png.tobytes()).decode("ascii"), "count": count})
+            "frame_id": name, "format": kind, "data": base64.b64encode(data).decode("ascii"),
+            "count": count, "crc32": zlib.crc32(image.tobytes())})
 
     def command(self, t_us: int, name: str, call: str, args: list[Any]) -> None:
         self._write(f"/hfsmc/command/{name}", "hfsmc.Command", t_us,

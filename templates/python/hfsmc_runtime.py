@@ -850,7 +850,7 @@ def _read_config(path: str) -> dict[str, Any]:
         data = json.loads(_COMMENT_LINE.sub("", text))
     except json.JSONDecodeError as e:
         try:
-            import yaml  # type: ignore[import-untyped]  # PyYAML, when present, reads any YAML
+            import yaml  # type: ignore[import-untyped,unused-ignore]  # PyYAML, when present, reads any YAML
             data = yaml.safe_load(text)
         except ImportError:
             raise UsageError(f"{path}:{e.lineno}:{e.colno}: {e.msg} (the configuration is "
@@ -987,7 +987,7 @@ def _hook(engine: Engine, name: str, iface: Any) -> None:
     """Tell the recording and the playback what the snippets do with an interface."""
     rec, pb = engine.recorder, engine.playback
     if rec is not None and hasattr(iface, "on_frame"):
-        iface.on_frame = lambda count, image: rec.frame(engine.t, name, count, image)
+        iface.on_frame = lambda count, image, jpeg: rec.frame(engine.t, name, count, image, jpeg)
     if hasattr(iface, "on_command"):
         def told(call: str, args: list[Any]) -> None:
             if rec is not None:
