@@ -140,7 +140,7 @@ def read_recording(path: str | Path) -> Recording:
 
     metadata: dict[str, dict[str, str]] = {}
     channels: dict[int, str] = {}
-    messages: list[tuple[str, int, bytes]] = []  # topic, log time, data
+    reader: _Messages | None = None  # made at the first message: the metadata come first
     cut = False
     closed = False
     try:
@@ -156,7 +156,8 @@ def read_recording(path: str | Path) -> Recording:
                         if topic is None:
                             raise RecordingError(f"corrupted: a message of channel "
                                                  f"{record.channel_id}, which was never declared")
-                        messages.append((topic, record.log_time, record.data))
+                        reader = reader or _Messages(metadata)
+                        reader.add(topic, record.log_time, record.data)
                     elif isinstance(record, Footer):
                         closed = True
             except InvalidMagic:
@@ -172,74 +173,84 @@ def read_recording(path: str | Path) -> Recording:
         raise RecordingError(f"cannot read it: {e.strerror}") from None
     if not closed:
         cut = True
-    if not metadata and not messages:
+    if not metadata and reader is None:
         if cut:
             raise RecordingError("the recording ends before its metadata (cut at the start: "
                                  "nothing to replay)")
         raise RecordingError("not a recording: an MCAP file without hfsmc's metadata")
-    return _build(str(path), metadata, messages, cut)
+    return (reader or _Messages(metadata)).recording(str(path), cut)
 
 
-def _build(path: str, metadata: dict[str, dict[str, str]],
-           messages: list[tuple[str, int, bytes]], cut: bool) -> Recording:
-    missing = [name for name in _REQUIRED if name not in metadata]
-    if missing:
-        raise RecordingError(f"not an hfsmc recording, or cut before its metadata: no "
-                             f"{', '.join(missing)} metadata")
-    run = metadata["hfsmc.run"]
-    version = run.get("recording", "")
-    if version != VERSION:
-        raise RecordingError(f"recording version `{version}`: this hfsmc reads version "
-                             f"{VERSION} (a newer hfsmc wrote it?)")
-    if run.get("language") not in _LANGUAGES:
-        raise RecordingError(f"unknown component language `{run.get('language', '')}` "
-                             "in its metadata")
-    try:
-        start_ns = int(run.get("start_unix_ns", ""))
-    except ValueError:
-        raise RecordingError("its metadata has no start time (start_unix_ns)") from None
-    parameters = {k: _json(v, f"parameter `{k}`") for k, v in metadata["hfsmc.parameters"].items()}
-    interfaces = {k: _json(v, f"interface `{k}`") for k, v in metadata["hfsmc.interfaces"].items()}
-    sources = tuple(metadata["hfsmc.sources"].items())
-    if not sources:
-        raise RecordingError("its metadata holds no model source (hfsmc.sources)")
+class _Messages:
+    """The messages of a recording, sorted by kind as they are read."""
 
-    snapshots: list[Snapshot] = []
-    frames: list[Frame] = []
-    commands: list[Command] = []
-    skips: list[Skip] = []
-    signals: list[Signal] = []
-    trace: list[TraceRecord] = []
-    end = 0
-    for topic, log_time, data in messages:
-        t = (log_time - start_ns) // 1000
-        end = max(end, t)
+    def __init__(self, metadata: dict[str, dict[str, str]]) -> None:
+        missing = [name for name in _REQUIRED if name not in metadata]
+        if missing:
+            raise RecordingError(f"not an hfsmc recording, or cut before its metadata: no "
+                                 f"{', '.join(missing)} metadata")
+        self.run = run = metadata["hfsmc.run"]
+        version = run.get("recording", "")
+        if version != VERSION:
+            raise RecordingError(f"recording version `{version}`: this hfsmc reads version "
+                                 f"{VERSION} (a newer hfsmc wrote it?)")
+        if run.get("language") not in _LANGUAGES:
+            raise RecordingError(f"unknown component language `{run.get('language', '')}` "
+                                 "in its metadata")
+        try:
+            self.start_ns = int(run.get("start_unix_ns", ""))
+        except ValueError:
+            raise RecordingError("its metadata has no start time (start_unix_ns)") from None
+        self.parameters = {k: _json(v, f"parameter `{k}`")
+                           for k, v in metadata["hfsmc.parameters"].items()}
+        self.interfaces = {k: _json(v, f"interface `{k}`")
+                           for k, v in metadata["hfsmc.interfaces"].items()}
+        self.sources = tuple(metadata["hfsmc.sources"].items())
+        if not self.sources:
+            raise RecordingError("its metadata holds no model source (hfsmc.sources)")
+        self.snapshots: list[Snapshot] = []
+        self.frames: list[Frame] = []
+        self.commands: list[Command] = []
+        self.skips: list[Skip] = []
+        self.signals: list[Signal] = []
+        self.trace: list[TraceRecord] = []
+        self.end = 0
+
+    def add(self, topic: str, log_time: int, data: bytes) -> None:
+        t = (log_time - self.start_ns) // 1000
+        self.end = max(self.end, t)
         if topic == "/hfsmc/trace":
             line = data.decode("utf-8", "replace").rstrip("\n")
-            trace.append(TraceRecord(t, line, _object(line.encode(), topic)))
-            continue
+            self.trace.append(TraceRecord(t, line, _object(line.encode(), topic)))
+            return
         body = _object(data, topic)
+        name = topic.rsplit("/", 1)[1]
         try:
             if topic.startswith("/hfsmc/interface/"):
                 values = {k: v for k, v in body.items() if k != "t"}
-                snapshots.append(Snapshot(int(body["t"]), topic.rsplit("/", 1)[1], values))
+                self.snapshots.append(Snapshot(int(body["t"]), name, values))
             elif topic.startswith("/hfsmc/frame/"):
-                frames.append(Frame(t, topic.rsplit("/", 1)[1], int(body["count"]),
-                                    base64.b64decode(body["data"], validate=True)))
+                self.frames.append(Frame(t, name, int(body["count"]),
+                                         base64.b64decode(body["data"], validate=True)))
             elif topic.startswith("/hfsmc/command/"):
-                commands.append(Command(int(body["t"]), topic.rsplit("/", 1)[1],
-                                        str(body["call"]), tuple(body.get("args", ()))))
+                self.commands.append(Command(int(body["t"]), name, str(body["call"]),
+                                             tuple(body.get("args", ()))))
             elif topic == "/hfsmc/skip":
-                skips.append(Skip(int(body["t"]), str(body["automaton"]), int(body["deadline"]),
-                                  int(body["missed"])))
+                self.skips.append(Skip(int(body["t"]), str(body["automaton"]),
+                                       int(body["deadline"]), int(body["missed"])))
             elif topic == "/hfsmc/signal":
-                signals.append(Signal(int(body["t"]), str(body["reason"]), int(body["ticks"])))
+                self.signals.append(Signal(int(body["t"]), str(body["reason"]),
+                                           int(body["ticks"])))
             # other topics: written by a newer component, not needed to replay
         except (KeyError, TypeError, ValueError, binascii.Error) as e:
             raise RecordingError(f"corrupted: a {topic} message at {t / 1e6:.3f} s lacks "
                                  f"or garbles {e}") from None
-    return Recording(path, run, parameters, interfaces, sources, tuple(snapshots), tuple(frames),
-                     tuple(commands), tuple(skips), tuple(signals), tuple(trace), cut, end)
+
+    def recording(self, path: str, cut: bool) -> Recording:
+        return Recording(path, self.run, self.parameters, self.interfaces, self.sources,
+                         tuple(self.snapshots), tuple(self.frames), tuple(self.commands),
+                         tuple(self.skips), tuple(self.signals), tuple(self.trace), cut,
+                         self.end)
 
 
 def _json(text: str, what: str) -> Any:

@@ -19,6 +19,7 @@ from mcap.writer import Writer
 
 from hfsmc.commands.replay import NOT_EVIDENCE, write_sources
 from hfsmc.recording import RecordingError, read_recording
+from tests.conftest import ROOT
 
 HOP = """\
 hfsm: 1
@@ -203,3 +204,79 @@ def test_sources_are_written_keeping_their_relative_paths(tmp_path: Path) -> Non
     assert (main.parent / "sub/y.yaml").read_text() == "c"
     with pytest.raises(RecordingError, match="absolute"):
         write_sources([("m.yaml", "a"), ("/etc/x.yaml", "b")], tmp_path)
+
+
+# --- a real simulated flight -------------------------------------------------------------------
+# The take-off (vehicle ready at about 5 s, at altitude at about 11 s), the first stage, and
+# at the time limit a landing (about 10 s) through on_interrupt: the vehicle ends disarmed.
+TIME_LIMIT_S = 20
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """follow_colors flown by its Python component in the simulator up to its time limit and
+    landed, recorded: the folder holding flight.mcap."""
+    from tests.test_missions import flight
+
+    d = tmp_path_factory.mktemp("flown")
+    with flight(d, component_args=("--record", str(d / "flight.mcap"),
+                                   "--time-limit", f"{TIME_LIMIT_S}s")) as f:
+        status = f.component.wait(timeout=TIME_LIMIT_S + 90)
+        f.stop_sim()
+        assert status == 124, (f.folder / "component.log").read_text()[-3000:]
+    return d
+
+
+@pytest.mark.slow
+def test_a_flight_replays_identically(flown: Path) -> None:
+    rec = read_recording(flown / "flight.mcap")
+    assert not rec.cut and rec.time_limit_us == TIME_LIMIT_S * 1_000_000 and rec.frames
+    assert rec.stop == {"t": rec.end_us // 1000, "ev": "stop", "reason": "time_limit"}
+    r = hfsmc("replay", "flight.mcap", cwd=flown)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout == (f"replay of flight.mcap (python -> python): identical: {len(rec.trace)} "
+                        f"trace records, {len(rec.commands)} commands, "
+                        f"0-{rec.end_us / 1e6:.3f} s\n")
+
+
+@pytest.mark.slow
+def test_a_changed_threshold_diverges_at_its_instant(flown: Path) -> None:
+    """Waiting 3 s for the vehicle instead of 90: the take-off gives up at 3 s, before the
+    vehicle was ready (at about 5 s in the recording)."""
+    rec = read_recording(flown / "flight.mcap")
+    ready = next(r.record for r in rec.trace if r.record.get("to") == "TakeOff/Climb")
+    assert int(ready["t"]) > 3000, ready
+    model = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
+    changed = flown / "model" / "follow_colors.yaml"
+    changed.parent.mkdir(exist_ok=True)
+    changed.write_text(model.read_text().replace("ready_timeout: 90", "ready_timeout: 3"))
+    for lib in ("takeoff.yaml", "land.yaml"):
+        (flown / "lib").mkdir(exist_ok=True)
+        (flown / "lib" / lib).write_text((ROOT / "examples" / "lib" / lib).read_text())
+    r = hfsmc("replay", "flight.mcap", "--model", "model/follow_colors.yaml", cwd=flown)
+    assert r.returncode == 1, r.stdout + r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("model/follow_colors.yaml is not the recorded model (changed: "
+                               "follow_colors.yaml; hash sha256:"), lines
+    line = next(n for n, text in enumerate((ROOT / "examples/lib/takeoff.yaml").read_text()
+                                           .splitlines(), 1) if "to: NotReady" in text)
+    assert lines[1:5] == [
+        "replay of flight.mcap (python -> python): different",
+        "at 3.000 s in TakeOff/WaitReady (trace record 4):",
+        f"  recorded: at {int(ready['t']) / 1000:.3f} s took TakeOff/WaitReady -> TakeOff/Climb "
+        f"(when: drone.ready(); ../lib/takeoff.yaml:{line - 1})",
+        "  now:      took TakeOff/WaitReady -> TakeOff/NotReady (when: elapsed() >= "
+        f"ready_timeout; lib/takeoff.yaml:{line})"], r.stdout
+    assert lines[-1] == NOT_EVIDENCE
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1500)
+def test_a_python_flight_replays_with_the_cpp_twin(flown: Path) -> None:
+    from tests.cppbuild import need_toolchain
+
+    need_toolchain()
+    twin = ROOT / "examples" / "follow_colors_cpp" / "follow_colors_cpp.yaml"
+    r = hfsmc("replay", "flight.mcap", "--model", str(twin), cwd=flown, timeout=1400)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "(python -> cpp): identical: " in r.stdout, r.stdout

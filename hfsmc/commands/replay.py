@@ -119,6 +119,9 @@ def given_model(rec: Recording, path: str) -> tuple[Built, list[str]]:
     same = digest == rec.model_hash
     if same:
         notes = [f"{path} is the recorded model ({digest[:19]}...)"]
+    elif result.model.language != rec.language:
+        notes = [f"{path} is a {result.model.language} model, the recorded one "
+                 f"({rec.sources[0][0]}) {rec.language}: replayed as its twin"]
     else:
         recorded = dict(rec.sources)
         main = sources[0][0]
@@ -290,7 +293,8 @@ def describe_fire(r: Mapping[str, Any], built: Built | None) -> str:
         why.append(f"when: {cond if len(cond) <= 70 else cond[:67] + '...'}")
     if t.after_us is not None:
         why.append(f"after: {format_us(t.after_us)}")
-    where = built.files.get(os.path.normpath(os.path.abspath(t.span.file)), t.span.file)
+    where = built.files.get(os.path.normpath(os.path.abspath(t.span.file)),
+                            os.path.normpath(t.span.file))
     return f"{text} ({'; '.join(why)}{'; ' if why else ''}{where}:{t.span.line})"
 
 
@@ -381,7 +385,8 @@ def _trace_difference(report: Report, a: Sequence[Mapping[str, Any]],
     old_fire = old is not None and old.get("ev") == "fire"
     new_fire = new is not None and new.get("ev") == "fire"
     if old_fire and old is not None:
-        report.add(f"  recorded: took {describe_fire(old, recorded_built)}", "cyan")
+        then = f"at {int(old['t']) / 1000:.3f} s " if int(old["t"]) != t else ""
+        report.add(f"  recorded: {then}took {describe_fire(old, recorded_built)}", "cyan")
     else:
         report.add(f"  recorded: {_record_text(old)}", "cyan")
     if new_fire and new is not None:
