@@ -78,8 +78,8 @@ class ScenarioError(HfsmcError):
 class Ramp:
     """A value moving linearly from ``start`` to ``end`` over an entry's span."""
 
-    start: float | tuple[float, ...]
-    end: float | tuple[float, ...]
+    start: Any  # a float, or a tuple of floats (a vector)
+    end: Any
 
 
 Scalar = bool | int | float | str | None | tuple[float, ...] | tuple[tuple[str, str], ...]
@@ -90,6 +90,7 @@ class Setting:
     field: str
     value: Any  # a Scalar, or a Ramp
     span: Span
+    key_span: Span
 
 
 @dataclass(frozen=True, slots=True)
@@ -450,12 +451,11 @@ class _Reader:
             b = self.value(key, kind, r[1], (*path, "ramp", 1))
             if a is None or b is None:
                 return None
-            assert isinstance(a, (float, tuple)) and isinstance(b, (float, tuple))
-            return Setting(key, Ramp(a, b), span)  # type: ignore[arg-type]
+            return Setting(key, Ramp(a, b), span, self.key_at(path))
         value = self.value(key, kind, v, path)
         if value is None and not (kind == "image" and v is None):
             return None
-        return Setting(key, value, span)
+        return Setting(key, value, span, self.key_at(path))
 
     def value(self, key: str, kind: str, v: Any, path: PathKey) -> Scalar:
         span = self.at(path)
@@ -705,7 +705,7 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
         for s in e.settings:
             if s.field not in fields:
                 diags.error("E195", f"`{s.field}` is not an input of a {iface.type} interface "
-                            f"(`{e.interface}`)", s.span, f"it takes: {', '.join(fields)}")
+                            f"(`{e.interface}`)", s.key_span, f"it takes: {', '.join(fields)}")
     states = {s.path for s in model.states()}
     for x in sc.expect:
         if x.kind in ("entered", "not_entered", "active") or (x.kind == "error" and x.subject != "any"):

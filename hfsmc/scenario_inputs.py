@@ -67,6 +67,14 @@ def _value(src: _Source, t: int) -> Any:
     return v
 
 
+# A vehicle never heard (schemas/recording.md): what a field goes back to when no entry sets it.
+NEVER_HEARD: dict[str, Any] = {
+    "heartbeat_age": math.inf, "ready": False, "armed": False, "vehicle": False, "mode": "",
+    "type": 0, "position": [math.nan] * 3, "velocity": [math.nan] * 3, "altitude": math.nan,
+    "yaw": math.nan, "battery": -1,
+}
+
+
 class _Mavlink:
     """A mavlink interface's snapshot fields over time."""
 
@@ -81,7 +89,7 @@ class _Mavlink:
             elif f == "acks":
                 assert isinstance(s.setting.value, tuple)
                 for cmd, outcome in s.setting.value:
-                    one = Setting(f"acks.{cmd}", outcome, s.setting.span)
+                    one = Setting(f"acks.{cmd}", outcome, s.setting.span, s.setting.key_span)
                     self.fields.setdefault(one.field, []).append(_Source(s.entry, one, s.order))
             else:
                 self.fields.setdefault(f, []).append(s)
@@ -91,7 +99,9 @@ class _Mavlink:
         acks: dict[str, Any] = {}
         for name, sources in self.fields.items():
             w = _winner(sources, t)
-            if w is None:
+            if w is None:  # set before, or later: the value of a vehicle never heard
+                if not name.startswith("acks."):
+                    out[name] = NEVER_HEARD[name]
                 continue
             value: Any
             if w.setting.field == "connected":
@@ -103,7 +113,7 @@ class _Mavlink:
                 acks[name[5:]] = value
             else:
                 out[name] = value
-        if acks:
+        if any(name.startswith("acks.") for name in self.fields):
             out["acks"] = dict(sorted(acks.items()))
         return out
 
@@ -174,7 +184,9 @@ def snapshots(sc: Scenario, types: dict[str, str], step: int,
     makers: dict[str, _Mavlink | _Camera] = {}
     for name, sources in by_iface.items():
         makers[name] = _Camera(sources, frames) if types[name] == "camera" else _Mavlink(sources)
-    shown: dict[str, dict[str, Any]] = {name: {} for name in makers}
+    # what the fakes start with: a value is written when it differs
+    heard = {k: _json(v) for k, v in NEVER_HEARD.items()} | {"acks": {}}
+    shown = {name: dict(heard) if isinstance(m, _Mavlink) else {} for name, m in makers.items()}
     for t in _times(sc, step):
         for name, maker in makers.items():
             now = {k: _json(v) for k, v in maker.at(t).items()}

@@ -314,7 +314,10 @@ def write_junit(path: Path, outcomes: list[Outcome]) -> None:
 
 
 def _classname(file: str) -> str:
-    p = Path(file).with_suffix("")
+    """The file's path as a dotted name (relative to the current folder when inside it)."""
+    p = Path(file).resolve().with_suffix("")
+    if p.is_relative_to(Path.cwd()):
+        p = p.relative_to(Path.cwd())
     return ".".join(part for part in p.parts if part not in ("..", ".", os.sep)) or p.name
 
 
