@@ -105,7 +105,7 @@ public:
             }
         }
         const std::string out = dir_ + "/commands.jsonl";
-        commands_ = std::fopen(out.c_str(), "ab");
+        commands_ = std::fopen(out.c_str(), "wb");  // this run's commands only
         if (commands_ == nullptr) throw InputError(out + ": " + std::strerror(errno));
     }
     ~Inputs() {

@@ -916,7 +916,7 @@ int main(const Tables& tb, int argc, char** argv) {
             recorder() = rec.get();
         }
     } catch (const playback::InputError& e) {
-        std::fprintf(stderr, "%s\n", e.what());
+        std::fprintf(stderr, "%s: --playback: %s\n", tb.name, e.what());
         return 2;
     } catch (const UsageError& e) {
         std::fprintf(stderr, "%s: %s\n", tb.name, e.what());
