@@ -8,8 +8,9 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # graphviz: diagrams; tmux: the live-view tests; chromium: the web view's tests;
-# the rest: C++ components (CMake, g++, Eigen, OpenCV, yaml-cpp for NAME.yaml).
-DEB_PACKAGES := graphviz tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev chromium chromium-driver
+# the rest: C++ components (CMake, g++, Eigen, OpenCV, yaml-cpp for NAME.yaml; Ninja and
+# ccache, which the generated CMake projects use when present, for shorter builds).
+DEB_PACKAGES := graphviz tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev ninja-build ccache chromium chromium-driver
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=
 # `make test` runs the tests on parallel workers (pytest-xdist): the suite mostly waits on
@@ -69,6 +70,7 @@ bench: setup
 	$(BIN)/python bench/vision.py --json bench/results.json
 	$(BIN)/python bench/cpp.py --json bench/results.json
 	$(BIN)/python bench/mcap.py --json bench/results.json
+	$(BIN)/python bench/cppbuild.py --json bench/results.json
 	$(BIN)/python bench/web.py --json bench/results.json
 
 # A longer run of the front end's fuzzer than `make test` does (crashes become

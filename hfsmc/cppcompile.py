@@ -9,6 +9,11 @@ instantiated, is placed at that snippet too (``messages``).  Anything else is
 a failure of the generated code or of the machine's set-up, reported as E150
 with the compiler's own words.  ``hfsmc check`` reads g++'s messages with the
 same function (``hfsmc.cxxcheck``).
+
+A new build folder is configured for Ninja when it is installed (the component's
+translation unit then compiles beside the runtime library, not after it), and
+the build's steps are shown while it runs: a status line on a terminal, plain
+lines otherwise (``Progress``).
 """
 
 from __future__ import annotations
@@ -17,7 +22,11 @@ import os
 import re
 import shutil
 import subprocess
+import sys
+import threading
+import time
 from pathlib import Path
+from typing import TextIO
 
 from hfsmc.emit.cpp import RUNTIME_SOURCE
 from hfsmc.errors import Diagnostic, Span
@@ -32,35 +41,181 @@ _DEFAULT_SOURCE = re.compile(r'^#define HFSMC_SOURCE "((?:[^"\\]|\\.)*)"')
 _TIMEOUT_S = 1800
 
 
-def _run(cmd: list[str]) -> tuple[int, str]:
+def _run(cmd: list[str], progress: Progress | None = None) -> tuple[int, str]:
+    """Run ``cmd``, its output collected (and its build steps shown by ``progress``)."""
+    env = {**os.environ, "LC_ALL": "C"}  # plain quotes in messages
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, errors="replace",
-                              timeout=_TIMEOUT_S, check=False,
-                              env={**os.environ, "LC_ALL": "C"})  # plain quotes in messages
-    except subprocess.TimeoutExpired:
-        return 124, f"{cmd[0]} took longer than {_TIMEOUT_S} s"
-    return proc.returncode, proc.stdout + proc.stderr
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True, errors="replace", env=env)
+    except OSError as e:
+        return 127, f"{cmd[0]}: {e}"
+    late = threading.Event()
+
+    def stop() -> None:
+        late.set()
+        proc.kill()
+
+    timer = threading.Timer(_TIMEOUT_S, stop)
+    timer.start()
+    out: list[str] = []
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            out.append(line)
+            if progress is not None:
+                progress.line(line)
+        code = proc.wait()
+    finally:
+        timer.cancel()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    if late.is_set():
+        return 124, f"{''.join(out)}\n{cmd[0]} took longer than {_TIMEOUT_S} s"
+    return code, "".join(out)
 
 
 def compile_component(folder: Path, model_file: str, build_type: str = "RelWithDebInfo",
-                      jobs: int | None = None) -> list[Diagnostic]:
-    """Configure (once) and build ``folder``'s CMake project; the diagnostics to show."""
+                      jobs: int | None = None, progress: bool = True) -> list[Diagnostic]:
+    """Configure (once) and build ``folder``'s CMake project; the diagnostics to show.
+
+    With ``progress``, the build's steps are shown on stderr while it runs (``Progress``).
+    """
     where = Span(model_file, 1, 1)
     if shutil.which("cmake") is None:
         return [Diagnostic("E150", "cmake is not installed: `make deps` installs it with g++, "
                            "Eigen, OpenCV and yaml-cpp", where)]
     build = folder / "build"
-    if not (build / "CMakeCache.txt").is_file():
-        code, out = _run(["cmake", "-S", str(folder), "-B", str(build),
-                          f"-DCMAKE_BUILD_TYPE={build_type}"])
-        if code != 0:
-            return [Diagnostic("E150", "CMake could not configure the component", where,
-                               notes=tuple(_tail(out)))]
-    code, out = _run(["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)])
+    shown = Progress(_component_name(folder, model_file)) if progress else None
+    try:
+        if not (build / "CMakeCache.txt").is_file():
+            if shown is not None:
+                shown.show("configuring (CMake)")
+            code, out = _run(["cmake", "-S", str(folder), "-B", str(build), *_generator(),
+                              f"-DCMAKE_BUILD_TYPE={build_type}"])
+            if code != 0:
+                return [Diagnostic("E150", "CMake could not configure the component", where,
+                                   notes=tuple(_tail(out)))]
+        code, out = _run(["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)],
+                         shown)
+    finally:
+        if shown is not None:
+            shown.close()
     diags = messages(out, model_file, _generated_source(folder))
     if code != 0 and not any(d.severity == "error" for d in diags):
         diags.append(Diagnostic("E150", "the C++ build failed", where, notes=tuple(_tail(out))))
     return diags
+
+
+def _generator() -> list[str]:
+    """Ninja for a new build folder, when it is installed and no generator was chosen
+    (CMAKE_GENERATOR): with Make, the component's unit waits for the runtime library."""
+    if os.environ.get("CMAKE_GENERATOR") or shutil.which("ninja") is None:
+        return []
+    return ["-G", "Ninja"]
+
+
+def _component_name(folder: Path, model_file: str) -> str:
+    found = [p.stem for p in (folder / "src").glob("*.cpp") if p.name != RUNTIME_SOURCE]
+    return found[0] if len(found) == 1 else Path(model_file).stem
+
+
+# A build step: Ninja's "[3/6] Building CXX object ...", Make's "[ 50%] Linking ...".
+_STEP = re.compile(r"^\[\s*(?:(?P<n>\d+)/(?P<of>\d+)|(?P<pct>\d+)%)\] (?P<what>.*?)\s*$")
+_OBJECT = re.compile(r"^Building CXX object (?P<path>\S+?)\.(?:o|gch)$")
+_LINK = re.compile(r"^Linking CXX (?:executable|static library|shared library) (?P<path>\S+)$")
+_PCH_UNIT = re.compile(r"hfsmc_pch_\w*\.cpp")  # the empty unit that owns the precompiled headers
+
+
+def step(line: str) -> str | None:
+    """What a line of CMake's build output says is being done, in a few words; None: no step.
+
+    "compiling NAME.cpp" for a translation unit, "precompiling headers", "linking NAME",
+    "configuring (CMake)"; the step's count first ("[3/6] ", "[ 50%] ").
+    """
+    m = _STEP.match(line)
+    if m is None:
+        return None
+    what = m["what"]
+    count = f"[{m['n']}/{m['of']}]" if m["n"] else f"[{int(m['pct']):3d}%]"
+    obj, link = _OBJECT.match(what), _LINK.match(what)
+    if obj is not None:
+        name = obj["path"].rsplit("/", 1)[-1]
+        if name == "cmake_pch.hxx":
+            return f"{count} precompiling headers"
+        return None if _PCH_UNIT.fullmatch(name) else f"{count} compiling {name}"
+    if link is not None:
+        return f"{count} linking {link['path'].rsplit('/', 1)[-1]}"
+    if what.startswith("Re-running CMake"):
+        return f"{count} configuring (CMake)"
+    return None
+
+
+class Progress:
+    """A build's steps shown on ``stream`` (stderr): on a terminal, one status line that
+    changes in place and counts the seconds; otherwise, a plain line per step."""
+
+    def __init__(self, name: str, stream: TextIO | None = None, tty: bool | None = None) -> None:
+        self.name = name
+        self.stream = stream if stream is not None else sys.stderr
+        self.tty = _isatty(self.stream) if tty is None else tty
+        self.started = time.monotonic()
+        self._status = ""
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._ticker: threading.Thread | None = None
+        if self.tty:
+            self._ticker = threading.Thread(target=self._tick, daemon=True)
+            self._ticker.start()
+
+    def line(self, text: str) -> None:
+        """One line of the build's output: shown if it starts a step."""
+        said = step(text)
+        if said is not None:
+            self.show(said)
+
+    def show(self, status: str) -> None:
+        with self._lock:
+            self._status = status
+            if self.tty:
+                self._draw()
+            else:
+                self._write(f"{self.name}: {status}\n")
+
+    def close(self) -> None:
+        """Stop counting; on a terminal, erase the status line."""
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join()
+        with self._lock:
+            if self.tty and self._status:
+                self._write("\r\x1b[K")
+            self._status = ""
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0):
+            with self._lock:
+                if self._status:
+                    self._draw()
+
+    def _draw(self) -> None:
+        width = shutil.get_terminal_size((80, 24)).columns
+        text = f"{self.name}: {self._status} ({time.monotonic() - self.started:.0f} s)"
+        self._write("\r\x1b[K" + text[:max(width - 1, 20)])
+
+    def _write(self, text: str) -> None:
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):  # a closed or broken stderr must not stop the build
+            pass
+
+
+def _isatty(stream: TextIO) -> bool:
+    try:
+        return stream.isatty()
+    except (OSError, ValueError):
+        return False
 
 
 # g++ names the type of a legacy ROS/ICE interface (runtime.hpp) when a snippet uses one.

@@ -1,0 +1,91 @@
+"""Fast C++ builds: what a build shows while it runs, and what a rebuild compiles.
+
+``hfsmc build --compile`` and ``hfsmc run`` show CMake's steps (``Progress``); a
+change to one snippet recompiles the component's translation unit only: not the
+runtime library, not the precompiled headers (counted from the steps shown).
+"""
+
+from __future__ import annotations
+
+import io
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from hfsmc.cppcompile import Progress, step
+from tests.cppbuild import need_toolchain
+
+ROOT = Path(__file__).resolve().parent.parent
+BLINKER = ROOT / "examples/blinker_cpp/blinker_cpp.yaml"
+
+
+def test_steps_of_ninja_and_make_in_a_few_words() -> None:
+    pch = "CMakeFiles/hfsmc_pch__hfsmc_runtime_hpp_.dir"
+    assert step("[1/6] Building CXX object CMakeFiles/hfsmc_runtime.dir/src/hfsmc_runtime.cpp.o"
+                ) == "[1/6] compiling hfsmc_runtime.cpp"
+    assert step(f"[2/6] Building CXX object {pch}/cmake_pch.hxx.gch") \
+        == "[2/6] precompiling headers"
+    assert step(f"[3/6] Building CXX object {pch}/hfsmc_pch__hfsmc_runtime_hpp_.cpp.o") is None
+    assert step("[6/6] Linking CXX executable blinker_cpp") == "[6/6] linking blinker_cpp"
+    assert step("[ 50%] Building CXX object CMakeFiles/x.dir/src/x.cpp.o\n") \
+        == "[ 50%] compiling x.cpp"
+    assert step("[ 75%] Linking CXX static library libhfsmc_runtime.a") \
+        == "[ 75%] linking libhfsmc_runtime.a"
+    assert step("[0/1] Re-running CMake...") == "[0/1] configuring (CMake)"
+    assert step("[ 50%] Built target hfsmc_runtime") is None
+    assert step("src/x.cpp:3:1: error: expected ';'") is None
+
+
+def test_progress_is_a_line_per_step_off_a_terminal() -> None:
+    out = io.StringIO()
+    shown = Progress("blinker_cpp", out, tty=False)
+    shown.show("configuring (CMake)")
+    for line in ("[1/2] Building CXX object CMakeFiles/b.dir/src/b.cpp.o", "g++ said something",
+                 "[2/2] Linking CXX executable b"):
+        shown.line(line + "\n")
+    shown.close()
+    assert out.getvalue() == ("blinker_cpp: configuring (CMake)\n"
+                              "blinker_cpp: [1/2] compiling b.cpp\n"
+                              "blinker_cpp: [2/2] linking b\n")
+
+
+def test_progress_on_a_terminal_changes_one_line_and_erases_it() -> None:
+    out = io.StringIO()
+    shown = Progress("blinker_cpp", out, tty=True)
+    shown.line("[1/2] Building CXX object CMakeFiles/b.dir/src/b.cpp.o\n")
+    shown.close()
+    text = out.getvalue()
+    assert "\n" not in text
+    assert text.startswith("\r\x1b[Kblinker_cpp: [1/2] compiling b.cpp (")
+    assert text.endswith("\r\x1b[K")
+
+
+def _compiled(stderr: str) -> list[str]:
+    """The units a build compiled, from the steps `hfsmc build --compile` shows."""
+    return re.findall(r"^blinker_cpp: \[[^]]*\] ((?:pre)?compiling.*)$", stderr, re.M)
+
+
+def test_a_snippet_change_recompiles_the_component_unit_only(tmp_path: Path) -> None:
+    need_toolchain()
+    model = tmp_path / BLINKER.name
+    shutil.copy(BLINKER, model)
+    out = tmp_path / "blinker_cpp"
+    cmd = [sys.executable, "-m", "hfsmc", "build", "-t", "cpp", model.name, "-o", str(out),
+           "--compile"]
+
+    def build() -> str:
+        r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=900)
+        assert r.returncode == 0, r.stderr
+        return r.stderr
+
+    first = _compiled(build())
+    assert "compiling blinker_cpp.cpp" in first
+    assert "compiling hfsmc_runtime.cpp" in first
+    assert "precompiling headers" in first
+    text = model.read_text("utf-8")
+    model.write_text(text.replace("entry: led = false;", "entry: led = false; pauses += 0;"),
+                     "utf-8")
+    assert _compiled(build()) == ["compiling blinker_cpp.cpp"]
+    assert _compiled(build()) == []
