@@ -272,11 +272,36 @@ def test_a_changed_threshold_diverges_at_its_instant(flown: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.timeout(1500)
-def test_a_python_flight_replays_with_the_cpp_twin(flown: Path) -> None:
+def test_flights_replay_across_languages(flown: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The Python flight replays with the C++ twin; the twin, built by that replay, flies and
+    records the same flight, which replays with the Python model (no other C++ build)."""
+    from hfsmc.component import cache_folder
     from tests.cppbuild import need_toolchain
+    from tests.test_missions import flight
 
     need_toolchain()
     twin = ROOT / "examples" / "follow_colors_cpp" / "follow_colors_cpp.yaml"
     r = hfsmc("replay", "flight.mcap", "--model", str(twin), cwd=flown, timeout=1400)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "(python -> cpp): identical: " in r.stdout, r.stdout
+    assert r.stdout.splitlines() == [
+        f"{twin} is a cpp model, the recorded one (follow_colors.yaml) python: replayed as its "
+        "twin", r.stdout.splitlines()[1]]
+    assert r.stdout.splitlines()[1].startswith(
+        "replay of flight.mcap (python -> cpp): identical: "), r.stdout
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(flown / "cache"))
+    exe = cache_folder(str(twin), "follow_colors_cpp-cpp") / "build" / "follow_colors_cpp"
+    d = flown / "cpp"
+    with flight(d, command=[str(exe)], component_args=(
+            "--record", str(d / "flight.mcap"), "--time-limit", f"{TIME_LIMIT_S}s")) as f:
+        status = f.component.wait(timeout=TIME_LIMIT_S + 90)
+        f.stop_sim()
+        assert status == 124, (f.folder / "component.log").read_text()[-3000:]
+    rec = read_recording(d / "flight.mcap")
+    assert rec.language == "cpp" and rec.stop is not None and rec.frames
+    model = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
+    r = hfsmc("replay", "flight.mcap", "--model", str(model), cwd=d)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.splitlines()[1] == (
+        f"replay of flight.mcap (cpp -> python): identical: {len(rec.trace)} trace records, "
+        f"{len(rec.commands)} commands, 0-{rec.end_us / 1e6:.3f} s"), r.stdout
