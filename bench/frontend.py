@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Front-end benchmark: ``hfsmc check`` against a bare ruamel.yaml load of the same file.
+"""Front-end benchmark: ``hfsmc check`` against a bare C parse (libyaml) of the same file.
 
 A synthetic, valid model of N states in three levels (about N^(1/3) root
 states, as many children each, and the rest spread evenly as grandchildren),
@@ -9,14 +9,19 @@ to ``bench/_work/``.  For each size the script times, best of k:
 
 * ``check``: :func:`hfsmc.pipeline.compile_file` in this process (parse,
   validate, build, lower and every check pass);
+* ``compose``: ``yaml.compose(text, Loader=yaml.CSafeLoader)``, libyaml's C
+  parser building the node tree with every node's line and column: the floor
+  for any reader of the file that keeps positions;
 * ``parse``: ``YAML(typ="rt").load(text)``, the bare ruamel.yaml round-trip
-  load that hfsmc's YAML front end is built on;
+  load (the front end's path for the documents libyaml does not take, and
+  ``convert``'s);
 * ``cli``: ``hfsmc check FILE`` as a subprocess, once (includes interpreter
   start-up and imports, which ``hfsmc --version`` measures on its own).
 
-It reports check/parse (target <= 2.5x) and, between sizes, the growth of
-check's time against the growth of the model (target: 10x the states costs
-<= 10x the time).  For the first size it also times each stage of the
+It reports check/compose (target <= 2x), check/parse, the CLI's peak memory
+(target at 100k states: <= 1,686 MiB, half of the 3,372 MiB of the ruamel.yaml
+front end) and, between sizes, the growth of check's time against the growth
+of the model (target: 10x the states costs <= 10.5x the time).  For the first size it also times each stage of the
 pipeline separately, as :mod:`hfsmc.pipeline` chains them, and prints the
 top functions of a cProfile run, to show where check's time goes.
 
@@ -48,19 +53,23 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import report
+import yaml
 from report import hfsmc_revision, loadavg, merge_json, table  # bench/report.py, beside this script
 from ruamel.yaml import YAML
 
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend import load, read_text, schema
+from hfsmc.frontend.yaml import load_yaml_with
 from hfsmc.ir_builder import build_ir
 from hfsmc.lower import PASSES
 from hfsmc.pipeline import compile_file
 
 HERE = Path(__file__).resolve().parent
 WORK = HERE / "_work"
-TARGET_RATIO = 2.5  # check / bare parse
-TARGET_GROWTH = 1.0  # (time ratio) / (size ratio) between two sizes
+TARGET_RATIO = 2.0  # check / bare C compose
+TARGET_GROWTH = 1.05  # (time ratio) / (size ratio) between two sizes
+TARGET_RSS_MIB = 3372 / 2  # CLI peak memory at 100k states: half of the ruamel.yaml front end's
+TARGET_RSS_STATES = 100_000
 T = TypeVar("T")
 
 
@@ -284,6 +293,11 @@ def bare_parse(text: str) -> Any:
     return YAML(typ="rt").load(text)
 
 
+def bare_compose(text: str) -> Any:
+    """libyaml's C parser and PyYAML's C composer: nodes with start and end marks."""
+    return yaml.compose(text, Loader=yaml.CSafeLoader)
+
+
 def hfsmc_command() -> list[str]:
     exe = Path(sys.executable).parent / "hfsmc"
     if exe.exists():
@@ -326,14 +340,26 @@ class SizeResult:
     repeat: int
     check: Timing
     parse: Timing
+    compose: Timing
     cli: CliRun
     warnings: int
+    parser: str
     check_nogc: Timing | None = None
     parse_nogc: Timing | None = None
+    compose_nogc: Timing | None = None
 
     @property
     def ratio(self) -> Timing:
+        """check / bare C compose: the target."""
+        return self.check / self.compose
+
+    @property
+    def over_ruamel(self) -> Timing:
         return self.check / self.parse
+
+    @property
+    def rss_ok(self) -> bool | None:
+        return self.cli.peak_rss_mib <= TARGET_RSS_MIB if self.states == TARGET_RSS_STATES else None
 
 
 def write_model(n: int) -> tuple[Path, Shape]:
@@ -350,6 +376,8 @@ def measure(n: int, repeat: int, gc_study: bool, log: Callable[[str], None]) -> 
     log(f"[{n:,} states] {path.relative_to(HERE.parent)}: {len(text) / 1e6:.1f} MB, "
         f"{text.count(chr(10)):,} lines, shape {shape.describe()}; best of {repeat}")
 
+    _, parser = load_yaml_with(str(path), text, Diagnostics())
+    log(f"  read by: {parser}")
     check, result = best_of(repeat, lambda: compile_file(str(path)))
     errors = sum(d.severity == "error" for d in result.diagnostics)
     warnings = len(result.diagnostics) - errors
@@ -361,6 +389,11 @@ def measure(n: int, repeat: int, gc_study: bool, log: Callable[[str], None]) -> 
     log(f"  check (in-process)  wall {check.wall:8.3f} s  cpu {check.cpu:8.3f} s  "
         f"({warnings} warnings)")
 
+    compose, tree = best_of(repeat, lambda: bare_compose(text))
+    del tree
+    r = check / compose
+    log(f"  bare C compose      wall {compose.wall:8.3f} s  cpu {compose.cpu:8.3f} s  "
+        f"-> check/compose {r.wall:.2f}x (cpu {r.cpu:.2f}x)")
     parse, tree = best_of(repeat, lambda: bare_parse(text))
     del tree
     r = check / parse
@@ -372,12 +405,13 @@ def measure(n: int, repeat: int, gc_study: bool, log: Callable[[str], None]) -> 
     log(f"  hfsmc check (CLI)   wall {cli.time.wall:8.3f} s  cpu {cli.time.cpu:8.3f} s  "
         f"exit {cli.status}, peak RSS {cli.peak_rss_mib:.0f} MiB")
     res = SizeResult(n, shape.describe(), len(text.encode()), text.count("\n"), repeat,
-                     check, parse, cli, warnings)
+                     check, parse, compose, cli, warnings, parser)
     if gc_study:
         res.check_nogc, _ = best_of(repeat, lambda: compile_file(str(path)), gc_on=False)
+        res.compose_nogc, _ = best_of(repeat, lambda: bare_compose(text), gc_on=False)
         res.parse_nogc, _ = best_of(repeat, lambda: bare_parse(text), gc_on=False)
-        log(f"  with gc off: check cpu {res.check_nogc.cpu:.3f} s, "
-            f"parse cpu {res.parse_nogc.cpu:.3f} s")
+        log(f"  with gc off: check cpu {res.check_nogc.cpu:.3f} s, compose cpu "
+            f"{res.compose_nogc.cpu:.3f} s, parse cpu {res.parse_nogc.cpu:.3f} s")
     return res
 
 
@@ -397,14 +431,10 @@ def stage_times(path: Path, repeat: int) -> list[tuple[str, Timing]]:
     t, _ = best_of(repeat, lambda: read_text(p))
     out.append(("read_text (file -> str)", t))
 
-    yaml_rt = YAML(typ="rt")
-    yaml_rt.preserve_quotes = True  # as hfsmc.frontend.yaml configures it
-    t_rt, _ = best_of(repeat, lambda: yaml_rt.load(text))
+    t_compose, _ = best_of(repeat, lambda: bare_compose(text))
     t_load, doc = best_of(repeat, lambda: load(p, Diagnostics(), text))
-    out.append(("frontend.load (ruamel + positions walk)", t_load))
-    out.append(("  ruamel rt load, configured as hfsmc does", t_rt))
-    out.append(("  positions walk (load - ruamel)",
-                Timing(max(0.0, t_load.wall - t_rt.wall), max(0.0, t_load.cpu - t_rt.cpu))))
+    out.append(("frontend.load (libyaml events -> Document)", t_load))
+    out.append(("  bare C compose of the same text, for scale", t_compose))
 
     t, _ = best_of(repeat, lambda: schema.validate(doc, Diagnostics()))
     out.append(("schema.validate (jsonschema)", t))
@@ -463,7 +493,16 @@ def machine() -> dict[str, Any]:
     import ruamel.yaml
 
     return {**report.machine(), "ruamel.yaml": ruamel.yaml.__version__,
+            "PyYAML": yaml.__version__, "libyaml": _libyaml_version(),
             "jsonschema": _version("jsonschema", jsonschema), "pyflakes": pyflakes.__version__}
+
+
+def _libyaml_version() -> str:
+    try:
+        from yaml._yaml import get_version_string
+    except ImportError:
+        return "missing"
+    return str(get_version_string())
 
 
 def _version(dist: str, module: Any) -> str:
@@ -485,7 +524,7 @@ def _verdict(ok: bool, value: float, target: float) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
-        description="Time `hfsmc check` against a bare ruamel.yaml round-trip load.")
+        description="Time `hfsmc check` against a bare C compose (libyaml) of the same file.")
     ap.add_argument("--states", type=int, nargs="+", metavar="N",
                     help="model sizes (default: 10000 100000); the first is profiled")
     ap.add_argument("--quick", action="store_true", help="only the first size (default 10000)")
@@ -511,7 +550,8 @@ def main(argv: list[str] | None = None) -> int:
     revision = hfsmc_revision()
     load_before = loadavg()
     log(f"machine: {info['cpu']}, {info['cores']} cores, {info['memory_gib']} GiB; "
-        f"Python {info['python']}; ruamel.yaml {info['ruamel.yaml']}, "
+        f"Python {info['python']}; ruamel.yaml {info['ruamel.yaml']}, PyYAML {info['PyYAML']} "
+        f"(libyaml {info['libyaml']}), "
         f"jsonschema {info['jsonschema']}, pyflakes {info['pyflakes']}; "
         f"load average {load_before}; hfsmc {revision['version']} at {revision['commit']}"
         f"{' (hfsmc/ modified)' if revision['dirty'] else ''}")
@@ -535,27 +575,32 @@ def main(argv: list[str] | None = None) -> int:
         log()
 
     # -- summary -------------------------------------------------------------
-    log("== hfsmc check vs bare ruamel.yaml round-trip load (seconds, best of k) ==")
+    log("== hfsmc check vs bare C compose (libyaml) and bare ruamel.yaml load (seconds, best of k) ==")
     rows = [[f"{r.states:,}", r.shape, f"{r.file_bytes / 1e6:.1f} MB", str(r.repeat),
-             f"{r.parse.wall:.2f}", f"{r.check.wall:.2f}", f"{r.ratio.wall:.2f}x",
-             f"{r.ratio.cpu:.2f}x", _verdict(r.ratio.wall <= TARGET_RATIO, r.ratio.wall, TARGET_RATIO),
-             f"{r.cli.time.wall:.2f}", f"{r.cli.peak_rss_mib:.0f}"] for r in results]
-    for line in table(rows, ["states", "shape", "file", "k", "parse", "check", "check/parse",
-                             "(cpu)", f"<= {TARGET_RATIO}x", "CLI", "CLI MiB"]):
+             f"{r.compose.wall:.2f}", f"{r.parse.wall:.2f}", f"{r.check.wall:.2f}",
+             f"{r.ratio.wall:.2f}x", f"{r.ratio.cpu:.2f}x",
+             _verdict(r.ratio.wall <= TARGET_RATIO, r.ratio.wall, TARGET_RATIO),
+             f"{r.over_ruamel.wall:.2f}x", f"{r.cli.time.wall:.2f}", f"{r.cli.peak_rss_mib:.0f}",
+             "-" if r.rss_ok is None else _verdict(r.rss_ok, r.cli.peak_rss_mib, TARGET_RSS_MIB)]
+            for r in results]
+    for line in table(rows, ["states", "shape", "file", "k", "C compose", "ruamel", "check",
+                             "check/compose", "(cpu)", f"<= {TARGET_RATIO}x", "check/ruamel",
+                             "CLI", "CLI MiB", f"<= {TARGET_RSS_MIB:.0f} MiB"]):
         log(line)
 
-    gc_rows = [r for r in results if r.check_nogc is not None and r.parse_nogc is not None]
+    gc_rows = [r for r in results if r.check_nogc is not None and r.compose_nogc is not None]
     if gc_rows:
-        log("\n-- the same with the cyclic GC off during each run (cpu seconds) --")
+        log("\n-- the same with the cyclic GC off during each run (cpu seconds; check pauses it "
+            "anyway) --")
         rows = []
         for r in gc_rows:
-            assert r.check_nogc is not None and r.parse_nogc is not None
-            rows.append([f"{r.states:,}", f"{r.parse_nogc.cpu:.2f}", f"{r.check_nogc.cpu:.2f}",
-                         f"{r.check_nogc.cpu / r.parse_nogc.cpu:.2f}x",
-                         f"{r.check_nogc.cpu / r.parse.cpu:.2f}x",
+            assert r.check_nogc is not None and r.compose_nogc is not None
+            rows.append([f"{r.states:,}", f"{r.compose_nogc.cpu:.2f}", f"{r.check_nogc.cpu:.2f}",
+                         f"{r.check_nogc.cpu / r.compose_nogc.cpu:.2f}x",
+                         f"{r.check_nogc.cpu / r.compose.cpu:.2f}x",
                          f"{100 * (1 - r.check_nogc.cpu / r.check.cpu):.0f}%"])
-        for line in table(rows, ["states", "parse", "check", "check/parse",
-                                 "check(gc off)/parse(gc on)", "check saved by gc off"]):
+        for line in table(rows, ["states", "C compose", "check", "check/compose",
+                                 "check(gc off)/compose(gc on)", "check saved by gc off"]):
             log(line)
 
     growth: list[dict[str, Any]] = []
@@ -567,6 +612,7 @@ def main(argv: list[str] | None = None) -> int:
             "check_cpu_ratio": round(b.check.cpu / a.check.cpu, 3),
             "parse_time_ratio": round(b.parse.wall / a.parse.wall, 3),
             "parse_cpu_ratio": round(b.parse.cpu / a.parse.cpu, 3),
+            "compose_time_ratio": round(b.compose.wall / a.compose.wall, 3),
             "target_check_time_ratio": round(size_ratio * TARGET_GROWTH, 3),
         }
         if a.check_nogc is not None and b.check_nogc is not None:
@@ -577,11 +623,11 @@ def main(argv: list[str] | None = None) -> int:
         log("\n== linearity (time at the larger size / time at the smaller) ==")
         rows = [[f"{g['from']:,} -> {g['to']:,}", f"{g['size_ratio']:.1f}x",
                  f"{g['check_time_ratio']:.2f}x", f"{g['check_cpu_ratio']:.2f}x",
-                 f"{g['parse_time_ratio']:.2f}x",
+                 f"{g['compose_time_ratio']:.2f}x", f"{g['parse_time_ratio']:.2f}x",
                  f"{g['check_cpu_ratio_gc_off']:.2f}x" if "check_cpu_ratio_gc_off" in g else "-",
                  _verdict(g["met"], g["check_time_ratio"], g["target_check_time_ratio"])]
                 for g in growth]
-        for line in table(rows, ["sizes", "states", "check", "check cpu", "parse",
+        for line in table(rows, ["sizes", "states", "check", "check cpu", "C compose", "ruamel",
                                  "check cpu, gc off", "target"]):
             log(line)
 
@@ -590,18 +636,17 @@ def main(argv: list[str] | None = None) -> int:
         top_level = [t for name, t in stages if not name.startswith(" ")]
         total = Timing(sum(t.wall for t in top_level), sum(t.cpu for t in top_level))
         log(f"\n== where check's time goes ({first.states:,} states, each stage alone, best of "
-            f"{first.repeat}; check = {first.check.cpu:.2f} s cpu, bare parse = "
-            f"{first.parse.cpu:.2f} s cpu) ==")
+            f"{first.repeat}; check = {first.check.cpu:.2f} s cpu, bare C compose = "
+            f"{first.compose.cpu:.2f} s cpu) ==")
         extra = [("sum of the top-level stages", total)]
         if first.check_nogc is not None:
             extra.append(("whole check with the cyclic GC off", first.check_nogc))
         rows = [[name, f"{t.wall:.3f}", f"{t.cpu:.3f}", f"{100 * t.cpu / first.check.cpu:.0f}%",
-                 f"{t.cpu / first.parse.cpu:.2f}x"] for name, t in [*stages, *extra]]
-        for line in table(rows, ["stage", "wall s", "cpu s", "of check", "x bare parse"]):
+                 f"{t.cpu / first.compose.cpu:.2f}x"] for name, t in [*stages, *extra]]
+        for line in table(rows, ["stage", "wall s", "cpu s", "of check", "x C compose"]):
             log(line)
     if top:
-        log(f"\n== cProfile of one check ({first.states:,} states; profiling inflates times, "
-            "ruamel's most) ==")
+        log(f"\n== cProfile of one check ({first.states:,} states; profiling inflates times) ==")
         for key, title in (("by_cumulative", "cumulative"), ("by_own_time", "own time")):
             log(f"-- by {title} --")
             rows = [[r["function"][:78], str(r["calls"]), f"{r['own_s']:.2f}",
@@ -609,28 +654,37 @@ def main(argv: list[str] | None = None) -> int:
             for line in table(rows, ["function", "calls", "own s", "cum s"]):
                 log(line)
 
-    ok = all(r.ratio.wall <= TARGET_RATIO for r in results) and all(g["met"] for g in growth)
+    ok = all(r.ratio.wall <= TARGET_RATIO and r.rss_ok is not False for r in results) \
+        and all(g["met"] for g in growth)
     load_after = loadavg()
     if ns.json:
         figures = {
-            "description": "hfsmc check (compile_file, in-process) vs bare ruamel.yaml "
+            "description": "hfsmc check (compile_file, in-process) vs bare C compose "
+                           "(yaml.compose with CSafeLoader) and bare ruamel.yaml "
                            "YAML(typ='rt').load of the same generated model; seconds, "
                            "best of k; cpu = this process's CPU time",
             "machine": info,
             "hfsmc": revision,
             "load_average": {"before": load_before, "after": load_after},
-            "targets": {"check_over_parse_max": TARGET_RATIO,
-                        "check_time_ratio_per_size_ratio_max": TARGET_GROWTH},
+            "targets": {"check_over_compose_max": TARGET_RATIO,
+                        "check_time_ratio_per_size_ratio_max": TARGET_GROWTH,
+                        "cli_peak_rss_mib_max": TARGET_RSS_MIB,
+                        "cli_peak_rss_states": TARGET_RSS_STATES},
             "targets_met": ok,
             "cli_startup": startup.time.json(),
             "sizes": [{
                 "states": r.states, "shape": r.shape, "file_bytes": r.file_bytes,
                 "lines": r.lines, "repeat": r.repeat,
-                "check": r.check.json(), "parse": r.parse.json(),
-                "check_over_parse": round(r.ratio.wall, 3),
-                "check_over_parse_cpu": round(r.ratio.cpu, 3),
+                "read_by": r.parser,
+                "check": r.check.json(), "compose": r.compose.json(), "parse": r.parse.json(),
+                "check_over_compose": round(r.ratio.wall, 3),
+                "check_over_compose_cpu": round(r.ratio.cpu, 3),
+                "check_over_parse": round(r.over_ruamel.wall, 3),
+                "check_over_parse_cpu": round(r.over_ruamel.cpu, 3),
                 "met": r.ratio.wall <= TARGET_RATIO,
+                "cli_rss_met": r.rss_ok,
                 "check_gc_off": r.check_nogc.json() if r.check_nogc else None,
+                "compose_gc_off": r.compose_nogc.json() if r.compose_nogc else None,
                 "parse_gc_off": r.parse_nogc.json() if r.parse_nogc else None,
                 "cli_check": r.cli.time.json(), "cli_exit": r.cli.status,
                 "cli_peak_rss_mib": round(r.cli.peak_rss_mib, 1),
