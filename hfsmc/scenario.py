@@ -13,6 +13,7 @@ collected before :class:`ScenarioError` is raised.
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -652,7 +653,12 @@ def _kind(v: Any) -> str:
 
 
 def _display(file: Path) -> str:
-    return str(file) if file.is_absolute() else str(Path(*file.parts))
+    """A file the scenario names, as messages and builds name it: without `..` steps, relative
+    to the current folder when inside it (one model is one component, however reached)."""
+    absolute = Path(os.path.abspath(file))
+    if absolute.is_relative_to(Path.cwd()):
+        return str(absolute.relative_to(Path.cwd()))
+    return str(absolute)
 
 
 def _model_language(file: Path) -> Language | None:

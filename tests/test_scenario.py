@@ -362,7 +362,9 @@ def _junit(path: Path) -> list[tuple[str, str, str | None]]:
 def test_the_examples_pass_in_python_and_a_wrong_scenario_fails(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     report = tmp_path / "junit.xml"
-    r = hfsmc_test("-t", "python", "--junit", str(report), *map(str, EXAMPLES), cache=cache)
+    runs = tmp_path / "examples"
+    r = hfsmc_test("-t", "python", "--junit", str(report), "--keep", str(runs), *map(str, EXAMPLES),
+                   cache=cache)
     assert r.returncode == 0, r.stdout + r.stderr
     for sc in EXAMPLES:
         assert f"{sc}::python PASSED\n" in r.stdout
@@ -385,6 +387,25 @@ def test_the_examples_pass_in_python_and_a_wrong_scenario_fails(tmp_path: Path) 
     assert first == {"t": 0, "kind": "snapshot", "interface": "drone",
                      "values": {"heartbeat_age": 0.0, "vehicle": True, "altitude": 0.0,
                                 "position": [0.0, 0.0, 0.0], "velocity": [0.0, 0.0, 0.0], "yaw": 0.0}}
+
+
+    # A recording is a scenario: the altitude watch's run, recorded from its playback folder,
+    # passes when its replay is identical; a file that is no recording is an error (exit 2).
+    kept = next(p for p in runs.iterdir() if "altitude_watch" in p.name)
+    component = next((cache / "hfsmc/run").glob("monitor_area-*")) / "monitor_area.py"
+    recording = tmp_path / "altitude.mcap"
+    subprocess.run([sys.executable, str(component), "--playback", str(kept), "--clock", "virtual",
+                    "--until", "35s", "--record", str(recording)], cwd=kept, capture_output=True,
+                   timeout=120, check=True)
+    r = hfsmc_test(str(recording), cache=cache)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.startswith(f"{recording}::python PASSED\n")
+    garbage = tmp_path / "garbage.mcap"
+    garbage.write_bytes(b"no recording")
+    r = hfsmc_test(str(garbage), cache=cache)
+    assert r.returncode == 2
+    assert r.stderr == (f"{garbage}: not an MCAP file (a recording is written by a component's "
+                        "--record FILE)\nhfsmc test: 1 error(s): no scenario was run\n")
 
 
 @pytest.mark.timeout(1800)

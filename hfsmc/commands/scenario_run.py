@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hfsmc.durations import format_us
-from hfsmc.errors import Diagnostic, Diagnostics, HfsmcError
+from hfsmc.errors import Diagnostic, Diagnostics, HfsmcError, UsageError
 from hfsmc.ir import Model
 from hfsmc.pipeline import Result, compile_file
 from hfsmc.scenario import (
@@ -75,6 +75,51 @@ class Problems:
 class Prepared:
     scenario: Scenario
     models: dict[Language, Model]
+
+
+@dataclass
+class Recorded:
+    """A recording given as a scenario: it passes when its replay is identical."""
+
+    path: str
+    language: str
+
+
+def prepare_recordings(paths: list[str], only: str | None, problems: Problems) -> list[Recorded]:
+    """Check that each recording can be read; the ones to replay (in their own language)."""
+    from hfsmc.recording import RecordingError, read_recording
+
+    out = []
+    for path in paths:
+        try:
+            rec = read_recording(path)
+        except RecordingError as e:
+            problems.notes.append(f"{path}: {e}")
+            continue
+        language = str(rec.run.get("language", "python"))
+        if only is None or only == language:
+            out.append(Recorded(path, language))
+    return out
+
+
+def run_recording(r: Recorded) -> Outcome:
+    """`hfsmc replay` of one recording: identical passes, the first difference fails."""
+    from hfsmc.commands.replay import ReplayFailed, replay
+    from hfsmc.recording import RecordingError
+
+    started = time.monotonic()
+    outcome = Outcome(r.path, Path(r.path).stem, r.language)
+    try:
+        report = replay(r.path, None, None)
+        if report.status != 0:
+            outcome.failures.append(Failure(None, "the replay differs from the recording",
+                                            tuple(text for _, text in report.lines)))
+    except ReplayFailed as e:
+        outcome.failures.append(Failure(None, f"the replay failed: {e}", e.details))
+    except (RecordingError, HfsmcError, UsageError) as e:
+        outcome.failures.append(Failure(None, f"the replay failed: {e}"))
+    outcome.seconds = time.monotonic() - started
+    return outcome
 
 
 def prepare(paths: list[str], only: str | None, problems: Problems) -> list[Prepared]:
@@ -206,7 +251,9 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
     """The whole command; returns the exit status."""
     started = time.monotonic()
     problems = Problems()
-    prepared = prepare(paths, only, problems)
+    recordings = [p for p in paths if p.endswith(".mcap")]
+    prepared = prepare([p for p in paths if not p.endswith(".mcap")], only, problems)
+    recorded = prepare_recordings(recordings, only, problems) if recordings else []
     if not problems.diagnostics:
         components: dict[tuple[str, str], Component | None] = {}
         for p in prepared:
@@ -214,14 +261,17 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
                 key = (model.file, lang)
                 if key not in components:
                     components[key] = build(model, lang, problems, echo_err)
-    if problems.diagnostics:
+    if problems.diagnostics or problems.notes:
         from hfsmc.errors import render_text
 
-        echo_err(render_text(problems.diagnostics, problems.sources, color).rstrip("\n"))
-        echo_err(f"hfsmc test: {sum(d.severity == 'error' for d in problems.diagnostics)} "
-                 "error(s): no scenario was run")
+        if problems.diagnostics:
+            echo_err(render_text(problems.diagnostics, problems.sources, color).rstrip("\n"))
+        for note in problems.notes:
+            echo_err(note)
+        count = sum(d.severity == "error" for d in problems.diagnostics) + len(problems.notes)
+        echo_err(f"hfsmc test: {count} error(s): no scenario was run")
         return 2
-    if not prepared:
+    if not prepared and not recorded:
         echo_err("hfsmc test: no scenario to run" + (f" in {only}" if only else ""))
         return 2
     base = Path(keep) if keep else Path(tempfile.mkdtemp(prefix="hfsmc-test-"))
@@ -235,8 +285,11 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
                 o = run_one(p.scenario, model, lang, comp, folder, timeout)
                 o.folder = folder if keep else None
                 outcomes.append(o)
-                word = _tint("PASSED", "32", color) if o.passed else _tint("FAILED", "31", color)
-                echo(f"{o.id} {word}")
+                _say(o, echo, color)
+        for r in recorded:
+            o = run_recording(r)
+            outcomes.append(o)
+            _say(o, echo, color)
     finally:
         if not keep:
             shutil.rmtree(base, ignore_errors=True)
@@ -244,6 +297,11 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
     if junit:
         write_junit(Path(junit), outcomes)
     return 0 if all(o.passed for o in outcomes) else 1
+
+
+def _say(o: Outcome, echo: Echo, color: bool) -> None:
+    word = _tint("PASSED", "32", color) if o.passed else _tint("FAILED", "31", color)
+    echo(f"{o.id} {word}")
 
 
 def _tint(text: str, code: str, color: bool) -> str:
