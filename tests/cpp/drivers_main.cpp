@@ -39,12 +39,19 @@ void check(bool ok, const std::string& what) {
 
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+/// The drivers' queries read a snapshot (docs/recording.md): take one, as an instant does.
+void snap() {
+  for (hfsmc::Source* s : hfsmc::sources()) s->take_snapshot(0);
+}
+
 bool wait_until(const std::function<bool()>& what, double timeout, double step = 0.01) {
   auto end = Clock::now() + std::chrono::duration<double>(timeout);
   while (Clock::now() < end) {
+    snap();
     if (what()) return true;
     std::this_thread::sleep_for(std::chrono::duration<double>(step));
   }
+  snap();
   return what();
 }
 
@@ -150,6 +157,7 @@ int flight(const std::string& port) {
   check(wait_until([&] { return drone.last_ack("takeoff") == "accepted"; }, 5), "takeoff accepted");
   check(wait_until([&] { return drone.altitude() > 2.8; }, 15), "climbed past 2.8 m");
   sleep_s(1.0);
+  snap();
   double alt = drone.altitude();
   check(alt > 2.7 && alt < 3.3 && std::abs(drone.position().z() + 3.0) < 0.4,
         "holds 3 m: " + std::to_string(alt));
@@ -177,6 +185,7 @@ int linkloss(const std::string& port) {
         "heartbeat_age " + std::to_string(drone.heartbeat_age()));
   double age = drone.heartbeat_age();
   sleep_s(0.5);
+  snap();
   check(drone.heartbeat_age() >= age + 0.45, "heartbeat_age grows");
   check(wait_until([&] { return drone.connected(); }, 15), "link back");
   check(drone.heartbeat_age() < 1.5, "heartbeat fresh again");
@@ -190,6 +199,7 @@ int garbage(const std::string& port) {
         "connected, telemetry");
   wait_for_go("send junk");
   sleep_s(1.5);
+  snap();
   check(drone.connected() && drone.heartbeat_age() < 1.5, "heartbeats still read");
   check(drone.mode() == "STABILIZE", "mode unchanged");
   drone.arm();  // STABILIZE: refused, but answered

@@ -12,6 +12,8 @@
 //   history                          -> what the watcher saw (below), one line
 //   quit                             -> exit 0
 //
+// Each request and each sample reads a fresh snapshot of the driver (docs/recording.md:
+// an automaton's instant does the same), under one mutex.
 // A watcher thread samples connected(), ready(), armed() and mode() every 2 ms
 // and keeps each change with its time since start: `history` prints them as
 // `T,CONNECTED,READY,ARMED,MODE` items separated by spaces.
@@ -56,12 +58,17 @@ int main(int argc, char** argv) {
   std::mutex history_lock;
   std::vector<std::string> history;
   std::atomic<bool> stop{false};
+  std::mutex drone_lock;  // a snapshot and the reads of it, by one thread at a time
   std::thread watcher([&] {
     std::string last;
     while (!stop.load()) {
-      std::string now = std::string(drone.connected() ? "1" : "0") + "," +
-                        (drone.ready() ? "1" : "0") + "," + (drone.armed() ? "1" : "0") + "," +
-                        dash(drone.mode());
+      std::string now;
+      {
+        std::lock_guard<std::mutex> lock(drone_lock);
+        drone.take_snapshot(0);
+        now = std::string(drone.connected() ? "1" : "0") + "," + (drone.ready() ? "1" : "0") + "," +
+              (drone.armed() ? "1" : "0") + "," + dash(drone.mode());
+      }
       if (now != last) {
         double t = std::chrono::duration<double>(Clock::now() - start).count();
         std::lock_guard<std::mutex> lock(history_lock);
@@ -80,6 +87,8 @@ int main(int argc, char** argv) {
     in >> cmd;
     std::getline(in >> std::ws, arg);
     std::string out;
+    std::unique_lock<std::mutex> held(drone_lock);
+    drone.take_snapshot(0);
     if (cmd == "connected") {
       out = drone.connected() ? "1" : "0";
     } else if (cmd == "ready") {
@@ -113,6 +122,7 @@ int main(int argc, char** argv) {
       out = "error: unknown request `" + cmd + "`";
       status = 1;
     }
+    held.unlock();
     std::cout << out << std::endl;
   }
   stop.store(true);

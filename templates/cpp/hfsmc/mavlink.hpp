@@ -768,13 +768,15 @@ class Mavlink : public Feed, public Source {
     }
   }
 
-  void watch_link() {
+  void watch_link() {  // the reader thread: the state at hand, not the automaton's snapshot
     bool seen;
+    double age;
     {
       std::lock_guard<std::mutex> lock(state_);
       seen = s_.heartbeat_seen;
+      age = seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
     }
-    if (!lost_ && seen && !connected()) {
+    if (!lost_ && seen && !(age < kLinkTimeoutS)) {
       lost_ = true;
       {
         std::lock_guard<std::mutex> lock(state_);
