@@ -118,6 +118,28 @@ def test_a_changed_command_is_the_first_difference(hop: Path) -> None:
         NOT_EVIDENCE]
 
 
+def test_a_signal_is_replayed(hop: Path, tmp_path: Path) -> None:
+    """A recording that ended on SIGINT (from a script here: the recording holds it as a real
+    run's would) replays identically.  (Skips, which only the real clock makes, are replayed
+    in the flight below: a loaded machine makes some.)"""
+    script = tmp_path / "script"
+    script.mkdir()
+    extra = [{"t": 700000, "kind": "signal", "reason": "sigint", "ticks": 7}]
+    (script / "inputs.jsonl").write_text("".join(
+        json.dumps(e) + "\n" for e in sorted(INPUTS + extra, key=lambda e: int(e["t"]))))
+    run = subprocess.run([sys.executable, str(hop / "component" / "hop.py"), "--playback",
+                          str(script), "--record", "sig.mcap"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 130, run.stderr
+    rec = read_recording(tmp_path / "sig.mcap")
+    assert [(g.t, g.reason) for g in rec.signals] == [(700000, "sigint")]
+    assert rec.stop == {"t": 700, "ev": "stop", "reason": "sigint"}
+    r = hfsmc("replay", "sig.mcap", cwd=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout == ("replay of sig.mcap (python -> python): identical: 7 trace records, "
+                        "6 commands, 0-0.700 s\n")
+
+
 def test_a_model_in_the_other_language_needs_its_twin(hop: Path) -> None:
     r = hfsmc("replay", "hop.mcap", "-t", "cpp", cwd=hop)
     assert r.returncode == 2
