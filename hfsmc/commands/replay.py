@@ -418,9 +418,25 @@ def _same_transition(fire: Mapping[str, Any], built: Built) -> str:
 
 
 def _record_text(r: Mapping[str, Any] | None) -> str:
+    """A trace record in words: `exit Climb`, `log in Climb: "text"`, `stop (final)`."""
     if r is None:
         return "(no more records)"
-    return json.dumps(r, separators=(",", ":"))
+    ev = r.get("ev")
+    if ev in ("enter", "exit"):
+        text = f"{ev} {r.get('state')}"
+    elif ev == "fire":
+        text = f"took {r.get('from')} -> {r.get('to')}"
+    elif ev == "log":
+        text = f"log in {r.get('state') or 'on_shutdown'}: {json.dumps(r.get('msg'))}"
+    elif ev == "stop":
+        text = f"stop ({r.get('reason')})"
+    elif ev == "interrupt":
+        text = f"interrupt ({r.get('reason')}) to {r.get('to')}"
+    elif ev == "error":
+        text = f"error in {r.get('state')}'s {r.get('snippet')}"
+    else:
+        return json.dumps(r, separators=(",", ":"))
+    return f"at {int(r.get('t', 0)) / 1000:.3f} s: {text}"
 
 
 def _command_difference(report: Report, a: Sequence[Command], b: Sequence[Command], j: int,
