@@ -96,8 +96,10 @@ def compile_component(folder: Path, model_file: str, build_type: str = "RelWithD
             if code != 0:
                 return [Diagnostic("E150", "CMake could not configure the component", where,
                                    notes=tuple(_tail(out)))]
-        code, out = _run(["cmake", "--build", str(build), "-j", str(jobs or os.cpu_count() or 1)],
-                         shown)
+        jobs = jobs or os.cpu_count() or 1
+        if shown is not None:
+            shown.expect(ninja_plan(build), jobs)
+        code, out = _run(["cmake", "--build", str(build), "-j", str(jobs)], shown)
     finally:
         if shown is not None:
             shown.close()
@@ -125,14 +127,14 @@ _STEP = re.compile(r"^\[\s*(?:(?P<n>\d+)/(?P<of>\d+)|(?P<pct>\d+)%)\] (?P<what>.
 _OBJECT = re.compile(r"^Building CXX object (?P<path>\S+?)\.(?:o|gch)$")
 _LINK = re.compile(r"^Linking CXX (?:executable|static library|shared library) (?P<path>\S+)$")
 _PCH_UNIT = re.compile(r"hfsmc_pch_\w*\.cpp")  # the empty unit that owns the precompiled headers
+_PAST = {"compiling": "compiled", "precompiling": "precompiled", "linking": "linked",
+         "configuring": "configured"}
 
 
-def step(line: str) -> str | None:
-    """What a line of CMake's build output says is being done, in a few words; None: no step.
-
-    "compiling NAME.cpp" for a translation unit, "precompiling headers", "linking NAME",
-    "configuring (CMake)"; the step's count first ("[3/6] ", "[ 50%] ").
-    """
+def _parse(line: str) -> tuple[str, str] | None:
+    """A build output line's step: its count ("[3/6]", "[ 50%]") and what it does, in a few
+    words ("compiling NAME.cpp", "precompiling headers", "linking NAME", "configuring
+    (CMake)"); None for any other line."""
     m = _STEP.match(line)
     if m is None:
         return None
@@ -142,18 +144,45 @@ def step(line: str) -> str | None:
     if obj is not None:
         name = obj["path"].rsplit("/", 1)[-1]
         if name == "cmake_pch.hxx":
-            return f"{count} precompiling headers"
-        return None if _PCH_UNIT.fullmatch(name) else f"{count} compiling {name}"
+            return count, "precompiling headers"
+        return None if _PCH_UNIT.fullmatch(name) else (count, f"compiling {name}")
     if link is not None:
-        return f"{count} linking {link['path'].rsplit('/', 1)[-1]}"
+        return count, f"linking {link['path'].rsplit('/', 1)[-1]}"
     if what.startswith("Re-running CMake"):
-        return f"{count} configuring (CMake)"
+        return count, "configuring (CMake)"
     return None
+
+
+def step(line: str) -> str | None:
+    """A build output line's step in a few words, its count first ("[3/6] compiling
+    x.cpp"); None for any other line."""
+    found = _parse(line)
+    return None if found is None else f"{found[0]} {found[1]}"
+
+
+def ninja_plan(build: Path) -> list[str] | None:
+    """The steps a Ninja build folder's next build will take (a dry run): the count before
+    the first ("[0/6]"), then each in ``_parse``'s words; [] when there is nothing to do;
+    None for a folder of another generator."""
+    ninja = shutil.which("ninja")
+    if ninja is None or not (build / "build.ninja").is_file():
+        return None
+    try:
+        done = subprocess.run([ninja, "-C", str(build), "-n"], capture_output=True, text=True,
+                              errors="replace", timeout=60, check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    steps = [p for p in map(_parse, done.stdout.splitlines()) if p is not None]
+    return [f"[0/{steps[-1][0].rpartition('/')[2]}", *(what for _, what in steps)] if steps else []
 
 
 class Progress:
     """A build's steps shown on ``stream`` (stderr): on a terminal, one status line that
-    changes in place and counts the seconds; otherwise, a plain line per step."""
+    changes in place and counts the seconds; otherwise, a plain line per step.
+
+    Make prints a step as it starts; Ninja, off a terminal, as it ends. Given Ninja's plan
+    (``expect``), the status line names the steps not done yet, and the plain lines say
+    what was done ("compiled x.cpp")."""
 
     def __init__(self, name: str, stream: TextIO | None = None, tty: bool | None = None) -> None:
         self.name = name
@@ -161,6 +190,8 @@ class Progress:
         self.tty = _isatty(self.stream) if tty is None else tty
         self.started = time.monotonic()
         self._status = ""
+        self._left: list[str] | None = None  # Ninja's steps not done yet
+        self._jobs = 1
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._ticker: threading.Thread | None = None
@@ -168,11 +199,33 @@ class Progress:
             self._ticker = threading.Thread(target=self._tick, daemon=True)
             self._ticker.start()
 
+    def expect(self, plan: list[str] | None, jobs: int) -> None:
+        """The steps Ninja is about to run (``ninja_plan``), ``jobs`` at a time."""
+        self._left = None if plan is None else plan[1:]
+        self._jobs = max(jobs, 1)
+        if plan and self.tty:
+            self.show(f"{plan[0]} {self._running()}")
+
     def line(self, text: str) -> None:
-        """One line of the build's output: shown if it starts a step."""
-        said = step(text)
-        if said is not None:
-            self.show(said)
+        """One line of the build's output: shown if it is a step."""
+        found = _parse(text)
+        if found is None:
+            return
+        count, what = found
+        if self._left is None:  # Make: the step starts
+            self.show(f"{count} {what}")
+            return
+        if what in self._left:
+            self._left.remove(what)
+        verb, _, rest = what.partition(" ")
+        done = f"{count} {_PAST.get(verb, verb)} {rest}"
+        self.show(f"{done}; {self._running()}" if self.tty and self._left else done)
+
+    def _running(self) -> str:
+        """The steps likely running: the next ones left, links only after the compiles."""
+        left = self._left or []
+        compiles = [s for s in left if not s.startswith("linking")]
+        return ", ".join((compiles or left)[:self._jobs])
 
     def show(self, status: str) -> None:
         with self._lock:
