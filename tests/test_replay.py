@@ -126,7 +126,7 @@ def test_a_signal_is_replayed(hop: Path, tmp_path: Path) -> None:
     script.mkdir()
     signal = {"t": 700000, "kind": "signal", "reason": "sigint", "ticks": 7}
     (script / "inputs.jsonl").write_text("".join(
-        json.dumps(e) + "\n" for e in [*INPUTS[:4], signal, INPUTS[4]]))
+        json.dumps(e) + "\n" for e in [*INPUTS[:3], signal, *INPUTS[3:]]))
     run = subprocess.run([sys.executable, str(hop / "component" / "hop.py"), "--playback",
                           str(script), "--record", "sig.mcap"], cwd=tmp_path,
                          capture_output=True, text=True, timeout=60)
