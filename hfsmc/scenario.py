@@ -38,7 +38,7 @@ MAVLINK_FIELDS: dict[str, str] = {
     "velocity": "vector", "altitude": "number", "yaw": "number", "battery": "int",
     "acks": "acks",
 }
-CAMERA_FIELDS: dict[str, str] = {"image": "image", "rate": "number"}
+CAMERA_FIELDS: dict[str, str] = {"image": "image", "world": "world", "rate": "number"}
 FIELDS = {"mavlink": MAVLINK_FIELDS, "camera": CAMERA_FIELDS}
 RAMPABLE = frozenset({"number", "vector"})
 ACK_COMMANDS = ("arm", "disarm", "takeoff", "land", "rtl", "set_mode")
@@ -454,7 +454,7 @@ class _Reader:
                 return None
             return Setting(key, Ramp(a, b), span, self.key_at(path))
         value = self.value(key, kind, v, path)
-        if value is None and not (kind == "image" and v is None):
+        if value is None and not (kind in ("image", "world") and v is None):
             return None
         return Setting(key, value, span, self.key_at(path))
 
@@ -487,8 +487,8 @@ class _Reader:
             bad = "[north, east, down] (three numbers, m or m/s)"
         elif kind == "acks":
             return self.acks(v, path)
-        elif kind == "image":
-            return self.image(v, path)
+        elif kind in ("image", "world"):
+            return self.image(v, path, kind)
         self.error("E191", f"`{key}` must be {bad}, not {_kind(v)}", span)
         return None
 
@@ -510,17 +510,19 @@ class _Reader:
                 out.append((cmd, outcome))
         return tuple(out)
 
-    def image(self, v: Any, path: PathKey) -> Scalar:
+    def image(self, v: Any, path: PathKey, kind: str) -> Scalar:
+        """A picture file (`image`) or a simulator world file (`world`), or null."""
         if v is None:
             return None
+        what = "an image" if kind == "image" else "a world file (hfsmc sim --world)"
         if not isinstance(v, str):
-            self.error("E191", f"`image` must be a file name (or null: no more frames), not "
+            self.error("E191", f"`{kind}` must be {what} (or null: no more frames), not "
                        f"{_kind(v)}", self.at(path))
             return None
         file = self.folder / v
         if not file.is_file():
-            self.error("E198", f"the image `{v}` does not exist (read relative to the scenario's "
-                       "folder)", self.at(path))
+            self.error("E198", f"the {kind} file `{v}` does not exist (read relative to the "
+                       "scenario's folder)", self.at(path))
             return None
         return _display(file)
 

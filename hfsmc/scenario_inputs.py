@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -118,13 +118,21 @@ class _Mavlink:
         return out
 
 
-class _Camera:
-    """A camera interface's frames: each image entry delivers its frame at `rate`."""
+Pose = tuple[float, float, float, float]  # north, east, down (m), yaw (rad)
+Render = Callable[[str, int, Pose], str]  # (world file, t us, pose) -> the PNG's name
 
-    def __init__(self, sources: list[_Source], frames: dict[str, str]) -> None:
-        self.images = [s for s in sources if s.setting.field == "image"]
+
+class _Camera:
+    """A camera interface's frames: each image entry delivers its picture at `rate`; a world
+    entry, the simulator's view of that world from the vehicle's scripted pose."""
+
+    def __init__(self, sources: list[_Source], frames: dict[str, str],
+                 render: Render | None, pose: Callable[[], Pose | None]) -> None:
+        self.images = [s for s in sources if s.setting.field in ("image", "world")]
         self.rates = [s for s in sources if s.setting.field == "rate"]
         self.frames = frames  # image path -> its PNG's name in the folder
+        self.render = render
+        self.pose = pose
         self.count = 0
         self.last: int | None = None
         self.frame: str | None = None
@@ -145,9 +153,17 @@ class _Camera:
 
             n = upto(t) - upto(self.prev)
             if n > 0:
-                self.count += n
-                self.last = start + round((upto(t) - 1) * period)
-                self.frame = self.frames[w.setting.value]
+                latest = start + round((upto(t) - 1) * period)
+                if w.setting.field == "image":
+                    picture: str | None = self.frames[w.setting.value]
+                else:  # rendered where the vehicle is; nothing while its pose is unknown
+                    pose = self.pose()
+                    picture = None if pose is None or self.render is None \
+                        else self.render(w.setting.value, latest, pose)
+                if picture is not None:
+                    self.count += n
+                    self.last = latest
+                    self.frame = picture
         self.prev = t
         if self.last is None:
             return {}
@@ -173,20 +189,33 @@ def _json(v: Any) -> Any:
     return v
 
 
-def snapshots(sc: Scenario, types: dict[str, str], step: int,
-              frames: dict[str, str]) -> Iterator[dict[str, Any]]:
+def snapshots(sc: Scenario, types: dict[str, str], step: int, frames: dict[str, str],
+              render: Render | None = None) -> Iterator[dict[str, Any]]:
     """The playback entries of ``sc``'s inputs, in time order: one per interface and time at
     which one of its values changed, with the values that changed."""
     by_iface: dict[str, list[_Source]] = {}
     for order, e in enumerate(sc.inputs):
         for s in e.settings:
             by_iface.setdefault(e.interface, []).append(_Source(e, s, order))
-    makers: dict[str, _Mavlink | _Camera] = {}
-    for name, sources in by_iface.items():
-        makers[name] = _Camera(sources, frames) if types[name] == "camera" else _Mavlink(sources)
+    # vehicles first: a camera that renders a world takes the pose of the first one at that time
+    names = sorted(by_iface, key=lambda n: types[n] == "camera")
+    vehicle = next((n for n in names if types[n] == "mavlink"), None)
     # what the fakes start with: a value is written when it differs
     heard = {k: _json(v) for k, v in NEVER_HEARD.items()} | {"acks": {}}
-    shown = {name: dict(heard) if isinstance(m, _Mavlink) else {} for name, m in makers.items()}
+    shown = {name: dict(heard) if types[name] == "mavlink" else {} for name in names}
+
+    def pose() -> Pose | None:
+        values = shown.get(vehicle or "", {})
+        position, yaw = values.get("position"), values.get("yaw")
+        if not isinstance(position, list) or not all(isinstance(x, float) for x in position):
+            return None
+        return (position[0], position[1], position[2], yaw if isinstance(yaw, float) else 0.0)
+
+    makers: dict[str, _Mavlink | _Camera] = {}
+    for name in names:
+        sources = by_iface[name]
+        makers[name] = _Camera(sources, frames, render, pose) if types[name] == "camera" \
+            else _Mavlink(sources)
     for t in _times(sc, step):
         for name, maker in makers.items():
             now = {k: _json(v) for k, v in maker.at(t).items()}
@@ -207,7 +236,7 @@ def write_playback(sc: Scenario, types: dict[str, str], step: int, folder: Path)
     frames = _write_frames(sc, types, folder)
     n = 0
     with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
-        for item in snapshots(sc, types, step, frames):
+        for item in snapshots(sc, types, step, frames, _renderer(sc, folder)):
             f.write(json.dumps(item, separators=(",", ":")) + "\n")
             n += 1
     return n
@@ -237,3 +266,37 @@ def _write_frames(sc: Scenario, types: dict[str, str], folder: Path) -> dict[str
     if diags.has_errors:
         raise ScenarioError(diags.sorted())
     return out
+
+
+def _renderer(sc: Scenario, folder: Path) -> Render | None:
+    """Draws the worlds the scenario names (hfsmc/sim's camera), one PNG per frame."""
+    worlds = {s.value: s.span for e in sc.inputs for s in e.settings
+              if s.field == "world" and isinstance(s.value, str)}
+    if not worlds:
+        return None
+    import cv2
+
+    from hfsmc.sim.camera import Renderer
+    from hfsmc.sim.world import WorldError, load_world
+
+    renderers: dict[str, Renderer] = {}
+    diags = Diagnostics()
+    for path, span in worlds.items():
+        try:
+            renderers[path] = Renderer(load_world(path))
+        except WorldError as e:
+            diags.error("E198", f"the world cannot be read: {e}", span)
+    if diags.has_errors:
+        raise ScenarioError(diags.sorted())
+    made = [0]
+
+    def render(world: str, t: int, pose: Pose) -> str:
+        north, east, down, yaw = pose
+        made[0] += 1
+        name = f"world{made[0]}.png"
+        picture = renderers[world].render(t / 1e6, north, east, down, yaw)
+        if not cv2.imwrite(str(folder / name), picture):
+            raise OSError(f"cannot write {folder / name}")
+        return name
+
+    return render
