@@ -315,10 +315,15 @@ class CppWalk(Walk[CppSnippet]):
             instances=tuple(self.instance_view(i, units[i.unit]) for i in machine.instances),
             line_back=_BACK,
             config=component_config(m),
-            sources=tuple((cpp_string(path), cpp_string(text)) for path, text in machine.sources),
+            sources=tuple((cpp_string(path), _text_literal(text)) for path, text in machine.sources),
             hash_literal=cpp_string(machine.model_hash),
             version_literal=cpp_string(machine.version),
         )
+
+
+def _text_literal(text: str) -> str:
+    """A text as C++ string literals, one per line (the compiler joins them)."""
+    return "\n    ".join(cpp_string(line) for line in text.splitlines(keepends=True)) or '""'
 
 
 def unit_class(unit: str) -> str:
