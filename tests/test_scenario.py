@@ -121,6 +121,16 @@ def test_scenario_errors_print_like_a_compiler_and_exit_2(tmp_path: Path) -> Non
     assert r.stdout == ""
 
 
+def test_a_picture_opencv_cannot_read_is_an_error_at_its_line(tmp_path: Path) -> None:
+    (tmp_path / "bad.png").write_bytes(b"not a picture")
+    path = write(tmp_path, f"model: {FOLLOW}\nuntil: 5s\ninputs:\n  camera:\n"
+                           "    - {at: 0s, image: bad.png}\n")
+    r = hfsmc_test(str(path), cache=tmp_path / "cache", timeout=120)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"{path}:5:23: error[E198]: `{tmp_path}/bad.png` is not an image OpenCV can read" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
 @pytest.mark.parametrize(("text", "code", "where"), [
     ("until: 10s\n", "E192", "1:1"),                                   # no model
     ("model: nowhere.yaml\n", "E194", "1:8"),
@@ -340,7 +350,7 @@ def _failures_of(out: str, path: Path, language: str) -> None:
     assert f"{path}:14:5: expected command drone.land\n" \
            "  got: no such record: the run stopped (until) at 30 s\n" in body
     assert f"{path}:15:5: expected the run stops (final)\n  got: the run stopped otherwise\n" in body
-    assert re.search(r"=+ 1 failed in [0-9.]+s =+\n$", out)
+    assert re.search(r"=+ 1 failed in [0-9.]+s =+\n(\(--keep DIR keeps each run's [^\n]*\)\n)?$", out)
 
 
 def _junit(path: Path) -> list[tuple[str, str, str | None]]:

@@ -282,7 +282,14 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
                 comp = components[(model.file, lang)]
                 assert comp is not None
                 folder = base / f"{i:02d}-{Path(p.scenario.file).stem}-{lang}"
-                o = run_one(p.scenario, model, lang, comp, folder, timeout)
+                try:
+                    o = run_one(p.scenario, model, lang, comp, folder, timeout)
+                except ScenarioError as e:  # a picture or a world that cannot be read
+                    from hfsmc.errors import render_text
+
+                    echo_err(render_text(e.diagnostics, {p.scenario.file: list(p.scenario.lines)},
+                                         color).rstrip("\n"))
+                    return 2
                 o.folder = folder if keep else None
                 outcomes.append(o)
                 _say(o, echo, color)
@@ -294,6 +301,8 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
         if not keep:
             shutil.rmtree(base, ignore_errors=True)
     report(outcomes, time.monotonic() - started, echo, color)
+    if not keep and any(not o.passed for o in outcomes):
+        echo("(--keep DIR keeps each run's inputs.jsonl, trace.jsonl, commands.jsonl and stderr.txt)")
     if junit:
         write_junit(Path(junit), outcomes)
     return 0 if all(o.passed for o in outcomes) else 1
