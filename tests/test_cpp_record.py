@@ -18,6 +18,7 @@ import struct
 import subprocess
 import sys
 import time
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -321,6 +322,7 @@ def test_record_against_the_simulator(components: Components, sim: Path, tmp_pat
         img = cv2.imdecode(np.frombuffer(base64.b64decode(m["data"]), np.uint8), cv2.IMREAD_COLOR)
         assert m["format"] == "png" and img is not None and img.shape[2] == 3
         assert img[5, 6].tolist() == logged[m["count"]]
+        assert m["crc32"] == zlib.crc32(img.tobytes())
     calls = [m["call"] for topic, m in messages if topic == "/hfsmc/command/drone"]
     assert calls[:3] == ["arm", "takeoff", "set_velocity"] and calls[-1] == "land"
     # Kill -9 mid-run: the file reads back, up to a complete instant.

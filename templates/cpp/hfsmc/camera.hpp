@@ -175,8 +175,15 @@ class Camera : public Feed, public Source {
         } catch (const cv::Exception&) {
         }
         if (image_.empty()) {
-          std::fprintf(stderr, "%s: %s: not an image\n", inputs_->where(fed_.line).c_str(), loaded_.c_str());
+          std::fprintf(stderr, "%s: --playback: %s: cannot read the frame (a PNG or JPEG file)\n",
+                       g_->name.c_str(), loaded_.c_str());
           std::exit(2);
+        }
+        if (fed_.crc >= 0 && pixels_crc(image_) != static_cast<std::uint32_t>(fed_.crc) && !warned_) {
+          warned_ = true;
+          std::fprintf(stderr, "%s: frame %ld (%s) decodes to other pixels here than in the recorded run "
+                       "(another JPEG decoder): from there on this run does not compute on the recorded "
+                       "pixels\n", g_->name.c_str(), fed_.count, loaded_.c_str());
         }
       }
     }
@@ -241,8 +248,9 @@ class Camera : public Feed, public Source {
   struct Fed {  // with --playback: the entries applied so far
     long count = 0;
     double age = std::numeric_limits<double>::infinity();
-    std::string file;  // the frame's PNG ("": none)
+    std::string file;  // the frame's PNG or JPEG ("": none)
     int line = 0;  // where it was given
+    long long crc = -1;  // the CRC-32 of its pixels in the recorded run (-1: not given)
   };
 
   /// A playback entry over `f` (schemas/recording.md); a bad value throws InputError.
@@ -256,6 +264,8 @@ class Camera : public Feed, public Source {
       } else if (key == "frame") {
         f.file = v.kind == json::Value::NUL ? std::string() : in.frame_file(v, e.line);
         f.line = e.line;
+      } else if (key == "crc32") {
+        f.crc = in.whole(v, "crc32", e.line);
       }
       // other fields (`t`, ...) are not part of what the automaton sees
     }
@@ -272,7 +282,15 @@ class Camera : public Feed, public Source {
     } catch (const cv::Exception&) {
       return;
     }
-    r->frame(*this, snapshot_t_, snap_count_, base64(png));
+    r->frame(*this, snapshot_t_, snap_count_, base64(png), pixels_crc(snap_frame_));
+  }
+
+  /// CRC-32 of a frame's pixels, row by row (zlib.crc32 of a numpy array's bytes).
+  static std::uint32_t pixels_crc(const cv::Mat& m) {
+    std::uint32_t crc = 0;
+    const std::size_t row = static_cast<std::size_t>(m.cols) * m.elemSize();
+    for (int y = 0; y < m.rows; ++y) crc = mcap::crc32(crc, m.ptr(y), row);
+    return crc;
   }
 
   static std::string base64(const std::vector<uchar>& data) {
@@ -488,8 +506,9 @@ class Camera : public Feed, public Source {
   playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake
   Fed fed_;
   std::size_t next_ = 0;  // the next entry to apply
-  std::string loaded_;  // the PNG image_ holds
+  std::string loaded_;  // the file image_ holds
   cv::Mat image_;
+  bool warned_ = false;  // said that a frame's pixels are not the recorded ones
   long feed_sent_ = -1;  // the number of the frame last sent (the monitor's thread only)
   std::thread thread_;
 };

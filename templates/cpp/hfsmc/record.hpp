@@ -96,7 +96,8 @@ inline const char* const image =
     R"({"title":"foxglove.CompressedImage","description":"A compressed image","type":"object",)"
     R"("properties":{"timestamp":{"type":"object","properties":{"sec":{"type":"integer","minimum":0},)"
     R"("nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"frame_id":{"type":"string"},)"
-    R"("data":{"type":"string","contentEncoding":"base64"},"format":{"type":"string"},"count":{"type":"integer"}}})";
+    R"("data":{"type":"string","contentEncoding":"base64"},"format":{"type":"string"},"count":{"type":"integer"},)"
+    R"("crc32":{"type":"integer","description":"CRC-32 of the decoded BGR pixels"}}})";
 inline const char* const command =
     R"({"title":"hfsmc.Command","description":"A command a snippet gave an interface","type":"object",)"
     R"("properties":{"t":{"type":"integer"},"call":{"type":"string"},"args":{"type":"array"}}})";
@@ -165,13 +166,15 @@ public:
     void snapshot(const Source& s, long long t) {
         write(channels_[&s].snapshot, t, "{\"t\":" + std::to_string(t) + "," + s.snapshot_fields() + "}");
     }
-    // A frame (PNG bytes, base64) a snippet obtained first at instant t.
-    void frame(const Source& s, long long t, long count, const std::string& png_base64) {
+    // A frame (PNG bytes, base64) a snippet obtained first at instant t; `crc`: the CRC-32
+    // of its BGR pixels, row by row.
+    void frame(const Source& s, long long t, long count, const std::string& png_base64, std::uint32_t crc) {
         const std::uint64_t at = log_time(t);
         write(channels_[&s].frame, t,
               "{\"timestamp\":{\"sec\":" + std::to_string(at / 1000000000ULL) + ",\"nsec\":" +
                   std::to_string(at % 1000000000ULL) + "},\"frame_id\":" + json_string(s.source_name()) +
-                  ",\"format\":\"png\",\"data\":\"" + png_base64 + "\",\"count\":" + std::to_string(count) + "}");
+                  ",\"format\":\"png\",\"data\":\"" + png_base64 + "\",\"count\":" + std::to_string(count) +
+                  ",\"crc32\":" + std::to_string(crc) + "}");
     }
     void command(const Source& s, long long t, const char* call, const std::string& args) {
         write(channels_[&s].command, t,
