@@ -295,6 +295,8 @@ def replay(recording: str, model_arg: str | None, target: str | None) -> None:
         click.echo(f"{recording}: {e}", err=True)
         sys.exit(1)
     except ReplayFailed as e:
+        if e.report is not None:
+            render(e.report)
         click.echo(f"hfsmc replay: {e}", err=True)
         for line in e.details:
             click.echo(f"  {line}", err=True)

@@ -140,6 +140,16 @@ def test_a_signal_is_replayed(hop: Path, tmp_path: Path) -> None:
                         "6 commands, 0-0.700 s\n")
 
 
+def test_a_component_that_cannot_run_is_said_with_its_words(hop: Path) -> None:
+    (hop / "whole.yaml").write_text(HOP.replace("{type: float, default: 2.0}",
+                                                "{type: int, default: 2}"))
+    r = hfsmc("replay", "hop.mcap", "--model", "whole.yaml", cwd=hop)
+    assert r.returncode == 1
+    assert r.stdout.startswith("whole.yaml is not the recorded model (changed: whole.yaml;")
+    assert r.stderr == ("hfsmc replay: the component failed (exit status 2)\n"
+                        "  hop: --param: parameter `height` is an int, not `2.0`\n")
+
+
 def test_a_model_in_the_other_language_needs_its_twin(hop: Path) -> None:
     r = hfsmc("replay", "hop.mcap", "-t", "cpp", cwd=hop)
     assert r.returncode == 2

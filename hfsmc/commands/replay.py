@@ -37,6 +37,7 @@ class ReplayFailed(Exception):
     def __init__(self, message: str, details: Sequence[str] = ()) -> None:
         super().__init__(message)
         self.details = tuple(details)
+        self.report: Report | None = None  # what was said before it failed
 
 
 @dataclass
@@ -457,8 +458,17 @@ def _command_text(c: Command | None) -> str:
 
 def replay(recording: str, model_arg: str | None, target: str | None) -> Report:
     """Replay ``recording``; raise RecordingError, ReplayFailed, HfsmcError, UsageError."""
-    rec = read_recording(recording)
     report = Report()
+    try:
+        return _replay(recording, model_arg, target, report)
+    except ReplayFailed as e:
+        e.report = report
+        raise
+
+
+def _replay(recording: str, model_arg: str | None, target: str | None,
+            report: Report) -> Report:
+    rec = read_recording(recording)
     if rec.cut:
         report.add(f"the recording ends at {seconds(rec.end_us)} (cut: the component did not "
                    "close it)", "yellow")
