@@ -320,8 +320,9 @@ def test(scenarios: tuple[str, ...], target: str | None, junit: str | None, keep
          timeout: float) -> None:
     """Run models against scenario files (scripted inputs, expectations) on the virtual clock.
 
-    One line per scenario and language, then the failures (docs/testing.md). Exit
-    status: 0 all passed, 1 a scenario failed, 2 a scenario or its model has errors."""
+    SCENARIOS are scenario files (YAML) or recordings (*.mcap: they pass when their replay
+    is identical). One line per scenario and language, then the failures (docs/testing.md).
+    Exit status: 0 all passed, 1 a scenario failed, 2 a scenario or its model has errors."""
     from hfsmc.commands.scenario_run import run_all
 
     sys.exit(run_all(list(scenarios), target, junit, keep, timeout, click.echo,
