@@ -23,6 +23,7 @@ from typing import Any
 
 from hfsmc.durations import format_us
 from hfsmc.errors import HfsmcError, UsageError
+from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Model, Transition
 from hfsmc.pipeline import Result, compile_file
 from hfsmc.recording import Command, Recording, RecordingError, read_recording
@@ -80,9 +81,7 @@ def write_sources(sources: Sequence[tuple[str, str]], base: Path) -> Path:
         if not os.path.realpath(target).startswith(root + os.sep):
             raise RecordingError(f"a source path leaves the model's tree: `{path}`")
         target.parent.mkdir(parents=True, exist_ok=True)
-        data = text.encode("utf-8")
-        if not target.is_file() or target.read_bytes() != data:
-            target.write_bytes(data)
+        write_atomic(target, text)  # a replay of the same recording beside it reads whole files
     return home / sources[0][0]
 
 
