@@ -121,7 +121,10 @@ def test_fakes_answer_from_the_script_one_snapshot_per_instant(probe: Path, tmp_
     # too: the same snapshot, and NaN != NaN, so the model compares the two readings).
     assert logs == [(600, "arm pending nan False"),
                     (800, "alt 0.1 age 0.01 count 1"),
-                    (900, "alt 0.1 age inf count 2")]  # at 1 s the transition fires first
+                    (900, "alt 0.1 age inf count 2"),  # at 1 s the transition fires first
+                    # Stopped armed: said from the last snapshot, as a replay says it too.
+                    (1000, "drone: WARNING: ARMED in  at 2.6 m as the component stops: "
+                           "nothing lands the vehicle now")]
     commands = [json.loads(x) for x in (pb / "commands.jsonl").read_text().splitlines()]
     assert commands == [
         {"t": 600000, "interface": "drone", "call": "set_mode", "args": ["GUIDED"]},

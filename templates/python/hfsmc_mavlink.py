@@ -213,6 +213,17 @@ class VehicleQueries:
         self._target_local(MAV_FRAME_LOCAL_NED, POSITION_MASK,
                            (float(north), float(east), -float(alt)), (0.0, 0.0, 0.0), 0.0)
 
+    def warning_at_stop(self) -> str | None:
+        """What the component says when it stops with the vehicle still armed (then nothing
+        lands it: --until, an error without on_interrupt...); None when disarmed. Read from
+        the last instant's snapshot, as the automaton saw the vehicle when it stopped (so a
+        replay says the same)."""
+        if not self.armed():
+            return None
+        link = "" if self.connected() else f" (link lost {self.heartbeat_age():.0f} s ago)"
+        return (f"WARNING: ARMED in {self.mode()} at {self.altitude():.1f} m{link} "
+                "as the component stops: nothing lands the vehicle now")
+
     def _issue(self, call: str, args: list[Any], ack: bool = False) -> None:
         """Tell the command to whoever listens; a command that is acknowledged says
         `pending` (or `not_sent`: no vehicle heard) from now on in this instant."""
@@ -309,16 +320,6 @@ class Vehicle(VehicleQueries):
             "velocity": self._velocity, "yaw": self._yaw, "battery": self._battery,
             "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0]}
         return self._snap
-
-    def warning_at_stop(self) -> str | None:
-        """What the component says when it stops with the vehicle still armed (then nothing
-        lands it: --until, an error without on_interrupt...); None when disarmed."""
-        now = self.snapshot()  # the vehicle as it is, not as the last instant saw it
-        if not now["armed"]:
-            return None
-        link = "" if self.connected() else f" (link lost {self.heartbeat_age():.0f} s ago)"
-        return (f"WARNING: ARMED in {self.mode()} at {self.altitude():.1f} m{link} "
-                "as the component stops: nothing lands the vehicle now")
 
     def close(self) -> None:
         """Stop the reader and close the socket (also run at exit)."""

@@ -426,6 +426,8 @@ class Engine:
         if skip is not None:
             self.deadline[a] = skip[0]
             self.overruns += skip[1]
+            if self.recorder is not None:
+                self.recorder.skip(self.t, self.auto_paths[a], skip[0], skip[1])
         if self.next_signal is not None:
             self.inject_signal()
 
