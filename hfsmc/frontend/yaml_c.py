@@ -63,7 +63,6 @@ else:
 # Deeper documents go to ruamel.yaml, whose recursion decides where E006 is said.
 MAX_C_DEPTH = 100
 
-_STR = "tag:yaml.org,2002:str"
 # Tags a plain scalar may resolve to here; the others (`<<` merge, `=`) go to ruamel.
 _CONSTRUCTED = frozenset("tag:yaml.org,2002:" + t for t in ("int", "float", "bool", "null", "timestamp"))
 # libyaml breaks lines at NEL, LS and PS (YAML 1.1); a directive may switch the YAML version.
@@ -87,11 +86,13 @@ class _Resolver:
             if rx.match(value):
                 if tag not in _CONSTRUCTED:
                     raise _Fallback(f"a plain scalar resolved to {tag}")
+                node = RuamelScalarNode(Tag(suffix=tag), value)
                 try:
-                    return self.constructor.construct_object(RuamelScalarNode(Tag(suffix=tag), value),
-                                                             deep=True)
+                    return self.constructor.construct_object(node, deep=True)
                 except Exception:
                     raise _Fallback("a value that cannot be constructed") from None
+                finally:
+                    self.constructor.constructed_objects.pop(node, None)  # not kept for good
         return value
 
 
