@@ -407,9 +407,10 @@ def test_the_examples_pass_in_python_and_a_wrong_scenario_fails(tmp_path: Path) 
     subprocess.run([sys.executable, str(component), "--playback", str(kept), "--clock", "virtual",
                     "--until", "35s", "--record", str(recording)], cwd=kept, capture_output=True,
                    timeout=120, check=True)
-    r = hfsmc_test(str(recording), cache=cache)
+    flight = ROOT / "examples/follow_colors/flight.mcap"  # a simulated flight, recorded
+    r = hfsmc_test(str(recording), str(flight), cache=cache)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert r.stdout.startswith(f"{recording}::python PASSED\n")
+    assert r.stdout.startswith(f"{recording}::python PASSED\n{flight}::python PASSED\n")
     garbage = tmp_path / "garbage.mcap"
     garbage.write_bytes(b"no recording")
     r = hfsmc_test(str(garbage), cache=cache)
