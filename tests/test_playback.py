@@ -13,6 +13,7 @@ import struct
 import subprocess
 import sys
 import time
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -255,3 +256,20 @@ def test_a_killed_component_leaves_a_recording_readable_to_its_last_instant(
     # Every message read is whole; instants come in order, each with both snapshots.
     ts = [m["t"] for m in seen if "heartbeat_age" in m]
     assert len(ts) > 100 and ts == list(range(0, 100000 * len(ts), 100000))
+
+
+def test_each_frame_is_recorded_once_even_when_the_pixels_repeat(probe: Path, tmp_path: Path) -> None:
+    pb = tmp_path / "pb"
+    # Frames 1 and 2 are the same picture (a still scene); frame 2 stays for two instants.
+    _inputs(pb, [{"t": 100000, "kind": "snapshot", "interface": "camera",
+                  "values": {"count": 1, "age": 0.0, "frame": "f.png"}},
+                 {"t": 200000, "kind": "snapshot", "interface": "camera",
+                  "values": {"count": 2, "age": 0.0, "frame": "f.png"}}])
+    f = _frame(pb, "f.png", 7)
+    rec = tmp_path / "run.mcap"
+    done = _run(probe, "--playback", str(pb), "--record", str(rec), "--until", "0.4s")
+    assert done.returncode == 0, done.stderr
+    _, msgs = _messages(rec)
+    frames = [m for topic, m in msgs if topic == "/hfsmc/frame/camera"]
+    assert [(m["count"], m["format"]) for m in frames] == [(1, "png"), (2, "png")]
+    assert {m["crc32"] for m in frames} == {zlib.crc32(f.tobytes())}

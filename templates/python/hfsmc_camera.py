@@ -65,6 +65,7 @@ class CameraQueries:
     _frame: Any
     _seen: Any
     _jpeg: Any  # the frame's JPEG as the camera sent it, or None
+    _told: int = 0  # the number of the last frame told to on_frame
     on_frame: Callable[[int, Any, Any], None] | None
 
     def frame(self) -> Any:
@@ -72,10 +73,12 @@ class CameraQueries:
         before the first. The same array until a newer one comes: copy it before drawing
         on it for keeps."""
         img = self._frame
-        if img is not None and img is not self._seen:
+        if img is not None:
             self._seen = img  # for the monitor's viewers (one assignment: no lock)
-            if self.on_frame is not None:
-                self.on_frame(int(self._snap["count"]), img, self._jpeg)
+            count = int(self._snap["count"])
+            if count != self._told and self.on_frame is not None:  # each frame once
+                self._told = count
+                self.on_frame(count, img, self._jpeg)
         return img
 
     def _last_seen(self) -> Any:
