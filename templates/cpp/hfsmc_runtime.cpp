@@ -7,6 +7,8 @@
 // shared library removed after the build stops the program in the dynamic loader,
 // before main (docs/runtime.md, "Start-up").
 #include <getopt.h>
+#include <sched.h>
+#include <sys/mman.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
@@ -28,6 +30,38 @@
 #include "hfsmc/view.hpp"
 
 namespace hfsmc {
+
+// --realtime, once before the first tick: SCHED_FIFO at `priority` for the calling thread
+// (threads started later inherit it) and all memory locked (MCL_CURRENT | MCL_FUTURE). What
+// the system refuses is said in one line on stderr, word for word as the Python runtime says
+// it, and the run goes on without it.
+void go_realtime(const char* name, int priority) {
+    std::vector<std::string> refused, limits, caps;
+    sched_param sp{};
+    sp.sched_priority = priority;
+    if (sched_setscheduler(0, SCHED_FIFO, &sp) != 0) {
+        refused.push_back("SCHED_FIFO priority " + std::to_string(priority) + " (" + std::strerror(errno) + ")");
+        limits.push_back("-r " + std::to_string(priority));
+        caps.emplace_back("cap_sys_nice");
+    }
+    if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
+        refused.push_back(std::string("locked memory (") + std::strerror(errno) + ")");
+        limits.emplace_back("-l unlimited");
+        caps.emplace_back("cap_ipc_lock");
+    }
+    if (refused.empty()) return;
+    const auto join = [](const std::vector<std::string>& parts, const char* sep) {
+        std::string out;
+        for (const std::string& part : parts) out += (out.empty() ? "" : sep) + part;
+        return out;
+    };
+    const std::string line = std::string(name) + ": warning: --realtime: refused " + join(refused, " and ") +
+                             "; running on without " + (refused.size() > 1 ? "them" : "it") +
+                             "; to allow, raise `ulimit " + join(limits, " ") + "` or grant " +
+                             join(caps, ",") + " (setcap), or run as root\n";
+    std::fputs(line.c_str(), stderr);
+    std::fflush(stderr);
+}
 
 // `250ms`, `2s`, `1.5s`, `2m`, or a bare integer of milliseconds; microseconds.
 long long parse_duration_us(const std::string& text) {
@@ -350,9 +384,20 @@ private:
 
 namespace {
 
+constexpr int REALTIME_PRIORITY = 50;  // --realtime without a value; the Python runtime's default too
+
+// --realtime's PRIORITY: SCHED_FIFO's range on Linux, 1 to 99.
+int realtime_priority(const std::string& text) {
+    const bool digits = !text.empty() && text.size() <= 2 &&
+                        std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isdigit(c); });
+    if (!digits || std::stoi(text) < 1)
+        throw UsageError("--realtime: expected a priority from 1 to 99, not `" + text + "`");
+    return std::stoi(text);
+}
+
 Options parse_options(int argc, char** argv, bool& help) {
     enum { CONFIG = 1, PARAM, DISPLAY, DISPLAYGUI, FOCUS, NO_AUTOFOCUS, MONITOR, TRACE, CLOCK, UNTIL,
-           TIME_LIMIT, TRACE_VARIABLES, RECORD, PLAYBACK };
+           TIME_LIMIT, TRACE_VARIABLES, RECORD, PLAYBACK, REALTIME };
     static const option longopts[] = {
         {"config", required_argument, nullptr, CONFIG},
         {"param", required_argument, nullptr, PARAM},
@@ -367,6 +412,7 @@ Options parse_options(int argc, char** argv, bool& help) {
         {"until", required_argument, nullptr, UNTIL},
         {"time-limit", required_argument, nullptr, TIME_LIMIT},
         {"record", required_argument, nullptr, RECORD},
+        {"realtime", optional_argument, nullptr, REALTIME},
         {"playback", required_argument, nullptr, PLAYBACK},  // hfsmc replay and test: not in --help
         {"help", no_argument, nullptr, 'h'},
         {nullptr, 0, nullptr, 0},
@@ -401,6 +447,11 @@ Options parse_options(int argc, char** argv, bool& help) {
             case TIME_LIMIT: o.time_limit = arg; break;
             case RECORD: o.record = arg; break;
             case PLAYBACK: o.playback = arg; break;
+            case REALTIME: {  // --realtime, --realtime=P, --realtime P (as the Python component)
+                const bool given = optarg != nullptr || (optind < argc && argv[optind][0] != '-');
+                o.realtime = given ? realtime_priority(optarg != nullptr ? arg : argv[optind++]) : REALTIME_PRIORITY;
+                break;
+            }
             case 'h': help = true; break;
             case ':': throw UsageError(std::string(argv[optind - 1]) + ": expected a value");
             default: {
@@ -422,7 +473,7 @@ void print_help(const Tables& tb) {
         "usage: %s [--config FILE] [--param NAME=VALUE] [--display] [--displaygui {true,false}]\n"
         "          [--focus PATH] [--no-autofocus] [--monitor [HOST:]PORT] [--trace FILE]\n"
         "          [--trace-variables] [--clock {real,virtual}] [--until DURATION]\n"
-        "          [--time-limit DURATION] [--record FILE]\n\n"
+        "          [--time-limit DURATION] [--record FILE] [--realtime [PRIORITY]]\n\n"
         "Run the %s automaton (generated by hfsmc).\n\n"
         "  --config FILE          interfaces and parameters (default: %s.yaml beside the component)\n"
         "  --param NAME=VALUE     override a parameter (repeatable)\n"
@@ -437,8 +488,10 @@ void print_help(const Tables& tb) {
         "  --until DURATION       stop after that much time (e.g. 10s)\n"
         "  --time-limit DURATION  after that much time, stop as on SIGINT: through on_interrupt\n"
         "                         (a drone lands), exit status 124\n"
-        "  --record FILE          record the run in an MCAP file, for `hfsmc replay`\n\n",
-        name, name, name);
+        "  --record FILE          record the run in an MCAP file, for `hfsmc replay`\n"
+        "  --realtime [PRIORITY]  SCHED_FIFO at PRIORITY (1 to 99, default %d) and locked memory,\n"
+        "                         when the process may\n\n",
+        name, name, name, REALTIME_PRIORITY);
     if (tb.n_parameters == 0 || tb.parameter_info == nullptr) {
         std::printf("parameters: none\n");
         return;

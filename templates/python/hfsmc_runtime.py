@@ -822,6 +822,9 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
                         "(a drone lands), exit status 124")
     p.add_argument("--record", metavar="FILE",
                    help="record what the automaton receives, for `hfsmc replay` (MCAP)")
+    p.add_argument("--realtime", nargs="?", const=str(REALTIME_PRIORITY), metavar="PRIORITY",
+                   help=f"SCHED_FIFO at PRIORITY (1 to 99, default {REALTIME_PRIORITY}) and "
+                        "locked memory, when the process may")
     p.add_argument("--playback", metavar="DIR", help=argparse.SUPPRESS)  # hfsmc replay/test
     args, extra = p.parse_known_args(list(argv))
     if extra:  # one line, as the C++ component says it, with a "did you mean"
@@ -831,6 +834,61 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
         known = [o for a in p._actions for o in a.option_strings if o.startswith("--")]
         raise UsageError(f"unknown flag {flag}{_did_you_mean(flag, known)}")
     return args
+
+
+REALTIME_PRIORITY = 50  # --realtime without a value; the C++ runtime's default too
+
+
+def _realtime_priority(text: str) -> int:
+    """--realtime's PRIORITY: SCHED_FIFO's range on Linux, 1 to 99."""
+    if not re.fullmatch(r"[0-9]{1,2}", text) or not 1 <= int(text) <= 99:
+        raise UsageError(f"--realtime: expected a priority from 1 to 99, not `{text}`")
+    return int(text)
+
+
+def _go_realtime(name: str, priority: int) -> None:
+    """--realtime, once before the first tick: SCHED_FIFO at ``priority`` for the calling
+    thread (threads started later inherit it) and all memory locked (MCL_CURRENT |
+    MCL_FUTURE). What the system refuses is said in one line on stderr, word for word as
+    the C++ runtime says it, and the run goes on without it."""
+    refused: list[str] = []
+    limits: list[str] = []
+    caps: list[str] = []
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as e:
+        refused.append(f"SCHED_FIFO priority {priority} ({e.strerror})")
+        limits.append(f"-r {priority}")
+        caps.append("cap_sys_nice")
+    except AttributeError:  # not Linux
+        refused.append(f"SCHED_FIFO priority {priority} (not supported on this system)")
+        limits.append(f"-r {priority}")
+        caps.append("cap_sys_nice")
+    why = _mlockall()
+    if why:
+        refused.append(f"locked memory ({why})")
+        limits.append("-l unlimited")
+        caps.append("cap_ipc_lock")
+    if refused:
+        them = "them" if len(refused) > 1 else "it"
+        sys.stderr.write(f"{name}: warning: --realtime: refused {' and '.join(refused)}; "
+                         f"running on without {them}; to allow, raise `ulimit "
+                         f"{' '.join(limits)}` or grant {','.join(caps)} (setcap), "
+                         "or run as root\n")
+        sys.stderr.flush()
+
+
+def _mlockall() -> str:
+    """mlockall(MCL_CURRENT | MCL_FUTURE): the reason it failed, or ""."""
+    import ctypes  # only here: --realtime
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        mlockall = libc.mlockall
+    except (OSError, AttributeError):
+        return "not supported on this system"
+    if mlockall(1 | 2) != 0:  # MCL_CURRENT | MCL_FUTURE (Linux)
+        return os.strerror(ctypes.get_errno())
+    return ""
 
 
 def _read_config(path: str) -> dict[str, Any]:
@@ -1005,6 +1063,7 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
         args = _arguments(engine.name, argv, engine.m)
         until = parse_duration_us(args.until) if args.until else None
         time_limit = parse_duration_us(args.time_limit) if args.time_limit else None
+        priority = _realtime_priority(args.realtime) if args.realtime is not None else 0
         _check_focus(engine, args.focus)
         if args.playback is not None:
             import hfsmc_playback  # type: ignore[import-not-found]  # beside the component
@@ -1036,6 +1095,8 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
     except StartError as e:
         sys.stderr.write(f"{engine.name}: error: cannot start: {e}\n")
         return 1
+    if priority:
+        _go_realtime(engine.name, priority)
     engine.install_signals()
     if engine.playback is None:
         return engine.run(args.clock, until, time_limit)

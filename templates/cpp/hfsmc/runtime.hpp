@@ -860,6 +860,7 @@ struct Options {
     std::string config, focus, monitor, trace, clock = "real", until, time_limit, record, playback;
     std::vector<std::string> params;
     bool display = false, autofocus = true, trace_variables = false;
+    int realtime = 0;  // --realtime: the SCHED_FIFO priority, 0 when not asked
 };
 
 // Flags and configuration: throws UsageError; `help` is set after printing --help.
@@ -869,6 +870,8 @@ std::unique_ptr<Config> configure(const Tables& tb, int argc, char** argv, Optio
 std::unique_ptr<Trace> open_trace(const Options& options);
 std::vector<std::unique_ptr<Observer>> open_observers(const Options& options);
 long long parse_duration_us(const std::string& text);
+// --realtime: SCHED_FIFO at `priority` and memory locked; one line on stderr for what is refused.
+void go_realtime(const char* name, int priority);
 
 // Parse flags, read the configuration, make the automaton, wire observers, run:
 // the exit status of docs/semantics.md §10.
@@ -925,6 +928,7 @@ int main(const Tables& tb, int argc, char** argv) {
         std::fprintf(stderr, "%s: error: cannot start: %s\n", tb.name, current_exception_text().c_str());
         return 1;
     }
+    if (o.realtime > 0) go_realtime(tb.name, o.realtime);
     signals::install();
     return m->_hfsm.run(o.clock == "real", until, time_limit);
 }
