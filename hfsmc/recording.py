@@ -37,12 +37,15 @@ class Snapshot:
 
 @dataclass(frozen=True, slots=True)
 class Frame:
-    """A camera frame a snippet obtained (the first time), as the PNG the recording holds."""
+    """A camera frame a snippet obtained (the first time): the JPEG the camera sent or a
+    PNG of its pixels, and the CRC-32 of those pixels (None in a recording without it)."""
 
     t: int
     interface: str
     count: int
-    png: bytes
+    data: bytes
+    format: str  # jpeg or png
+    crc32: int | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -230,8 +233,11 @@ class _Messages:
                 values = {k: v for k, v in body.items() if k != "t"}
                 self.snapshots.append(Snapshot(int(body["t"]), name, values))
             elif topic.startswith("/hfsmc/frame/"):
+                crc = body.get("crc32")
                 self.frames.append(Frame(t, name, int(body["count"]),
-                                         base64.b64decode(body["data"], validate=True)))
+                                         base64.b64decode(body["data"], validate=True),
+                                         str(body.get("format", "png")),
+                                         None if crc is None else int(crc)))
             elif topic.startswith("/hfsmc/command/"):
                 self.commands.append(Command(int(body["t"]), name, str(body["call"]),
                                              tuple(body.get("args", ()))))

@@ -26,7 +26,7 @@ from hfsmc.errors import HfsmcError, UsageError
 from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Model, Transition
 from hfsmc.pipeline import Result, compile_file
-from hfsmc.recording import Command, Recording, RecordingError, read_recording
+from hfsmc.recording import Command, Frame, Recording, RecordingError, read_recording
 
 NOT_EVIDENCE = ("from here on the vehicle would have been commanded differently: "
                 "the recording is no longer evidence")
@@ -163,21 +163,27 @@ def build(built: Built, target: str, model_arg: str | None, rec: Recording) -> l
 
 # --- the playback folder ------------------------------------------------------------------
 
+def _frame_file(fr: Frame) -> str:
+    return f"{fr.interface}-{fr.count}.{'jpg' if fr.format == 'jpeg' else 'png'}"
+
+
 def write_playback(rec: Recording, folder: Path) -> None:
-    """DIR/inputs.jsonl (and the frames as PNG files) from the recording."""
-    frames: dict[tuple[str, int], str] = {}
+    """DIR/inputs.jsonl, and the frames as the files the recording holds (JPEG or PNG)."""
+    frames: dict[tuple[str, int], Frame] = {}
     for fr in rec.frames:
-        name = f"{fr.interface}-{fr.count}.png"
         if (fr.interface, fr.count) not in frames:
-            (folder / name).write_bytes(fr.png)
-            frames[fr.interface, fr.count] = name
+            (folder / _frame_file(fr)).write_bytes(fr.data)
+            frames[fr.interface, fr.count] = fr
     cameras = {n for n, spec in rec.interfaces.items()
                if isinstance(spec, Mapping) and spec.get("type") == "camera"}
     entries: list[tuple[int, dict[str, Any]]] = []
     for s in rec.snapshots:
         values = dict(s.values)
         if s.interface in cameras:
-            values["frame"] = frames.get((s.interface, int(values.get("count", 0))))
+            seen = frames.get((s.interface, int(values.get("count", 0))))
+            values["frame"] = None if seen is None else _frame_file(seen)
+            if seen is not None and seen.crc32 is not None:
+                values["crc32"] = seen.crc32  # the component checks the pixels it decodes
         entries.append((s.t, {"t": s.t, "kind": "snapshot", "interface": s.interface,
                               "values": values}))
     for k in rec.skips:
