@@ -248,6 +248,27 @@ def test_bad_playback_input_is_said_with_its_line(components: Components, tmp_pa
     assert r.stderr.startswith(f"rec_probe: --playback: {folder}/inputs.jsonl:1: not JSON: ")
 
 
+def test_played_values_are_recorded_exactly(components: Components, tmp_path: Path) -> None:
+    """Numbers read back bit for bit (strtod in, shortest round-trip text out), strings
+    with their escapes; the snapshot a recording holds is what the script gave."""
+    values = {"heartbeat_age": 0.30000000000000004, "ready": False, "armed": True,
+              "mode": "GU\u00efDED \"x\"\n\U0001f681", "position": ["nan", 1.5, "-inf"],
+              "altitude": 5e-324, "velocity": [1e300, -0.0, 2.2250738585072014e-308],
+              "yaw": -1.2345678901234567e-05, "battery": 87, "acks": {"arm": "denied"},
+              "vehicle": True, "type": 13}
+    folder = script(tmp_path / "exact", [{"t": 0, "kind": "snapshot", "interface": "drone",
+                                          "values": values}])
+    r = subprocess.run([str(components.cpp), "--playback", str(folder), "--record",
+                        str(folder / "run.mcap"), "--until", "0s"],
+                       capture_output=True, text=True, timeout=60, check=False)
+    assert r.returncode == 0, r.stderr
+    messages, cut = streamed(folder / "run.mcap")
+    assert not cut
+    first = next(m for topic, m in messages if topic == "/hfsmc/interface/drone")
+    assert first == {"t": 0, **values}
+    assert json.dumps(first["velocity"][1]) == "-0.0"
+
+
 # -- --record against the simulator --------------------------------------------------------
 @pytest.fixture
 def sim(tmp_path: Path) -> Iterator[Path]:
