@@ -320,7 +320,7 @@ public:
     long long t = 0;  // logical time of the current instant, microseconds since start
     int owner = 0;  // state whose snippet runs (the number of states for the root)
     std::vector<long long> entered;
-    std::vector<char> is_active;
+    std::vector<int> is_active;  // int, not char: a store to it cannot alias the engine's pointers
     std::vector<int> cur, last;
 
     Engine(M& m, const Tables& tb) : m_(m), tb_(tb) {
@@ -382,15 +382,24 @@ public:
     // the order written), so the chain stays sorted.
     // Without regions (or nested in none) the chain is a stack: that case inline, the
     // others out of line, so the states' enter and exit functions stay small enough to
-    // be inlined in the tick.
+    // be inlined in the tick. A model with no region at all (M::_hfsm_has_regions, set
+    // by the generator) has only that case: a plain push and pop.
     void activate(int b) {
-        if (chain_.back() < b) chain_.push_back(b);
-        else chain_insert(b);
+        if constexpr (!M::_hfsm_has_regions) {
+            chain_.push_back(b);
+        } else {
+            if (chain_.back() < b) chain_.push_back(b);
+            else chain_insert(b);
+        }
         deadline_[static_cast<std::size_t>(b)] = t;
     }
     void deactivate(int b) {
-        if (chain_.back() == b) chain_.pop_back();
-        else chain_erase(b);
+        if constexpr (!M::_hfsm_has_regions) {
+            chain_.pop_back();
+        } else {
+            if (chain_.back() == b) chain_.pop_back();
+            else chain_erase(b);
+        }
     }
     [[gnu::cold, gnu::noinline]] void chain_insert(int b) {
         chain_.insert(std::upper_bound(chain_.begin(), chain_.end(), b), b);
@@ -498,6 +507,8 @@ public:
         }
         chain_.assign(1, 0);
         deadline_[0] = 0;
+        has_sources_ = !sources().empty();
+        lockstep_ = M::_hfsm_one_period && !real_ && pb_ == nullptr;
         owner = root_;
         world();
         m_._hfsm_enter(tb_.automata[0].initial);
@@ -530,14 +541,19 @@ private:
     }
 
     // Instants until a stop request: each waits for the earliest deadline of the active
-    // chain, then ticks every sub-automaton due then, parents first.
+    // chain, then ticks every sub-automaton due then, parents first. `hooks`: the work
+    // that only the real clock, --playback, --record, live views or --trace-variables ask
+    // for, skipped as a whole without them.
     void instants() {
+        const bool hooks = real_ || pb_ != nullptr || rec_ != nullptr || !observers_.empty() ||
+                           (trace_variables_ && trace_);
         for (;;) {
             if (pb_ && playback_signal(false)) return;
             if (signals::pending != 0) return;  // came between two instants
             long long due = deadline_[static_cast<std::size_t>(chain_[0])];
-            for (std::size_t k = 1; k < chain_.size(); ++k)
-                due = std::min(due, deadline_[static_cast<std::size_t>(chain_[k])]);
+            if (!lockstep_)
+                for (std::size_t k = 1; k < chain_.size(); ++k)
+                    due = std::min(due, deadline_[static_cast<std::size_t>(chain_[k])]);
             if (limit_us_ >= 0 && due > limit_us_) {
                 if (!real_ || wait(limit_us_)) {
                     set_time(limit_us_);
@@ -553,28 +569,35 @@ private:
             }
             if (real_ && !wait(due)) return;
             set_time(due);
-            if (t != snap_t_) world();  // the first instant shares the start's snapshot (0 s)
+            // The first instant shares the start's snapshot (0 s); no interface, no snapshot.
+            if (has_sources_ && t != snap_t_) world();
             for (std::size_t k = 0; k < chain_.size(); ++k) {
                 const auto a = static_cast<std::size_t>(chain_[k]);
                 if (deadline_[a] <= due) {
                     m_._hfsm_tick(cur[a]);
                     deadline_[a] = due + period_us_[a];
                     ++ticks_;
-                    if (real_) skip_missed(a);
-                    if (pb_) {
-                        playback_skip(a);
-                        playback_signal(true);
+                    if (hooks) {
+                        if (real_) skip_missed(a);
+                        if (pb_) {
+                            playback_skip(a);
+                            playback_signal(true);
+                        }
                     }
                     if (request_ != nullptr || signals::pending != 0) {
-                        trace_values();
-                        if (rec_) rec_->flush_tick();
+                        if (hooks) {
+                            trace_values();
+                            if (rec_) rec_->flush_tick();
+                        }
                         return;
                     }
                 }
             }
-            trace_values();
-            if (rec_) rec_->flush_tick();
-            if (!observers_.empty()) sample();
+            if (hooks) {
+                trace_values();
+                if (rec_) rec_->flush_tick();
+                if (!observers_.empty()) sample();
+            }
         }
     }
 
@@ -708,6 +731,7 @@ private:
     void interrupt(const std::string& reason) {
         if (t != snap_t_) world();  // a time no instant ran at: the world as it is now
         const int target = tb_.on_interrupt;
+        lockstep_ = false;  // the target's sub-automata start at the interrupt's time
         interrupting_ = reason;
         signals::hard = 1;
         time_limit_us_ = -1;  // stopping already: the time limit has nothing left to do
@@ -852,6 +876,12 @@ private:
     Recorder* rec_ = nullptr;  // --record
     playback::Inputs* pb_ = nullptr;  // --playback
     long long snap_t_ = -1;  // the time of the interfaces' snapshot
+    bool has_sources_ = false;  // any interface that takes snapshots
+    // Every sub-automaton has the model's one period (M::_hfsm_one_period) and every
+    // activation came at an instant: the active ones share one deadline, the root's. Not on
+    // the real clock (missed ticks are skipped per sub-automaton), in --playback (recorded
+    // skips) or after an interrupt (entered at the time of a signal).
+    bool lockstep_ = false;
     std::size_t next_skip_ = 0, next_signal_ = 0;  // --playback: the next to act on
 };
 
