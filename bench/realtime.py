@@ -25,7 +25,8 @@ missed deadline are counted as overruns.
 
 Targets (issue 19, with ``--realtime`` on an idle machine): C++ p99 <= 100 us,
 Python p99 <= 500 us. The load average and the share of the machine that was busy
-during each run are printed beside the figures.
+during each run are printed beside the figures, and the share the hypervisor gave to
+other machines (steal, from /proc/stat), which no priority inside the machine helps.
 
 Usage::
 
@@ -52,6 +53,14 @@ KEY = "realtime_1khz"
 PERIOD_MS = 1
 PRIORITY = 50  # the components' default for --realtime
 TARGET_P99_US = {"C++": 100.0, "Python": 500.0}  # with --realtime, on an idle machine
+
+
+def steal_percent(before: list[int], after: list[int]) -> float | None:
+    """Share of the cores' time the hypervisor gave to other machines (/proc/stat steal)."""
+    if len(before) < 8 or len(after) < 8:
+        return None
+    d = [b - a for a, b in zip(before, after, strict=False)]
+    return round(100 * d[7] / sum(d[:8]), 2) if sum(d[:8]) else None
 
 
 def figures_of(out: Path, proc: Proc, what: str, busy: float | None) -> dict[str, Any]:
@@ -109,22 +118,24 @@ def main(argv: list[str] | None = None) -> int:
                 exe = [str(cpp)] if program == "C++" else [sys.executable, str(py)]
                 p = run([*exe, "--clock", "real", "--until", f"{secs}s", "--param", f"out={out}",
                          *(["--realtime"] if rt else [])])
-            f = figures_of(out, p, label, busy_percent(before, cpu_counters()))
+            after = cpu_counters()
+            f = figures_of(out, p, label, busy_percent(before, after))
+            f["steal_percent"] = steal_percent(before, after)
             f["realtime"] = rt
             results[label] = f
             lm = f["late_ms"]
             log(f"  {label}: {f['ticks']} ticks, overruns {f['overruns']}; lateness us p50 "
                 f"{lm['p50'] * 1e3:.0f}, p99 {lm['p99'] * 1e3:.0f}, p99.9 {lm['p999'] * 1e3:.0f}, "
                 f"max {lm['max'] * 1e3:.0f}; drift {f['drift_ms'] * 1e3:.0f} us; machine busy "
-                f"{f['machine_busy_percent']} %{'; ' + f['stderr'] if f['stderr'] else ''}")
+                f"{f['machine_busy_percent']} %, stolen {f['steal_percent']} %{'; ' + f['stderr'] if f['stderr'] else ''}")
 
     log("\nlateness of each tick against its deadline, microseconds")
     rows = [[label, str(f["ticks"]), str(f["overruns"]),
              *(f"{f['late_ms'][k] * 1e3:.0f}" for k in ("p50", "p99", "p999", "max")),
              f"{f['drift_ms'] * 1e3:.0f}", f"{f['child_cpu_s']:.2f}",
-             str(f["machine_busy_percent"])] for label, f in results.items()]
+             str(f["machine_busy_percent"]), str(f["steal_percent"])] for label, f in results.items()]
     for line in table(rows, ["run", "ticks", "overruns", "p50", "p99", "p99.9", "max",
-                             "drift", "cpu s", "busy %"]):
+                             "drift", "cpu s", "busy %", "steal %"]):
         log(line)
 
     targets: list[dict[str, Any]] = []
