@@ -313,18 +313,30 @@ class CliRun:
     peak_rss_mib: float
 
 
+# Started from this (large) process, a child's ru_maxrss counts the pages it shares
+# with it between fork and exec: hfsmc is started by a small Python in between, which
+# reports the peak of hfsmc alone.
+_PEAK = ("import resource, subprocess, sys\n"
+         "code = subprocess.call(sys.argv[2:])\n"
+         "with open(sys.argv[1], 'w') as f:\n"
+         "    f.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss))\n"
+         "sys.exit(code)\n")
+
+
 def run_cli(args: list[str]) -> CliRun:
     """One ``hfsmc ARGS`` in a subprocess: times, exit status and peak memory."""
-    with tempfile.TemporaryFile() as err:
+    with tempfile.TemporaryFile() as err, tempfile.NamedTemporaryFile("r") as peak:
         t0 = time.perf_counter()
-        proc = subprocess.Popen([*hfsmc_command(), *args], stdout=subprocess.DEVNULL, stderr=err)
+        proc = subprocess.Popen([sys.executable, "-c", _PEAK, peak.name, *hfsmc_command(), *args],
+                                stdout=subprocess.DEVNULL, stderr=err)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         proc.returncode = code = os.waitstatus_to_exitcode(status)
         if code != 0:
             err.seek(0)
             sys.stderr.write(err.read().decode(errors="replace")[-4000:])
-    return CliRun(Timing(wall, usage.ru_utime + usage.ru_stime), code, usage.ru_maxrss / 1024)
+        peak_kib = int(peak.read() or 0)
+    return CliRun(Timing(wall, usage.ru_utime + usage.ru_stime), code, peak_kib / 1024)
 
 
 def rss_mib() -> float:

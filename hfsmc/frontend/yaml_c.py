@@ -9,10 +9,11 @@ this path does not take as it is:
   merge key, a tag, an anchor or an alias on a snippet or a key, an alias to
   an anchor not closed yet, a `%` directive, a second document, an empty
   value, a value that cannot be constructed, nesting deeper than
-  :data:`MAX_C_DEPTH`, more than ``MAX_NODES`` values (aliases expanded),
-  NEL/LS/PS characters (line breaks for libyaml): :func:`load_c` returns a
-  reason and :func:`hfsmc.frontend.yaml.load_yaml` parses the text again with
-  ruamel.yaml, so its diagnostics (positions, the words of
+  :data:`MAX_C_DEPTH`, more than ``MAX_NODES`` values or :data:`MAX_ALIASED`
+  through aliases, a
+  tab, a BOM after the start, NEL/LS/PS characters (line breaks for libyaml):
+  :func:`load_c` returns a reason and :func:`hfsmc.frontend.yaml.load_yaml`
+  parses the text again with ruamel.yaml, so its diagnostics (positions, the words of
   :mod:`hfsmc.frontend.yaml_syntax`, the tag and anchor checks of
   :mod:`hfsmc.frontend.yaml_traps`, the alias-bomb bound) are the only ones;
 * PyYAML missing, or built without libyaml: every document.
@@ -62,11 +63,16 @@ else:
 
 # Deeper documents go to ruamel.yaml, whose recursion decides where E006 is said.
 MAX_C_DEPTH = 100
+# Values copied for aliases before the document goes to ruamel.yaml, whose check of the
+# expansion counts without copying (an alias bomb costs it nothing).
+MAX_ALIASED = 200_000
 
 # Tags a plain scalar may resolve to here; the others (`<<` merge, `=`) go to ruamel.
 _CONSTRUCTED = frozenset("tag:yaml.org,2002:" + t for t in ("int", "float", "bool", "null", "timestamp"))
-# libyaml breaks lines at NEL, LS and PS (YAML 1.1); a directive may switch the YAML version.
-_UNSURE = re.compile("[\x85\u2028\u2029]|^%", re.MULTILINE)
+# Characters libyaml reads otherwise than ruamel.yaml: NEL, LS and PS break lines (YAML
+# 1.1); tabs and a BOM are accepted in places ruamel refuses; a directive may switch the
+# YAML version.
+_UNSURE = re.compile("[\t\x85\u2028\u2029\ufeff]|^%", re.MULTILINE)
 
 
 class _Resolver:
@@ -112,7 +118,7 @@ def load_c(doc: Document, text: str) -> str | None:
     if not AVAILABLE:
         return "PyYAML with libyaml is not installed"
     if _UNSURE.search(text):
-        return "a directive or a NEL/LS/PS character"
+        return "a directive, a tab, a BOM or a NEL/LS/PS character"
     global _resolver
     if _resolver is None:
         _resolver = _Resolver()
@@ -158,7 +164,7 @@ def _read(doc: Document, text: str, resolver: _Resolver) -> Any:
             raise _Fallback("a directive")
         root: list[Any] = [None]
         stack: list[list[Any]] = [[root, (), False, None, None]]
-        nodes = 0
+        nodes = aliased = 0
         while True:
             ev = get()
             t = type(ev)
@@ -220,8 +226,9 @@ def _read(doc: Document, text: str, resolver: _Resolver) -> Any:
                     if target is None:
                         raise _Fallback("an alias to an anchor not closed yet")
                     nodes += target.nodes - 1
-                    if nodes >= MAX_NODES:
-                        raise _Fallback("too many values")
+                    aliased += target.nodes
+                    if nodes >= MAX_NODES or aliased > MAX_ALIASED:
+                        raise _Fallback("too many values through aliases")
                     out = _copy(target.data)
                     target.replay(doc, path)
                 else:
