@@ -341,7 +341,7 @@ def test_record_against_the_simulator(components: Components, sim: Path, tmp_pat
     assert logged and sorted(m["count"] for m in images) == sorted(logged)
     for m in images:
         img = cv2.imdecode(np.frombuffer(base64.b64decode(m["data"]), np.uint8), cv2.IMREAD_COLOR)
-        assert m["format"] == "png" and img is not None and img.shape[2] == 3
+        assert m["format"] == "jpeg" and img is not None and img.shape[2] == 3  # as it came
         assert img[5, 6].tolist() == logged[m["count"]]
         assert m["crc32"] == zlib.crc32(img.tobytes())
     calls = [m["call"] for topic, m in messages if topic == "/hfsmc/command/drone"]

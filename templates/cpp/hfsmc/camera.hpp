@@ -18,7 +18,9 @@
 //
 // The automaton sees one snapshot per instant (docs/recording.md): frame(), age(),
 // ok() and count() return what was the latest when the instant began. With --record
-// the first frame() of each frame writes it to the recording (lossless PNG); with
+// the first frame() of each frame writes it to the recording, losslessly: the JPEG an
+// MJPEG stream sent (a network stream is read as its packets, decoded here), else a
+// PNG; with
 // --playback DIR the camera is a fake fed from DIR/inputs.jsonl (PNG files in DIR).
 //
 // Options: `size: WxH` resizes every frame (320x240).
@@ -159,6 +161,7 @@ class Camera : public Feed, public Source {
     if (inputs_ == nullptr) {
       std::lock_guard<std::mutex> lock(g_->mutex);
       snap_frame_ = g_->latest;
+      snap_jpeg_ = g_->latest_jpeg;
       snap_count_ = g_->count;
       snap_age_ = g_->count == 0 ? std::numeric_limits<double>::infinity()
                                  : std::chrono::duration<double>(Clock::now() - g_->at).count();
@@ -276,13 +279,18 @@ class Camera : public Feed, public Source {
     recorded_ = snap_count_;
     Recorder* r = recorder();
     if (r == nullptr || snap_frame_.empty()) return;
+    if (!snap_jpeg_.empty()) {  // the JPEG as it came: no encoding
+      const std::vector<uchar> jpeg(snap_jpeg_.ptr(), snap_jpeg_.ptr() + snap_jpeg_.total());
+      r->frame(*this, snapshot_t_, snap_count_, "jpeg", base64(jpeg), pixels_crc(snap_frame_));
+      return;
+    }
     std::vector<uchar> png;
     try {
       if (!cv::imencode(".png", snap_frame_, png, {cv::IMWRITE_PNG_COMPRESSION, 1})) return;
     } catch (const cv::Exception&) {
       return;
     }
-    r->frame(*this, snapshot_t_, snap_count_, base64(png), pixels_crc(snap_frame_));
+    r->frame(*this, snapshot_t_, snap_count_, "png", base64(png), pixels_crc(snap_frame_));
   }
 
   /// CRC-32 of a frame's pixels, row by row (zlib.crc32 of a numpy array's bytes).
@@ -319,6 +327,8 @@ class Camera : public Feed, public Source {
     std::mutex mutex;  // guards what follows
     std::condition_variable wake;
     cv::Mat latest;
+    cv::Mat latest_jpeg;  // its JPEG as the stream sent it; empty when none
+    bool no_raw = false;  // the stream's packets are no JPEGs (grabber only)
     Clock::time_point at{};
     long count = 0;
     cv::Mat seen;  // the latest frame a snippet obtained, and its number
@@ -385,12 +395,36 @@ class Camera : public Feed, public Source {
     bool grab(cv::VideoCapture& cap) {
       double fps = exists(url) ? cap.get(cv::CAP_PROP_FPS) : 0.0;
       double step = fps > 0 && fps < 1000 ? 1.0 / fps : 0.0;  // a file plays at its rate
+      // A network stream is read as its packets (an MJPEG stream's are JPEGs) and decoded
+      // here: a recording keeps the JPEG as it came, the lossless source of the pixels.
+      bool raw = false;
+      if (!no_raw && !exists(url) && !is_number(url)) {
+        try {
+          raw = cap.set(cv::CAP_PROP_FORMAT, -1);
+        } catch (const cv::Exception&) {
+          raw = false;
+        }
+      }
       bool got = false;
       while (!stopping()) {
         cv::Mat img;  // a fresh one each time: a frame handed out is never overwritten
+        cv::Mat jpeg;
         bool ok;
         try {
-          ok = cap.read(img);
+          if (raw) {
+            cv::Mat packet;
+            ok = cap.read(packet);
+            if (ok && packet.total() * packet.elemSize() >= 2 && packet.ptr()[0] == 0xFF &&
+                packet.ptr()[1] == 0xD8) {
+              jpeg = packet.reshape(1, 1).clone();
+              img = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+            } else if (ok) {
+              no_raw = true;  // not JPEG packets: decoded by the capture from the next open
+              return got;
+            }
+          } else {
+            ok = cap.read(img);
+          }
         } catch (const cv::Exception&) {
           ok = false;
         }
@@ -399,9 +433,11 @@ class Camera : public Feed, public Source {
           cv::Mat small;
           cv::resize(img, small, size, 0, 0, cv::INTER_AREA);
           img = small;
+          jpeg = cv::Mat();  // resized: recorded as PNG
         }
         {
           std::lock_guard<std::mutex> lock(mutex);
+          latest_jpeg = jpeg;
           latest = img;
           at = Clock::now();
           ++count;
@@ -500,6 +536,7 @@ class Camera : public Feed, public Source {
   std::shared_ptr<Grabber> g_;
   std::map<std::string, std::string> options_;
   cv::Mat snap_frame_;  // the snapshot: the automaton's thread only
+  cv::Mat snap_jpeg_;
   long snap_count_ = 0;
   double snap_age_ = std::numeric_limits<double>::infinity();
   mutable long recorded_ = 0;  // the number of the last frame recorded

@@ -166,14 +166,15 @@ public:
     void snapshot(const Source& s, long long t) {
         write(channels_[&s].snapshot, t, "{\"t\":" + std::to_string(t) + "," + s.snapshot_fields() + "}");
     }
-    // A frame (PNG bytes, base64) a snippet obtained first at instant t; `crc`: the CRC-32
+    // A frame (its JPEG or PNG, base64) a snippet obtained first at instant t; `crc`: the CRC-32
     // of its BGR pixels, row by row.
-    void frame(const Source& s, long long t, long count, const std::string& png_base64, std::uint32_t crc) {
+    void frame(const Source& s, long long t, long count, const char* format, const std::string& data_base64,
+               std::uint32_t crc) {
         const std::uint64_t at = log_time(t);
         write(channels_[&s].frame, t,
               "{\"timestamp\":{\"sec\":" + std::to_string(at / 1000000000ULL) + ",\"nsec\":" +
                   std::to_string(at % 1000000000ULL) + "},\"frame_id\":" + json_string(s.source_name()) +
-                  ",\"format\":\"png\",\"data\":\"" + png_base64 + "\",\"count\":" + std::to_string(count) +
+                  ",\"format\":\"" + format + "\",\"data\":\"" + data_base64 + "\",\"count\":" + std::to_string(count) +
                   ",\"crc32\":" + std::to_string(crc) + "}");
     }
     void command(const Source& s, long long t, const char* call, const std::string& args) {
