@@ -361,8 +361,8 @@ class Engine:
         inputs, recorder = self.inputs, self.recorder
         while True:
             if self.next_signal is not None:
-                self.inject_signal()
-            if self.signal_reason is not None:  # came between two instants
+                self.inject_signal(within=False)
+            if self.signal_reason is not None or self.request is not None:  # between instants
                 return
             t = deadline[chain[0]] if len(chain) == 1 else min([deadline[a] for a in chain])
             limit = self.limit_us
@@ -429,17 +429,25 @@ class Engine:
             if self.recorder is not None:
                 self.recorder.skip(self.t, self.auto_paths[a], skip[0], skip[1])
         if self.next_signal is not None:
-            self.inject_signal()
+            self.inject_signal(within=True)
 
-    def inject_signal(self) -> None:
+    def inject_signal(self, within: bool) -> None:
+        """A playback's next signal, once its ticks have run, at its time: within an
+        instant only when it came at the instant's time (else after the instant)."""
         assert self.next_signal is not None
         ticks, t, reason = self.next_signal
-        if self.ticks >= ticks:
+        if self.ticks < ticks or (within and t > self.t):
+            return
+        self.t = max(self.t, t)
+        if reason == "time_limit":  # as the limit itself does
+            self.time_limit_us = None
+            self.set_limit()
+            self.request = self.request or "time_limit"
+        else:
             self.signal_reason = reason
-            self.t = max(self.t, t)
-            signals = self.playback.signals
-            signals.pop(0)
-            self.next_signal = signals[0] if signals else None
+        signals = self.playback.signals
+        signals.pop(0)
+        self.next_signal = signals[0] if signals else None
 
     def set_limit(self) -> None:
         """The earliest of --until, --time-limit and the interrupt's timeout: the stop due
@@ -490,8 +498,6 @@ class Engine:
         """Act on stop requests between ticks. True when something was done."""
         reason, self.request = self.request, None
         sig, self.signal_reason = self.signal_reason, None
-        if sig is not None and self.recorder is not None:
-            self.recorder.signal(self.t, sig, self.ticks)
         if (reason is not None or sig is not None) and self.inputs:
             self.fresh()  # a stop or an interrupt at a time no instant ran at
         # Several requests at one boundary: an error first, then the root's final
@@ -502,6 +508,8 @@ class Engine:
             self.stop(self.interrupting or "final")
         elif reason == "error" or sig is not None or reason in ("shutdown", "time_limit"):
             why = "error" if reason == "error" else sig or str(reason)
+            if self.recorder is not None and why not in ("error", "shutdown"):
+                self.recorder.signal(self.t, why, self.ticks)  # acted on here (a replay: too)
             if self.m["on_interrupt"] >= 0:
                 self.interrupt(why)
             else:
@@ -584,7 +592,10 @@ class Engine:
         changed = {k: v for k, v in values.items() if self.traced_values.get(k) != v}
         if changed:
             self.traced_values = values
-            self.trace.write({"t": self.t // 1000, "ev": "variables", "values": changed})
+            rec = {"t": self.t // 1000, "ev": "variables", "values": changed}
+            self.trace.write(rec)
+            if self.recorder is not None:
+                self.recorder.trace(self.t, rec)
 
     def sample(self) -> None:
         clock = time.monotonic()
