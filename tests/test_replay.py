@@ -296,7 +296,7 @@ def test_a_changed_threshold_diverges_at_its_instant(flown: Path) -> None:
     assert lines[1:5] == [
         "replay of flight.mcap (python -> python): different",
         "at 3.000 s in TakeOff/WaitReady (trace record 4):",
-        f"  recorded: at {int(ready['t']) / 1000:.3f} s took TakeOff/WaitReady -> TakeOff/Climb "
+        f"  recorded: nothing then; at {int(ready['t']) / 1000:.3f} s took TakeOff/WaitReady -> TakeOff/Climb "
         f"(when: drone.ready(); ../lib/takeoff.yaml:{line - 1})",
         "  now:      took TakeOff/WaitReady -> TakeOff/NotReady (when: elapsed() >= "
         f"ready_timeout; lib/takeoff.yaml:{line})"], r.stdout
