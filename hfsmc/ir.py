@@ -229,6 +229,7 @@ class Model:
     # States whose `use` could not be built (the error says why): checks that would only
     # repeat it (done() there, active() paths below them) leave them out.
     unresolved_uses: tuple[str, ...] = field(default=(), compare=False)
+    source: str = field(default="", compare=False, repr=False)  # the text it was built from
 
     def states(self) -> Iterator[State]:
         """Every state, depth first, parents before children, in model order (a state's

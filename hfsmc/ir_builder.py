@@ -128,6 +128,7 @@ class _IrBuilder:
             span=self.doc.span(()),
             on_interrupt_span=self.doc.span(("on_interrupt",)) if "on_interrupt" in d else None,
             unresolved_uses=tuple(self.unresolved),
+            source=self.doc.text,
             interrupt_timeout_span=(self.doc.key_span(("interrupt_timeout",))
                                     if "interrupt_timeout" in d else None),
         )

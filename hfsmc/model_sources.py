@@ -9,21 +9,22 @@ from __future__ import annotations
 import hashlib
 import os
 
-from hfsmc.frontend import read_text
 from hfsmc.ir import Model
 
 
 def model_sources(model: Model) -> tuple[tuple[str, str], ...]:
     """(path, text) of the model file, then of every file it uses in the order first used
-    (nested uses too); paths relative to the model's folder, with `/` separators."""
+    (nested uses too), as the front end read them; paths relative to the model's folder,
+    with `/` separators."""
     home = os.path.dirname(model.file) or "."
-    files = [model.file]
+    out = [(model.file, model.source)]
     seen = {os.path.realpath(model.file)}
     for auto in model.automata():
-        if auto.instance is not None and os.path.realpath(auto.instance.file) not in seen:
-            seen.add(os.path.realpath(auto.instance.file))
-            files.append(auto.instance.file)
-    return tuple((os.path.relpath(f, home).replace(os.sep, "/"), read_text(f)) for f in files)
+        inst = auto.instance
+        if inst is not None and os.path.realpath(inst.file) not in seen:
+            seen.add(os.path.realpath(inst.file))
+            out.append((inst.file, inst.model.source))
+    return tuple((os.path.relpath(f, home).replace(os.sep, "/"), text) for f, text in out)
 
 
 def model_hash(sources: tuple[tuple[str, str], ...]) -> str:

@@ -24,6 +24,14 @@ from tests.support import (
 __all__ = ["ROOT", "examples", "model_language"]
 
 
+# One compiler cache for every C++ build of the suite, in every worker: the runtime library
+# and the precompiled driver headers (templates/cpp/CMakeLists.txt.j2 sends them through ccache)
+# are then compiled once, not once per component folder; tests that point XDG_CACHE_HOME at a
+# folder of their own would otherwise start ccache cold each time. A run's own CCACHE_DIR wins.
+os.environ.setdefault("CCACHE_DIR", str(Path(tempfile.gettempdir()) / f"hfsmc-test-ccache-{os.getuid()}"))
+os.environ.setdefault("CCACHE_MAXSIZE", "2G")
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _repo_cwd() -> None:
     """Tests run from the repository root, so model paths in diagnostics are relative."""

@@ -391,10 +391,8 @@ def _trace_difference(report: Report, a: Sequence[Mapping[str, Any]],
     old_fire = old is not None and old.get("ev") == "fire"
     new_fire = new is not None and new.get("ev") == "fire"
     if old_fire and old is not None:
-        if int(old["t"]) != t:  # the recorded run went on as it was until then
-            then = f"nothing then; at {int(old['t']) / 1000:.3f} s "
-        else:
-            then = ""
+        # The recorded run went on as it was until its next transition.
+        then = f"nothing then; at {int(old['t']) / 1000:.3f} s " if int(old["t"]) != t else ""
         report.add(f"  recorded: {then}took {describe_fire(old, recorded_built)}", "cyan")
     else:
         report.add(f"  recorded: {_record_text(old)}", "cyan")

@@ -62,9 +62,11 @@ def load(path: str, diags: Diagnostics, text: str | None = None) -> Document:
     if is_xml(text):
         from hfsmc.frontend.xml import load_xml
 
-        return load_xml(path, text, diags)
-    doc = load_yaml(path, text, diags)
-    if not isinstance(doc.data, dict):
-        fail(ParseError, "E005", "not an hfsm model: the document must be a mapping that starts "
-             "with `hfsm: 1`", doc.span(()))
+        doc = load_xml(path, text, diags)
+    else:
+        doc = load_yaml(path, text, diags)
+        if not isinstance(doc.data, dict):
+            fail(ParseError, "E005", "not an hfsm model: the document must be a mapping that "
+                 "starts with `hfsm: 1`", doc.span(()))
+    doc.text = text
     return doc

@@ -58,6 +58,8 @@ class Document:
     notes: list[tuple[Span, str]] = field(default_factory=list)
     # Plain YAML scalars that a YAML 1.1 reader reads differently (`no`, `010`): their text.
     yaml11: dict[PathKey, str] = field(default_factory=dict)
+    # The text read (a recording keeps it: hfsmc/model_sources.py).
+    text: str = ""
 
     def span(self, path: PathKey) -> Span:
         """Position of the value at ``path``, or of its nearest ancestor."""

@@ -1026,7 +1026,7 @@ def _configure(engine: Engine, args: argparse.Namespace, here: str) -> None:
         fake = engine.playback.fake(name, kind) if engine.playback is not None else None
         ns[name] = fake if fake is not None else make_interface(name, kind, where,
                                                                 {**options, **extra})
-        if callable(getattr(ns[name], "snapshot", None)):
+        if callable(getattr(type(ns[name]), "snapshot", None)):  # not Unavailable's __getattr__
             engine.inputs.append((name, kind, ns[name]))
     bind_instances(engine)
 
