@@ -201,7 +201,7 @@ class Camera(CameraQueries):
         fps = cap.get(cv2.CAP_PROP_FPS) if os.path.exists(self.url) else 0.0
         step = 1.0 / fps if 0 < fps < 1000 else 0.0  # a file plays at its rate
         got = False
-        raw = bool(self._raw) and not os.path.exists(self.url) and not self.url.isdigit()
+        raw = bool(self._raw)  # tried on network streams only (_open)
         while not self._stop.is_set():
             try:
                 ok, img = cap.read()

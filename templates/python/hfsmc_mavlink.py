@@ -256,7 +256,6 @@ class Vehicle(VehicleQueries):
         self.url = url
         self._snap = NEVER_HEARD
         self.on_command = None
-        self._mav: Any = _MAV
         self._rate = _option(name, options, "rate", FAST_RATE_HZ)
         self._ack_timeout = _option(name, options, "ack_timeout", ACK_TIMEOUT_S)
         sysid = int(_option(name, options, "source_system", 255.0))
@@ -367,8 +366,8 @@ class Vehicle(VehicleQueries):
                                   ("ATTITUDE", fast), ("SYS_STATUS", slow),
                                   ("GPS_RAW_INT", slow), ("EKF_STATUS_REPORT", slow)):
             self._command("set_message_interval", f"set_message_interval {message}",
-                          self._mav.MAV_CMD_SET_MESSAGE_INTERVAL,
-                          getattr(self._mav, f"MAVLINK_MSG_ID_{message}"), round(interval),
+                          _MAV.MAV_CMD_SET_MESSAGE_INTERVAL,
+                          getattr(_MAV, f"MAVLINK_MSG_ID_{message}"), round(interval),
                           quiet=True)
 
     # -- the reader thread -------------------------------------------------------
@@ -390,8 +389,8 @@ class Vehicle(VehicleQueries):
             if now >= next_heartbeat:
                 next_heartbeat = now + GCS_HEARTBEAT_S
                 with self._lock:
-                    self._conn.mav.heartbeat_send(self._mav.MAV_TYPE_GCS,
-                                                  self._mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+                    self._conn.mav.heartbeat_send(_MAV.MAV_TYPE_GCS,
+                                                  _MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
             self._expire(now)
             self._watch_link()
 
@@ -457,7 +456,7 @@ class Vehicle(VehicleQueries):
         return False
 
     def _on_heartbeat(self, msg: Any, source: tuple[int, int]) -> None:
-        if msg.autopilot == self._mav.MAV_AUTOPILOT_INVALID or msg.type == self._mav.MAV_TYPE_GCS:
+        if msg.autopilot == _MAV.MAV_AUTOPILOT_INVALID or msg.type == _MAV.MAV_TYPE_GCS:
             return  # a ground station, a camera, a gimbal: not the vehicle
         if self._target is not None and source != self._target:
             return

@@ -16,6 +16,8 @@ import sys
 import zlib
 from typing import IO, Any
 
+from hfsmc_record import plain  # type: ignore[import-not-found]  # beside the component
+
 _FLOATS = {"heartbeat_age", "altitude", "yaw", "age"}
 _TRIPLES = {"position", "velocity"}
 
@@ -141,9 +143,8 @@ class Playback:
             self.place[name] = k
 
     def command(self, t_us: int, name: str, call: str, args: list[Any]) -> None:
-        import hfsmc_record  # type: ignore[import-not-found]  # beside the component: plain()
         self.commands.write(json.dumps({"t": t_us, "interface": name, "call": call,
-                                        "args": hfsmc_record.plain(args)},
+                                        "args": plain(args)},
                                        separators=(",", ":")) + "\n")
 
     def close(self) -> None:

@@ -1,8 +1,8 @@
 """``--record FILE``: what entered the automaton from outside, as an MCAP recording.
 
 Copied beside every generated Python component; the runtime imports it only for
-``--record``, and it needs the ``mcap`` package then (the component says so at start
-when it is missing). What is written is in schemas/recording.md; why, in
+``--record``, and the recorder needs the ``mcap`` package then (the component says so at
+start when it is missing); ``plain`` alone, which a playback uses too, needs nothing. What is written is in schemas/recording.md; why, in
 docs/recording.md. Records go straight to the file (no chunks, no compression),
 handed to the operating system once per instant: a component killed mid-run leaves
 a recording that replays up to its last complete instant.
@@ -19,8 +19,6 @@ import time
 import zlib
 from collections.abc import Callable
 from typing import IO, Any
-
-from mcap.writer import CompressionType, Writer
 
 RECORDING_VERSION = "1"
 
@@ -89,6 +87,8 @@ class Recorder:
     def __init__(self, path: str, run: dict[str, str], parameters: dict[str, Any],
                  interfaces: dict[str, dict[str, Any]], sources: tuple[tuple[str, str], ...]
                  ) -> None:
+        from mcap.writer import CompressionType, Writer  # ImportError: the runtime says so
+
         self.path = path
         self.broken = False
         self.out: IO[bytes] = open(path, "wb", buffering=1 << 20)  # noqa: SIM115

@@ -1034,11 +1034,7 @@ def _configure(engine: Engine, args: argparse.Namespace, here: str) -> None:
 def _record(engine: Engine, args: argparse.Namespace, until: int | None,
             time_limit: int | None) -> None:
     """--record FILE: open the recording and hook the interfaces to it."""
-    try:
-        import hfsmc_record  # type: ignore[import-not-found]  # beside the component
-    except ImportError as e:
-        raise StartError(f"--record needs the Python module `{e.name}`, which is not "
-                         "installed: pip install mcap") from None
+    import hfsmc_record  # type: ignore[import-not-found]  # beside the component
     m, ns = engine.m, engine.m["namespace"]
     run = {"component": engine.name, "language": "python", "hfsmc": m["version"],
            "model_hash": m["model_hash"], "clock": args.clock,
@@ -1047,6 +1043,9 @@ def _record(engine: Engine, args: argparse.Namespace, until: int | None,
     try:
         rec = hfsmc_record.Recorder(args.record, run, {p: ns[p] for p, *_ in m["parameters"]},
                                     engine.wiring, m["sources"])
+    except ImportError as e:
+        raise StartError(f"--record needs the Python module `{e.name}`, which is not "
+                         "installed: pip install mcap") from None
     except OSError as e:
         raise UsageError(f"--record {args.record}: {e.strerror}") from None
     engine.recorder = rec
