@@ -31,7 +31,11 @@ RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.
                  "viewstate.hpp", "monitor.hpp", "mcap.hpp", "record.hpp", "playback.hpp",
                  "jsonread.hpp")
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
+RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_record.cpp")  # the library hfsmc_runtime
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",)}
+# A driver's code, one library each (hfsmc_mavlink, hfsmc_camera): src/, beside the runtime's.
+INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",)}
+LIBRARY_SOURCES = frozenset(RUNTIME_SOURCES).union(*INTERFACE_SOURCES.values())
 INTERFACE_CLASSES = {"mavlink": "hfsmc::Mavlink", "camera": "hfsmc::Camera"}
 _TYPES = {"bool": "bool", "int": "long long", "float": "double", "str": "std::string"}
 _BACK = "#line @HFSMC_BACK@ HFSMC_SOURCE"  # the line number is filled in after rendering
@@ -167,6 +171,36 @@ class CppInstanceView:
 
 
 @dataclass(frozen=True, slots=True)
+class BelowView:
+    """A state a sub-automaton may be in after its tick, and the sub-automata (or
+    regions, in order) active under it, ticked next."""
+
+    state: int
+    automata: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class StepView:
+    """One state's part of the instant generated from the model: its tick, then what is
+    active under the state its sub-automaton is in afterwards (itself or a transition's
+    target), parents first."""
+
+    index: int
+    automaton: int  # the sub-automaton (or region) it is a state of
+    below: tuple[BelowView, ...]  # only the states with a sub-automaton or regions
+
+
+@dataclass(frozen=True, slots=True)
+class InstantView:
+    """The instant of a model whose sub-automata all have one period, as code: every
+    active sub-automaton is due at each instant, so the tick of a sub-automaton's current
+    state is followed by the ticks of the sub-automata under it (pre-order), with no walk
+    of the engine's chain of active sub-automata."""
+
+    steps: tuple[StepView, ...]  # per state, in state order
+
+
+@dataclass(frozen=True, slots=True)
 class CppComponentView:
     """Everything ``component.cpp.j2``, ``CMakeLists.txt.j2`` and ``config.yaml.j2`` print,
     computed."""
@@ -187,6 +221,9 @@ class CppComponentView:
     interrupt_timeout_us: int  # -1 without one
     transition_indices: tuple[TransitionIndices, ...]
     first_child: tuple[int, ...]  # per state: where its sub-automata start in _hfsm_CHILDREN
+    has_regions: bool  # the engine keeps its chain sorted only with regions
+    automaton_states: tuple[tuple[int, ...], ...]  # per sub-automaton (or region), its states
+    instant: InstantView | None  # the instant as code: one period for every sub-automaton
     units: tuple[CppUnitView, ...]
     instances: tuple[CppInstanceView, ...]
     line_back: str  # a #line back into the generated file (numbered after rendering)
@@ -311,6 +348,10 @@ class CppWalk(Walk[CppSnippet]):
                                   cpp_string(t.name or ""))
                 for s in self.states for t in s.transitions),
             first_child=_offsets([len(st.children) for st in machine.states]),
+            has_regions=any(a.region is not None for a in machine.automata),
+            automaton_states=tuple(tuple(st.index for st in machine.states if st.container == a.index)
+                                   for a in machine.automata),
+            instant=_instant(machine),
             units=tuple(units.values()),
             instances=tuple(self.instance_view(i, units[i.unit]) for i in machine.instances),
             line_back=_BACK,
@@ -319,6 +360,19 @@ class CppWalk(Walk[CppSnippet]):
             hash_literal=cpp_string(machine.model_hash),
             version_literal=cpp_string(machine.version),
         )
+
+
+def _instant(machine: MachineView[CppSnippet]) -> InstantView | None:
+    """The generated instant, for a model whose sub-automata all have one period."""
+    if len({a.period_ms for a in machine.automata}) != 1:
+        return None
+    children = {st.index: tuple(a.index for a in st.children) for st in machine.states}
+    steps = []
+    for st in machine.states:
+        after = dict.fromkeys([st.index, *(tr.target for tr in st.transitions)])
+        steps.append(StepView(st.index, st.container, tuple(BelowView(j, children[j]) for j in after
+                                              if children[j])))
+    return InstantView(tuple(steps))
 
 
 def _text_literal(text: str) -> str:
@@ -384,7 +438,8 @@ def component_files(model: Model) -> dict[str, bytes]:
     folder = template_folder("cpp")
     out.update(runtime_files(folder.joinpath("hfsmc"), RUNTIME_FILES, INTERFACE_FILES,
                              (i.type for i in model.interfaces), into="include/hfsmc/"))
-    out.update(runtime_files(folder, (RUNTIME_SOURCE,), {}, (), into="src/"))
+    out.update(runtime_files(folder, RUNTIME_SOURCES, INTERFACE_SOURCES,
+                             (i.type for i in model.interfaces), into="src/"))
     if any(i.type == "mavlink" for i in model.interfaces):
         from hfsmc.emit.mavgen import MavgenError, mavlink_headers
 

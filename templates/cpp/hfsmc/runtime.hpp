@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
@@ -28,6 +29,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -222,6 +224,9 @@ namespace signals {
 inline volatile std::sig_atomic_t pending = 0;  // SIGINT / SIGTERM not yet acted on
 inline volatile std::sig_atomic_t hard = 0;  // an interrupt or a stop runs: end at once
 inline volatile std::sig_atomic_t real = 0;
+// A stop is asked: a signal came (`pending`) or the engine has a request. One flag, so that
+// the engine's check after every tick is one load.
+inline volatile std::sig_atomic_t asked = 0;
 inline volatile std::sig_atomic_t finished = 0;  // the stop record is out: exit with `status`
 inline volatile std::sig_atomic_t status = 0;
 inline volatile long long t_us = 0;  // the logical time, for the emergency stop record
@@ -242,6 +247,7 @@ inline void on_signal(int signum) {
     const bool again = hard != 0 || pending != 0;
     if (!again) {
         pending = signum;
+        asked = 1;
         if (wake_w >= 0) {
             const char b = 1;
             [[maybe_unused]] const ssize_t k = ::write(wake_w, &b, 1);
@@ -313,23 +319,22 @@ inline std::string current_exception_text() {
 
 // --- the engine -----------------------------------------------------------------------
 // M is the generated class: it has _hfsm_enter(int), _hfsm_exit(int), _hfsm_tick(int),
-// _hfsm_on_shutdown(), _hfsm_warnings_at_stop() and _hfsm_values().
-template <class M>
+// _hfsm_on_shutdown(), _hfsm_warnings_at_stop() and _hfsm_values(), and, with one period,
+// _hfsm_instant(). `n_states` and `n_automata` are the model's: the per-state and
+// per-sub-automaton arrays live in the engine itself, at offsets known when compiling.
+template <class M, int n_states, int n_automata>
 class Engine {
 public:
     long long t = 0;  // logical time of the current instant, microseconds since start
     int owner = 0;  // state whose snippet runs (the number of states for the root)
-    std::vector<long long> entered;
-    std::vector<int> is_active;  // int, not char: a store to it cannot alias the engine's pointers
-    std::vector<int> cur, last;
+    std::array<long long, n_states + 1> entered{};
+    std::array<int, n_states + 1> is_active{};  // int, not char: a store to it cannot alias the engine's pointers
+    std::array<int, n_automata> cur{}, last{};
 
     Engine(M& m, const Tables& tb) : m_(m), tb_(tb) {
-        const auto n = static_cast<std::size_t>(tb.n_states) + 1;
         const auto a = static_cast<std::size_t>(tb.n_automata);
-        entered.assign(n, 0);
-        is_active.assign(n, 0);
-        cur.assign(a, -1);
-        for (int k = 0; k < tb.n_automata; ++k) last.push_back(tb.automata[k].initial);
+        cur.fill(-1);
+        for (int k = 0; k < tb.n_automata; ++k) last[static_cast<std::size_t>(k)] = tb.automata[k].initial;
         deadline_.assign(a, 0);
         for (int k = 0; k < tb.n_automata; ++k) period_us_.push_back(tb.automata[k].period_ms * 1000LL);
         chain_.reserve(a);
@@ -341,17 +346,25 @@ public:
     Engine& operator=(const Engine&) = delete;
 
     // --- called by generated code ---------------------------------------------------
+    // `fast`: called from M::_hfsm_instant<true>(), the lockstep with nothing recorded
+    // (no trace, no view, no --record): no record to make, no chain to keep.
     // Enter state i of sub-automaton a (both known when the code was generated).
+    // (A snippet sets `owner` itself; `last` is kept for sub-automata with history.)
+    template <bool fast = false, bool history = false>
     void enter(int i, int a) {
-        cur[static_cast<std::size_t>(a)] = last[static_cast<std::size_t>(a)] = i;
+        cur[static_cast<std::size_t>(a)] = i;
+        if constexpr (history) last[static_cast<std::size_t>(a)] = i;
         entered[static_cast<std::size_t>(i)] = t;
         is_active[static_cast<std::size_t>(i)] = 1;
-        owner = i;
-        if (recording_) record_state("enter", i);
+        if constexpr (!fast) {
+            if (recording_) record_state("enter", i);
+        }
     }
+    template <bool fast = false>
     void exit(int i) {
-        owner = i;
-        if (recording_) record_state("exit", i);
+        if constexpr (!fast) {
+            if (recording_) record_state("exit", i);
+        }
     }
     [[gnu::cold, gnu::noinline]] void record_state(const char* ev, int i) {
         Record r = base(ev);
@@ -360,12 +373,20 @@ public:
         emit(r);
     }
     void left(int i) { is_active[static_cast<std::size_t>(i)] = 0; }
+    // Ask for a stop at the end of the tick; the first request stands, but an error's.
+    void request(const char* why, bool over = false) {
+        if (request_ == nullptr || over) request_ = why;
+        signals::asked = 1;
+    }
     // The root sub-automaton entered a final state: stop at the end of the tick.
     void root_final() {
-        if (request_ == nullptr) request_ = "final";
+        request("final");
     }
+    template <bool fast = false>
     void fire(int i, int j, int k) {
-        if (recording_) record_fire(i, j, k);
+        if constexpr (!fast) {
+            if (recording_) record_fire(i, j, k);
+        }
     }
     [[gnu::cold, gnu::noinline]] void record_fire(int i, int j, int k) {
         {
@@ -384,7 +405,11 @@ public:
     // others out of line, so the states' enter and exit functions stay small enough to
     // be inlined in the tick. A model with no region at all (M::_hfsm_has_regions, set
     // by the generator) has only that case: a plain push and pop.
+    // In lockstep the chain is not kept: end_lockstep() rebuilds it.
+    template <bool fast = false>
     void activate(int b) {
+        if constexpr (fast) return;
+        if (lockstep_) return;
         if constexpr (!M::_hfsm_has_regions) {
             chain_.push_back(b);
         } else {
@@ -393,7 +418,10 @@ public:
         }
         deadline_[static_cast<std::size_t>(b)] = t;
     }
+    template <bool fast = false>
     void deactivate(int b) {
+        if constexpr (fast) return;
+        if (lockstep_) return;
         if constexpr (!M::_hfsm_has_regions) {
             chain_.pop_back();
         } else {
@@ -407,6 +435,24 @@ public:
     [[gnu::cold, gnu::noinline]] void chain_erase(int b) {
         chain_.erase(std::find(chain_.begin(), chain_.end(), b));
     }
+    // M::_hfsm_instant(), after the tick of sub-automaton a: true when a stop is asked, and
+    // the rest of the instant is not run, as in the chain walk; end_lockstep() needs where
+    // it was cut. Ticks are counted where a count is read (a recording's signals).
+    template <bool fast = false>
+    bool ticked(int a) {
+        if constexpr (!fast) ++ticks_;
+        if (!stop_asked()) return false;
+        cut_ = a;
+        return true;
+    }
+    // Between two regions of a state: a stop asked while the previous ones ticked leaves
+    // the instant cut before region b.
+    bool stop_asked_before(int b) {
+        if (!stop_asked()) return false;
+        cut_ = std::min(cut_, b - 1);
+        return true;
+    }
+    bool stop_asked() const { return signals::asked != 0; }
     bool after(int i, long long us) const { return t - entered[static_cast<std::size_t>(i)] >= us; }
 
     // A snippet threw: report it, record it, ask for a stop with reason error.
@@ -428,7 +474,7 @@ public:
                              : "  in " + std::string(s.kind) + " of state `" + path + "`\n";
         std::fwrite(text.data(), 1, text.size(), stderr);
         if (stopping_) stop_failed_ = true;
-        else request_ = "error";
+        else request("error", true);
     }
 
     // --- the helpers of docs/semantics.md §8 ---------------------------------------------
@@ -476,7 +522,7 @@ public:
         throw std::invalid_argument("active(" + string_repr(path) + "): no such state in " + where);
     }
     void shutdown() {
-        if (interrupting_.empty() && !stopping_ && request_ == nullptr) request_ = "shutdown";
+        if (interrupting_.empty() && !stopping_) request("shutdown");
     }
 
     // --- set up by hfsmc::main ---------------------------------------------------------
@@ -547,24 +593,24 @@ private:
     void instants() {
         const bool hooks = real_ || pb_ != nullptr || rec_ != nullptr || !observers_.empty() ||
                            (trace_variables_ && trace_);
+        if constexpr (M::_hfsm_one_period) {
+            if (lockstep_) {
+                cut_ = tb_.n_automata;  // none yet
+                if (hooks) lockstep_instants<true, false>();
+                else if (recording_) lockstep_instants<false, false>();
+                else lockstep_instants<false, true>();
+                return;
+            }
+        }
         for (;;) {
             if (pb_ && playback_signal(false)) return;
-            if (signals::pending != 0) return;  // came between two instants
+            if (stop_asked()) return;  // came between two instants
             long long due = deadline_[static_cast<std::size_t>(chain_[0])];
             if (!lockstep_)
                 for (std::size_t k = 1; k < chain_.size(); ++k)
                     due = std::min(due, deadline_[static_cast<std::size_t>(chain_[k])]);
-            if (limit_us_ >= 0 && due > limit_us_) {
-                if (!real_ || wait(limit_us_)) {
-                    set_time(limit_us_);
-                    if (limit_why_ == "time_limit") {  // stopped as by a signal, at the boundary
-                        time_limit_us_ = -1;
-                        set_limit();
-                        if (request_ == nullptr) request_ = "time_limit";
-                    } else {
-                        stop(limit_why_);
-                    }
-                }
+            if (due > limit_at_) {
+                at_limit();
                 return;
             }
             if (real_ && !wait(due)) return;
@@ -584,7 +630,7 @@ private:
                             playback_signal(true);
                         }
                     }
-                    if (request_ != nullptr || signals::pending != 0) {
+                    if (stop_asked()) {
                         if (hooks) {
                             trace_values();
                             if (rec_) rec_->flush_tick();
@@ -598,6 +644,69 @@ private:
                 if (rec_) rec_->flush_tick();
                 if (!observers_.empty()) sample();
             }
+        }
+    }
+
+    // Lockstep (M::_hfsm_one_period, the virtual clock, no playback, no interrupt yet): every
+    // active sub-automaton is due at each of the root's deadlines, and the instant is the
+    // model's generated M::_hfsm_instant(). The chain of active sub-automata is not kept
+    // meanwhile; end_lockstep() rebuilds it.
+    template <bool hooks, bool fast>
+    void lockstep_instants() {
+        const long long period = period_us_[0], limit = limit_at_;  // neither changes in here
+        long long due = deadline_[0];
+        while (!stop_asked()) {
+            if (due > limit) {
+                deadline_[0] = due;
+                at_limit();
+                return;
+            }
+            set_time(due);
+            if constexpr (M::_hfsm_interfaces) {
+                if (has_sources_ && t != snap_t_) world();
+            }
+            m_.template _hfsm_instant<fast>();
+            due += period;
+            if constexpr (hooks) {
+                trace_values();
+                if (rec_) rec_->flush_tick();
+                if (!stop_asked() && !observers_.empty()) sample();
+            }
+        }
+        deadline_[0] = due;
+    }
+
+    // The chain and its deadlines as the walk would have them: the active sub-automata in
+    // pre-order (their numbering); those ticked in the last instant due a period after it.
+    // They are the ones numbered up to where a stop cut the instant (cut_: the ticked set is
+    // a prefix of the pre-order), all of them when none did. The others were entered after
+    // the cut: due at the instant. Before the first instant (deadline_[0] still 0) every
+    // active one is due at 0.
+    void end_lockstep() {
+        if (!lockstep_) return;
+        lockstep_ = false;
+        chain_.clear();
+        for (int a = 0; a < tb_.n_automata; ++a) {
+            const int o = tb_.automata[a].owner;
+            if (o < 0 || is_active[static_cast<std::size_t>(o)]) chain_.push_back(a);
+        }
+        const bool any = deadline_[0] > 0;
+        const long long due = any ? deadline_[0] - period_us_[0] : 0;  // of the last instant
+        for (const int a : chain_)
+            deadline_[static_cast<std::size_t>(a)] =
+                due + (any && a <= cut_ ? period_us_[static_cast<std::size_t>(a)] : 0);
+    }
+
+    // The earliest limit comes before the next deadline: act on it at its time.
+    void at_limit() {
+        if (real_ && !wait(limit_us_)) return;
+        set_time(limit_us_);
+        if (limit_why_ == "time_limit") {  // stopped as by a signal, at the boundary
+            time_limit_us_ = -1;
+            set_limit();
+            request("time_limit");
+        } else {
+            stop(limit_why_);
         }
     }
 
@@ -621,6 +730,7 @@ private:
             limit_us_ = timeout_at_;
             limit_why_ = "timeout";
         }
+        limit_at_ = limit_us_ < 0 ? std::numeric_limits<long long>::max() : limit_us_;
     }
 
     // Real clock: sleep until t_us; false when a signal came first.
@@ -697,15 +807,17 @@ private:
         if (s.reason == "time_limit") {
             time_limit_us_ = -1;
             set_limit();
-            if (request_ == nullptr) request_ = "time_limit";
+            request("time_limit");
         } else {
             signals::pending = s.reason == "sigint" ? SIGINT : SIGTERM;
+            signals::asked = 1;
         }
         return true;
     }
 
     // Act on stop requests between ticks. True when something was done.
     bool boundary() {
+        signals::asked = 0;  // first: a signal coming while this runs asks again
         const std::string reason = request_ != nullptr ? request_ : "";
         request_ = nullptr;
         const int sig = signals::pending;
@@ -731,7 +843,7 @@ private:
     void interrupt(const std::string& reason) {
         if (t != snap_t_) world();  // a time no instant ran at: the world as it is now
         const int target = tb_.on_interrupt;
-        lockstep_ = false;  // the target's sub-automata start at the interrupt's time
+        end_lockstep();  // the target's sub-automata start at the interrupt's time
         interrupting_ = reason;
         signals::hard = 1;
         time_limit_us_ = -1;  // stopping already: the time limit has nothing left to do
@@ -757,6 +869,7 @@ private:
         stopping_ = true;
         signals::hard = 1;
         request_ = nullptr;
+        signals::asked = signals::pending != 0 ? 1 : 0;
         m_._hfsm_exit(cur[0]);
         owner = root_;
         m_._hfsm_on_shutdown();
@@ -865,6 +978,7 @@ private:
     const char* request_ = nullptr;  // shutdown / error / final / time_limit, acted on at the boundary
     std::string interrupting_;  // the interrupt's reason while one runs
     long long until_us_ = -1, time_limit_us_ = -1, timeout_at_ = -1, limit_us_ = -1;
+    long long limit_at_ = std::numeric_limits<long long>::max();  // limit_us_, or never
     std::string limit_why_ = "until";
     long long ticks_ = 0, overruns_ = 0;
     long long start_ns_ = 0, next_sample_ns_ = 0;
@@ -882,6 +996,7 @@ private:
     // the real clock (missed ticks are skipped per sub-automaton), in --playback (recorded
     // skips) or after an interrupt (entered at the time of a signal).
     bool lockstep_ = false;
+    int cut_ = 0;  // lockstep: the sub-automaton after whose tick a stop cut the last instant
     std::size_t next_skip_ = 0, next_signal_ = 0;  // --playback: the next to act on
 };
 
