@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 from typing import TextIO
 
-from hfsmc.emit.cpp import RUNTIME_SOURCE
+from hfsmc.emit.cpp import LIBRARY_SOURCES
 from hfsmc.errors import Diagnostic, Span
 
 # g++'s messages, and the "required from here" line that precedes an error inside a
@@ -118,7 +118,7 @@ def _generator() -> list[str]:
 
 
 def _component_name(folder: Path, model_file: str) -> str:
-    found = [p.stem for p in (folder / "src").glob("*.cpp") if p.name != RUNTIME_SOURCE]
+    found = [p.stem for p in (folder / "src").glob("*.cpp") if p.name not in LIBRARY_SOURCES]
     return found[0] if len(found) == 1 else Path(model_file).stem
 
 
@@ -433,7 +433,7 @@ def _code_part(line: str) -> str:
 
 def _generated_source(folder: Path) -> str | None:
     """The text of the component's generated translation unit (src/NAME.cpp)."""
-    found = [p for p in (folder / "src").glob("*.cpp") if p.name != RUNTIME_SOURCE]
+    found = [p for p in (folder / "src").glob("*.cpp") if p.name not in LIBRARY_SOURCES]
     try:
         return found[0].read_text("utf-8", errors="replace") if len(found) == 1 else None
     except OSError:

@@ -2,7 +2,8 @@
 loopback against the simulator, and the MAVLink C headers mavgen makes for them.
 
 tests/cpp/drivers_main.cpp is built once per session with g++ (-Wall -Wextra
--Werror, AddressSanitizer and UBSan) against the headers of
+-Werror, AddressSanitizer and UBSan), with the drivers' sources (templates/cpp/
+hfsmc_mavlink.cpp, hfsmc_camera.cpp, hfsmc_record.cpp), against the headers of
 hfsmc.emit.mavgen.mavlink_headers(), Eigen and OpenCV; each test runs one of
 its scenarios beside a fresh `hfsmc sim`. A missing tool fails the tests."""
 
@@ -29,6 +30,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
+from hfsmc.emit.cpp import INTERFACE_SOURCES
 from hfsmc.emit.mavgen import mavlink_headers
 from tests.conftest import ROOT
 from tests.support import close_pipes, free_port, simulator
@@ -63,6 +65,13 @@ def opencv_flags() -> list[str]:
     return r.stdout.split()
 
 
+def library_sources(*kinds: str) -> list[str]:
+    """The runtime's sources a program using the drivers of ``kinds`` compiles with (a
+    component builds them into its libraries): --record and --playback, then the drivers."""
+    names = ["hfsmc_record.cpp", *(n for k in kinds for n in INTERFACE_SOURCES[k])]
+    return [str(ROOT / "templates/cpp" / n) for n in names]
+
+
 def write_include(root: Path) -> Path:
     """A component's include/ folder: mavgen's headers and templates/cpp."""
     for key, data in mavlink_headers().items():
@@ -86,8 +95,9 @@ def drivers(include: Path) -> Path:
     """tests/cpp/drivers_main.cpp, built with the sanitizers."""
     exe = include.parent / "drivers_main"
     r = subprocess.run([tool("g++"), *FLAGS, *SANITIZE, f"-I{include}",
-                        str(ROOT / "tests/cpp/drivers_main.cpp"), "-o", str(exe),
-                        *opencv_flags()], capture_output=True, text=True, timeout=300)
+                        str(ROOT / "tests/cpp/drivers_main.cpp"),
+                        *library_sources("mavlink", "camera"), "-o", str(exe),
+                        *opencv_flags()], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert r.stderr == ""  # not even a note
     return exe
@@ -184,6 +194,7 @@ def _digest(headers: dict[str, bytes]) -> str:
 
 DIGEST = """\
 import hashlib
+from hfsmc.emit.cpp import INTERFACE_SOURCES
 from hfsmc.emit.mavgen import mavlink_headers
 headers = mavlink_headers()
 h = hashlib.sha256()
@@ -233,10 +244,11 @@ def test_headers_compile_clean_with_I_and_isystem(include: Path, tmp_path: Path)
                     "int main() { return 0; }\n")
     cflags = [f for f in opencv_flags() if f.startswith("-I")]
     for how in ("-I", "-isystem"):
-        r = subprocess.run([tool("g++"), *FLAGS, "-Wpedantic", how, str(include), *cflags,
-                            "-fsyntax-only", str(main)], capture_output=True, text=True,
-                           timeout=120)
-        assert r.returncode == 0 and r.stderr == "", (how, r.stderr)
+        for unit in (str(main), *library_sources("mavlink", "camera")):
+            r = subprocess.run([tool("g++"), *FLAGS, "-Wpedantic", how, str(include), *cflags,
+                                "-fsyntax-only", unit], capture_output=True, text=True,
+                               timeout=120)
+            assert r.returncode == 0 and r.stderr == "", (how, unit, r.stderr)
 
 
 # -- the drivers ----------------------------------------------------------------------------

@@ -85,6 +85,11 @@ def _compiled(stderr: str) -> list[str]:
     return re.findall(r"^blinker_cpp: \[[^]]*\] (?:pre)?compil(?:ing|ed) (.*)$", stderr, re.M)
 
 
+def _linked(stderr: str) -> list[str]:
+    """The libraries and programs a build linked, from the steps it shows."""
+    return re.findall(r"^blinker_cpp: \[[^]]*\] link(?:ing|ed) (.*)$", stderr, re.M)
+
+
 def test_a_snippet_change_recompiles_the_component_unit_only(tmp_path: Path) -> None:
     need_toolchain()
     model = tmp_path / BLINKER.name
@@ -99,11 +104,16 @@ def test_a_snippet_change_recompiles_the_component_unit_only(tmp_path: Path) -> 
         return r.stderr
 
     said = build()
-    assert sorted(_compiled(said)) == ["blinker_cpp.cpp", "hfsmc_runtime.cpp"], said
+    assert sorted(_compiled(said)) == ["blinker_cpp.cpp", "hfsmc_record.cpp",
+                                       "hfsmc_runtime.cpp"], said
+    library = out / "build" / "libhfsmc_runtime.a"
+    made = library.stat().st_mtime_ns
     text = model.read_text("utf-8")
     model.write_text(text.replace("entry: led = false;", "entry: led = false; pauses += 0;"),
                      "utf-8")
     said = build()
     assert _compiled(said) == ["blinker_cpp.cpp"], said
+    assert _linked(said) == ["blinker_cpp"], said  # the runtime library is not made again
+    assert library.stat().st_mtime_ns == made
     said = build()
     assert _compiled(said) == [], said

@@ -42,7 +42,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from tests.conftest import ROOT
 from tests.support import Live, Worker, close_pipes, free_port, interrupt, wait_until
-from tests.test_cpp_drivers import FLAGS, SAN_ENV, SANITIZE, tool, write_include
+from tests.test_cpp_drivers import FLAGS, SAN_ENV, SANITIZE, library_sources, tool, write_include
 
 hfsmc_mavlink = importlib.import_module("hfsmc.templates.python.hfsmc_mavlink")
 
@@ -484,7 +484,8 @@ def faults_exe(tmp_path_factory: pytest.TempPathFactory) -> Path:
     include = write_include(root)
     exe = root / "faults_main"
     r = subprocess.run([tool("g++"), *FLAGS, *SANITIZE, "-pthread", f"-I{include}",
-                        str(ROOT / "tests/cpp/faults_main.cpp"), "-o", str(exe)],
+                        str(ROOT / "tests/cpp/faults_main.cpp"), *library_sources("mavlink"),
+                        "-o", str(exe)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0 and r.stderr == "", r.stderr
     return exe

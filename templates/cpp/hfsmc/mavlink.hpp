@@ -28,35 +28,22 @@
 // replies). A URL that cannot be opened is said on stderr and the process
 // exits with status 1, as the Python driver's SystemExit(1) does.
 //
-// The mavgen headers are included with -Waddress-of-packed-member (they take
-// the address of packed fields everywhere) and -Wpedantic (anonymous structs)
-// off: g++ 12 gives them no other warning with -Wall -Wextra, so they build with
-// -Werror whether the include folder is given with -I or -isystem.
+// The class is declared here and defined in src/hfsmc_mavlink.cpp, compiled once
+// into the library hfsmc_mavlink: the component's unit sees neither mavgen's
+// headers nor the driver's code (docs/cpp.md, "Build speed").
 #pragma once
 
-#include <arpa/inet.h>
-#include <fcntl.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <poll.h>
-#include <pthread.h>
-#include <signal.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
-#include <algorithm>
 #include <atomic>
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <deque>
 #include <initializer_list>
 #include <limits>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -66,17 +53,13 @@
 
 #include <Eigen/Core>
 
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Waddress-of-packed-member"
-#pragma GCC diagnostic ignored "-Wpedantic"
-#include "mavlink/ardupilotmega/mavlink.h"
-#pragma GCC diagnostic pop
-
 #include "json.hpp"
 #include "observer.hpp"
 #include "playback.hpp"
 #include "record.hpp"
 #include "thread.hpp"
+
+struct __mavlink_message;  // mavlink_message_t of mavgen's headers (src/hfsmc_mavlink.cpp)
 
 namespace hfsmc {
 
@@ -93,60 +76,12 @@ class Mavlink : public Feed, public Source {
   static constexpr double kSilenceS = 0.5;       // a source silent that long is a new one
 
   Mavlink(const std::string& name, const std::string& url,
-          const std::map<std::string, std::string>& options)
-      : name_(name), url_(url.empty() ? kDefaultUrl : url), options_(options), start_(Clock::now()) {
-    rate_ = option(options, "rate", kFastRateHz);
-    ack_timeout_ = option(options, "ack_timeout", kAckTimeoutS);
-    double sysid = std::trunc(option(options, "source_system", 255.0));
-    if (sysid < 1 || sysid > 255) {
-      say("option source_system: " + fmt(sysid) + " is not 1..255, 255 used");
-      sysid = 255;
-    }
-    sysid_ = static_cast<uint8_t>(sysid);
-    for (const auto& kv : options) {
-      if (kv.first != "rate" && kv.first != "ack_timeout" && kv.first != "source_system") {
-        say("unknown option `" + kv.first +
-            "` ignored (options: rate, ack_timeout, source_system)");
-      }
-    }
-    if (playback::Inputs* inputs = playback::current()) {  // a fake fed from the inputs
-      inputs_ = inputs;
-      Snap scratch;  // every entry checked now: a bad value is said before the run
-      for (const playback::Entry& e : inputs->entries(name_)) apply(scratch, e);
-      register_source(this);
-      return;
-    }
-    std::string why = open_socket();
-    if (!why.empty()) {
-      say("cannot open " + url_ + ": " + why);
-      std::exit(1);
-    }
-    reader_ = quiet_thread([this] { run(); });
-    register_feed(this);
-    register_source(this);
-  }
-
-  ~Mavlink() override {
-    unregister_source(this);
-    unregister_feed(this);
-    close();
-  }
+          const std::map<std::string, std::string>& options);
+  ~Mavlink() override;
 
   /// What the component says when it stops with the vehicle still armed (then nothing
   /// lands it: --until, an error without on_interrupt...); "" when disarmed.
-  std::string warning_at_stop() const {
-    if (!armed()) return "";
-    char alt[64];
-    std::snprintf(alt, sizeof alt, "%.1f", altitude());
-    std::string link;
-    if (!connected()) {
-      char age[64];
-      std::snprintf(age, sizeof age, "%.0f", heartbeat_age());
-      link = std::string(" (link lost ") + age + " s ago)";
-    }
-    return "WARNING: ARMED in " + mode() + " at " + alt + " m" + link +
-           " as the component stops: nothing lands the vehicle now";
-  }
+  std::string warning_at_stop() const;
   Mavlink(const Mavlink&) = delete;
   Mavlink& operator=(const Mavlink&) = delete;
 
@@ -188,155 +123,56 @@ class Mavlink : public Feed, public Source {
   /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
   /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
   /// pending, timeout, not_sent; "" when never sent.
-  std::string last_ack(const std::string& command) const {
-    auto it = snap_.acks.find(command);
-    return it == snap_.acks.end() ? std::string() : it->second;
-  }
+  std::string last_ack(const std::string& command) const;
 
   // -- Source: the snapshot of each instant ---------------------------------------------
   const std::string& source_name() const override { return name_; }
   const char* source_type() const override { return "mavlink"; }
-  std::string source_config() const override {
-    std::string options;
-    for (const auto& kv : options_)
-      options += (options.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
-    return "{\"type\":\"mavlink\",\"url\":" + json_string(url_) + ",\"options\":{" + options + "}}";
-  }
-  void take_snapshot(long long t_us) override {
-    snapshot_t_ = t_us;
-    if (inputs_ == nullptr) {
-      snap_ = live_snapshot();
-      return;
-    }
-    const std::vector<playback::Entry>& entries = inputs_->entries(name_);
-    for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
-    snap_ = fed_;
-  }
-  std::string snapshot_fields() const override {
-    const auto triple = [](const Eigen::Vector3d& v) {
-      return "[" + json_number(v.x()) + "," + json_number(v.y()) + "," + json_number(v.z()) + "]";
-    };
-    std::string acks;
-    for (const auto& kv : snap_.acks)
-      acks += (acks.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
-    return "\"heartbeat_age\":" + json_number(snap_.heartbeat_age) +
-           ",\"ready\":" + (snap_.ready ? "true" : "false") + ",\"armed\":" + (snap_.armed ? "true" : "false") +
-           ",\"mode\":" + json_string(snap_.mode) + ",\"position\":" + triple(snap_.position) +
-           ",\"altitude\":" + json_number(snap_.altitude) + ",\"velocity\":" + triple(snap_.velocity) +
-           ",\"yaw\":" + json_number(snap_.yaw) + ",\"battery\":" + std::to_string(snap_.battery) +
-           ",\"acks\":{" + acks + "},\"vehicle\":" + (snap_.vehicle ? "true" : "false") +
-           ",\"type\":" + std::to_string(snap_.type);
-  }
+  std::string source_config() const override;
+  void take_snapshot(long long t_us) override;
+  std::string snapshot_fields() const override;
 
   // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
   /// Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode).
   /// An unknown name throws std::invalid_argument (Python: ValueError).
-  bool set_mode(const std::string& name) {
-    std::string wanted = upper(strip(name));
-    const ModeTable table = modes(static_cast<uint8_t>(snap_.type));
-    const Mode* found = nullptr;
-    std::string names;
-    for (const Mode* m = table.first; m != table.second; ++m) {
-      if (wanted == m->name) found = m;
-      names += (names.empty() ? "" : ", ") + std::string(m->name);
-    }
-    if (found == nullptr) {
-      throw std::invalid_argument(name_ + ": unknown mode `" + name + "` (modes: " + names + ")");
-    }
-    sent("set_mode", "[" + json_string(name) + "]");
-    return command("set_mode", "set_mode " + wanted, MAV_CMD_DO_SET_MODE,
-                   {MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, static_cast<float>(found->number)});
-  }
+  bool set_mode(const std::string& name);
 
   /// Arm the motors (MAV_CMD_COMPONENT_ARM_DISARM 1).
-  bool arm() {
-    sent("arm", "[]");
-    return command("arm", "arm", MAV_CMD_COMPONENT_ARM_DISARM, {1});
-  }
+  bool arm();
 
   /// Disarm the motors (MAV_CMD_COMPONENT_ARM_DISARM 0; the vehicle refuses in flight).
-  bool disarm() {
-    sent("disarm", "[]");
-    return command("disarm", "disarm", MAV_CMD_COMPONENT_ARM_DISARM, {0});
-  }
+  bool disarm();
 
   /// Climb to `alt` m above home (MAV_CMD_NAV_TAKEOFF; GUIDED and armed).
-  bool takeoff(double alt) {
-    sent("takeoff", "[" + json_number(alt) + "]");
-    return command("takeoff", "takeoff", MAV_CMD_NAV_TAKEOFF,
-                   {0, 0, 0, 0, 0, 0, static_cast<float>(alt)});
-  }
+  bool takeoff(double alt);
 
   /// Land where the vehicle is (MAV_CMD_NAV_LAND: LAND mode).
-  bool land() {
-    sent("land", "[]");
-    return command("land", "land", MAV_CMD_NAV_LAND, {});
-  }
+  bool land();
 
   /// Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode).
-  bool rtl() {
-    sent("rtl", "[]");
-    return command("rtl", "rtl", MAV_CMD_NAV_RETURN_TO_LAUNCH, {});
-  }
+  bool rtl();
 
   /// Stop where the vehicle is: a zero velocity target (GUIDED).
-  bool hold() {
-    sent("hold", "[]");
-    return target_local(MAV_FRAME_BODY_OFFSET_NED, kVelocityMask, {0, 0, 0}, {0, 0, 0}, 0);
-  }
+  bool hold();
 
   /// Velocity target in the body frame: m/s forward, right, down; rad/s clockwise.
   /// ArduPilot stops the vehicle when no new target comes for 3 s.
-  bool set_velocity(double vx, double vy, double vz, double yaw_rate) {
-    sent("set_velocity", "[" + json_number(vx) + "," + json_number(vy) + "," + json_number(vz) + "," +
-                             json_number(yaw_rate) + "]");
-    return target_local(MAV_FRAME_BODY_OFFSET_NED, kVelocityMask, {0, 0, 0}, {vx, vy, vz},
-                        yaw_rate);
-  }
+  bool set_velocity(double vx, double vy, double vz, double yaw_rate);
 
   /// Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt).
   /// `goto` in Python; a C++ keyword, hence the underscore (recorded as `goto`).
-  bool go_to(double north, double east, double alt) {
-    sent("goto", "[" + json_number(north) + "," + json_number(east) + "," + json_number(alt) + "]");
-    return target_local(MAV_FRAME_LOCAL_NED, kPositionMask, {north, east, -alt}, {0, 0, 0}, 0);
-  }
+  bool go_to(double north, double east, double alt);
 
   /// Stop the reader and close the socket (also done by the destructor).
-  void close() {
-    if (stop_.exchange(true)) return;
-    if (reader_.joinable()) reader_.join();  // the reader wakes within kPollMs
-    std::lock_guard<std::mutex> lock(link_);
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = -1;
-  }
+  void close();
 
  private:
+  using mavlink_message = ::__mavlink_message;
   // -- for the monitor's viewers (Feed: private here, called through the base) -------
   const char* feed_kind() const override { return "vehicle"; }
   std::string feed_name() const override { return name_; }
   /// A `vehicle` message (schemas/monitor.md) from the state at hand: no request is sent.
-  std::string feed_message(long long t_ms) override {
-    const Snap now = live_snapshot();  // the monitor's thread: never the automaton's snapshot
-    auto num = [](double x, const char* format) {
-      if (!std::isfinite(x)) return std::string("null");
-      char b[64];
-      std::snprintf(b, sizeof b, format, x);
-      return std::string(b);
-    };
-    auto triple = [&num](const Eigen::Vector3d& v) {
-      if (!std::isfinite(v.x()) && !std::isfinite(v.y()) && !std::isfinite(v.z()))
-        return std::string("null");
-      return "[" + num(v.x(), "%.3f") + "," + num(v.y(), "%.3f") + "," + num(v.z(), "%.3f") + "]";
-    };
-    const int percent = now.battery;
-    return "{\"type\":\"vehicle\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
-           ",\"connected\":" + (now.heartbeat_age < kLinkTimeoutS ? "true" : "false") +
-           ",\"mode\":" + json_string(now.mode) + ",\"armed\":" + (now.armed ? "true" : "false") +
-           ",\"altitude\":" + num(now.altitude, "%.3f") + ",\"position\":" + triple(now.position) +
-           ",\"velocity\":" + triple(now.velocity) +
-           ",\"battery\":" + (percent >= 0 ? std::to_string(percent) : std::string("null")) +
-           ",\"link_age\":" + num(now.heartbeat_age, "%.2f") + "}";
-  }
+  std::string feed_message(long long t_ms) override;
 
   using Clock = std::chrono::steady_clock;
   static constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -395,62 +231,10 @@ class Mavlink : public Feed, public Source {
   };
 
   /// The state at hand, as a snapshot (any thread).
-  Snap live_snapshot() const {
-    Snap n;
-    uint16_t flags;
-    int fix;
-    {
-      std::lock_guard<std::mutex> lock(state_);
-      n.heartbeat_age = s_.heartbeat_seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
-      n.armed = s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
-      n.mode = s_.heartbeat_seen ? mode_name(s_.type, s_.custom_mode) : std::string();
-      n.position = s_.position;
-      n.altitude = s_.relative_alt_seen ? s_.relative_alt : -s_.position.z();
-      n.velocity = s_.velocity;
-      n.yaw = s_.yaw;
-      n.battery = s_.battery;
-      n.vehicle = s_.target_seen;
-      n.type = s_.type;
-      flags = s_.ekf_flags;
-      fix = s_.gps_fix;
-    }
-    bool position = n.armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
-                            : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
-    n.ready = n.heartbeat_age < kLinkTimeoutS && fix >= GPS_FIX_TYPE_3D_FIX && position;
-    std::lock_guard<std::mutex> lock(link_);
-    n.acks = acks_;
-    return n;
-  }
+  Snap live_snapshot() const;
 
   /// A playback entry over `s` (schemas/recording.md); a bad value throws InputError.
-  void apply(Snap& s, const playback::Entry& e) const {
-    const playback::Inputs& in = *inputs_;
-    for (const auto& [key, v] : e.values.members) {
-      const char* k = key.c_str();
-      const auto vector = [&]() {
-        if (v.kind != json::Value::ARRAY || v.items.size() != 3) in.bad(e.line, "`" + key + "` must be [x, y, z]");
-        return Eigen::Vector3d(in.number(v.items[0], k, e.line), in.number(v.items[1], k, e.line),
-                               in.number(v.items[2], k, e.line));
-      };
-      if (key == "heartbeat_age") s.heartbeat_age = in.number(v, k, e.line);
-      else if (key == "ready") s.ready = in.boolean(v, k, e.line);
-      else if (key == "armed") s.armed = in.boolean(v, k, e.line);
-      else if (key == "mode") s.mode = in.text(v, k, e.line);
-      else if (key == "position") s.position = vector();
-      else if (key == "altitude") s.altitude = in.number(v, k, e.line);
-      else if (key == "velocity") s.velocity = vector();
-      else if (key == "yaw") s.yaw = in.number(v, k, e.line);
-      else if (key == "battery") s.battery = static_cast<int>(in.whole(v, k, e.line));
-      else if (key == "vehicle") s.vehicle = in.boolean(v, k, e.line);
-      else if (key == "type") s.type = static_cast<int>(in.whole(v, k, e.line));
-      else if (key == "acks") {
-        if (v.kind != json::Value::OBJECT) in.bad(e.line, "`acks` must be an object");
-        s.acks.clear();
-        for (const auto& [command, outcome] : v.members) s.acks[command] = in.text(outcome, "acks", e.line);
-      }
-      // other fields (`t`, ...) are not part of what the automaton sees
-    }
-  }
+  void apply(Snap& s, const playback::Entry& e) const;
 
   struct Mode {
     uint32_t number;
@@ -459,494 +243,53 @@ class Mavlink : public Feed, public Source {
   using ModeTable = std::pair<const Mode*, const Mode*>;
 
   // -- sending ----------------------------------------------------------------------
-  bool target(uint8_t* system, uint8_t* component) const {
-    std::lock_guard<std::mutex> lock(state_);
-    *system = s_.target_system;
-    *component = s_.target_component;
-    return s_.target_seen;
-  }
-
-  uint8_t vehicle_type() const {
-    std::lock_guard<std::mutex> lock(state_);
-    return s_.type;
-  }
+  bool target(uint8_t* system, uint8_t* component) const;
+  uint8_t vehicle_type() const;
 
   /// A COMMAND_LONG: sent when a vehicle has been heard (the snapshot says so; the
   /// reader thread's own, `quiet`, ask the state at hand), its outcome awaited.
   bool command(const std::string& name, const std::string& label, uint16_t cmd,
-               std::initializer_list<float> params, bool quiet = false) {
-    Pending p{name, label, cmd, {0, 0, 0, 0, 0, 0, 0}, {}, {}, true, quiet};
-    std::copy(params.begin(), params.end(), p.params);
-    uint8_t system = 0, component = 0;
-    bool known = inputs_ == nullptr && target(&system, &component);
-    if (!quiet) {
-      known = known && snap_.vehicle;
-      snap_.acks[name] = snap_.vehicle ? "pending" : "not_sent";
-      if (inputs_ != nullptr) {
-        if (!snap_.vehicle) say(label + ": not sent, no vehicle yet (no heartbeat)");
-        return snap_.vehicle;
-      }
-    }
-    {
-      std::lock_guard<std::mutex> lock(link_);
-      if (known) {
-        send_command(system, component, p, 0);
-        Clock::time_point now = Clock::now();
-        p.deadline = now + duration(ack_timeout_);
-        p.resend_at = now + duration(ack_timeout_ / 2);
-        pending_.push_back(p);
-      }
-      if (!quiet) acks_[name] = known ? "pending" : "not_sent";
-    }
-    if (!known) say(label + ": not sent, no vehicle yet (no heartbeat)");
-    return known;
-  }
-
-  void send_command(uint8_t system, uint8_t component, const Pending& p, uint8_t confirmation) {
-    mavlink_message_t msg;
-    mavlink_msg_command_long_pack_status(sysid_, kGcsComponent, &tx_status_, &msg, system,
-                                         component, p.command, confirmation, p.params[0],
-                                         p.params[1], p.params[2], p.params[3], p.params[4],
-                                         p.params[5], p.params[6]);
-    send(msg);
-  }
-
+               std::initializer_list<float> params, bool quiet = false);
+  void send_command(uint8_t system, uint8_t component, const Pending& p, uint8_t confirmation);
   bool target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Eigen::Vector3d vel,
-                    double yaw_rate) {
-    if (!snap_.vehicle) return false;  // a stream of targets: nothing to say
-    uint8_t system, component;
-    if (inputs_ != nullptr || !target(&system, &component)) return true;
-    auto boot_ms = static_cast<uint32_t>(
-        std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - start_).count());
-    std::lock_guard<std::mutex> lock(link_);
-    mavlink_message_t msg;
-    mavlink_msg_set_position_target_local_ned_pack_status(
-        sysid_, kGcsComponent, &tx_status_, &msg, boot_ms, system, component, frame, mask,
-        static_cast<float>(pos.x()), static_cast<float>(pos.y()), static_cast<float>(pos.z()),
-        static_cast<float>(vel.x()), static_cast<float>(vel.y()), static_cast<float>(vel.z()),
-        0, 0, 0, 0, static_cast<float>(yaw_rate));
-    send(msg);
-    return true;
-  }
-
-  void send(const mavlink_message_t& msg) {  // under link_
-    if (fd_ < 0 || !peer_known_) return;  // udpin: nobody has written to us yet
-    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
-    uint16_t len = mavlink_msg_to_send_buffer(buf, &msg);
-    // A full buffer or an unreachable peer loses the datagram, as UDP does.
-    (void)::sendto(fd_, buf, len, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&peer_),
-                   sizeof peer_);
-  }
-
-  void request_rates() {
-    const double fast = 1e6 / std::max(rate_, 0.1);
-    const double slow = 1e6 / kSlowRateHz;
-    const std::pair<const char*, std::pair<uint32_t, double>> rates[] = {
-        {"LOCAL_POSITION_NED", {MAVLINK_MSG_ID_LOCAL_POSITION_NED, fast}},
-        {"GLOBAL_POSITION_INT", {MAVLINK_MSG_ID_GLOBAL_POSITION_INT, fast}},
-        {"ATTITUDE", {MAVLINK_MSG_ID_ATTITUDE, fast}},
-        {"SYS_STATUS", {MAVLINK_MSG_ID_SYS_STATUS, slow}},
-        {"GPS_RAW_INT", {MAVLINK_MSG_ID_GPS_RAW_INT, slow}},
-        {"EKF_STATUS_REPORT", {MAVLINK_MSG_ID_EKF_STATUS_REPORT, slow}},
-    };
-    for (const auto& r : rates) {
-      command("set_message_interval", std::string("set_message_interval ") + r.first,
-              MAV_CMD_SET_MESSAGE_INTERVAL,
-              {static_cast<float>(r.second.first),
-               static_cast<float>(std::nearbyint(r.second.second))},
-              true);
-    }
-  }
+                    double yaw_rate);
+  void send(const mavlink_message& msg);  // under link_
+  void request_rates();
 
   // -- the reader thread -------------------------------------------------------------
-  void run() {
-    Clock::time_point next_heartbeat{};
-    while (!stop_.load()) {
-      pollfd pfd{fd_, POLLIN, 0};
-      int n = ::poll(&pfd, 1, kPollMs);
-      if (n > 0 && (pfd.revents & POLLIN)) drain();
-      Clock::time_point now = Clock::now();
-      if (now >= next_heartbeat) {
-        next_heartbeat = now + duration(kGcsHeartbeatS);
-        std::lock_guard<std::mutex> lock(link_);
-        mavlink_message_t msg;
-        mavlink_msg_heartbeat_pack_status(sysid_, kGcsComponent, &tx_status_, &msg, MAV_TYPE_GCS,
-                                          MAV_AUTOPILOT_INVALID, 0, 0, 0);
-        send(msg);
-      }
-      expire(now);
-      watch_link();
-    }
-  }
-
+  void run();
   /// Handle every datagram waiting (at most 1000, so a flood cannot starve the
   /// deadlines); bytes that are no MAVLink frame are dropped, never raised.
-  void drain() {
-    std::vector<uint8_t>& buf = rx_buf_;
-    std::vector<mavlink_message_t> got;
-    for (int i = 0; i < 1000; ++i) {
-      sockaddr_in from{};
-      socklen_t from_len = sizeof from;
-      ssize_t n = ::recvfrom(fd_, buf.data(), buf.size(), MSG_DONTWAIT,
-                             reinterpret_cast<sockaddr*>(&from), &from_len);
-      if (n < 0 && errno == EINTR) continue;
-      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
-      if (n < 0) continue;  // an ICMP error reported on the socket: try the next datagram
-      got.clear();
-      {
-        std::lock_guard<std::mutex> lock(link_);
-        rx_status_.parse_state = MAVLINK_PARSE_STATE_IDLE;  // each datagram from scratch
-        for (ssize_t k = 0; k < n; ++k) {
-          mavlink_message_t msg;
-          mavlink_status_t status;
-          if (mavlink_frame_char_buffer(&rx_msg_, &rx_status_, buf[k], &msg, &status) ==
-              MAVLINK_FRAMING_OK) {
-            got.push_back(msg);
-          }
-        }
-        if (!got.empty() && listening_ && from_len == sizeof from) {
-          peer_ = from;  // answer whoever speaks MAVLink to us, as mavutil's udpin does
-          peer_known_ = true;
-        }
-      }
-      for (const mavlink_message_t& msg : got) handle(msg);
-    }
-  }
-
+  void drain();
   /// A copy of one of the last kDuplicateWindow frames of that source (same seq,
   /// message and checksum): a network duplicate, however late. Reader thread only.
-  bool duplicate(const mavlink_message_t& msg) {
-    const Clock::time_point now = Clock::now();
-    Recent& r = recent_[static_cast<uint16_t>(msg.sysid << 8 | msg.compid)];
-    if (!r.any || seconds(now - r.at) > kSilenceS) r = Recent{};  // first word, or a reboot
-    r.any = true;
-    r.at = now;
-    const uint64_t key = static_cast<uint64_t>(msg.seq) << 40 |
-                         static_cast<uint64_t>(msg.msgid) << 16 | msg.checksum;
-    if (r.count.count(key) != 0) return true;
-    r.order.push_back(key);
-    ++r.count[key];
-    if (r.order.size() > kDuplicateWindow) {
-      auto it = r.count.find(r.order.front());
-      if (--it->second == 0) r.count.erase(it);
-      r.order.pop_front();
-    }
-    return false;
-  }
-
-  void handle(const mavlink_message_t& msg) {
-    if (duplicate(msg)) return;
-    if (msg.msgid == MAVLINK_MSG_ID_HEARTBEAT) {
-      on_heartbeat(msg);
-      return;
-    }
-    if (msg.msgid == MAVLINK_MSG_ID_COMMAND_ACK) {
-      uint8_t system, component;
-      if (target(&system, &component) && msg.sysid == system) on_ack(msg);
-      return;
-    }
-    std::lock_guard<std::mutex> lock(state_);
-    if (!s_.target_seen || msg.sysid != s_.target_system) return;
-    switch (msg.msgid) {
-      case MAVLINK_MSG_ID_LOCAL_POSITION_NED: {
-        mavlink_local_position_ned_t m;
-        mavlink_msg_local_position_ned_decode(&msg, &m);
-        s_.position = Eigen::Vector3d(m.x, m.y, m.z);
-        s_.velocity = Eigen::Vector3d(m.vx, m.vy, m.vz);
-        break;
-      }
-      case MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
-        s_.relative_alt = mavlink_msg_global_position_int_get_relative_alt(&msg) / 1000.0;
-        s_.relative_alt_seen = true;
-        break;
-      case MAVLINK_MSG_ID_ATTITUDE:
-        s_.yaw = mavlink_msg_attitude_get_yaw(&msg);
-        break;
-      case MAVLINK_MSG_ID_SYS_STATUS:
-        s_.battery = mavlink_msg_sys_status_get_battery_remaining(&msg);
-        break;
-      case MAVLINK_MSG_ID_GPS_RAW_INT:
-        s_.gps_fix = mavlink_msg_gps_raw_int_get_fix_type(&msg);
-        break;
-      case MAVLINK_MSG_ID_EKF_STATUS_REPORT:
-        s_.ekf_flags = mavlink_msg_ekf_status_report_get_flags(&msg);
-        break;
-      default:
-        break;
-    }
-  }
-
-  void on_heartbeat(const mavlink_message_t& msg) {
-    mavlink_heartbeat_t hb;
-    mavlink_msg_heartbeat_decode(&msg, &hb);
-    if (hb.autopilot == MAV_AUTOPILOT_INVALID || hb.type == MAV_TYPE_GCS) {
-      return;  // a ground station, a camera, a gimbal: not the vehicle
-    }
-    bool first, back = false;
-    std::string now_mode;
-    {
-      std::lock_guard<std::mutex> lock(state_);
-      if (s_.target_seen &&
-          (msg.sysid != s_.target_system || msg.compid != s_.target_component)) {
-        return;
-      }
-      first = !s_.target_seen;
-      s_.target_seen = true;
-      s_.target_system = msg.sysid;
-      s_.target_component = msg.compid;
-      s_.type = hb.type;
-      s_.autopilot = hb.autopilot;
-      s_.base_mode = hb.base_mode;
-      s_.custom_mode = hb.custom_mode;
-      s_.heartbeat_seen = true;
-      s_.heartbeat_at = Clock::now();
-      now_mode = mode_name(s_.type, s_.custom_mode);
-    }
-    if (first) {
-      say("vehicle " + std::to_string(msg.sysid) + "/" + std::to_string(msg.compid) + " on " +
-          url_ + ", mode " + now_mode);
-      request_rates();
-    } else if (lost_) {
-      lost_ = false;
-      back = true;
-    }
-    if (back) {
-      say("link back");
-      request_rates();  // the vehicle may have restarted
-    }
-  }
-
+  bool duplicate(const mavlink_message& msg);
+  void handle(const mavlink_message& msg);
+  void on_heartbeat(const mavlink_message& msg);
   /// The oldest command of that id waiting gets the answer (acks come in order).
-  void on_ack(const mavlink_message_t& msg) {
-    mavlink_command_ack_t ack;
-    mavlink_msg_command_ack_decode(&msg, &ack);
-    std::string label, result;
-    bool quiet;
-    {
-      std::lock_guard<std::mutex> lock(link_);
-      auto it = std::find_if(pending_.begin(), pending_.end(),
-                             [&](const Pending& p) { return p.command == ack.command; });
-      if (it == pending_.end()) return;
-      if (ack.result == MAV_RESULT_IN_PROGRESS) {  // wait for the final word, no resend
-        it->deadline = Clock::now() + duration(ack_timeout_);
-        it->resend = false;
-        return;
-      }
-      result = result_name(ack.result);
-      label = it->label;
-      quiet = it->quiet;
-      if (!quiet) acks_[it->name] = result;
-      pending_.erase(it);
-    }
-    if (quiet && result == "accepted") return;
-    say(label + " " + (result == "accepted" ? result : upper(result)));
-  }
-
+  void on_ack(const mavlink_message& msg);
   /// Resend a command once halfway to its deadline; give up at the deadline.
-  void expire(Clock::time_point now) {
-    uint8_t system, component;
-    bool known = target(&system, &component);
-    std::vector<std::string> expired;
-    {
-      std::lock_guard<std::mutex> lock(link_);
-      for (auto it = pending_.begin(); it != pending_.end();) {
-        if (now >= it->deadline) {
-          if (!it->quiet) acks_[it->name] = "timeout";
-          expired.push_back(it->label);
-          it = pending_.erase(it);
-          continue;
-        }
-        if (it->resend && now >= it->resend_at && known) {
-          it->resend = false;
-          send_command(system, component, *it, 1);
-        }
-        ++it;
-      }
-    }
-    for (const std::string& label : expired) {
-      say(label + ": no acknowledgement in " + fmt(ack_timeout_) + " s");
-    }
-  }
-
-  void watch_link() {  // the reader thread: the state at hand, not the automaton's snapshot
-    bool seen;
-    double age;
-    {
-      std::lock_guard<std::mutex> lock(state_);
-      seen = s_.heartbeat_seen;
-      age = seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
-    }
-    if (!lost_ && seen && !(age < kLinkTimeoutS)) {
-      lost_ = true;
-      {
-        std::lock_guard<std::mutex> lock(state_);
-        s_.gps_fix = 0;  // whatever answers next says afresh whether it is ready
-        s_.ekf_flags = 0;
-      }
-      say("link lost: no heartbeat for " + fmt(kLinkTimeoutS) + " s");
-    }
-  }
+  void expire(Clock::time_point now);
+  void watch_link();  // the reader thread: the state at hand, not the automaton's snapshot
 
   // -- opening -------------------------------------------------------------------------
   /// Open the socket the URL names; "" or why not.
-  std::string open_socket() {
-    std::string kind, rest;
-    size_t colon = url_.find(':');
-    if (colon != std::string::npos) {
-      kind = url_.substr(0, colon);
-      rest = url_.substr(colon + 1);
-    }
-    if (kind == "udp") kind = "udpin";
-    size_t last = rest.rfind(':');
-    std::string host = last == std::string::npos ? "" : rest.substr(0, last);
-    std::string port = last == std::string::npos ? "" : rest.substr(last + 1);
-    bool digits = !port.empty() && port.size() <= 5 &&
-                  std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; });
-    if ((kind != "udpin" && kind != "udpout") || host.empty() || !digits ||
-        std::stoi(port) > 65535 || (kind == "udpout" && std::stoi(port) == 0)) {
-      return "expected udpin:HOST:PORT, udpout:HOST:PORT or udp:HOST:PORT";
-    }
-    addrinfo hints{};
-    hints.ai_family = AF_INET;
-    hints.ai_socktype = SOCK_DGRAM;
-    addrinfo* found = nullptr;
-    int err = ::getaddrinfo(host.c_str(), port.c_str(), &hints, &found);
-    if (err != 0 || found == nullptr) return std::string("host ") + host + ": " + gai_strerror(err);
-    sockaddr_in addr{};
-    std::memcpy(&addr, found->ai_addr, sizeof addr);
-    ::freeaddrinfo(found);
-    fd_ = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
-    if (fd_ < 0) return std::strerror(errno);
-    listening_ = kind == "udpin";
-    if (listening_) {
-      if (::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-        std::string why = std::strerror(errno);
-        ::close(fd_);
-        fd_ = -1;
-        return why;
-      }
-    } else {
-      peer_ = addr;
-      peer_known_ = true;
-    }
-    return "";
-  }
+  std::string open_socket();
 
   // -- helpers -----------------------------------------------------------------------
   double option(const std::map<std::string, std::string>& options, const std::string& key,
-                double fallback) const {
-    auto it = options.find(key);
-    if (it == options.end()) return fallback;
-    const std::string& raw = it->second;
-    std::string text = strip(raw);
-    char* end = nullptr;
-    errno = 0;
-    double value = text.empty() ? -1.0 : std::strtod(text.c_str(), &end);
-    if (!text.empty() && (end == nullptr || *end != '\0')) value = -1.0;
-    if (!(value > 0) || std::isinf(value)) {
-      say("option " + key + ": `" + raw + "` is not a positive number, " + fmt(fallback) +
-          " used");
-      return fallback;
-    }
-    return value;
-  }
-
-  static ModeTable modes(uint8_t type) {
-    // pymavlink's mode_mapping_bynumber (ArduPilot's numbers), Copter's by default.
-    static const Mode copter[] = {
-        {0, "STABILIZE"}, {1, "ACRO"},       {2, "ALT_HOLD"},   {3, "AUTO"},
-        {4, "GUIDED"},    {5, "LOITER"},     {6, "RTL"},        {7, "CIRCLE"},
-        {8, "POSITION"},  {9, "LAND"},       {10, "OF_LOITER"}, {11, "DRIFT"},
-        {13, "SPORT"},    {14, "FLIP"},      {15, "AUTOTUNE"},  {16, "POSHOLD"},
-        {17, "BRAKE"},    {18, "THROW"},     {19, "AVOID_ADSB"}, {20, "GUIDED_NOGPS"},
-        {21, "SMART_RTL"}, {22, "FLOWHOLD"}, {23, "FOLLOW"},    {24, "ZIGZAG"},
-        {25, "SYSTEMID"}, {26, "AUTOROTATE"}, {27, "AUTO_RTL"}, {28, "TURTLE"},
-        {29, "RATE_ACRO"}};
-    static const Mode plane[] = {
-        {0, "MANUAL"},  {1, "CIRCLE"},      {2, "STABILIZE"},   {3, "TRAINING"},
-        {4, "ACRO"},    {5, "FBWA"},        {6, "FBWB"},        {7, "CRUISE"},
-        {8, "AUTOTUNE"}, {10, "AUTO"},      {11, "RTL"},        {12, "LOITER"},
-        {13, "TAKEOFF"}, {14, "AVOID_ADSB"}, {15, "GUIDED"},    {16, "INITIALISING"},
-        {17, "QSTABILIZE"}, {18, "QHOVER"}, {19, "QLOITER"},    {20, "QLAND"},
-        {21, "QRTL"},   {22, "QAUTOTUNE"},  {23, "QACRO"},      {24, "THERMAL"},
-        {25, "LOITERALTQLAND"}, {26, "AUTOLAND"}};
-    static const Mode rover[] = {
-        {0, "MANUAL"}, {1, "ACRO"},  {2, "LEARNING"}, {3, "STEERING"}, {4, "HOLD"},
-        {5, "LOITER"}, {6, "FOLLOW"}, {7, "SIMPLE"},  {8, "DOCK"},     {9, "CIRCLE"},
-        {10, "AUTO"},  {11, "RTL"},  {12, "SMART_RTL"}, {15, "GUIDED"}, {16, "INITIALISING"}};
-    static const Mode tracker[] = {{0, "MANUAL"}, {1, "STOP"}, {2, "SCAN"},
-                                   {4, "GUIDED"}, {10, "AUTO"}, {16, "INITIALISING"}};
-    static const Mode sub[] = {{0, "STABILIZE"}, {1, "ACRO"},    {2, "ALT_HOLD"},
-                               {3, "AUTO"},      {4, "GUIDED"},  {7, "CIRCLE"},
-                               {9, "SURFACE"},   {16, "POSHOLD"}, {19, "MANUAL"}};
-    static const Mode blimp[] = {{0, "LAND"}, {1, "MANUAL"}, {2, "VELOCITY"}, {3, "LOITER"},
-                                 {4, "RTL"},  {5, "AUTO"},   {6, "HOLD"}};
-    switch (type) {
-      case MAV_TYPE_FIXED_WING:
-      case MAV_TYPE_VTOL_DUOROTOR:
-      case MAV_TYPE_VTOL_QUADROTOR:
-      case MAV_TYPE_VTOL_TILTROTOR:
-        return {std::begin(plane), std::end(plane)};
-      case MAV_TYPE_GROUND_ROVER:
-      case MAV_TYPE_SURFACE_BOAT:
-        return {std::begin(rover), std::end(rover)};
-      case MAV_TYPE_ANTENNA_TRACKER:
-        return {std::begin(tracker), std::end(tracker)};
-      case MAV_TYPE_SUBMARINE:
-        return {std::begin(sub), std::end(sub)};
-      case MAV_TYPE_AIRSHIP:
-        return {std::begin(blimp), std::end(blimp)};
-      default:
-        return {std::begin(copter), std::end(copter)};
-    }
-  }
-
-  static std::string mode_name(uint8_t type, uint32_t custom) {
-    ModeTable table = modes(type);
-    for (const Mode* m = table.first; m != table.second; ++m) {
-      if (m->number == custom) return m->name;
-    }
-    return "MODE" + std::to_string(custom);
-  }
-
-  static std::string result_name(uint8_t result) {
-    static const char* const names[] = {"accepted", "temporarily_rejected", "denied",
-                                        "unsupported", "failed", "in_progress", "cancelled"};
-    if (result < sizeof names / sizeof names[0]) return names[result];
-    return "result_" + std::to_string(result);
-  }
-
-  static std::string strip(const std::string& s) {
-    const char* space = " \t\n\r\f\v";
-    size_t a = s.find_first_not_of(space);
-    if (a == std::string::npos) return "";
-    return s.substr(a, s.find_last_not_of(space) - a + 1);
-  }
-
-  static std::string upper(std::string s) {
-    for (char& c : s) {
-      if (c >= 'a' && c <= 'z') c = static_cast<char>(c - 'a' + 'A');
-    }
-    return s;
-  }
-
-  static std::string fmt(double x) {  // Python's `{x:g}`
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%g", x);
-    return buf;
-  }
-
+                double fallback) const;
+  static ModeTable modes(uint8_t type);
+  static std::string mode_name(uint8_t type, uint32_t custom);
+  static std::string result_name(uint8_t result);
+  static std::string strip(const std::string& s);
+  static std::string upper(std::string s);
+  static std::string fmt(double x);  // Python's `{x:g}`
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
-
   static Clock::duration duration(double s) {
     return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
   }
-
-  void say(const std::string& text) const {
-    std::string line = name_ + ": " + text + "\n";
-    std::fwrite(line.data(), 1, line.size(), stderr);  // one write: lines never interleave
-    std::fflush(stderr);
-  }
+  void say(const std::string& text) const;
 
   const std::string name_;
   const std::string url_;
@@ -966,11 +309,9 @@ class Mavlink : public Feed, public Source {
   State s_;
 
   mutable std::mutex link_;
-  sockaddr_in peer_{};
+  struct Wire;  // the peer's address and MAVLink's parser and sender states
+  std::unique_ptr<Wire> wire_;
   bool peer_known_ = false;
-  mavlink_message_t rx_msg_{};
-  mavlink_status_t rx_status_{};
-  mavlink_status_t tx_status_{};
   std::vector<Pending> pending_;
   std::map<std::string, std::string> acks_;
 

@@ -6,7 +6,8 @@
 // interface turns them into its own fields when it is made, so a bad value is said
 // before the run, with its line), the clock's skips and the signals. The interfaces
 // become fakes fed from it (mavlink.hpp, camera.hpp), and every command they are
-// given is appended to DIR/commands.jsonl instead of being sent.
+// given is appended to DIR/commands.jsonl instead of being sent. Inputs reads the file in
+// src/hfsmc_record.cpp (library hfsmc_runtime).
 #pragma once
 
 #include <sys/stat.h>
@@ -52,65 +53,8 @@ struct Signal {
 
 class Inputs {
 public:
-    explicit Inputs(const std::string& dir) : dir_(dir.empty() ? "." : dir) {
-        path_ = dir_ + "/inputs.jsonl";
-        std::FILE* f = std::fopen(path_.c_str(), "rb");
-        if (f == nullptr) throw InputError(path_ + ": " + std::strerror(errno));
-        std::string text;
-        char buf[65536];
-        std::size_t got;
-        while ((got = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, got);
-        const int failed = std::ferror(f) ? errno : 0;
-        std::fclose(f);
-        if (failed) throw InputError(path_ + ": " + std::strerror(failed));
-        int line = 0;
-        long long last_t = 0;
-        for (std::size_t at = 0; at < text.size();) {
-            std::size_t nl = text.find('\n', at);
-            if (nl == std::string::npos) nl = text.size();
-            ++line;
-            const std::string row = text.substr(at, nl - at);
-            at = nl + 1;
-            if (row.find_first_not_of(" \t\r") == std::string::npos) continue;
-            json::Value v;
-            try {
-                v = json::Reader::parse(row);
-            } catch (const std::exception& e) {
-                throw InputError(where(line) + ": not JSON: " + e.what());
-            }
-            if (v.kind != json::Value::OBJECT) throw InputError(where(line) + ": expected a JSON object");
-            const long long t = integer(v, "t", line);
-            if (t < last_t) throw InputError(where(line) + ": `t` goes back in time (" +
-                                             std::to_string(t) + " after " + std::to_string(last_t) + ")");
-            last_t = t;
-            const std::string kind = text_of(v, "kind", line);
-            if (kind == "snapshot") {
-                const std::string iface = text_of(v, "interface", line);
-                const json::Value* values = v.get("values");
-                if (values == nullptr || values->kind != json::Value::OBJECT)
-                    throw InputError(where(line) + ": `values` must be an object");
-                by_interface_[iface].push_back({t, line, *values});
-            } else if (kind == "skip") {
-                skips_.push_back({t, line, text_of(v, "automaton", line), integer(v, "deadline", line),
-                                  integer(v, "missed", line)});
-            } else if (kind == "signal") {
-                Signal s{t, line, text_of(v, "reason", line), integer(v, "ticks", line)};
-                if (s.reason != "sigint" && s.reason != "sigterm" && s.reason != "time_limit")
-                    throw InputError(where(line) + ": `reason` must be sigint, sigterm or time_limit, not " +
-                                     json_string(s.reason));
-                signals_.push_back(s);
-            } else {
-                throw InputError(where(line) + ": unknown kind " + json_string(kind) +
-                                 " (kinds: snapshot, skip, signal)");
-            }
-        }
-        const std::string out = dir_ + "/commands.jsonl";
-        commands_ = std::fopen(out.c_str(), "wb");  // this run's commands only
-        if (commands_ == nullptr) throw InputError(out + ": " + std::strerror(errno));
-    }
-    ~Inputs() {
-        if (commands_ != nullptr) std::fclose(commands_);
-    }
+    explicit Inputs(const std::string& dir);
+    ~Inputs();
     Inputs(const Inputs&) = delete;
     Inputs& operator=(const Inputs&) = delete;
 
@@ -127,16 +71,7 @@ public:
     const std::vector<Signal>& signals() const { return signals_; }
 
     // A command an interface was given: one line of DIR/commands.jsonl, on disk at once.
-    void command(long long t, const std::string& iface, const char* call, const std::string& args) {
-        const std::string line = "{\"t\":" + std::to_string(t) + ",\"interface\":" + json_string(iface) +
-                                 ",\"call\":" + json_string(call) + ",\"args\":" + args + "}\n";
-        if (std::fwrite(line.data(), 1, line.size(), commands_) != line.size() || std::fflush(commands_) != 0) {
-            if (!broken_)
-                std::fprintf(stderr, "playback: cannot write to %s/commands.jsonl: %s\n", dir_.c_str(),
-                             std::strerror(errno));
-            broken_ = true;
-        }
-    }
+    void command(long long t, const std::string& iface, const char* call, const std::string& args);
 
     // Field helpers for the interfaces: the value of `key` in an entry, checked.
     [[noreturn]] void bad(int line, const std::string& what) const { throw InputError(where(line) + ": " + what); }

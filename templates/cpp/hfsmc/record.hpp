@@ -7,7 +7,8 @@
 // snapshot until the next one. The Recorder writes the MCAP file: the metadata at
 // start, then per instant the snapshots, the frames a snippet obtained, the commands,
 // the clock's skips, the signals and the trace, one flush_tick() per instant. A write
-// error is said once on stderr and the run goes on without its recording.
+// error is said once on stderr and the run goes on without its recording. The Recorder
+// and the playback inputs are defined in src/hfsmc_record.cpp (library hfsmc_runtime).
 #pragma once
 
 #include <time.h>
@@ -116,7 +117,10 @@ inline const char* const trace =
 class Recorder {
 public:
     // Opens `path` (throws std::runtime_error "PATH: why").
-    explicit Recorder(const std::string& path) : w_(path) {}
+    explicit Recorder(const std::string& path);
+    ~Recorder();
+    Recorder(const Recorder&) = delete;
+    Recorder& operator=(const Recorder&) = delete;
 
     struct Run {
         std::string component, version, model_hash, clock;
@@ -126,78 +130,21 @@ public:
     };
 
     // The metadata and the channels, before any message.
-    void start(const Run& run) {
-        timespec ts{};
-        clock_gettime(CLOCK_REALTIME, &ts);
-        start_ns_ = static_cast<std::uint64_t>(ts.tv_sec) * 1000000000ULL + static_cast<std::uint64_t>(ts.tv_nsec);
-        guard([&] {
-            const auto opt = [](long long us) { return us < 0 ? std::string() : std::to_string(us); };
-            w_.add_metadata("hfsmc.run", {{"recording", "1"}, {"component", run.component}, {"language", "cpp"},
-                                          {"hfsmc", run.version}, {"model_hash", run.model_hash},
-                                          {"clock", run.clock}, {"until_us", opt(run.until_us)},
-                                          {"time_limit_us", opt(run.time_limit_us)},
-                                          {"start_unix_ns", std::to_string(start_ns_)}});
-            w_.add_metadata("hfsmc.parameters", run.parameters);
-            mcap::Metadata interfaces;
-            for (const Source* s : sources()) interfaces.emplace_back(s->source_name(), s->source_config());
-            w_.add_metadata("hfsmc.interfaces", interfaces);
-            w_.add_metadata("hfsmc.sources", run.sources);
-            const auto schema = [&](const char* name, const char* text) {
-                return w_.add_schema(name, "jsonschema", text);
-            };
-            const std::uint16_t mav = schema("hfsmc.mavlink.Snapshot", schemas::mavlink);
-            const std::uint16_t cam = schema("hfsmc.camera.Snapshot", schemas::camera);
-            const std::uint16_t img = schema("foxglove.CompressedImage", schemas::image);
-            const std::uint16_t cmd = schema("hfsmc.Command", schemas::command);
-            for (const Source* s : sources()) {
-                Channels& c = channels_[s];
-                const bool is_camera = std::string(s->source_type()) == "camera";
-                c.snapshot = w_.add_channel("/hfsmc/interface/" + s->source_name(), "json", is_camera ? cam : mav);
-                if (is_camera) c.frame = w_.add_channel("/hfsmc/frame/" + s->source_name(), "json", img);
-                c.command = w_.add_channel("/hfsmc/command/" + s->source_name(), "json", cmd);
-            }
-            skip_ = w_.add_channel("/hfsmc/skip", "json", schema("hfsmc.Skip", schemas::skip));
-            signal_ = w_.add_channel("/hfsmc/signal", "json", schema("hfsmc.Signal", schemas::signal));
-            trace_ = w_.add_channel("/hfsmc/trace", "json", schema("hfsmc.TraceRecord", schemas::trace));
-            w_.flush_tick();
-        });
-    }
+    void start(const Run& run);
 
-    void snapshot(const Source& s, long long t) {
-        write(channels_[&s].snapshot, t, "{\"t\":" + std::to_string(t) + "," + s.snapshot_fields() + "}");
-    }
+    void snapshot(const Source& s, long long t);
     // A frame (its JPEG or PNG, base64) a snippet obtained first at instant t; `crc`: the CRC-32
     // of its BGR pixels, row by row.
     void frame(const Source& s, long long t, long count, const char* format, const std::string& data_base64,
-               std::uint32_t crc) {
-        const std::uint64_t at = log_time(t);
-        write(channels_[&s].frame, t,
-              "{\"timestamp\":{\"sec\":" + std::to_string(at / 1000000000ULL) + ",\"nsec\":" +
-                  std::to_string(at % 1000000000ULL) + "},\"frame_id\":" + json_string(s.source_name()) +
-                  ",\"format\":\"" + format + "\",\"data\":\"" + data_base64 + "\",\"count\":" + std::to_string(count) +
-                  ",\"crc32\":" + std::to_string(crc) + "}");
-    }
-    void command(const Source& s, long long t, const char* call, const std::string& args) {
-        write(channels_[&s].command, t,
-              "{\"t\":" + std::to_string(t) + ",\"call\":" + json_string(call) + ",\"args\":" + args + "}");
-    }
-    void skip(long long t, const std::string& automaton, long long deadline, long long missed) {
-        write(skip_, t, "{\"t\":" + std::to_string(t) + ",\"automaton\":" + json_string(automaton) +
-                            ",\"deadline\":" + std::to_string(deadline) + ",\"missed\":" + std::to_string(missed) + "}");
-    }
-    void signal(long long t, const std::string& reason, long long ticks) {
-        write(signal_, t, "{\"t\":" + std::to_string(t) + ",\"reason\":" + json_string(reason) +
-                              ",\"ticks\":" + std::to_string(ticks) + "}");
-    }
+               std::uint32_t crc);
+    void command(const Source& s, long long t, const char* call, const std::string& args);
+    void skip(long long t, const std::string& automaton, long long deadline, long long missed);
+    void signal(long long t, const std::string& reason, long long ticks);
     // A trace record (its line without the newline) at logical time t (us).
-    void trace(long long t, const std::string& record) { write(trace_, t, record); }
+    void trace(long long t, const std::string& record);
 
-    void flush_tick() {
-        guard([&] { w_.flush_tick(); });
-    }
-    void close() {
-        guard([&] { w_.close(); });
-    }
+    void flush_tick();
+    void close();
 
 private:
     struct Channels {
@@ -207,9 +154,7 @@ private:
     std::uint64_t log_time(long long t) const {
         return start_ns_ + static_cast<std::uint64_t>(std::max(t, 0LL)) * 1000ULL;
     }
-    void write(std::uint16_t channel, long long t, const std::string& payload) {
-        guard([&] { w_.write(channel, log_time(t), payload); });
-    }
+    void write(std::uint16_t channel, long long t, const std::string& payload);
     template <class F>
     void guard(F&& f) {
         if (broken_) return;

@@ -1018,64 +1018,51 @@ long long parse_duration_us(const std::string& text);
 // --realtime: SCHED_FIFO at `priority` and memory locked; one line on stderr for what is refused.
 void go_realtime(const char* name, int priority);
 
+// What main<M> does around the automaton, in hfsmc_runtime.cpp: compiled once into the
+// runtime library, not again with every model.
+struct Startup {
+    Options options;
+    std::unique_ptr<Config> config;
+    std::unique_ptr<playback::Inputs> inputs;  // both outlive the automaton's interfaces
+    std::unique_ptr<Recorder> rec;
+    long long until = -1, time_limit = -1;
+    bool help = false;  // --help was printed: exit 0
+
+    Startup();
+    ~Startup();
+    Startup(const Startup&) = delete;
+    Startup& operator=(const Startup&) = delete;
+    // Signals end the process quietly until the engine takes them over; flags, the
+    // configuration and --playback DIR (the interfaces become fakes fed from DIR, on the
+    // virtual clock). Throws UsageError or playback::InputError.
+    void begin(const Tables& tb, int argc, char** argv);
+    // --record FILE: the recording starts, with the parameters' values (throws UsageError).
+    void record(const Tables& tb, std::vector<std::pair<std::string, std::string>> parameters);
+    // In a handler of the exception that stopped the start: said on stderr, the exit status.
+    int failed(const Tables& tb) const;
+    // --realtime, then the engine's signal handlers: just before the first instant.
+    void go(const Tables& tb) const;
+};
+
 // Parse flags, read the configuration, make the automaton, wire observers, run:
 // the exit status of docs/semantics.md §10.
 template <class M>
 int main(const Tables& tb, int argc, char** argv) {
-    // Until the engine takes them over, signals end the process quietly.
-    std::signal(SIGINT, [](int) { _exit(130); });
-    std::signal(SIGTERM, [](int) { _exit(143); });
-    std::unique_ptr<playback::Inputs> inputs;  // both outlive the automaton's interfaces
-    std::unique_ptr<Recorder> rec;
+    Startup s;
     std::unique_ptr<M> m;
-    Options o;
-    long long until = -1, time_limit = -1;
     try {
-        bool help = false;
-        const std::unique_ptr<Config> config = configure(tb, argc, argv, o, help);
-        if (help) return 0;
-        if (!o.until.empty()) until = parse_duration_us(o.until);
-        if (!o.time_limit.empty()) time_limit = parse_duration_us(o.time_limit);
-        if (!o.playback.empty()) {  // the interfaces become fakes fed from DIR, on the virtual clock
-            inputs = std::make_unique<playback::Inputs>(o.playback);
-            playback::current() = inputs.get();
-            o.clock = "virtual";
-        }
-        m = std::make_unique<M>(*config);
-        if (!o.trace.empty()) m->_hfsm.set_trace(open_trace(o));
-        m->_hfsm.set_trace_variables(o.trace_variables);
-        for (auto& observer : open_observers(o)) m->_hfsm.add_observer(std::move(observer));
-        if (!o.record.empty()) {
-            try {
-                rec = std::make_unique<Recorder>(o.record);
-            } catch (const std::exception& e) {
-                throw UsageError(std::string("--record: ") + e.what());
-            }
-            Recorder::Run run;
-            run.component = tb.name;
-            run.version = tb.version;
-            run.model_hash = tb.model_hash;
-            run.clock = o.clock;
-            run.until_us = until;
-            run.time_limit_us = time_limit;
-            run.parameters = m->_hfsm_parameters_json();
-            for (int k = 0; k + 1 < 2 * tb.n_sources; k += 2) run.sources.emplace_back(tb.sources[k], tb.sources[k + 1]);
-            rec->start(run);
-            recorder() = rec.get();
-        }
-    } catch (const playback::InputError& e) {
-        std::fprintf(stderr, "%s: --playback: %s\n", tb.name, e.what());
-        return 2;
-    } catch (const UsageError& e) {
-        std::fprintf(stderr, "%s: %s\n", tb.name, e.what());
-        return 2;
-    } catch (...) {  // an interface or a variable's initializer failed
-        std::fprintf(stderr, "%s: error: cannot start: %s\n", tb.name, current_exception_text().c_str());
-        return 1;
+        s.begin(tb, argc, argv);
+        if (s.help) return 0;
+        m = std::make_unique<M>(*s.config);
+        if (!s.options.trace.empty()) m->_hfsm.set_trace(open_trace(s.options));
+        m->_hfsm.set_trace_variables(s.options.trace_variables);
+        for (auto& observer : open_observers(s.options)) m->_hfsm.add_observer(std::move(observer));
+        if (!s.options.record.empty()) s.record(tb, m->_hfsm_parameters_json());
+    } catch (...) {  // a usage error, or an interface or a variable's initializer failed
+        return s.failed(tb);
     }
-    if (o.realtime > 0) go_realtime(tb.name, o.realtime);
-    signals::install();
-    return m->_hfsm.run(o.clock == "real", until, time_limit);
+    s.go(tb);
+    return m->_hfsm.run(s.options.clock == "real", s.until, s.time_limit);
 }
 
 }  // namespace hfsmc

@@ -1,0 +1,471 @@
+// hfsmc_camera.cpp: the `camera` interface of C++ components (hfsmc/camera.hpp declares
+// it and says how it works), compiled once into the library hfsmc_camera. Copied
+// unchanged into every component folder that uses it.
+#include <pthread.h>
+#include <signal.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>  // linked through videoio, which depends on it
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "hfsmc/camera.hpp"
+
+namespace hfsmc {
+
+namespace {
+
+#ifdef __linux__
+constexpr int kDeviceApi = cv::CAP_V4L2;
+#else
+constexpr int kDeviceApi = cv::CAP_ANY;
+#endif
+
+/// OpenCV's warnings off while a capture opens (unless OPENCV_LOG_LEVEL is set).
+/// The log level is global: grabbers share the lowering.
+class Quiet {
+ public:
+  Quiet() : active_(std::getenv("OPENCV_LOG_LEVEL") == nullptr) {
+    if (!active_) return;
+    std::lock_guard<std::mutex> lock(mutex());
+    if (depth()++ == 0) {
+      saved() = cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
+    }
+  }
+  ~Quiet() {
+    if (!active_) return;
+    std::lock_guard<std::mutex> lock(mutex());
+    if (--depth() == 0) cv::utils::logging::setLogLevel(saved());
+  }
+  Quiet(const Quiet&) = delete;
+  Quiet& operator=(const Quiet&) = delete;
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static int& depth() {
+    static int d = 0;
+    return d;
+  }
+  static cv::utils::logging::LogLevel& saved() {
+    static cv::utils::logging::LogLevel s = cv::utils::logging::LOG_LEVEL_WARNING;
+    return s;
+  }
+  bool active_;
+};
+
+}  // namespace
+
+struct Camera::Grabber {
+  std::string name, url;
+  cv::Size size;  // empty: frames kept as they come
+  std::mutex mutex;  // guards what follows
+  std::condition_variable wake;
+  cv::Mat latest;
+  cv::Mat latest_jpeg;  // its JPEG as the stream sent it; empty when none
+  bool no_raw = false;  // the stream's packets are no JPEGs (grabber only)
+  Clock::time_point at{};
+  long count = 0;
+  cv::Mat seen;  // the latest frame a snippet obtained, and its number
+  long seen_count = 0;
+  bool stop = false;
+  bool finished = false;
+  bool down = false;  // said on stderr that the stream is down (grabber only)
+
+  bool stopping() {
+    std::lock_guard<std::mutex> lock(mutex);
+    return stop;
+  }
+
+  void pause(double s) {  // wait, or less when asked to stop
+    std::unique_lock<std::mutex> lock(mutex);
+    wake.wait_for(lock, std::chrono::duration<double>(s), [this] { return stop; });
+  }
+
+  void run() {
+    double pause_s = kBackoffMinS;
+    while (!stopping()) {
+      std::unique_ptr<cv::VideoCapture> cap = open();
+      bool got = cap && grab(*cap);
+      if (cap) cap->release();
+      if (stopping()) return;
+      if (got) pause_s = kBackoffMinS;
+      if (!down) {
+        down = true;
+        bool any;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          any = count > 0;
+        }
+        say(std::string("stream ") + (got || any ? "lost" : "not available") + " at " + url +
+            ": reconnecting");
+      }
+      pause(pause_s);
+      pause_s = std::min(pause_s * 2, kBackoffMaxS);
+    }
+  }
+
+  std::unique_ptr<cv::VideoCapture> open() {
+    Quiet quiet;  // a failed open warns each retry; the drop is said once by us
+    std::unique_ptr<cv::VideoCapture> cap;
+    try {
+      if (is_number(url)) {  // a device: V4L2 (any backend would also probe USB and more)
+        cap = std::make_unique<cv::VideoCapture>(std::atoi(url.c_str()), kDeviceApi);
+      } else if (exists(url)) {
+        cap = std::make_unique<cv::VideoCapture>(url);
+      } else {  // a network stream: bounded waits, so a dead server is noticed
+        cap = std::make_unique<cv::VideoCapture>(
+            url, cv::CAP_FFMPEG,
+            std::vector<int>{cv::CAP_PROP_OPEN_TIMEOUT_MSEC, kOpenTimeoutMs,
+                             cv::CAP_PROP_READ_TIMEOUT_MSEC, kReadTimeoutMs});
+      }
+    } catch (const cv::Exception&) {
+      return nullptr;
+    }
+    if (!cap->isOpened()) return nullptr;
+    return cap;
+  }
+
+  /// Read frames until the stream ends; whether any came.
+  bool grab(cv::VideoCapture& cap) {
+    double fps = exists(url) ? cap.get(cv::CAP_PROP_FPS) : 0.0;
+    double step = fps > 0 && fps < 1000 ? 1.0 / fps : 0.0;  // a file plays at its rate
+    // A network stream is read as its packets (an MJPEG stream's are JPEGs) and decoded
+    // here: a recording keeps the JPEG as it came, the lossless source of the pixels.
+    bool raw = false;
+    if (!no_raw && !exists(url) && !is_number(url)) {
+      try {
+        raw = cap.set(cv::CAP_PROP_FORMAT, -1);
+      } catch (const cv::Exception&) {
+        raw = false;
+      }
+    }
+    bool got = false;
+    while (!stopping()) {
+      cv::Mat img;  // a fresh one each time: a frame handed out is never overwritten
+      cv::Mat jpeg;
+      bool ok;
+      try {
+        if (raw) {
+          cv::Mat packet;
+          ok = cap.read(packet);
+          if (ok && packet.total() * packet.elemSize() >= 2 && packet.ptr()[0] == 0xFF &&
+              packet.ptr()[1] == 0xD8) {
+            jpeg = packet.reshape(1, 1).clone();
+            img = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+          } else if (ok) {
+            no_raw = true;  // not JPEG packets: decoded by the capture from the next open
+            return got;
+          }
+        } else {
+          ok = cap.read(img);
+        }
+      } catch (const cv::Exception&) {
+        ok = false;
+      }
+      if (!ok || img.empty()) return got;
+      if (!size.empty() && img.size() != size) {
+        cv::Mat small;
+        cv::resize(img, small, size, 0, 0, cv::INTER_AREA);
+        img = small;
+        jpeg = cv::Mat();  // resized: recorded as PNG
+      }
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        latest_jpeg = jpeg;
+        latest = img;
+        at = Clock::now();
+        ++count;
+      }
+      if (!got) {
+        got = true;
+        if (down && !stopping()) {
+          down = false;
+          say("stream back at " + url);
+        }
+      }
+      if (step > 0) pause(step);
+    }
+    return got;
+  }
+
+  void say(const std::string& text) const {
+    std::string line = name + ": " + text + "\n";
+    std::fwrite(line.data(), 1, line.size(), stderr);  // one write: lines never interleave
+    std::fflush(stderr);
+  }
+};
+
+Camera::Camera(const std::string& name, const std::string& url,
+               const std::map<std::string, std::string>& options)
+    : g_(std::make_shared<Grabber>()) {
+  // FFmpeg's own messages (connection refused, ...) at every retry would drown
+  // ours; it reads this when first used, so before any capture opens.
+  ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);  // AV_LOG_QUIET, unless set
+  g_->name = name;
+  g_->url = url.empty() ? kDefaultUrl : url;
+  options_ = options;
+  for (const auto& kv : options) {
+    int w = 0, h = 0;
+    if (kv.first == "size" && parse_size(kv.second, &w, &h)) {
+      g_->size = cv::Size(w, h);
+    } else if (kv.first == "size") {
+      g_->say("option size: `" + kv.second +
+              "` is not WxH (320x240): frames kept as they come");
+    } else {
+      g_->say("unknown option `" + kv.first + "` ignored (options: size)");
+    }
+  }
+  if (playback::Inputs* inputs = playback::current()) {  // a fake fed from the inputs
+    inputs_ = inputs;
+    Fed scratch;  // every entry checked now: a bad value is said before the run
+    for (const playback::Entry& e : inputs->entries(name)) apply(scratch, e);
+    register_feed(this);
+    register_source(this);
+    return;
+  }
+  std::shared_ptr<Grabber> g = g_;
+  thread_ = quiet_thread([g] {
+    g->run();
+    std::lock_guard<std::mutex> lock(g->mutex);
+    g->finished = true;
+    g->wake.notify_all();
+  });
+  register_feed(this);
+  register_source(this);
+}
+
+Camera::~Camera() {
+  unregister_source(this);
+  unregister_feed(this);
+  close();
+}
+
+const std::string& Camera::name() const { return g_->name; }
+const std::string& Camera::url() const { return g_->url; }
+
+/// The latest frame (H x W, CV_8UC3, BGR); an empty Mat before the first. The
+/// same pixels until a newer frame comes: clone it before drawing on it for keeps.
+cv::Mat Camera::frame() const {
+  if (snap_count_ != 0 && snap_count_ != recorded_) record_frame();
+  std::lock_guard<std::mutex> lock(g_->mutex);
+  g_->seen = snap_frame_;  // for the monitor's viewers: a header copy
+  g_->seen_count = snap_count_;
+  return snap_frame_;
+}
+
+std::string Camera::source_config() const {
+  std::string options;
+  for (const auto& kv : options_)
+    options += (options.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
+  return "{\"type\":\"camera\",\"url\":" + json_string(g_->url) + ",\"options\":{" + options + "}}";
+}
+
+void Camera::take_snapshot(long long t_us) {
+  snapshot_t_ = t_us;
+  if (inputs_ == nullptr) {
+    std::lock_guard<std::mutex> lock(g_->mutex);
+    snap_frame_ = g_->latest;
+    snap_jpeg_ = g_->latest_jpeg;
+    snap_count_ = g_->count;
+    snap_age_ = g_->count == 0 ? std::numeric_limits<double>::infinity()
+                               : std::chrono::duration<double>(Clock::now() - g_->at).count();
+    return;
+  }
+  const std::vector<playback::Entry>& entries = inputs_->entries(g_->name);
+  for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
+  if (fed_.file != loaded_) {  // a new picture: read it once (the exact pixels of the PNG)
+    loaded_ = fed_.file;
+    image_ = cv::Mat();
+    if (!loaded_.empty()) {
+      try {
+        image_ = cv::imread(loaded_, cv::IMREAD_COLOR);
+      } catch (const cv::Exception&) {
+      }
+      if (image_.empty()) {
+        std::fprintf(stderr, "%s: --playback: %s: cannot read the frame (a PNG or JPEG file)\n",
+                     g_->name.c_str(), loaded_.c_str());
+        std::exit(2);
+      }
+      if (fed_.crc >= 0 && pixels_crc(image_) != static_cast<std::uint32_t>(fed_.crc) && !warned_) {
+        warned_ = true;
+        std::fprintf(stderr, "%s: frame %ld (%s) decodes to other pixels here than in the recorded run "
+                     "(another JPEG decoder): from there on this run does not compute on the recorded "
+                     "pixels\n", g_->name.c_str(), fed_.count, loaded_.c_str());
+      }
+    }
+  }
+  snap_frame_ = image_;
+  snap_count_ = fed_.count;
+  snap_age_ = fed_.age;
+}
+
+std::string Camera::snapshot_fields() const {
+  return "\"count\":" + std::to_string(snap_count_) + ",\"age\":" + json_number(snap_age_);
+}
+
+/// Stop the grabber (also done by the destructor); waits 1 s at most.
+void Camera::close() {
+  if (!thread_.joinable()) return;
+  std::unique_lock<std::mutex> lock(g_->mutex);
+  g_->stop = true;
+  g_->wake.notify_all();
+  bool done = g_->wake.wait_for(lock, std::chrono::duration<double>(kCloseWaitS),
+                                [this] { return g_->finished; });
+  lock.unlock();
+  if (done) {
+    thread_.join();
+  } else {
+    thread_.detach();  // stuck in a read: it ends on its own, holding its state
+  }
+}
+
+/// A `frame` message (schemas/monitor.md): the latest frame a snippet obtained with
+/// frame(), downscaled to 320 px wide at most, as base64 JPEG; "" when none is new.
+std::string Camera::feed_message(long long t_ms) {
+  cv::Mat image;
+  {
+    std::lock_guard<std::mutex> lock(g_->mutex);
+    if (g_->seen_count == feed_sent_ || g_->seen.empty()) return "";
+    feed_sent_ = g_->seen_count;
+    image = g_->seen;
+  }
+  if (image.cols > kFrameWidth) {
+    const int h = std::max(1, static_cast<int>(std::lround(
+                                  image.rows * static_cast<double>(kFrameWidth) / image.cols)));
+    cv::resize(image, image, cv::Size(kFrameWidth, h), 0, 0, cv::INTER_AREA);
+  }
+  std::vector<uchar> jpeg;
+  try {
+    if (!cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, kFrameQuality})) return "";
+  } catch (const cv::Exception&) {
+    return "";
+  }
+  return "{\"type\":\"frame\",\"t\":" + std::to_string(t_ms) + ",\"name\":" +
+         json_string(g_->name) + ",\"width\":" + std::to_string(image.cols) +
+         ",\"height\":" + std::to_string(image.rows) + ",\"jpeg\":\"" + base64(jpeg) + "\"}";
+}
+
+/// A playback entry over `f` (schemas/recording.md); a bad value throws InputError.
+void Camera::apply(Fed& f, const playback::Entry& e) const {
+  const playback::Inputs& in = *inputs_;
+  for (const auto& [key, v] : e.values.members) {
+    if (key == "count") {
+      f.count = static_cast<long>(in.whole(v, "count", e.line));
+    } else if (key == "age") {
+      f.age = in.number(v, "age", e.line);
+    } else if (key == "frame") {
+      f.file = v.kind == json::Value::NUL ? std::string() : in.frame_file(v, e.line);
+      f.line = e.line;
+    } else if (key == "crc32") {
+      f.crc = in.whole(v, "crc32", e.line);
+    }
+    // other fields (`t`, ...) are not part of what the automaton sees
+  }
+}
+
+/// The recording gets the frame of this instant, once (lossless PNG, base64).
+void Camera::record_frame() const {
+  recorded_ = snap_count_;
+  Recorder* r = recorder();
+  if (r == nullptr || snap_frame_.empty()) return;
+  if (!snap_jpeg_.empty()) {  // the JPEG as it came: no encoding
+    const std::vector<uchar> jpeg(snap_jpeg_.ptr(), snap_jpeg_.ptr() + snap_jpeg_.total());
+    r->frame(*this, snapshot_t_, snap_count_, "jpeg", base64(jpeg), pixels_crc(snap_frame_));
+    return;
+  }
+  std::vector<uchar> png;
+  try {
+    if (!cv::imencode(".png", snap_frame_, png, {cv::IMWRITE_PNG_COMPRESSION, 1})) return;
+  } catch (const cv::Exception&) {
+    return;
+  }
+  r->frame(*this, snapshot_t_, snap_count_, "png", base64(png), pixels_crc(snap_frame_));
+}
+
+/// CRC-32 of a frame's pixels, row by row (zlib.crc32 of a numpy array's bytes).
+std::uint32_t Camera::pixels_crc(const cv::Mat& m) {
+  std::uint32_t crc = 0;
+  const std::size_t row = static_cast<std::size_t>(m.cols) * m.elemSize();
+  for (int y = 0; y < m.rows; ++y) crc = mcap::crc32(crc, m.ptr(y), row);
+  return crc;
+}
+
+std::string Camera::base64(const std::vector<uchar>& data) {
+  static const char digits[] =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((data.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  for (; i + 2 < data.size(); i += 3) {
+    const unsigned v = (data[i] << 16) | (data[i + 1] << 8) | data[i + 2];
+    out += {digits[v >> 18], digits[(v >> 12) & 63], digits[(v >> 6) & 63], digits[v & 63]};
+  }
+  if (i + 1 == data.size()) {
+    const unsigned v = data[i] << 16;
+    out += {digits[v >> 18], digits[(v >> 12) & 63], '=', '='};
+  } else if (i + 2 == data.size()) {
+    const unsigned v = (data[i] << 16) | (data[i + 1] << 8);
+    out += {digits[v >> 18], digits[(v >> 12) & 63], digits[(v >> 6) & 63], '='};
+  }
+  return out;
+}
+
+bool Camera::parse_size(const std::string& text, int* w, int* h) {
+  // ^\s*(\d+)\s*[xX]\s*(\d+)\s*$, both non-zero
+  size_t i = 0, n = text.size();
+  auto spaces = [&] {
+    while (i < n && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+  };
+  auto number = [&](int* out) {
+    size_t start = i;
+    long v = 0;
+    while (i < n && text[i] >= '0' && text[i] <= '9' && v <= 100000) v = v * 10 + (text[i++] - '0');
+    *out = static_cast<int>(v);
+    return i > start && (i == n || text[i] < '0' || text[i] > '9');
+  };
+  spaces();
+  if (!number(w)) return false;
+  spaces();
+  if (i >= n || (text[i] != 'x' && text[i] != 'X')) return false;
+  ++i;
+  spaces();
+  if (!number(h)) return false;
+  spaces();
+  return i == n && *w > 0 && *h > 0;
+}
+
+bool Camera::is_number(const std::string& s) {
+  if (s.empty()) return false;
+  for (char c : s) {
+    if (c < '0' || c > '9') return false;
+  }
+  return true;
+}
+
+bool Camera::exists(const std::string& path) {
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0;
+}
+
+}  // namespace hfsmc
