@@ -1,23 +1,32 @@
 """Checks of Python snippets: syntax, undefined names, assignments to parameters,
 and the helpers' arguments (a literal ``active()`` path, ``done()``) of both languages.
 
-Every snippet is parsed on its own with :mod:`ast` (exact syntax error
-positions).  For undefined names, all snippets are then joined into one
-synthetic module, each as a function body with its line numbers moved to a
-range of its own, and pyflakes checks that module once, with the model's
-names as extra builtins.  Each message is mapped back to its snippet, and
-from there to the model file.
+Every snippet is parsed on its own (exact syntax error positions).  For
+undefined names, the snippets are then joined into synthetic modules, each
+snippet a function body with its line numbers moved to a range of its own,
+and pyflakes checks those modules with the model's names as extra builtins.
+Each message is mapped back to its snippet, and from there to the model file.
+
+Most snippets cannot give pyflakes anything to report, and pyflakes walks a
+tree in Python.  So each snippet first goes through CPython's own symbol
+table pass (:mod:`symtable`, at C speed, which parses it as well): a snippet
+whose every name is either known or bound where no use can come before its
+binding (a parameter, a comprehension's single loop) is clean; pyflakes only
+checks the modules holding a snippet that is not.  The ast tree of a snippet
+is built only where a check needs it.
 """
 
 from __future__ import annotations
 
 import ast
 import builtins
+import importlib
 import json
 import re
 import textwrap
 from bisect import bisect_right
 from dataclasses import dataclass
+from typing import Any
 
 from pyflakes import messages as pyflakes_messages
 from pyflakes.checker import Checker
@@ -25,11 +34,39 @@ from pyflakes.checker import Checker
 from hfsmc.errors import Diagnostics, Span, did_you_mean
 from hfsmc.ir import HELPERS, Code, Model
 
+_symtable: Any
+try:  # CPython's symbol table pass; the plain `symtable` module wraps it in Python objects
+    _symtable = importlib.import_module("_symtable")
+except ImportError:  # pragma: no cover - another interpreter: every snippet goes to pyflakes
+    _symtable = None
+
 _DEFINED = re.compile(r"^(?:def|class)\s+([A-Za-z_]\w*)|^([A-Za-z_]\w*)\s*=", re.M)
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _INDENT = "    "
 _CHUNK = 100  # snippets per module handed to pyflakes
 _REPORTED = (pyflakes_messages.UndefinedName, pyflakes_messages.UndefinedLocal)
+# Text that sends a snippet to pyflakes whatever its symbol table says: statements that
+# unbind or rebind names across scopes, typing helpers and postponed annotations (pyflakes
+# reads names inside their strings), private names in classes (mangled in the table).
+_PYFLAKES_TEXT = re.compile(r"\b(?:del|global|nonlocal)\b|typing|__future__|__")
+# With a quote in the snippet: anything that may be an annotation (a string annotation's
+# names are checked too): `->`, `def`, a line continuation, a line starting with a closing
+# bracket, or a name, attribute or subscript followed by `:` where a statement starts.
+_ANNOTATION = re.compile(r"->|\bdef\b|\\\r?\n|^[ \t]*[\])]|(?:^|[;:])[ \t]*\(*[ \t]*"
+                         r"(?!(?:else|try|finally|lambda)\b)[A-Za-z_][\w.]*[ \t]*(?:\[.*)?:(?!=)",
+                         re.M)
+_FOR = re.compile(r"\bfor\b")
+# An augmented assignment reads its target first; the symbol table records only the binding.
+_AUGMENTED = re.compile(r"(?:[-+*/%@&|^]|<<|>>)=")
+_COMPREHENSIONS = frozenset({"listcomp", "genexpr", "setcomp", "dictcomp"})
+if _symtable is not None:
+    _USE = _symtable.USE
+    _BOUND = _symtable.DEF_LOCAL | _symtable.DEF_PARAM | _symtable.DEF_IMPORT
+    _PARAM = _symtable.DEF_PARAM
+    # Declared elsewhere: `global`, `nonlocal`, or an assignment expression in a
+    # comprehension, which binds in the scope around it.
+    _ELSEWHERE = _symtable.DEF_GLOBAL | _symtable.DEF_NONLOCAL
+    _ASSIGNED = _symtable.DEF_LOCAL | _ELSEWHERE
 
 
 @dataclass(frozen=True, slots=True)
@@ -117,45 +154,138 @@ def _module_names(tree: ast.AST) -> set[str]:
     return out
 
 
-def check_python_snippets(model: Model, diags: Diagnostics) -> None:
+def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = True) -> None:
+    """E140-E143, E146 and W215 for every Python snippet of the model.
+
+    Without ``prefilter`` every snippet gets its ast tree and every chunk
+    goes to pyflakes (the tests compare both ways)."""
     variables = [v.name for v in model.variables]
     params = {p.name for p in model.parameters}
     known = (set(HELPERS) | set(variables) | params | {i.name for i in model.interfaces}
              | _imported_names(model, diags))
-    parsed: list[Snippet] = []  # trees are dropped at once: a big model has 100,000s
+    # Each snippet that parses, with the names it uses unbound (None: pyflakes must look).
+    # Trees are dropped at once: a big model has 100,000s.
+    parsed: list[tuple[Snippet, set[str] | None]] = []
     for sn in snippets(model):
-        tree = _parse(sn, diags)
-        if tree is None:
+        text = sn.code.text
+        table = _table(sn) if prefilter else None
+        tree = _parse(sn, diags) if table is None else None
+        if table is None and tree is None:
             if sn.kind == "functions":  # still know what it meant to define: no E141 cascade
-                known |= {a or b for a, b in _DEFINED.findall(sn.code.text)}
+                known |= {a or b for a, b in _DEFINED.findall(text)}
             continue
-        parsed.append(sn)
+        writes = not ((sn.mode == "eval" and ":=" not in text)
+                      or params.isdisjoint(_IDENTIFIER.findall(text)))
+        if table is not None and writes:
+            writes = _assigns(table, params)  # no table binds a parameter: nothing to say
+        helpers = "active" in text or "done" in text
+        if tree is None and (writes or helpers or sn.kind == "functions"):
+            tree = _parse(sn, diags)
+            if tree is None:  # pragma: no cover - the symbol table pass parsed it
+                continue
+        parsed.append((sn, None if table is None else _unbound(sn, table, variables)))
+        if tree is None:
+            continue
         if sn.kind == "functions":
             known |= _module_names(tree)
-        _check_param_writes(sn, tree, params, diags)
-        if "active" in sn.code.text or "done" in sn.code.text:
+        if writes:
+            _check_param_writes(sn, tree, params, diags)
+        if helpers:
             _check_helper_calls(model, sn, tree, diags)
     _check_undefined(model.file, parsed, variables, params, known, diags)
 
 
-def _check_undefined(file: str, parsed: list[Snippet], variables: list[str],
-                     params: set[str], known: set[str], diags: Diagnostics) -> None:
+def _table(sn: Snippet) -> object | None:
+    """The snippet's symbol table; None when it does not compile there (the ast parse then
+    says why, or gives the tree: the table pass refuses more than the parser)."""
+    if _symtable is None:
+        return None  # pragma: no cover
+    try:
+        table: object = _symtable.symtable(sn.code.text, "<snippet>", sn.mode)
+        return table
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        return None
+
+
+def _assigns(table: object, names: set[str]) -> bool:
+    """Whether any scope of the table binds one of ``names``."""
+    symbols: dict[str, int] = table.symbols  # type: ignore[attr-defined]
+    if any(symbols.get(n, 0) & _ASSIGNED for n in names):
+        return True
+    return any(_assigns(child, names) for child in table.children)  # type: ignore[attr-defined]
+
+
+def _unbound(sn: Snippet, table: object, variables: list[str]) -> set[str] | None:
+    """The names the snippet uses without binding them, or None when pyflakes could still
+    report something however known those names are.
+
+    pyflakes sees the snippet as a function's body: a name bound there and used anywhere
+    in it might be used before its binding (or after an ``except`` clause unbinds it), so
+    such a snippet goes to pyflakes, unless the name is a parameter of a nested function
+    or lambda or the target of a comprehension in a snippet with a single ``for``.
+    """
+    text = sn.code.text
+    if _PYFLAKES_TEXT.search(text) or (("'" in text or '"' in text) and _ANNOTATION.search(text)):
+        return None
+    one_for = len(_FOR.findall(text)) <= 1
+    augmented = _AUGMENTED.search(text) is not None
+    top: dict[str, int] = table.symbols  # type: ignore[attr-defined]
+    used = {n for n, f in top.items() if f & _USE or (augmented and f & _BOUND)}
+    for child in table.children:  # type: ignore[attr-defined]
+        inner = _scope_uses(child, one_for, augmented)
+        if inner is None:
+            return None
+        used |= inner
+    if sn.kind == "functions":
+        return used  # module level: what it binds is known (``_module_names``), or looked at
+    bound = {n for n, f in top.items() if f & (_BOUND | _ELSEWHERE)}
+    if not bound.isdisjoint(used) and not (bound & used) <= set(variables):
+        return None  # variables are declared `global` in the function pyflakes sees
+    return used
+
+
+def _scope_uses(table: object, one_for: bool, augmented: bool) -> set[str] | None:
+    """What a nested scope and those inside it use without binding (None: see _unbound)."""
+    symbols: dict[str, int] = table.symbols  # type: ignore[attr-defined]
+    bound = {n for n, f in symbols.items() if f & _BOUND and not f & _ELSEWHERE}
+    used = {n for n, f in symbols.items() if f & _USE}
+    if augmented:
+        used |= bound
+    for child in table.children:  # type: ignore[attr-defined]
+        inner = _scope_uses(child, one_for, augmented)
+        if inner is None:
+            return None
+        used |= inner
+    exempt = one_for and table.name in _COMPREHENSIONS  # type: ignore[attr-defined]
+    if not exempt and any(not symbols[n] & _PARAM for n in bound & used):
+        return None
+    return used - bound
+
+
+def _check_undefined(file: str, parsed: list[tuple[Snippet, set[str] | None]],
+                     variables: list[str], params: set[str], known: set[str],
+                     diags: Diagnostics) -> None:
     """pyflakes over the snippets in chunks: one module each, a snippet a function.
 
     Each chunk is assembled as text and parsed at C speed.  Chunks, not one
     module: CPython's parser slows down per function as a module grows, and
-    names from `functions` reach pyflakes as builtins anyway.  Should a chunk
-    not parse (it always should: each snippet parsed alone), its snippets are
-    checked one by one instead.
+    names from `functions` reach pyflakes as builtins anyway.  A chunk whose
+    snippets are all clean (each uses only names pyflakes knows, see
+    :func:`_unbound`) is not checked.  Should a chunk not parse (it always
+    should: each snippet parsed alone), its snippets are checked one by one
+    instead.
     """
     names = known | set(dir(builtins))
     groups = [parsed[i:i + _CHUNK] for i in range(0, len(parsed), _CHUNK)]
     while groups:
-        group = groups.pop()
+        members = groups.pop()
+        if all(free is not None and free <= names for _, free in members):
+            continue
+        group = [sn for sn, _ in members]
         joined = _joined(group, variables)
         if joined is None:
-            if len(group) > 1:
-                groups.extend([item] for item in group)
+            if len(members) > 1:
+                groups.extend([item] for item in members)
             continue
         try:
             checker = Checker(joined[0], filename=file, builtins=names)
