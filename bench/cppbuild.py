@@ -6,7 +6,7 @@ example) is generated with ``hfsmc build -t cpp`` into fresh folders under
 bench/_work/cppbuild/ and built with CMake as ``hfsmc build --compile`` and
 ``hfsmc run`` build it (RelWithDebInfo, both cores), in these set-ups:
 
-* **before**: the generated project as it was before this work: the Make
+* **plain**: the generated project built without what speeds it up: the Make
   generator, no precompiled headers, no ccache (``-G "Unix Makefiles"
   -DHFSMC_PCH=OFF -DHFSMC_CCACHE=OFF``).
 * **now**: Ninja (when installed), the runtime and driver headers precompiled,
@@ -17,6 +17,11 @@ bench/_work/cppbuild/ and built with CMake as ``hfsmc build --compile`` and
   drivers), then a rebuild after a change of one snippet's text.
 * **now, without precompiled headers** (``-DHFSMC_PCH=OFF``): clean (cache warm)
   and rebuild, to show what the precompiled headers bring.
+* with ``--base TREE`` (a checkout of another revision, set up as for
+  ``bench/compare.py``), **base**: the project that tree generates, built as
+  **now** (Ninja, precompiled headers, ccache): a clean build that fills the
+  cache, a clean build with the cache warm and a rebuild after the same snippet
+  change, in the same run.
 
 Each step's wall time and the CPU time of its processes (compilers included,
 from ``getrusage(RUSAGE_CHILDREN)``), and the units compiled (from CMake's build
@@ -27,6 +32,7 @@ Usage::
 
     python bench/cppbuild.py
     python bench/cppbuild.py --json bench/results.json
+    python bench/cppbuild.py --base /tmp/benchold   # and another revision's project
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from compare import check_tree, tree_env
 from report import finish_targets, hfsmc_revision, loadavg, machine, table
 
 from hfsmc.cppcompile import step
@@ -75,16 +82,19 @@ def _cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def _run(cmd: list[str], env: dict[str, str]) -> str:
-    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1800, check=False)
+def _run(cmd: list[str], env: dict[str, str], cwd: Path | None = None) -> str:
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1800, check=False,
+                          cwd=cwd)
     if done.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed:\n{done.stdout[-3000:]}{done.stderr[-3000:]}")
     return done.stdout + done.stderr
 
 
-def generate(model: Path, folder: Path) -> None:
-    _run([sys.executable, "-m", "hfsmc", "build", "-t", "cpp", str(model), "-o", str(folder)],
-         dict(os.environ))
+def generate(model: Path, folder: Path, tree: Path | None = None) -> None:
+    """``hfsmc build -t cpp`` of this tree, or of another one (``--base``)."""
+    env = dict(os.environ) if tree is None else tree_env(tree)
+    _run([sys.executable, "-m", "hfsmc", "build", "-t", "cpp", str(model), "-o", str(folder)], env,
+         tree)  # in the tree: `-m` imports hfsmc from the working directory first
 
 
 def build(what: str, folder: Path, env: dict[str, str], options: list[str]) -> Step:
@@ -114,7 +124,11 @@ def main(argv: list[str] | None = None) -> int:
                                              "snippet change of examples/follow_colors_cpp.")
     ap.add_argument("--json", type=Path, metavar="OUT",
                     help=f'merge the figures into OUT under the key "{KEY}"')
+    ap.add_argument("--base", type=Path, metavar="TREE",
+                    help="also build the project another hfsmc tree generates (bench/compare.py "
+                         "says how to set one up)")
     ns = ap.parse_args(argv)
+    base_rev = check_tree(ns.base) if ns.base is not None else None
     for tool in ("cmake", "g++"):
         if shutil.which(tool) is None:
             sys.exit(f"{tool} missing: `make deps` installs the C++ tool chain")
@@ -136,25 +150,31 @@ def main(argv: list[str] | None = None) -> int:
 
     # Every source generated first, so that all set-ups build the same code; a snippet
     # change then replaces src/NAME.cpp, as `hfsmc build` does (it rewrites changed files).
+    text = model.read_text("utf-8")
     generate(model, WORK / "generated")
     for n in (1, 2, 3):
         change_snippet(model, n)
         generate(model, WORK / f"changed{n}")
+    if ns.base is not None:
+        model.write_text(text, "utf-8")
+        generate(model, WORK / "base_generated", ns.base)
+        change_snippet(model, 4)
+        generate(model, WORK / "base_changed4", ns.base)
 
-    def folder(name: str) -> Path:
+    def folder(name: str, side: str = "") -> Path:
         f = WORK / name
-        shutil.copytree(WORK / "generated", f)
+        shutil.copytree(WORK / f"{side}generated", f)
         return f
 
-    def change(f: Path, n: int) -> Path:
+    def change(f: Path, n: int, side: str = "") -> Path:
         unit = Path("src") / f"{MODEL}.cpp"
-        shutil.copyfile(WORK / f"changed{n}" / unit, f / unit)
+        shutil.copyfile(WORK / f"{side}changed{n}" / unit, f / unit)
         return f
 
     before = folder("before")
-    steps.append(build("before: clean", before, env,
+    steps.append(build("plain: clean", before, env,
                        ["-G", "Unix Makefiles", "-DHFSMC_PCH=OFF", "-DHFSMC_CCACHE=OFF"]))
-    steps.append(build("before: rebuild after a snippet change", change(before, 1), env, []))
+    steps.append(build("plain: rebuild after a snippet change", change(before, 1), env, []))
 
     steps.append(build("now: clean, cache empty", folder("cold"), env, ninja))
     warm = folder("warm")
@@ -165,6 +185,14 @@ def main(argv: list[str] | None = None) -> int:
     steps.append(build("no PCH: clean, cache warm", nopch, env, [*ninja, "-DHFSMC_PCH=OFF"]))
     steps.append(build("no PCH: rebuild after a snippet change", change(nopch, 3), env, []))
 
+    if ns.base is not None:
+        steps.append(build(f"base ({base_rev}): clean, cache empty", folder("base_cold", "base_"),
+                           env, ninja))
+        base = folder("base_warm", "base_")
+        steps.append(build(f"base ({base_rev}): clean, cache warm", base, env, ninja))
+        steps.append(build(f"base ({base_rev}): rebuild after a snippet change",
+                           change(base, 4, "base_"), env, []))
+
     log(f"C++ build of examples/{MODEL} (RelWithDebInfo, -j{os.cpu_count()}; "
         f"generator {'Ninja' if ninja else 'Make'}, ccache {'yes' if ccache else 'not installed'})")
     for line in table([s.row() for s in steps], ["step", "wall s", "CPU s", "units compiled"]):
@@ -173,9 +201,11 @@ def main(argv: list[str] | None = None) -> int:
     clean, rebuild = by["now: clean, cache warm"], by["now: rebuild after a snippet change"]
     figures: dict[str, Any] = {
         "description": f"C++ build of examples/{MODEL}: wall and CPU seconds of a clean build "
-                       "(before this work: Make, no PCH, no ccache; now: Ninja, PCH, ccache with "
-                       "the cache empty, then warm) and of a rebuild after a snippet change",
-        "machine": machine(), "hfsmc": hfsmc_revision(), "generator": "Ninja" if ninja else "Make",
+                       "(plain: Make, no PCH, no ccache; now: Ninja, PCH, ccache with the cache "
+                       "empty, then warm; base: another tree's project, as now) and of a rebuild "
+                       "after a snippet change",
+        "machine": machine(), "hfsmc": hfsmc_revision(), "base": base_rev,
+        "generator": "Ninja" if ninja else "Make",
         "ccache": ccache,
         "steps": [{"what": s.what, "wall_s": round(s.wall_s, 2), "cpu_s": round(s.cpu_s, 2),
                    "units": s.units} for s in steps]}
