@@ -3,11 +3,20 @@
 The validator is the ``jsonschema`` library; this module only turns its
 errors into positioned diagnostics (key position for unknown keys, with a
 "did you mean"; value position for wrong types and values).
+
+``jsonschema`` walks the document in Python, schema keyword by keyword: on a
+large valid model that is most of the validation's time.  So a document is
+first given to a validator that ``fastjsonschema`` compiled from the same
+schema (once per process): when it says valid, so would ``jsonschema`` (its
+checks are the same or stricter: the ``$`` of a pattern is ``\\Z`` there),
+and there is nothing to report; only a document it refuses goes through
+``jsonschema``, whose errors are reported.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+import re
+from collections.abc import Callable, Iterable, Iterator
 from fractions import Fraction
 from functools import cache
 from typing import Any
@@ -20,6 +29,11 @@ from hfsmc.errors import Diagnostics, did_you_mean
 from hfsmc.frontend.source import Document, PathKey
 from hfsmc.frontend.yaml_traps import snippet_kind
 from hfsmc.resources import json_schema
+
+try:
+    import fastjsonschema
+except ImportError:  # pragma: no cover - an install without it: jsonschema alone, slower
+    fastjsonschema = None  # type: ignore[assignment]
 
 _TYPE_NAMES = {
     "object": "a mapping",
@@ -58,11 +72,53 @@ def _ref(validator: Any, ref: str, instance: Any, schema: Any) -> Iterator[Valid
 _Validator: Any = validators.extend(Draft202012Validator, {"$ref": _ref})  # type: ignore[no-untyped-call]
 
 
+@cache
+def _fast_validator() -> Callable[[Any], Any] | None:
+    """The schema compiled to Python by fastjsonschema (None without it).
+
+    fastjsonschema takes a tuple for a JSON array, jsonschema does not: the
+    generated code is compiled without that, and the result is tried on a
+    tuple before it is trusted (a version that generates other code is not
+    used).
+    """
+    if fastjsonschema is None:
+        return None  # pragma: no cover
+    code = fastjsonschema.compile_to_code(json_schema()).replace(", tuple)", ")")
+    name = re.search(r"^def (\w+)\(", code, re.M)
+    if name is None:
+        return None  # pragma: no cover
+    scope: dict[str, Any] = {}
+    try:
+        exec(compile(code, "<hfsm.schema.json>", "exec"), scope)
+        compiled: Callable[[Any], Any] = scope[name.group(1)]
+        compiled({"hfsm": 1, "name": "m", "initial": "A", "states": {"A": None}})
+    except Exception:  # pragma: no cover - not the code this was written for
+        return None
+    try:
+        compiled({"hfsm": 1, "name": "m", "initial": "A", "states": {"A": None}, "imports": ("m",)})
+    except fastjsonschema.JsonSchemaException:
+        return compiled
+    return None  # pragma: no cover
+
+
+def surely_valid(data: Any) -> bool:
+    """True when the compiled validator accepts ``data``: jsonschema would too."""
+    fast = _fast_validator()
+    if fast is None:
+        return False  # pragma: no cover
+    try:
+        fast(data)
+    except (fastjsonschema.JsonSchemaException, RecursionError, TypeError, ValueError):
+        return False
+    return True
+
+
 def validate(doc: Document, diags: Diagnostics) -> None:
     """Add a diagnostic for every schema violation of ``doc``."""
     found = Diagnostics()
     misplaced = _keys_named_as_states(doc, found)
-    for err in _validator().iter_errors(doc.data):
+    errors = () if surely_valid(doc.data) else _validator().iter_errors(doc.data)
+    for err in errors:
         if misplaced and any(tuple(err.absolute_path)[:len(p)] == p for p in misplaced):
             continue  # E107 said why: a key indented as a state
         _report(doc, err, found)
