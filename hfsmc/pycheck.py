@@ -210,7 +210,7 @@ def _table(sn: Snippet) -> object | None:
 def _assigns(table: object, names: set[str]) -> bool:
     """Whether any scope of the table binds one of ``names``."""
     symbols: dict[str, int] = table.symbols  # type: ignore[attr-defined]
-    if any(symbols.get(n, 0) & _ASSIGNED for n in names):
+    if any(symbols[n] & _ASSIGNED for n in names & symbols.keys()):
         return True
     return any(_assigns(child, names) for child in table.children)  # type: ignore[attr-defined]
 

@@ -151,6 +151,7 @@ TRICKY = [
     "nonlocal q", "x = 1 \\\n    + 2", "log(f'{count} {zz}')", "log(_snippet_0)",
     "log([1 for w in range(3) if v for v in range(w)])", "log(len)\nlog([len := 1 for w in range(3)])",
     "log(cast('Nope', 1))", "log(cast(int, 1))",
+    "x = " + "-" * 3000 + "1", "log(" + "(" * 250 + "1" + ")" * 251, "log(" + "not " * 2000 + "zz)",
 ]
 
 
