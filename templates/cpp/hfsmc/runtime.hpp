@@ -445,6 +445,12 @@ public:
         cut_ = a;
         return true;
     }
+    // The same, after a tick with nothing below it: the next region's or the next instant's
+    // check sees a stop it asked.
+    template <bool fast = false>
+    void counted() {
+        if constexpr (!fast) ++ticks_;
+    }
     // Between two regions of a state: a stop asked while the previous ones ticked leaves
     // the instant cut before region b.
     bool stop_asked_before(int b) {
