@@ -56,6 +56,7 @@ _ANNOTATION = re.compile(r"->|\bdef\b|\\\r?\n|^[ \t]*[\])]|(?:^|[;:])[ \t]*\(*[ 
                          r"(?!(?:else|try|finally|lambda)\b)[A-Za-z_][\w.]*[ \t]*(?:\[.*)?:(?!=)",
                          re.M)
 _FOR = re.compile(r"\bfor\b")
+_KNOWN: frozenset[str] = frozenset()  # a clean snippet's unknown names
 # An augmented assignment reads its target first; the symbol table records only the binding.
 _AUGMENTED = re.compile(r"(?:[-+*/%@&|^]|<<|>>)=")
 _COMPREHENSIONS = frozenset({"listcomp", "genexpr", "setcomp", "dictcomp"})
@@ -163,9 +164,12 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
     params = {p.name for p in model.parameters}
     known = (set(HELPERS) | set(variables) | params | {i.name for i in model.interfaces}
              | _imported_names(model, diags))
-    # Each snippet that parses, with the names it uses unbound (None: pyflakes must look).
-    # Trees are dropped at once: a big model has 100,000s.
-    parsed: list[tuple[Snippet, set[str] | None]] = []
+    # Each snippet that parses, with the names it uses unbound that are not known so far
+    # (None: pyflakes must look).  Trees and sets are dropped at once: a big model has
+    # 100,000s of snippets, and `known` only grows (from `functions`, the first).
+    parsed: list[tuple[Snippet, frozenset[str] | set[str] | None]] = []
+    builtin_names = set(dir(builtins))
+    names = known | builtin_names
     for sn in snippets(model):
         text = sn.code.text
         table = _table(sn) if prefilter else None
@@ -173,6 +177,7 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
         if table is None and tree is None:
             if sn.kind == "functions":  # still know what it meant to define: no E141 cascade
                 known |= {a or b for a, b in _DEFINED.findall(text)}
+                names = known | builtin_names
             continue
         writes = not ((sn.mode == "eval" and ":=" not in text)
                       or params.isdisjoint(_IDENTIFIER.findall(text)))
@@ -183,11 +188,13 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
             tree = _parse(sn, diags)
             if tree is None:  # pragma: no cover - the symbol table pass parsed it
                 continue
-        parsed.append((sn, None if table is None else _unbound(sn, table, variables)))
+        free = None if table is None else _unbound(sn, table, variables)
+        parsed.append((sn, _KNOWN if free is not None and free <= names else free))
         if tree is None:
             continue
         if sn.kind == "functions":
             known |= _module_names(tree)
+            names = known | builtin_names
         if writes:
             _check_param_writes(sn, tree, params, diags)
         if helpers:
@@ -262,7 +269,7 @@ def _scope_uses(table: object, one_for: bool, augmented: bool) -> set[str] | Non
     return used - bound
 
 
-def _check_undefined(file: str, parsed: list[tuple[Snippet, set[str] | None]],
+def _check_undefined(file: str, parsed: list[tuple[Snippet, frozenset[str] | set[str] | None]],
                      variables: list[str], params: set[str], known: set[str],
                      diags: Diagnostics) -> None:
     """pyflakes over the snippets in chunks: one module each, a snippet a function.
