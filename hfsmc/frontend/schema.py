@@ -69,7 +69,31 @@ def _ref(validator: Any, ref: str, instance: Any, schema: Any) -> Iterator[Valid
     yield from validator.descend(instance, resolved.contents, resolver=resolved.resolver)
 
 
-_Validator: Any = validators.extend(Draft202012Validator, {"$ref": _ref})  # type: ignore[no-untyped-call]
+def _pattern(validator: Any, pattern: str, instance: Any, schema: Any) -> Iterator[ValidationError]:
+    """`pattern` as JSON Schema means it (ECMA-262 regular expressions): a final `$` is the
+    end of the text, not also the place before a final newline as for Python's `re`, so
+    that a quoted name such as "A\\n" is no name (fastjsonschema reads it so too)."""
+    if validator.is_type(instance, "string") and not _pattern_re(pattern).search(instance):
+        yield ValidationError(f"{instance!r} does not match {pattern!r}")
+
+
+def _shown(value: Any) -> Any:
+    """A value for a message: a string with a newline or another control character escaped
+    (`A\\n`), so that the message stays one line."""
+    if isinstance(value, str) and not value.isprintable():
+        return value.encode("unicode_escape").decode("ascii")
+    return value
+
+
+@cache
+def _pattern_re(pattern: str) -> re.Pattern[str]:
+    if pattern.endswith("$") and not pattern.endswith("\\$"):
+        pattern = pattern[:-1] + r"\Z"
+    return re.compile(pattern)
+
+
+_Validator: Any = validators.extend(  # type: ignore[no-untyped-call]
+    Draft202012Validator, {"$ref": _ref, "pattern": _pattern})
 
 
 @cache
@@ -166,7 +190,7 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
         span = doc.span(path)
         if "propertyNames" in err.schema_path:  # the offending value is a key of `path`
             span = doc.key_span((*path, str(instance)))
-        message = schema["x-error"].format(value=instance)
+        message = schema["x-error"].format(value=_shown(instance))
         if path == ("hfsm",):
             code = "E104"
             if isinstance(instance, str):
@@ -191,7 +215,7 @@ def _report(doc: Document, err: ValidationError, diags: Diagnostics) -> None:
         sub = err.context[0] if err.context else None
         sub_schema = sub.schema if sub is not None and isinstance(sub.schema, dict) else {}
         code = sub_schema.get("x-code", "E103")
-        msg = sub_schema.get("x-error", "invalid name `{value}`").format(value=err.instance)
+        msg = sub_schema.get("x-error", "invalid name `{value}`").format(value=_shown(err.instance))
         diags.error(code, msg, doc.key_span((*path, str(instance))))
         return
     if v == "required":
