@@ -35,6 +35,8 @@ RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_record.cpp")  # the library hfsmc_runt
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",)}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera): src/, beside the runtime's.
 INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",)}
+# What each driver's library links against, besides hfsmc_runtime.
+_DRIVER_LINKS = {"mavlink": "Eigen3::Eigen", "camera": "${OpenCV_LIBS}"}
 LIBRARY_SOURCES = frozenset(RUNTIME_SOURCES).union(*INTERFACE_SOURCES.values())
 INTERFACE_CLASSES = {"mavlink": "hfsmc::Mavlink", "camera": "hfsmc::Camera"}
 _TYPES = {"bool": "bool", "int": "long long", "float": "double", "str": "std::string"}
@@ -191,13 +193,11 @@ class StepView:
 
 
 @dataclass(frozen=True, slots=True)
-class InstantView:
-    """The instant of a model whose sub-automata all have one period, as code: every
-    active sub-automaton is due at each instant, so the tick of a sub-automaton's current
-    state is followed by the ticks of the sub-automata under it (pre-order), with no walk
-    of the engine's chain of active sub-automata."""
+class DriverLibraryView:
+    """A driver's library (hfsmc_mavlink, hfsmc_camera), built from src/NAME.cpp."""
 
-    steps: tuple[StepView, ...]  # per state, in state order
+    name: str
+    links: str  # what it links against, besides hfsmc_runtime
 
 
 @dataclass(frozen=True, slots=True)
@@ -213,6 +213,7 @@ class CppComponentView:
     description_lines: tuple[str, ...]  # comment text
     includes: tuple[IncludeView, ...]
     driver_headers: tuple[str, ...]  # "hfsmc/mavlink.hpp", ...
+    driver_libraries: tuple[DriverLibraryView, ...]  # in the order of driver_headers
     parameters: tuple[MemberView, ...]
     parameter_help: tuple[ParameterHelpView, ...]
     variables: tuple[MemberView, ...]
@@ -223,7 +224,11 @@ class CppComponentView:
     first_child: tuple[int, ...]  # per state: where its sub-automata start in _hfsm_CHILDREN
     has_regions: bool  # the engine keeps its chain sorted only with regions
     automaton_states: tuple[tuple[int, ...], ...]  # per sub-automaton (or region), its states
-    instant: InstantView | None  # the instant as code: one period for every sub-automaton
+    # The instant as code, per state in state order, when every sub-automaton has one
+    # period: each active one is due at each instant, so the tick of a sub-automaton's
+    # current state is followed by the ticks of those under it (pre-order), with no walk
+    # of the engine's chain of active sub-automata. None with several periods.
+    instant: tuple[StepView, ...] | None
     units: tuple[CppUnitView, ...]
     instances: tuple[CppInstanceView, ...]
     line_back: str  # a #line back into the generated file (numbered after rendering)
@@ -333,6 +338,8 @@ class CppWalk(Walk[CppSnippet]):
                            for i in imports),
             driver_headers=tuple(f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds)
                                  if k in INTERFACE_FILES),
+            driver_libraries=tuple(DriverLibraryView(f"hfsmc_{k}", _DRIVER_LINKS[k])
+                                   for k in sorted(kinds) if k in INTERFACE_FILES),
             parameters=params,
             parameter_help=tuple(
                 ParameterHelpView(cpp_string(p.name), cpp_string(p.type),
@@ -349,8 +356,7 @@ class CppWalk(Walk[CppSnippet]):
                 for s in self.states for t in s.transitions),
             first_child=_offsets([len(st.children) for st in machine.states]),
             has_regions=any(a.region is not None for a in machine.automata),
-            automaton_states=tuple(tuple(st.index for st in machine.states if st.container == a.index)
-                                   for a in machine.automata),
+            automaton_states=_automaton_states(machine),
             instant=_instant(machine),
             units=tuple(units.values()),
             instances=tuple(self.instance_view(i, units[i.unit]) for i in machine.instances),
@@ -362,7 +368,15 @@ class CppWalk(Walk[CppSnippet]):
         )
 
 
-def _instant(machine: MachineView[CppSnippet]) -> InstantView | None:
+def _automaton_states(machine: MachineView[CppSnippet]) -> tuple[tuple[int, ...], ...]:
+    """Per sub-automaton (or region), its states, in one pass over the states."""
+    states: list[list[int]] = [[] for _ in machine.automata]
+    for st in machine.states:
+        states[st.container].append(st.index)
+    return tuple(tuple(s) for s in states)
+
+
+def _instant(machine: MachineView[CppSnippet]) -> tuple[StepView, ...] | None:
     """The generated instant, for a model whose sub-automata all have one period."""
     if len({a.period_ms for a in machine.automata}) != 1:
         return None
@@ -372,7 +386,7 @@ def _instant(machine: MachineView[CppSnippet]) -> InstantView | None:
         after = dict.fromkeys([st.index, *(tr.target for tr in st.transitions)])
         steps.append(StepView(st.index, st.container, tuple(BelowView(j, children[j]) for j in after
                                               if children[j])))
-    return InstantView(tuple(steps))
+    return tuple(steps)
 
 
 def _text_literal(text: str) -> str:

@@ -318,7 +318,7 @@ inline std::string current_exception_text() {
 }
 
 // --- the engine -----------------------------------------------------------------------
-// M is the generated class: it has _hfsm_enter(int), _hfsm_exit(int), _hfsm_tick(int),
+// M is the generated class: it has _hfsm_enter(int), _hfsm_leave_0(), _hfsm_tick(int),
 // _hfsm_on_shutdown(), _hfsm_warnings_at_stop() and _hfsm_values(), and, with one period,
 // _hfsm_instant(). `n_states` and `n_automata` are the model's: the per-state and
 // per-sub-automaton arrays live in the engine itself, at offsets known when compiling.
@@ -455,7 +455,7 @@ public:
     // the instant cut before region b.
     bool stop_asked_before(int b) {
         if (!stop_asked()) return false;
-        cut_ = std::min(cut_, b - 1);
+        cut_ = b - 1;  // (a cut inside them returned before this check)
         return true;
     }
     bool stop_asked() const { return signals::asked != 0; }
@@ -864,7 +864,7 @@ private:
         }
         const int current = cur[0];
         if (current != target) {
-            m_._hfsm_exit(current);
+            m_._hfsm_leave_0();
             owner = root_;
             m_._hfsm_enter(target);
         }
@@ -876,7 +876,7 @@ private:
         signals::hard = 1;
         request_ = nullptr;
         signals::asked = signals::pending != 0 ? 1 : 0;
-        m_._hfsm_exit(cur[0]);
+        m_._hfsm_leave_0();
         owner = root_;
         m_._hfsm_on_shutdown();
         // An interface that leaves something going (a vehicle still armed) says so: a log
