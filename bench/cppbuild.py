@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     steps: list[Step] = []
 
     # Every source generated first, so that all set-ups build the same code; a snippet
-    # change then replaces src/NAME.cpp, as `hfsmc build` does (it rewrites changed files).
+    # change then replaces the files of src/ it changed, as `hfsmc build` does.
     text = model.read_text("utf-8")
     generate(model, WORK / "generated")
     for n in (1, 2, 3):
@@ -167,8 +167,10 @@ def main(argv: list[str] | None = None) -> int:
         return f
 
     def change(f: Path, n: int, side: str = "") -> Path:
-        unit = Path("src") / f"{MODEL}.cpp"
-        shutil.copyfile(WORK / f"{side}changed{n}" / unit, f / unit)
+        for new in sorted((WORK / f"{side}changed{n}" / "src").iterdir()):
+            old = f / "src" / new.name
+            if old.read_bytes() != new.read_bytes():  # as `hfsmc build` rewrites changed files
+                shutil.copyfile(new, old)
         return f
 
     before = folder("before")

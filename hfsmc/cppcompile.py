@@ -25,6 +25,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Sequence
+from contextlib import suppress
 from pathlib import Path
 from typing import TextIO
 
@@ -36,8 +38,11 @@ from hfsmc.errors import Diagnostic, Span
 _MESSAGE = re.compile(r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<col>\d+):"
                       r"(?: (?P<sev>error|fatal error|warning): (?P<msg>.*)|\s+required from here)$",
                       re.M)
-_LINE_DIRECTIVE = re.compile(r'^#line (?P<line>\d+) (?P<file>HFSMC_SOURCE|"(?:[^"\\]|\\.)*")\s*$')
-_DEFAULT_SOURCE = re.compile(r'^#define HFSMC_SOURCE "((?:[^"\\]|\\.)*)"')
+# A #line into the model, or back into the generated file (HFSMC_SOURCE: src/NAME.cpp,
+# HFSMC_HEADER: src/NAME.hpp), and the generated file's own name.
+_LINE_DIRECTIVE = re.compile(
+    r'^#line (?P<line>\d+) (?P<file>HFSMC_SOURCE|HFSMC_HEADER|"(?:[^"\\]|\\.)*")\s*$')
+_DEFAULT_SOURCE = re.compile(r'^#define HFSMC_(?:SOURCE|HEADER) "((?:[^"\\]|\\.)*)"')
 _TIMEOUT_S = 1800
 
 
@@ -103,7 +108,7 @@ def compile_component(folder: Path, model_file: str, build_type: str = "RelWithD
     finally:
         if shown is not None:
             shown.close()
-    diags = messages(out, model_file, _generated_source(folder))
+    diags = messages(out, model_file, _generated_sources(folder))
     if code != 0 and not any(d.severity == "error" for d in diags):
         diags.append(Diagnostic("E150", "the C++ build failed", where, notes=tuple(_tail(out))))
     return diags
@@ -118,7 +123,7 @@ def _generator() -> list[str]:
 
 
 def _component_name(folder: Path, model_file: str) -> str:
-    found = [p.stem for p in (folder / "src").glob("*.cpp") if p.name not in LIBRARY_SOURCES]
+    found = [p.name.removesuffix("_main.cpp") for p in (folder / "src").glob("*_main.cpp")]
     return found[0] if len(found) == 1 else Path(model_file).stem
 
 
@@ -277,19 +282,20 @@ UNAVAILABLE_NOTE = ("the interface is a legacy ROS topic or ICE proxy, which hfs
                     "interface, or with code of your own")
 
 
-def messages(output: str, model_file: str, source: str | None = None) -> list[Diagnostic]:
+def messages(output: str, model_file: str, sources: Sequence[str] = ()) -> list[Diagnostic]:
     """g++'s errors and warnings: those in the model as its positions, the rest as E150.
 
-    ``source`` is the generated translation unit: with it, a message on one of its
-    lines next to a snippet (the brace closing the snippet's function, the line
+    ``sources`` are the generated files (src/NAME.hpp, src/NAME.cpp): with them, a message
+    on one of their lines next to a snippet (the brace closing the snippet's function, the line
     after it, a `when`'s wrapper) is placed at that snippet (``GeneratedLines``),
     and an error inside a header that a snippet's line instantiated ("required
     from here") at that line.  Once a message is placed in the model, errors
     outside it are taken for its consequences and left out.
     """
-    lines = GeneratedLines(source or "")
+    generated = [GeneratedLines(s) for s in sources]
     models = {os.path.normpath(model_file): model_file}
-    models.update((os.path.normpath(f), f) for f in lines.files)
+    for g in generated:
+        models.update((os.path.normpath(f), f) for f in g.files)
     out: list[Diagnostic] = []
     outside: list[Diagnostic] = []
     seen: set[tuple[str, int, int, str]] = set()
@@ -311,7 +317,7 @@ def messages(output: str, model_file: str, source: str | None = None) -> list[Di
         notes: tuple[str, ...] = ()
         if path in models:
             span = Span(models[path], line, col)
-        elif lines.generated(file):
+        elif (lines := next((g for g in generated if g.generated(file)), None)) is not None:
             span = lines.position(line)
             notes = ("g++ met it in the code generated around the snippet",)
         elif here is not None:
@@ -347,7 +353,7 @@ class GeneratedLines:
     """
 
     def __init__(self, source: str) -> None:
-        self.name = ""  # HFSMC_SOURCE's default: "src/NAME.cpp"
+        self.name = ""  # HFSMC_SOURCE's or HFSMC_HEADER's default: "src/NAME.cpp"
         self.files: set[str] = set()  # the model files the #line directives name
         self._at: dict[int, Span] = {}
         file: str | None = None  # the model file of the current line, None: generated
@@ -362,7 +368,7 @@ class GeneratedLines:
             d = _LINE_DIRECTIVE.match(text)
             if d is not None:
                 target = d["file"]
-                if target == "HFSMC_SOURCE":
+                if target in ("HFSMC_SOURCE", "HFSMC_HEADER"):
                     after, file, last = last, None, None
                     shift = int(d["line"]) - g - 1  # g++ numbers the next line d["line"]
                     continue
@@ -392,7 +398,7 @@ class GeneratedLines:
                 code_before, code_text = g + shift, text.rstrip()
 
     def generated(self, file: str) -> bool:
-        """Whether g++ names the generated translation unit with ``file``."""
+        """Whether g++ names this generated file with ``file``."""
         if file == "<stdin>":
             return True
         if not self.name:
@@ -431,13 +437,15 @@ def _code_part(line: str) -> str:
     return line
 
 
-def _generated_source(folder: Path) -> str | None:
-    """The text of the component's generated translation unit (src/NAME.cpp)."""
-    found = [p for p in (folder / "src").glob("*.cpp") if p.name not in LIBRARY_SOURCES]
-    try:
-        return found[0].read_text("utf-8", errors="replace") if len(found) == 1 else None
-    except OSError:
-        return None
+def _generated_sources(folder: Path) -> list[str]:
+    """The texts of the component's own generated files (src/NAME.hpp, src/NAME.cpp)."""
+    found = [p for p in sorted((folder / "src").glob("*.[ch]pp"))
+             if p.name not in LIBRARY_SOURCES and not p.name.endswith("_main.cpp")]
+    out = []
+    for p in found:
+        with suppress(OSError):  # gone meanwhile: its messages are placed without it
+            out.append(p.read_text("utf-8", errors="replace"))
+    return out
 
 
 def _tail(text: str, n: int = 20) -> list[str]:

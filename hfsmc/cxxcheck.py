@@ -1,7 +1,9 @@
-"""`hfsmc check` of a C++ model: g++ ``-fsyntax-only`` over the generated translation unit.
+"""`hfsmc check` of a C++ model: g++ ``-fsyntax-only`` over the generated code.
 
-The translation unit is the one ``hfsmc build -t cpp`` writes (``#line``
-directives into the model included), so g++'s messages are read by the same
+The code is what ``hfsmc build -t cpp`` writes (``#line`` directives into the
+model included): the automaton's class (src/NAME.hpp) and its two units
+(src/NAME.cpp, src/NAME_main.cpp), handed to g++ as one translation unit in
+which each keeps its name and lines, so g++'s messages are read by the same
 function as those of ``build --compile`` (``hfsmc.cppcompile.messages``) and
 point into the model: E144 errors, W209 warnings.  It is compiled against the
 real headers: the runtime and drivers of ``templates/cpp/hfsmc``, the MAVLink
@@ -86,9 +88,10 @@ def check_cpp(model: Model) -> CxxCheck:
     from hfsmc.emit import cpp
 
     try:
-        source = cpp.source_file(model)
+        sources = cpp.component_sources(model)
     except EmitError as e:
         return CxxCheck(list(e.diagnostics))
+    source = sources.unit()
     toolchain = _toolchain(compiler)
     headers = _runtime_headers(source)
     pch_key = _digest(toolchain, *headers, _mavlink_stamp(headers), _runtime_digest())
@@ -111,11 +114,11 @@ def check_cpp(model: Model) -> CxxCheck:
         if "fatal error" not in text and code != 124:  # a missing header may be installed later
             _store(root / "out", key, output)
     code_text, _, text = output.partition("\n")
-    return _result(model, source, int(code_text or 1), text)
+    return _result(model, (sources.header, sources.code), int(code_text or 1), text)
 
 
-def _result(model: Model, source: str, code: int, text: str) -> CxxCheck:
-    diags = _with_use_sites(model, messages(text, model.file, source))
+def _result(model: Model, sources: tuple[str, ...], code: int, text: str) -> CxxCheck:
+    diags = _with_use_sites(model, messages(text, model.file, sources))
     missing = re.search(r"^(\S+?):\d+:\d+: fatal error: (\S+): No such file or directory$",
                         text, re.M)
     if missing and not any(d.code == "E144" for d in diags):

@@ -4,7 +4,8 @@ tests/golden/NAME.ir.txt  the lowered IR (``hfsmc check --dump-ir``)
 tests/golden/NAME.dot     the Graphviz source of ``hfsmc diagram``
 tests/golden/NAME.component.py.txt  the generated Python component (``hfsmc build -t python``),
                                     then the modules of the files it uses
-tests/golden/NAME.component.cpp.txt  the generated C++ source (``hfsmc build -t cpp``)
+tests/golden/NAME.component.cpp.txt  the generated C++ sources (``hfsmc build -t cpp``): the
+                                     automaton's class, its snippets, its states and main()
 tests/golden/NAME.cmake.txt  its CMakeLists.txt
 """
 
@@ -36,7 +37,12 @@ def python_component(model: Model) -> str:
 
 
 def cpp_component(model: Model) -> str:
-    return cpp.component_files(model)[f"src/{model.name}.cpp"].decode("utf-8")
+    """The component's own files: the class (src/NAME.hpp), then its two units after a banner."""
+    files = cpp.component_files(model)
+    text = files[f"src/{model.name}.hpp"].decode("utf-8")
+    for name in (f"src/{model.name}.cpp", f"src/{model.name}_main.cpp"):
+        text += f"\n// ===== {name} =====\n" + files[name].decode("utf-8")
+    return text
 
 
 def cpp_cmake(model: Model) -> str:

@@ -534,7 +534,8 @@ def compile_observers(out: Path, extra: list[str]) -> Path:
     gxx = shutil.which("g++")
     assert gxx is not None, "g++ is needed to test the C++ observers"
     cmd = [gxx, *OBSERVERS_FLAGS, *extra, "-I", str(ROOT / "templates" / "cpp"),
-           str(ROOT / "tests" / "cpp" / "observers_main.cpp"), "-o", str(out)]
+           str(ROOT / "tests" / "cpp" / "observers_main.cpp"),
+           str(ROOT / "templates" / "cpp" / "hfsmc_json.cpp"), "-o", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=240, check=False)
     assert done.returncode == 0, done.stderr
     return out

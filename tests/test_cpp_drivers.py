@@ -67,8 +67,9 @@ def opencv_flags() -> list[str]:
 
 def library_sources(*kinds: str) -> list[str]:
     """The runtime's sources a program using the drivers of ``kinds`` compiles with (a
-    component builds them into its libraries): --record and --playback, then the drivers."""
-    names = ["hfsmc_record.cpp", *(n for k in kinds for n in INTERFACE_SOURCES[k])]
+    component builds them into its libraries): JSON, --record and --playback, then the
+    drivers."""
+    names = ["hfsmc_json.cpp", "hfsmc_record.cpp", *(n for k in kinds for n in INTERFACE_SOURCES[k])]
     return [str(ROOT / "templates/cpp" / n) for n in names]
 
 

@@ -104,16 +104,26 @@ def test_a_snippet_change_recompiles_the_component_unit_only(tmp_path: Path) -> 
         return r.stderr
 
     said = build()
-    assert sorted(_compiled(said)) == ["blinker_cpp.cpp", "hfsmc_record.cpp",
-                                       "hfsmc_runtime.cpp"], said
+    assert sorted(_compiled(said)) == ["blinker_cpp.cpp", "blinker_cpp_main.cpp",
+                                       "hfsmc_engine.cpp", "hfsmc_json.cpp",
+                                       "hfsmc_record.cpp", "hfsmc_runtime.cpp"], said
     library = out / "build" / "libhfsmc_runtime.a"
     made = library.stat().st_mtime_ns
     text = model.read_text("utf-8")
-    model.write_text(text.replace("entry: led = false;", "entry: led = false; pauses += 0;"),
-                     "utf-8")
+    # One more line in Dark's entry: every snippet after it moves down a line in the model.
+    grown = text.replace("      Dark:\n        entry: led = false;\n",
+                         "      Dark:\n        entry: |\n          led = false;\n"
+                         "          pauses += 0;\n", 1)
+    assert grown != text
+    model.write_text(grown, "utf-8")
+    header = out / "src" / "blinker_cpp.hpp"
+    declared = header.stat().st_mtime_ns
     said = build()
+    # The snippet's unit only: not the class (its header is not even written again), nor
+    # main() with the engine and the states, nor the runtime library.
     assert _compiled(said) == ["blinker_cpp.cpp"], said
-    assert _linked(said) == ["blinker_cpp"], said  # the runtime library is not made again
+    assert _linked(said) == ["blinker_cpp"], said
     assert library.stat().st_mtime_ns == made
+    assert header.stat().st_mtime_ns == declared
     said = build()
     assert _compiled(said) == [], said

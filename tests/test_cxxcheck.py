@@ -117,20 +117,20 @@ def test_messages_on_generated_lines_go_to_the_snippet_they_close() -> None:
            "m.yaml:9:12:   required from here\n"
            "/usr/include/c++/12/bits/stl_algo.h:1950:50: error: no match for 'operator-'\n"
            "<stdin>:18:1: error: a follow-up error outside every snippet\n")
-    diags = messages(out, "m.yaml", GENERATED)
+    diags = messages(out, "m.yaml", [GENERATED])
     assert [(str(d.span), d.code, d.message) for d in diags] == [
         ("m.yaml:9:21", "E144", "expected ';' before '}' token"),  # after `count = 1`
         ("m.yaml:15:22", "E144", "expected primary-expression before ')' token"),
         ("m.yaml:15:15", "E144", "invalid 'static_cast' from type 'void' to type 'bool'"),
         ("m.yaml:9:12", "E144", "no match for 'operator-'"),
     ]  # the follow-up error is left out: the model's errors explain it
-    alone = messages("src/m.cpp:18:1: error: broken generator\n", "m.yaml", GENERATED)
+    alone = messages("src/m.cpp:18:1: error: broken generator\n", "m.yaml", [GENERATED])
     assert [(str(d.span), d.code) for d in alone] == [("m.yaml:1:1", "E150")]
 
 
 def test_a_legacy_interface_used_in_cpp_is_explained() -> None:
     out = "m.yaml:9:12: error: base operand of '->' has non-pointer type 'hfsmc::Unavailable'\n"
-    [d] = messages(out, "m.yaml", GENERATED)
+    [d] = messages(out, "m.yaml", [GENERATED])
     assert (str(d.span), d.code) == ("m.yaml:9:12", "E144")
     assert any("legacy ROS topic or ICE proxy" in n for n in d.notes)
 

@@ -16,6 +16,7 @@ their real line numbers.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import jinja2
@@ -29,9 +30,10 @@ from hfsmc.ir import Code, Model, Value
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
                  "viewstate.hpp", "monitor.hpp", "mcap.hpp", "record.hpp", "playback.hpp",
-                 "jsonread.hpp")
+                 "jsonread.hpp", "jsonvalue.hpp")
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
-RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_record.cpp")  # the library hfsmc_runtime
+# The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
+RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",)}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera): src/, beside the runtime's.
 INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",)}
@@ -48,6 +50,8 @@ class CppSnippet(Snippet):
     body: str  # the code with its #line directives
     line: int  # model line and column of its first line
     col: int
+    what: str  # ``where`` without the position ("entry of A/B"): the header's comment, which
+    # must not change when a snippet above it grows (src/NAME.hpp would compile again)
 
 
 @dataclass(frozen=True, slots=True)
@@ -210,6 +214,8 @@ class CppComponentView:
     base: str  # the model's file name, for the headers
     file_literal: str  # the model's path as a C++ string literal, for error messages
     source_literal: str  # "src/NAME.cpp" as a C++ string literal
+    header_literal: str  # "src/NAME.hpp" as a C++ string literal
+    guard: str  # the header's include guard
     description_lines: tuple[str, ...]  # comment text
     includes: tuple[IncludeView, ...]
     driver_headers: tuple[str, ...]  # "hfsmc/mavlink.hpp", ...
@@ -266,7 +272,8 @@ class CppWalk(Walk[CppSnippet]):
 
     def make_snippet(self, sid: int, kind: str, owner: int, code: Code, where: str) -> CppSnippet:
         body, line, col = self.lines(code)
-        return CppSnippet(sid, kind, owner, where, body, line, col)
+        what = where.partition(f":{code.span.line} ")[2] or where
+        return CppSnippet(sid, kind, owner, where, body, line, col, what)
 
     def members(self) -> tuple[tuple[MemberView, ...], tuple[MemberView, ...],
                                tuple[InterfaceView, ...]]:
@@ -332,6 +339,8 @@ class CppWalk(Walk[CppSnippet]):
             base=self.base,
             file_literal=cpp_string(m.file),
             source_literal=cpp_string(f"src/{m.name}.cpp"),
+            header_literal=cpp_string(f"src/{m.name}.hpp"),
+            guard=f"HFSMC_MODEL_{m.name.upper()}_HPP",
             description_lines=tuple(comment_text(ln)
                                     for ln in (m.description or "").strip().splitlines()),
             includes=tuple(IncludeView(_include(i.text), _line(i.span.file, i.span.line))
@@ -413,27 +422,64 @@ def component_view(model: Model) -> CppComponentView:
     return CppWalk(model).view()
 
 
+def _unplaced(comment: str) -> str:
+    """A state's or transition's comment without its model position ("a.yaml:12 A" -> "A"):
+    src/NAME_main.cpp must not change when a snippet above the state grows."""
+    return re.sub(r"^.*?:\d+ ", "", comment, count=1)
+
+
 def _environment() -> jinja2.Environment:
-    return environment("cpp", {"cstr": cpp_string, "bool": lambda b: "true" if b else "false"})
+    return environment("cpp", {"cstr": cpp_string, "bool": lambda b: "true" if b else "false",
+                               "unplaced": _unplaced})
 
 
-def _fill_back_lines(text: str) -> str:
-    """Give every ``#line`` back into the generated file the number of the line after it."""
+def _fill_back_lines(text: str, macro: str = "HFSMC_SOURCE") -> str:
+    """Give every ``#line`` back into the generated file the number of the line after it;
+    ``macro`` names the file (HFSMC_SOURCE, HFSMC_HEADER)."""
     lines = text.split("\n")
     for k, ln in enumerate(lines):
         if ln == _BACK:
-            lines[k] = f"#line {k + 2} HFSMC_SOURCE"
+            lines[k] = f"#line {k + 2} {macro}"
     return "\n".join(lines)
 
 
-def _render_source(env: jinja2.Environment, view: CppComponentView) -> str:
-    return _fill_back_lines(env.get_template("component.cpp.j2").render(view=view))
+@dataclass(frozen=True, slots=True)
+class ComponentSources:
+    """The component's own C++ files: the automaton's class and its two units."""
+
+    name: str
+    header: str  # src/NAME.hpp: the class, its states (the snippets declared)
+    code: str  # src/NAME.cpp: the snippets and tables, compiled again when a snippet changes
+    main: str  # src/NAME_main.cpp: main(), where the engine and the states are compiled
+
+    def files(self) -> dict[str, str]:
+        return {f"src/{self.name}.hpp": self.header, f"src/{self.name}.cpp": self.code,
+                f"src/{self.name}_main.cpp": self.main}
+
+    def unit(self) -> str:
+        """All three as one translation unit, each under its own name (``#line 1``), the
+        header inlined: what ``hfsmc check`` hands to g++ on its standard input."""
+        include = f'#include "{self.name}.hpp"'
+        parts = [f'#line 1 "src/{self.name}.hpp"', self.header.rstrip("\n")]
+        for file, text in ((f"{self.name}.cpp", self.code), (f"{self.name}_main.cpp", self.main)):
+            parts.append(f'#line 1 "src/{file}"')
+            parts.append("\n".join("" if ln == include else ln
+                                   for ln in text.rstrip("\n").split("\n")))
+        return "\n".join(parts) + "\n"
 
 
-def source_file(model: Model) -> str:
-    """The component's translation unit (``src/NAME.cpp``) alone: what ``hfsmc check``
-    hands to g++, without the MAVLink headers and the rest of the folder."""
-    return _render_source(_environment(), component_view(model))
+def _render_sources(env: jinja2.Environment, view: CppComponentView) -> ComponentSources:
+    return ComponentSources(
+        view.name,
+        _fill_back_lines(env.get_template("component.hpp.j2").render(view=view), "HFSMC_HEADER"),
+        _fill_back_lines(env.get_template("component.cpp.j2").render(view=view)),
+        env.get_template("main.cpp.j2").render(view=view))
+
+
+def component_sources(model: Model) -> ComponentSources:
+    """The component's own C++ files alone: what ``hfsmc check`` hands to g++, without
+    the MAVLink headers and the rest of the folder."""
+    return _render_sources(_environment(), component_view(model))
 
 
 def component_files(model: Model) -> dict[str, bytes]:
@@ -443,12 +489,12 @@ def component_files(model: Model) -> dict[str, bytes]:
              "with -t python", model.span)
     view = component_view(model)
     env = _environment()
-    main = _render_source(env, view)
+    sources = _render_sources(env, view)
     cmake = env.get_template("CMakeLists.txt.j2").render(view=view)
     config = env.get_template("config.yaml.j2").render(view=view)
-    out = {f"src/{model.name}.cpp": main.encode("utf-8"),
-           "CMakeLists.txt": cmake.encode("utf-8"),
-           f"{model.name}.yaml": config.encode("utf-8")}
+    out = {path: text.encode("utf-8") for path, text in sources.files().items()}
+    out |= {"CMakeLists.txt": cmake.encode("utf-8"),
+            f"{model.name}.yaml": config.encode("utf-8")}
     folder = template_folder("cpp")
     out.update(runtime_files(folder.joinpath("hfsmc"), RUNTIME_FILES, INTERFACE_FILES,
                              (i.type for i in model.interfaces), into="include/hfsmc/"))

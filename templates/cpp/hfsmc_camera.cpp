@@ -28,6 +28,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "hfsmc/camera.hpp"
+#include "hfsmc/mcap.hpp"  // crc32
 
 namespace hfsmc {
 

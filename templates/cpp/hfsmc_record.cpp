@@ -25,7 +25,7 @@
 
 namespace hfsmc {
 
-Recorder::Recorder(const std::string& path) : w_(path) {}
+Recorder::Recorder(const std::string& path) : w_(std::make_unique<mcap::Writer>(path)) {}
 
 Recorder::~Recorder() = default;
 
@@ -35,18 +35,18 @@ void Recorder::start(const Run& run) {
     start_ns_ = static_cast<std::uint64_t>(ts.tv_sec) * 1000000000ULL + static_cast<std::uint64_t>(ts.tv_nsec);
     guard([&] {
         const auto opt = [](long long us) { return us < 0 ? std::string() : std::to_string(us); };
-        w_.add_metadata("hfsmc.run", {{"recording", "1"}, {"component", run.component}, {"language", "cpp"},
+        w_->add_metadata("hfsmc.run", {{"recording", "1"}, {"component", run.component}, {"language", "cpp"},
                                       {"hfsmc", run.version}, {"model_hash", run.model_hash},
                                       {"clock", run.clock}, {"until_us", opt(run.until_us)},
                                       {"time_limit_us", opt(run.time_limit_us)},
                                       {"start_unix_ns", std::to_string(start_ns_)}});
-        w_.add_metadata("hfsmc.parameters", run.parameters);
+        w_->add_metadata("hfsmc.parameters", run.parameters);
         mcap::Metadata interfaces;
         for (const Source* s : sources()) interfaces.emplace_back(s->source_name(), s->source_config());
-        w_.add_metadata("hfsmc.interfaces", interfaces);
-        w_.add_metadata("hfsmc.sources", run.sources);
+        w_->add_metadata("hfsmc.interfaces", interfaces);
+        w_->add_metadata("hfsmc.sources", run.sources);
         const auto schema = [&](const char* name, const char* text) {
-            return w_.add_schema(name, "jsonschema", text);
+            return w_->add_schema(name, "jsonschema", text);
         };
         const std::uint16_t mav = schema("hfsmc.mavlink.Snapshot", schemas::mavlink);
         const std::uint16_t cam = schema("hfsmc.camera.Snapshot", schemas::camera);
@@ -55,14 +55,14 @@ void Recorder::start(const Run& run) {
         for (const Source* s : sources()) {
             Channels& c = channels_[s];
             const bool is_camera = std::string(s->source_type()) == "camera";
-            c.snapshot = w_.add_channel("/hfsmc/interface/" + s->source_name(), "json", is_camera ? cam : mav);
-            if (is_camera) c.frame = w_.add_channel("/hfsmc/frame/" + s->source_name(), "json", img);
-            c.command = w_.add_channel("/hfsmc/command/" + s->source_name(), "json", cmd);
+            c.snapshot = w_->add_channel("/hfsmc/interface/" + s->source_name(), "json", is_camera ? cam : mav);
+            if (is_camera) c.frame = w_->add_channel("/hfsmc/frame/" + s->source_name(), "json", img);
+            c.command = w_->add_channel("/hfsmc/command/" + s->source_name(), "json", cmd);
         }
-        skip_ = w_.add_channel("/hfsmc/skip", "json", schema("hfsmc.Skip", schemas::skip));
-        signal_ = w_.add_channel("/hfsmc/signal", "json", schema("hfsmc.Signal", schemas::signal));
-        trace_ = w_.add_channel("/hfsmc/trace", "json", schema("hfsmc.TraceRecord", schemas::trace));
-        w_.flush_tick();
+        skip_ = w_->add_channel("/hfsmc/skip", "json", schema("hfsmc.Skip", schemas::skip));
+        signal_ = w_->add_channel("/hfsmc/signal", "json", schema("hfsmc.Signal", schemas::signal));
+        trace_ = w_->add_channel("/hfsmc/trace", "json", schema("hfsmc.TraceRecord", schemas::trace));
+        w_->flush_tick();
     });
 }
 
@@ -101,15 +101,15 @@ void Recorder::trace(long long t, const std::string& record) { write(trace_, t, 
 
 
 void Recorder::flush_tick() {
-    guard([&] { w_.flush_tick(); });
+    guard([&] { w_->flush_tick(); });
 }
 
 void Recorder::close() {
-    guard([&] { w_.close(); });
+    guard([&] { w_->close(); });
 }
 
 void Recorder::write(std::uint16_t channel, long long t, const std::string& payload) {
-    guard([&] { w_.write(channel, log_time(t), payload); });
+    guard([&] { w_->write(channel, log_time(t), payload); });
 }
 
 namespace playback {

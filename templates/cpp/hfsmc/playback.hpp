@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "hfsmc/json.hpp"
-#include "hfsmc/jsonread.hpp"
+#include "hfsmc/jsonvalue.hpp"
 
 namespace hfsmc::playback {
 

@@ -24,10 +24,13 @@
 #include <vector>
 
 #include "hfsmc/json.hpp"
-#include "hfsmc/mcap.hpp"
 #include "hfsmc/playback.hpp"
 
 namespace hfsmc {
+
+namespace mcap {
+class Writer;  // hfsmc/mcap.hpp, in hfsmc_record.cpp only
+}
 
 // A number as a recording writes it: the shortest text that reads back the same (as
 // Python's repr), "nan", "inf" or "-inf" as strings.
@@ -167,7 +170,7 @@ private:
         }
     }
 
-    mcap::Writer w_;
+    std::unique_ptr<mcap::Writer> w_;
     std::uint64_t start_ns_ = 0;
     std::map<const Source*, Channels> channels_;
     std::uint16_t skip_ = 0, signal_ = 0, trace_ = 0;

@@ -318,32 +318,170 @@ inline std::string current_exception_text() {
 }
 
 // --- the engine -----------------------------------------------------------------------
-// M is the generated class: it has _hfsm_enter(int), _hfsm_leave_0(), _hfsm_tick(int),
-// _hfsm_on_shutdown(), _hfsm_warnings_at_stop() and _hfsm_values(), and, with one period,
-// _hfsm_instant(). `n_states` and `n_automata` are the model's: the per-state and
-// per-sub-automaton arrays live in the engine itself, at offsets known when compiling.
-template <class M, int n_states, int n_automata>
-class Engine {
+// EngineCore runs the automaton: instants, clocks, stops and interrupts, the trace, the
+// views, --record and --playback. It does not depend on the model, so it is compiled once,
+// into the runtime library (hfsmc_engine.cpp). Engine<M> below adds what does: the
+// per-state arrays at offsets known when compiling, the calls the generated state
+// functions make (inline), the lockstep loop around M::_hfsm_instant() and the calls into
+// the model's class.
+class EngineCore {
 public:
     long long t = 0;  // logical time of the current instant, microseconds since start
     int owner = 0;  // state whose snippet runs (the number of states for the root)
+
+    EngineCore(const EngineCore&) = delete;
+    EngineCore& operator=(const EngineCore&) = delete;
+
+    // --- called by generated code ---------------------------------------------------
+    // Ask for a stop at the end of the tick; the first request stands, but an error's.
+    void request(const char* why, bool over = false) {
+        if (request_ == nullptr || over) request_ = why;
+        signals::asked = 1;
+    }
+    // The root sub-automaton entered a final state: stop at the end of the tick.
+    void root_final() { request("final"); }
+    bool stop_asked() const { return signals::asked != 0; }
+    // Between two regions of a state: a stop asked while the previous ones ticked leaves
+    // the instant cut before region b.
+    bool stop_asked_before(int b) {
+        if (!stop_asked()) return false;
+        cut_ = b - 1;  // (a cut inside them returned before this check)
+        return true;
+    }
+    [[gnu::cold, gnu::noinline]] void record_state(const char* ev, int i);
+    [[gnu::cold, gnu::noinline]] void record_fire(int i, int j, int k);
+    // A snippet threw: report it, record it, ask for a stop with reason error.
+    [[gnu::cold]] void fail(int sid);
+
+    // --- the helpers of docs/semantics.md §8 ---------------------------------------------
+    void log(const std::string& text);
+    double elapsed() const { return static_cast<double>(t - entered_[owner]) / 1e6; }
+    double now() const { return static_cast<double>(t) / 1e6; }
+    bool done() const;
+    bool active(std::string_view path) const;
+    // active() inside an instance of a used file: paths below the using state.
+    bool active_below(const std::string& prefix, std::string_view path, const char* where) const;
+    void shutdown();
+
+    // --- set up by hfsmc::main ---------------------------------------------------------
+    void set_trace(std::unique_ptr<Trace> trace);
+    void add_observer(std::unique_ptr<Observer> o);
+    void set_trace_variables(bool on) { trace_variables_ = on; }
+
+    // --- running -----------------------------------------------------------------------
+    int run(bool real, long long until_us, long long time_limit_us = -1);
+
+protected:
+    // `one_period`: every sub-automaton has the model's one period (M::_hfsm_one_period).
+    // The arrays are Engine<M>'s, bound before run().
+    EngineCore(const Tables& tb, bool one_period);
+    virtual ~EngineCore();
+    void bind(long long* entered, int* is_active, int* cur) {
+        entered_ = entered;
+        is_active_ = is_active;
+        cur_ = cur;
+    }
+
+    // The model's class, through Engine<M>.
+    virtual void enter_state(int i) = 0;  // M::_hfsm_enter(i)
+    virtual void leave_root() = 0;  // M::_hfsm_leave_0(): exit the root's current state
+    virtual void tick_state(int i) = 0;  // M::_hfsm_tick(i)
+    // Instants in lockstep until a stop or a limit (M::_hfsm_one_period only).
+    virtual void lockstep(bool hooks, bool recording) = 0;
+    virtual void on_shutdown() = 0;
+    virtual std::vector<std::string> warnings_at_stop() = 0;
+    virtual std::vector<std::string> values() const = 0;
+    virtual std::vector<std::pair<std::string, std::string>> parameters() const = 0;
+
+    // For Engine<M>'s lockstep loop and its inline calls.
+    [[gnu::cold, gnu::noinline]] void chain_insert(int b);
+    [[gnu::cold, gnu::noinline]] void chain_erase(int b);
+    void set_time(long long t_new) {
+        t = t_new;
+        signals::t_us = t_new;
+    }
+    void at_limit();
+    void world();
+    void trace_values();
+    void sample();
+
+    const Tables& tb_;
+    std::vector<long long> deadline_, period_us_;
+    std::vector<int> chain_;
+    bool recording_ = false;
+    // Every sub-automaton has the model's one period (M::_hfsm_one_period) and every
+    // activation came at an instant: the active ones share one deadline, the root's. Not on
+    // the real clock (missed ticks are skipped per sub-automaton), in --playback (recorded
+    // skips) or after an interrupt (entered at the time of a signal).
+    bool lockstep_ = false;
+    int cut_ = 0;  // lockstep: the sub-automaton after whose tick a stop cut the last instant
+    long long ticks_ = 0;
+    long long limit_at_ = std::numeric_limits<long long>::max();  // limit_us_, or never
+    bool has_sources_ = false;  // any interface that takes snapshots
+    long long snap_t_ = -1;  // the time of the interfaces' snapshot
+    Recorder* rec_ = nullptr;  // --record
+    std::vector<std::unique_ptr<Observer>> observers_;
+
+private:
+    Record base(const char* ev) const;
+    static std::string head(const Record& r);
+    std::string path_of(int i) const { return i < root_ ? tb_.states[i].path : ""; }
+    void emit(Record& r);
+    void instants();
+    void end_lockstep();
+    long long real_us() const { return (signals::monotonic_ns() - start_ns_) / 1000; }
+    void set_limit();
+    bool wait(long long t_us);
+    void skip_missed(std::size_t a);
+    std::string automaton_path(std::size_t a) const;
+    void playback_skip(std::size_t a);
+    bool playback_signal(bool within);
+    bool boundary();
+    void interrupt(const std::string& reason);
+    void stop(const std::string& reason);
+    void finish(const std::string& reason);
+    Structure structure() const;
+
+    const bool one_period_;
+    long long* entered_ = nullptr;
+    int* is_active_ = nullptr;
+    int* cur_ = nullptr;
+    int root_;
+    std::map<std::string_view, int> by_path_;  // for active("A/B"): the paths live in the tables
+    bool real_ = false;
+    bool stopping_ = false;
+    bool stop_failed_ = false;
+    const char* request_ = nullptr;  // shutdown / error / final / time_limit, acted on at the boundary
+    std::string interrupting_;  // the interrupt's reason while one runs
+    long long until_us_ = -1, time_limit_us_ = -1, timeout_at_ = -1, limit_us_ = -1;
+    std::string limit_why_ = "until";
+    long long overruns_ = 0;
+    long long start_ns_ = 0, next_sample_ns_ = 0;
+    int status_ = 0;
+    std::unique_ptr<Trace> trace_;
+    bool trace_variables_ = false;
+    std::vector<std::string> traced_;  // the values of the last `variables` record
+    playback::Inputs* pb_ = nullptr;  // --playback
+    std::size_t next_skip_ = 0, next_signal_ = 0;  // --playback: the next to act on
+};
+
+// M is the generated class: it has _hfsm_enter(int), _hfsm_leave_0(), _hfsm_tick(int),
+// _hfsm_on_shutdown(), _hfsm_warnings_at_stop(), _hfsm_values() and _hfsm_parameters(), and,
+// with one period, _hfsm_instant(). `n_states` and `n_automata` are the model's: the
+// per-state and per-sub-automaton arrays live in the engine itself, at offsets known when
+// compiling.
+template <class M, int n_states, int n_automata>
+class Engine final : public EngineCore {
+public:
     std::array<long long, n_states + 1> entered{};
     std::array<int, n_states + 1> is_active{};  // int, not char: a store to it cannot alias the engine's pointers
     std::array<int, n_automata> cur{}, last{};
 
-    Engine(M& m, const Tables& tb) : m_(m), tb_(tb) {
-        const auto a = static_cast<std::size_t>(tb.n_automata);
+    Engine(M& m, const Tables& tb) : EngineCore(tb, M::_hfsm_one_period), m_(m) {
+        bind(entered.data(), is_active.data(), cur.data());
         cur.fill(-1);
         for (int k = 0; k < tb.n_automata; ++k) last[static_cast<std::size_t>(k)] = tb.automata[k].initial;
-        deadline_.assign(a, 0);
-        for (int k = 0; k < tb.n_automata; ++k) period_us_.push_back(tb.automata[k].period_ms * 1000LL);
-        chain_.reserve(a);
-        root_ = tb.n_states;
-        owner = root_;
-        for (int i = 0; i < tb.n_states; ++i) by_path_.emplace(tb.states[i].path, i);
     }
-    Engine(const Engine&) = delete;
-    Engine& operator=(const Engine&) = delete;
 
     // --- called by generated code ---------------------------------------------------
     // `fast`: called from M::_hfsm_instant<true>(), the lockstep with nothing recorded
@@ -366,37 +504,11 @@ public:
             if (recording_) record_state("exit", i);
         }
     }
-    [[gnu::cold, gnu::noinline]] void record_state(const char* ev, int i) {
-        Record r = base(ev);
-        r.state = tb_.states[i].path;
-        r.json = head(r) + ",\"state\":" + json_string(r.state) + "}";
-        emit(r);
-    }
     void left(int i) { is_active[static_cast<std::size_t>(i)] = 0; }
-    // Ask for a stop at the end of the tick; the first request stands, but an error's.
-    void request(const char* why, bool over = false) {
-        if (request_ == nullptr || over) request_ = why;
-        signals::asked = 1;
-    }
-    // The root sub-automaton entered a final state: stop at the end of the tick.
-    void root_final() {
-        request("final");
-    }
     template <bool fast = false>
     void fire(int i, int j, int k) {
         if constexpr (!fast) {
             if (recording_) record_fire(i, j, k);
-        }
-    }
-    [[gnu::cold, gnu::noinline]] void record_fire(int i, int j, int k) {
-        {
-            Record r = base("fire");
-            r.from = tb_.states[i].path;
-            r.to = tb_.states[j].path;
-            r.index = k;
-            r.json = head(r) + ",\"from\":" + json_string(r.from) + ",\"to\":" + json_string(r.to) +
-                     ",\"index\":" + std::to_string(k) + "}";
-            emit(r);
         }
     }
     // The active sub-automata in pre-order: they are numbered so (parents first, regions in
@@ -429,12 +541,6 @@ public:
             else chain_erase(b);
         }
     }
-    [[gnu::cold, gnu::noinline]] void chain_insert(int b) {
-        chain_.insert(std::upper_bound(chain_.begin(), chain_.end(), b), b);
-    }
-    [[gnu::cold, gnu::noinline]] void chain_erase(int b) {
-        chain_.erase(std::find(chain_.begin(), chain_.end(), b));
-    }
     // M::_hfsm_instant(), after the tick of sub-automaton a: true when a stop is asked, and
     // the rest of the instant is not run, as in the chain walk; end_lockstep() needs where
     // it was cut. Ticks are counted where a count is read (a recording's signals).
@@ -451,212 +557,31 @@ public:
     void counted() {
         if constexpr (!fast) ++ticks_;
     }
-    // Between two regions of a state: a stop asked while the previous ones ticked leaves
-    // the instant cut before region b.
-    bool stop_asked_before(int b) {
-        if (!stop_asked()) return false;
-        cut_ = b - 1;  // (a cut inside them returned before this check)
-        return true;
-    }
-    bool stop_asked() const { return signals::asked != 0; }
     bool after(int i, long long us) const { return t - entered[static_cast<std::size_t>(i)] >= us; }
 
-    // A snippet threw: report it, record it, ask for a stop with reason error.
-    void fail(int sid) {
-        const std::string what = current_exception_text();
-        const SnippetInfo& s = tb_.snippets[sid];
-        const std::string path = path_of(s.owner);
-        if (recording_) {
-            Record r = base("error");
-            r.state = path;
-            r.snippet = s.kind;
-            r.json = head(r) + ",\"state\":" + json_string(path) + ",\"snippet\":" +
-                     json_string(s.kind) + "}";
-            emit(r);
-        }
-        std::string text = std::string(s.file ? s.file : tb_.file) + ":" + std::to_string(s.line) + ":" +
-                           std::to_string(s.col) + ": error: " + what + "\n";
-        text += path.empty() ? "  in " + std::string(s.kind) + "\n"
-                             : "  in " + std::string(s.kind) + " of state `" + path + "`\n";
-        std::fwrite(text.data(), 1, text.size(), stderr);
-        if (stopping_) stop_failed_ = true;
-        else request("error", true);
-    }
-
-    // --- the helpers of docs/semantics.md §8 ---------------------------------------------
-    void log(const std::string& text) {
-        const std::string path = path_of(owner);
-        char stamp[32];
-        std::snprintf(stamp, sizeof stamp, "[%9.3f] ", static_cast<double>(t / 1000) / 1000.0);
-        const std::string line = stamp + (path.empty() ? std::string(tb_.name) : path) + ": " + text + "\n";
-        std::fwrite(line.data(), 1, line.size(), stderr);
-        if (recording_) {
-            Record r = base("log");
-            r.state = path;
-            r.msg = text;
-            r.json = head(r) + ",\"state\":" + json_string(path) + ",\"msg\":" + json_string(text) + "}";
-            emit(r);
-        }
-    }
-    double elapsed() const {
-        return static_cast<double>(t - entered[static_cast<std::size_t>(owner)]) / 1e6;
-    }
-    double now() const { return static_cast<double>(t) / 1e6; }
-    bool done() const {
-        if (owner >= root_) return false;
-        // Its sub-automaton, or every one of its regions, is in a final state.
-        const StateInfo& s = tb_.states[owner];
-        for (int k = s.first_child; k < s.first_child + s.n_children; ++k) {
-            const int c = cur[static_cast<std::size_t>(tb_.children[k])];
-            if (c < 0 || !is_active[static_cast<std::size_t>(c)] || !tb_.states[c].final) return false;
-        }
-        return s.n_children > 0;
-    }
-    bool active(std::string_view path) const {
-        while (!path.empty() && path.front() == '/') path.remove_prefix(1);
-        while (!path.empty() && path.back() == '/') path.remove_suffix(1);
-        const auto found = by_path_.find(path);
-        if (found != by_path_.end()) return is_active[static_cast<std::size_t>(found->second)] != 0;
-        throw std::invalid_argument("active(" + string_repr(path) + "): no such state in " + tb_.name);
-    }
-    // active() inside an instance of a used file: paths below the using state.
-    bool active_below(const std::string& prefix, std::string_view path, const char* where) const {
-        while (!path.empty() && path.front() == '/') path.remove_prefix(1);
-        while (!path.empty() && path.back() == '/') path.remove_suffix(1);
-        const auto found = by_path_.find(prefix + "/" + std::string(path));
-        if (found != by_path_.end()) return is_active[static_cast<std::size_t>(found->second)] != 0;
-        throw std::invalid_argument("active(" + string_repr(path) + "): no such state in " + where);
-    }
-    void shutdown() {
-        if (interrupting_.empty() && !stopping_) request("shutdown");
-    }
-
-    // --- set up by hfsmc::main ---------------------------------------------------------
-    void set_trace(std::unique_ptr<Trace> trace) { trace_ = std::move(trace); }
-    void add_observer(std::unique_ptr<Observer> o) { observers_.push_back(std::move(o)); }
-    void set_trace_variables(bool on) { trace_variables_ = on; }
-
-    // --- running -----------------------------------------------------------------------
-    int run(bool real, long long until_us, long long time_limit_us = -1) {
-        real_ = real;
-        until_us_ = until_us;
-        time_limit_us_ = time_limit_us;  // --time-limit: a stop through on_interrupt
-        signals::real = real ? 1 : 0;
-        signals::trace = trace_.get();
-        signals::start_ns = start_ns_ = signals::monotonic_ns();
-        rec_ = recorder();
-        pb_ = playback::current();
-        recording_ = trace_ != nullptr || !observers_.empty() || rec_ != nullptr;
-        if (!observers_.empty()) {
-            const Structure s = structure();
-            for (auto& o : observers_) o->start(s);
-        }
-        if (recording_) {
-            Record r = base("start");
-            r.name = tb_.name;
-            r.json = "{\"t\":0,\"ev\":\"start\",\"name\":" + json_string(tb_.name) + "}";
-            emit(r);
-        }
-        chain_.assign(1, 0);
-        deadline_[0] = 0;
-        has_sources_ = !sources().empty();
-        lockstep_ = M::_hfsm_one_period && !real_ && pb_ == nullptr;
-        owner = root_;
-        world();
-        m_._hfsm_enter(tb_.automata[0].initial);
-        trace_values();
-        if (rec_) rec_->flush_tick();
-        set_limit();
-        while (!stopping_) {
-            if (boundary()) continue;
-            instants();
-        }
-        return status_;
-    }
-
 private:
-    Record base(const char* ev) const {
-        Record r;
-        r.t = t / 1000;
-        r.ev = ev;
-        return r;
-    }
-    static std::string head(const Record& r) {
-        return "{\"t\":" + std::to_string(r.t) + ",\"ev\":\"" + r.ev + "\"";
-    }
-    std::string path_of(int i) const { return i < root_ ? tb_.states[i].path : ""; }
-
-    void emit(Record& r) {
-        if (trace_) trace_->write(r.json + "\n");
-        if (rec_) rec_->trace(t, r.json);
-        for (auto& o : observers_) o->record(r);
-    }
-
-    // Instants until a stop request: each waits for the earliest deadline of the active
-    // chain, then ticks every sub-automaton due then, parents first. `hooks`: the work
-    // that only the real clock, --playback, --record, live views or --trace-variables ask
-    // for, skipped as a whole without them.
-    void instants() {
-        const bool hooks = real_ || pb_ != nullptr || rec_ != nullptr || !observers_.empty() ||
-                           (trace_variables_ && trace_);
+    void enter_state(int i) override { m_._hfsm_enter(i); }
+    void leave_root() override { m_._hfsm_leave_0(); }
+    void tick_state(int i) override { m_._hfsm_tick(i); }
+    void lockstep(bool hooks, bool recording) override {
         if constexpr (M::_hfsm_one_period) {
-            if (lockstep_) {
-                cut_ = tb_.n_automata;  // none yet
-                if (hooks) lockstep_instants<true, false>();
-                else if (recording_) lockstep_instants<false, false>();
-                else lockstep_instants<false, true>();
-                return;
-            }
+            if (hooks) lockstep_instants<true, false>();
+            else if (recording) lockstep_instants<false, false>();
+            else lockstep_instants<false, true>();
         }
-        for (;;) {
-            if (pb_ && playback_signal(false)) return;
-            if (stop_asked()) return;  // came between two instants
-            long long due = deadline_[static_cast<std::size_t>(chain_[0])];
-            if (!lockstep_)
-                for (std::size_t k = 1; k < chain_.size(); ++k)
-                    due = std::min(due, deadline_[static_cast<std::size_t>(chain_[k])]);
-            if (due > limit_at_) {
-                at_limit();
-                return;
-            }
-            if (real_ && !wait(due)) return;
-            set_time(due);
-            // The first instant shares the start's snapshot (0 s); no interface, no snapshot.
-            if (has_sources_ && t != snap_t_) world();
-            for (std::size_t k = 0; k < chain_.size(); ++k) {
-                const auto a = static_cast<std::size_t>(chain_[k]);
-                if (deadline_[a] <= due) {
-                    m_._hfsm_tick(cur[a]);
-                    deadline_[a] = due + period_us_[a];
-                    ++ticks_;
-                    if (hooks) {
-                        if (real_) skip_missed(a);
-                        if (pb_) {
-                            playback_skip(a);
-                            playback_signal(true);
-                        }
-                    }
-                    if (stop_asked()) {
-                        if (hooks) {
-                            trace_values();
-                            if (rec_) rec_->flush_tick();
-                        }
-                        return;
-                    }
-                }
-            }
-            if (hooks) {
-                trace_values();
-                if (rec_) rec_->flush_tick();
-                if (!observers_.empty()) sample();
-            }
-        }
+    }
+    void on_shutdown() override { m_._hfsm_on_shutdown(); }
+    std::vector<std::string> warnings_at_stop() override { return m_._hfsm_warnings_at_stop(); }
+    std::vector<std::string> values() const override { return m_._hfsm_values(); }
+    std::vector<std::pair<std::string, std::string>> parameters() const override {
+        return m_._hfsm_parameters();
     }
 
     // Lockstep (M::_hfsm_one_period, the virtual clock, no playback, no interrupt yet): every
     // active sub-automaton is due at each of the root's deadlines, and the instant is the
     // model's generated M::_hfsm_instant(). The chain of active sub-automata is not kept
-    // meanwhile; end_lockstep() rebuilds it.
+    // meanwhile; EngineCore::end_lockstep() rebuilds it. `hooks`: the work that only
+    // --record, live views or --trace-variables ask for.
     template <bool hooks, bool fast>
     void lockstep_instants() {
         const long long period = period_us_[0], limit = limit_at_;  // neither changes in here
@@ -682,328 +607,7 @@ private:
         deadline_[0] = due;
     }
 
-    // The chain and its deadlines as the walk would have them: the active sub-automata in
-    // pre-order (their numbering); those ticked in the last instant due a period after it.
-    // They are the ones numbered up to where a stop cut the instant (cut_: the ticked set is
-    // a prefix of the pre-order), all of them when none did. The others were entered after
-    // the cut: due at the instant. Before the first instant (deadline_[0] still 0) every
-    // active one is due at 0.
-    void end_lockstep() {
-        if (!lockstep_) return;
-        lockstep_ = false;
-        chain_.clear();
-        for (int a = 0; a < tb_.n_automata; ++a) {
-            const int o = tb_.automata[a].owner;
-            if (o < 0 || is_active[static_cast<std::size_t>(o)]) chain_.push_back(a);
-        }
-        const bool any = deadline_[0] > 0;
-        const long long due = any ? deadline_[0] - period_us_[0] : 0;  // of the last instant
-        for (const int a : chain_)
-            deadline_[static_cast<std::size_t>(a)] =
-                due + (any && a <= cut_ ? period_us_[static_cast<std::size_t>(a)] : 0);
-    }
-
-    // The earliest limit comes before the next deadline: act on it at its time.
-    void at_limit() {
-        if (real_ && !wait(limit_us_)) return;
-        set_time(limit_us_);
-        if (limit_why_ == "time_limit") {  // stopped as by a signal, at the boundary
-            time_limit_us_ = -1;
-            set_limit();
-            request("time_limit");
-        } else {
-            stop(limit_why_);
-        }
-    }
-
-    void set_time(long long t_new) {
-        t = t_new;
-        signals::t_us = t_new;
-    }
-
-    long long real_us() const { return (signals::monotonic_ns() - start_ns_) / 1000; }
-
-    // The earliest of --until, --time-limit and the interrupt's timeout: the stop due then
-    // (--until first on a tie, the interrupt's timeout before either).
-    void set_limit() {
-        limit_us_ = until_us_;
-        limit_why_ = "until";
-        if (time_limit_us_ >= 0 && (limit_us_ < 0 || time_limit_us_ < limit_us_)) {
-            limit_us_ = time_limit_us_;
-            limit_why_ = "time_limit";
-        }
-        if (timeout_at_ >= 0 && (limit_us_ < 0 || timeout_at_ <= limit_us_)) {
-            limit_us_ = timeout_at_;
-            limit_why_ = "timeout";
-        }
-        limit_at_ = limit_us_ < 0 ? std::numeric_limits<long long>::max() : limit_us_;
-    }
-
-    // Real clock: sleep until t_us; false when a signal came first.
-    bool wait(long long t_us) {
-        if (signals::pending != 0) return false;
-        if (trace_) trace_->flush();
-        for (;;) {
-            const long long now = real_us();
-            if (now >= t_us) return true;
-            if (!observers_.empty()) sample();
-            long long timeout = t_us - now;
-            if (!observers_.empty()) timeout = std::min(timeout, 100000LL);
-            timespec ts{static_cast<time_t>(timeout / 1000000), static_cast<long>(timeout % 1000000) * 1000};
-            pollfd p{signals::wake_r, POLLIN, 0};
-            ::ppoll(&p, signals::wake_r >= 0 ? 1 : 0, &ts, nullptr);
-            signals::drain();
-            if (signals::pending != 0) {
-                set_time(std::max(t, real_us()));
-                return false;
-            }
-        }
-    }
-
-    void skip_missed(std::size_t a) {
-        const long long now = real_us();
-        const long long nxt = deadline_[a], p = period_us_[a];
-        if (nxt < now) {
-            const long long k = (now - nxt + p - 1) / p;
-            deadline_[a] = nxt + k * p;
-            overruns_ += k;
-            if (rec_) rec_->skip(t, automaton_path(a), deadline_[a], k);
-        }
-    }
-
-    // "" for the root, the owner's path for a state's sub-automaton, OWNER/REGION for a region.
-    std::string automaton_path(std::size_t a) const {
-        const AutomatonInfo& info = tb_.automata[a];
-        if (info.owner < 0) return "";
-        std::string path = tb_.states[info.owner].path;
-        return info.region ? path + "/" + info.region : path;
-    }
-
-    // Every interface takes its snapshot of instant t (docs/recording.md), recorded.
-    void world() {
-        snap_t_ = t;
-        for (Source* s : sources()) {
-            s->take_snapshot(t);
-            if (rec_) rec_->snapshot(*s, t);
-        }
-    }
-
-    // --playback: the recorded skip of sub-automaton a at this instant, after its tick.
-    void playback_skip(std::size_t a) {
-        const std::vector<playback::Skip>& skips = pb_->skips();
-        while (next_skip_ < skips.size() && skips[next_skip_].t < t) ++next_skip_;  // not met (a changed model)
-        if (next_skip_ >= skips.size() || skips[next_skip_].t != t) return;
-        const playback::Skip& s = skips[next_skip_];
-        if (s.automaton != automaton_path(a)) return;
-        ++next_skip_;
-        deadline_[a] = s.deadline;
-        overruns_ += s.missed;
-        if (rec_) rec_->skip(t, s.automaton, s.deadline, s.missed);
-    }
-
-    // --playback: the next signal, once its ticks have run: acted on at its time (within
-    // the instant: at the instant's time only). True when it came.
-    bool playback_signal(bool within) {
-        const std::vector<playback::Signal>& all = pb_->signals();
-        if (next_signal_ >= all.size()) return false;
-        const playback::Signal& s = all[next_signal_];
-        if (s.ticks > ticks_ || (within && s.t > t)) return false;
-        ++next_signal_;
-        set_time(std::max(t, s.t));
-        if (s.reason == "time_limit") {
-            time_limit_us_ = -1;
-            set_limit();
-            request("time_limit");
-        } else {
-            signals::pending = s.reason == "sigint" ? SIGINT : SIGTERM;
-            signals::asked = 1;
-        }
-        return true;
-    }
-
-    // Act on stop requests between ticks. True when something was done.
-    bool boundary() {
-        signals::asked = 0;  // first: a signal coming while this runs asks again
-        const std::string reason = request_ != nullptr ? request_ : "";
-        request_ = nullptr;
-        const int sig = signals::pending;
-        signals::pending = 0;
-        const std::string sig_reason = sig == SIGINT ? "sigint" : sig == SIGTERM ? "sigterm" : "";
-        // Several requests at one boundary: an error first, then the root's final
-        // state, then a signal, then shutdown() or the time limit.
-        if (reason == "error" && !interrupting_.empty()) {
-            stop("error");
-        } else if (reason == "final") {
-            stop(interrupting_.empty() ? "final" : interrupting_);
-        } else if (reason == "error" || !sig_reason.empty() || reason == "shutdown" || reason == "time_limit") {
-            const std::string why = reason == "error" ? "error" : !sig_reason.empty() ? sig_reason : reason;
-            if (rec_ && why != "error" && why != "shutdown") rec_->signal(t, why, ticks_);
-            if (tb_.on_interrupt >= 0) interrupt(why);
-            else stop(why);
-        } else {
-            return false;
-        }
-        return true;
-    }
-
-    void interrupt(const std::string& reason) {
-        if (t != snap_t_) world();  // a time no instant ran at: the world as it is now
-        const int target = tb_.on_interrupt;
-        end_lockstep();  // the target's sub-automata start at the interrupt's time
-        interrupting_ = reason;
-        signals::hard = 1;
-        time_limit_us_ = -1;  // stopping already: the time limit has nothing left to do
-        if (tb_.interrupt_timeout_us >= 0) timeout_at_ = t + tb_.interrupt_timeout_us;
-        set_limit();
-        if (recording_) {
-            Record r = base("interrupt");
-            r.reason = reason;
-            r.to = tb_.states[target].path;
-            r.json = head(r) + ",\"reason\":" + json_string(reason) + ",\"to\":" + json_string(r.to) + "}";
-            emit(r);
-        }
-        const int current = cur[0];
-        if (current != target) {
-            m_._hfsm_leave_0();
-            owner = root_;
-            m_._hfsm_enter(target);
-        }
-    }
-
-    void stop(const std::string& reason) {
-        if (t != snap_t_) world();  // a time no instant ran at: the world as it is now
-        stopping_ = true;
-        signals::hard = 1;
-        request_ = nullptr;
-        signals::asked = signals::pending != 0 ? 1 : 0;
-        m_._hfsm_leave_0();
-        owner = root_;
-        m_._hfsm_on_shutdown();
-        // An interface that leaves something going (a vehicle still armed) says so: a log
-        // line, so that stderr, the trace and the live views all show it.
-        for (const std::string& warning : m_._hfsm_warnings_at_stop()) log(warning);
-        status_ = stop_failed_ ? 1 : exit_status(reason);
-        if (!observers_.empty()) {  // the views end on the values the run ended with
-            next_sample_ns_ = 0;
-            sample();
-        }
-        finish(reason);
-        if (real_) {  // the virtual clock never overruns: nothing to tell
-            const double share = 100.0 * static_cast<double>(overruns_) /
-                                 static_cast<double>(std::max(ticks_ + overruns_, 1LL));
-            std::fprintf(stderr, "%s: stopped (%s) at %.3f s; %lld ticks, %lld overruns (%.1f %%)\n",
-                         tb_.name, reason.c_str(), static_cast<double>(t / 1000) / 1000.0, ticks_,
-                         overruns_, share);
-        }
-    }
-
-    void finish(const std::string& reason) {
-        trace_values();
-        if (recording_) {
-            Record r = base("stop");
-            r.reason = reason;
-            r.json = head(r) + ",\"reason\":" + json_string(reason) + "}";
-            emit(r);
-        }
-        signals::trace = nullptr;
-        if (trace_) trace_->close();
-        if (rec_) rec_->close();
-        signals::status = status_;
-        signals::finished = 1;
-        for (auto& o : observers_) {
-            try {
-                o->close();
-            } catch (const std::exception& e) {  // a viewer's trouble must not change the status
-                std::fprintf(stderr, "observer: %s\n", e.what());
-            }
-        }
-    }
-
-    // --trace-variables: a `variables` record of the values changed since the last one (all
-    // of them in the first), in the trace only (docs/component.md#--trace-variables).
-    void trace_values() {
-        if (!trace_variables_ || !trace_) return;
-        std::vector<std::string> values = m_._hfsm_values();
-        std::string body;
-        for (std::size_t k = 0; k < values.size(); ++k) {
-            if (values[k].size() > 80) values[k] = values[k].substr(0, 77) + "...";
-            if (k < traced_.size() && traced_[k] == values[k]) continue;
-            if (!body.empty()) body += ",";
-            body += json_string(tb_.variables[k]) + ":" + json_string(values[k]);
-        }
-        if (body.empty()) return;
-        traced_ = std::move(values);
-        const std::string line = "{\"t\":" + std::to_string(t / 1000) + ",\"ev\":\"variables\",\"values\":{" +
-                                 body + "}}";
-        trace_->write(line + "\n");
-        if (rec_) rec_->trace(t, line);
-    }
-
-    void sample() {
-        const long long clock = signals::monotonic_ns();
-        if (clock < next_sample_ns_) return;
-        next_sample_ns_ = clock + 100000000LL;
-        std::vector<std::string> values = m_._hfsm_values();
-        for (auto& v : values)
-            if (v.size() > 80) v = v.substr(0, 77) + "...";
-        for (auto& o : observers_) o->sample(t / 1000, values, overruns_);
-    }
-
-    Structure structure() const {
-        Structure s;
-        s.name = tb_.name;
-        for (int k = 0; k < tb_.n_automata; ++k) {
-            const AutomatonInfo& a = tb_.automata[k];
-            std::string initial = tb_.states[a.initial].path;
-            initial = initial.substr(initial.rfind('/') == std::string::npos ? 0 : initial.rfind('/') + 1);
-            s.automata.push_back({path_of(a.owner < 0 ? root_ : a.owner), a.region ? a.region : "",
-                                  a.use ? a.use : "",
-                                  a.period_ms, initial, a.history});
-        }
-        for (int i = 0; i < tb_.n_states; ++i)
-            s.states.push_back({tb_.states[i].path, tb_.states[i].final, tb_.states[i].n_children > 0});
-        for (int k = 0; k < tb_.n_transitions; ++k) {
-            const TransitionInfo& tr = tb_.transitions[k];
-            s.transitions.push_back({tb_.states[tr.from].path, tb_.states[tr.to].path, tr.index, tr.name});
-        }
-        for (int k = 0; k < tb_.n_variables; ++k) s.variables.emplace_back(tb_.variables[k]);
-        s.parameters = m_._hfsm_parameters();
-        return s;
-    }
-
     M& m_;
-    const Tables& tb_;
-    int root_;
-    std::map<std::string_view, int> by_path_;  // for active("A/B"): the paths live in the tables
-    std::vector<long long> deadline_, period_us_;
-    std::vector<int> chain_;
-    bool recording_ = false;
-    bool real_ = false;
-    bool stopping_ = false;
-    bool stop_failed_ = false;
-    const char* request_ = nullptr;  // shutdown / error / final / time_limit, acted on at the boundary
-    std::string interrupting_;  // the interrupt's reason while one runs
-    long long until_us_ = -1, time_limit_us_ = -1, timeout_at_ = -1, limit_us_ = -1;
-    long long limit_at_ = std::numeric_limits<long long>::max();  // limit_us_, or never
-    std::string limit_why_ = "until";
-    long long ticks_ = 0, overruns_ = 0;
-    long long start_ns_ = 0, next_sample_ns_ = 0;
-    int status_ = 0;
-    std::unique_ptr<Trace> trace_;
-    bool trace_variables_ = false;
-    std::vector<std::string> traced_;  // the values of the last `variables` record
-    std::vector<std::unique_ptr<Observer>> observers_;
-    Recorder* rec_ = nullptr;  // --record
-    playback::Inputs* pb_ = nullptr;  // --playback
-    long long snap_t_ = -1;  // the time of the interfaces' snapshot
-    bool has_sources_ = false;  // any interface that takes snapshots
-    // Every sub-automaton has the model's one period (M::_hfsm_one_period) and every
-    // activation came at an instant: the active ones share one deadline, the root's. Not on
-    // the real clock (missed ticks are skipped per sub-automaton), in --playback (recorded
-    // skips) or after an interrupt (entered at the time of a signal).
-    bool lockstep_ = false;
-    int cut_ = 0;  // lockstep: the sub-automaton after whose tick a stop cut the last instant
-    std::size_t next_skip_ = 0, next_signal_ = 0;  // --playback: the next to act on
 };
 
 // --- start-up (hfsmc_runtime.cpp) ---------------------------------------------------------
