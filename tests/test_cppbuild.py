@@ -127,3 +127,30 @@ def test_a_snippet_change_recompiles_the_component_unit_only(tmp_path: Path) -> 
     assert header.stat().st_mtime_ns == declared
     said = build()
     assert _compiled(said) == [], said
+
+
+def test_a_release_build_compiles_the_automaton_as_one_unit_and_runs_the_same(
+        tmp_path: Path) -> None:
+    """Release: the two units in one (the snippets inlined into the states); the run is the
+    same as the two units' apart (RelWithDebInfo, what --compile builds)."""
+    need_toolchain()
+    out = tmp_path / "blinker_cpp"
+    subprocess.run([sys.executable, "-m", "hfsmc", "build", "-t", "cpp", str(BLINKER), "-o",
+                    str(out)], check=True, capture_output=True, timeout=300)
+    runs = []
+    for build_type, one_unit in (("Release", True), ("RelWithDebInfo", False)):
+        build = tmp_path / build_type
+        subprocess.run(["cmake", "-S", str(out), "-B", str(build),
+                        f"-DCMAKE_BUILD_TYPE={build_type}"],
+                       check=True, capture_output=True, timeout=300)
+        said = subprocess.run(["cmake", "--build", str(build)], check=True, capture_output=True,
+                              text=True, timeout=900).stdout
+        units = re.findall(r"Building CXX object CMakeFiles/blinker_cpp\.dir/(\S+)\.o$", said,
+                           re.M)
+        assert (len(units) == 1 and "unity" in units[0]) == one_unit, units
+        r = subprocess.run([str(build / "blinker_cpp"), "--clock", "virtual", "--until", "20s",
+                            "--trace", "-"], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stderr
+        runs.append((r.stdout, r.stderr))
+    assert runs[0] == runs[1]
+    assert '"ev":"fire"' in runs[0][0] and "stopped after" in runs[0][1]

@@ -128,6 +128,31 @@ def test_messages_on_generated_lines_go_to_the_snippet_they_close() -> None:
     assert [(str(d.span), d.code) for d in alone] == [("m.yaml:1:1", "E150")]
 
 
+HEADER = """\
+#define HFSMC_HEADER "src/m.hpp"
+class A {
+    // Functions (m.yaml:5 functions).
+#line 5 "m.yaml"
+  int f() { return 1;
+#line 7 HFSMC_HEADER
+};
+"""
+
+
+def test_messages_in_the_class_header_go_to_the_model_too() -> None:
+    """The class (src/NAME.hpp, `functions` in it) and the snippets' unit (src/NAME.cpp): a
+    message on either file's generated lines is placed by that file's lines."""
+    out = ("/abs/comp/src/m.hpp:7:2: error: expected '}' at end of input\n"
+           "src/m.cpp:7:9: error: expected ';' before '}' token\n")
+    diags = messages(out, "m.yaml", [HEADER, GENERATED])
+    assert [(str(d.span), d.code) for d in diags] == [("m.yaml:5:22", "E144"),
+                                                      ("m.yaml:9:21", "E144")]
+    # Without the header's text its line is no snippet's: left out, as a consequence of the
+    # error placed in the model.
+    alone = messages(out, "m.yaml", [GENERATED])
+    assert [(str(d.span), d.code) for d in alone] == [("m.yaml:9:21", "E144")]
+
+
 def test_a_legacy_interface_used_in_cpp_is_explained() -> None:
     out = "m.yaml:9:12: error: base operand of '->' has non-pointer type 'hfsmc::Unavailable'\n"
     [d] = messages(out, "m.yaml", [GENERATED])
