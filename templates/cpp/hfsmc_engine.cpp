@@ -137,6 +137,7 @@ int EngineCore::run(bool real, long long until_us, long long time_limit_us) {
     time_limit_us_ = time_limit_us;  // --time-limit: a stop through on_interrupt
     signals::real = real ? 1 : 0;
     signals::trace = trace_.get();
+    signals::t_now = &t;
     signals::start_ns = start_ns_ = signals::monotonic_ns();
     rec_ = recorder();
     pb_ = playback::current();
