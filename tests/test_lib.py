@@ -33,7 +33,7 @@ initial: TakeOff
 states:
   TakeOff:
     use: {lib}/takeoff.yaml
-    with: {{altitude: 2.0, ready_timeout: 1, climb_timeout: 1.5}}
+    with: {{altitude: 2.0, ready_timeout: 3, climb_timeout: 1.5}}
     transitions:
       - {{to: Pause, when: active("TakeOff/Airborne")}}
       - {{to: Land, when: active("TakeOff/TimedOut")}}
@@ -105,7 +105,7 @@ def test_never_ready_arms_nothing(tmp_path: Path) -> None:
     assert entered(records) == ["TakeOff", "TakeOff/WaitReady", "TakeOff/NotReady", "Done"]
     assert commands(fake) == []
     at = {r["state"]: int(str(r["t"])) for r in records if r["ev"] == "enter"}
-    assert at["TakeOff/NotReady"] >= 1000
+    assert at["TakeOff/NotReady"] >= 3000
     assert [(r["state"], r["msg"]) for r in records if r["ev"] == "log"] == [
         ("TakeOff/WaitReady", "the vehicle never became ready")]
 
