@@ -357,6 +357,19 @@ class Terminal:
                     self.out += os.read(self.master, 65536)
         assert pattern in self.out, self.out[-3000:]
 
+    def frame(self, *parts: bytes, timeout: float = 15) -> bytes:
+        """The latest frame (what follows the last clear) once it holds every one of
+        ``parts``: a frame can be read while the view is still writing it."""
+        deadline = time.monotonic() + timeout
+        while True:
+            last = self.out.rpartition(b"\x1b[J")[2]
+            if all(p in last for p in parts) or time.monotonic() > deadline:
+                return last
+            ready, _, _ = select.select([self.master], [], [], 0.1)
+            if ready:
+                with contextlib.suppress(OSError):
+                    self.out += os.read(self.master, 65536)
+
     def close(self) -> None:
         os.close(self.master)
         os.close(self.slave)
@@ -566,7 +579,7 @@ def test_display_of_a_used_file_on_a_terminal(build: tuple[Path, dict[str, str]]
                 stdout=tty.slave, stderr=tty.slave, env=env)
         tty.read_until(b"component: at the gate")
         tty.read_until(b"\x1b[35mpauses\x1b[0m 0")
-        frame = tty.out.rpartition(b"\x1b[J")[2]
+        frame = tty.frame(b"\x1b[35mpauses\x1b[0m 0", b"final")  # the whole tree
         r.release()
         tty.read_until(b"closed")
         assert r.proc.wait(timeout=15) == 0
