@@ -488,7 +488,8 @@ def test_replay_in_a_terminal_toggles_autofocus_and_quits(tmux: Callable[..., Tm
     text = t.wait(lambda s: "○ Lit" in s)
     assert "○ Dark" in text and "off (a: on)" in text
     t.keys("q")
-    text = t.wait(lambda s: "EXIT=" in s)
+    # stty prints after EXIT=: wait for its line too, not only for the exit.
+    text = t.wait(lambda s: "EXIT=" in s and re.search(r"-?icanon -?echo", s) is not None)
     assert "EXIT=0" in text
     assert "icanon echo" in text, "the terminal is back in line mode with echo"
 
