@@ -5,7 +5,8 @@
 // docs/semantics.md), the same as the Python runtime (templates/python/
 // hfsmc_runtime.py) to the byte of the trace. The generated class holds the
 // automaton as straight code (per state: enter, exit, tick; dispatch through
-// a switch); Engine<M> runs it: one thread, absolute deadlines per active
+// a switch); the engine (EngineCore, in hfsmc_engine.cpp, through Engine<M>) runs
+// it: one thread, absolute deadlines per active
 // sub-automaton, parents before children at the same instant, stop requests
 // acted on at tick boundaries. When an instant begins, every interface takes its
 // snapshot of the world (record.hpp); --record writes the run to an MCAP file and
