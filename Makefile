@@ -7,11 +7,12 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-# graphviz: diagrams; tmux: the live-view tests; chromium: the web view's tests;
+# graphviz: diagrams, drawn in Liberation Sans (fonts-liberation: Helvetica's and Arial's metrics, so
+# labels measure the same on every machine, docs/diagrams.md); tmux: the live-view tests; chromium: the web view's tests;
 # the rest: C++ components (CMake, g++, Eigen, OpenCV, yaml-cpp for NAME.yaml; Ninja and
 # ccache, which the generated CMake projects use when present, for shorter builds);
 # libboost-dev: bench/cpp.py's Boost.MSM and Boost.Statechart peers (headers only).
-DEB_PACKAGES := graphviz tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev libboost-dev ninja-build ccache chromium chromium-driver
+DEB_PACKAGES := graphviz fonts-liberation tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev libboost-dev ninja-build ccache chromium chromium-driver
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=
 # `make test` runs the tests on parallel workers (pytest-xdist): the suite mostly waits on

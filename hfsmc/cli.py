@@ -132,7 +132,7 @@ def diagram(model: str, output: str | None, state_path: str | None, rankdir: str
             depth: int | None, depfile: str | None) -> None:
     """Draw MODEL with Graphviz: sub-automata as nested clusters, arrows numbered in the
     order they are tried, the direction chosen to fit a screen."""
-    from hfsmc.emit.dot import write_diagram
+    from hfsmc.emit.dot import font_warning, write_diagram
 
     # Errors inside snippets do not change the picture: a model being written, or a legacy
     # file whose code never ran, is still drawn (the errors are shown; check still fails).
@@ -144,6 +144,9 @@ def diagram(model: str, output: str | None, state_path: str | None, rankdir: str
         sys.exit(1)
     out = Path(output) if output else Path(model).with_suffix(".svg")
     write_diagram(drawn, out, state_path, rankdir=rankdir, depth=depth)
+    warning = font_warning() if out.suffix.lower() in (".svg", ".png") else None
+    if warning:
+        click.echo(f"hfsmc: warning: {warning}", err=True)
     if depfile:
         from hfsmc.component import write_depfile
 

@@ -1438,3 +1438,53 @@ def test_structure_errors_stop_the_drawing(tmp_path: Path) -> None:
     assert result.exit_code == 1
     assert f"{path}:3:10: error[E131]" in result.stderr
     assert not out.exists()
+
+
+# ---------------------------------------------------------------------------
+# the font: the same drawing on every machine
+
+
+def test_dot_measures_labels_in_the_font_make_deps_installs() -> None:
+    """dot resolves the diagrams' font list to Liberation Sans (fonts-liberation, a package of
+    `make deps`), not to whatever fontconfig falls back on: label sizes, and the layout tests
+    above, are then the same on every machine."""
+    assert "fonts-liberation" in (ROOT / "Makefile").read_text().split("DEB_PACKAGES :=")[1]
+    out = subprocess.run(["dot", "-v", "-Tsvg"], input=f'digraph {{ a [fontname="{dot.FONT}"] }}',
+                         capture_output=True, text=True, timeout=60)
+    resolved = [ln for ln in out.stderr.splitlines() if "resolved to" in ln]
+    assert resolved and all(f'"{dot.FONT_FAMILY}, Regular"' in ln for ln in resolved), resolved
+    dot.font_warning.cache_clear()
+    assert dot.font_warning() is None
+
+
+def test_a_machine_without_the_font_is_told(tmp_path: Path) -> None:
+    """With a fontconfig that knows only DejaVu Sans, `hfsmc diagram` still draws, and says
+    that the labels are measured in another font and which package to install."""
+    conf = tmp_path / "fonts.conf"
+    conf.write_text('<?xml version="1.0"?><!DOCTYPE fontconfig SYSTEM "fonts.dtd"><fontconfig>'
+                    "<dir>/usr/share/fonts/truetype/dejavu</dir>"
+                    f"<cachedir>{tmp_path / 'cache'}</cachedir></fontconfig>")
+    out = tmp_path / "blinker.svg"
+    proc = subprocess.run([sys.executable, "-m", "hfsmc", "diagram",
+                           str(ROOT / "examples/blinker/blinker.yaml"), "-o", str(out)],
+                          capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "FONTCONFIG_FILE": str(conf)})
+    assert proc.returncode == 0, proc.stderr
+    assert out.exists()
+    assert "hfsmc: warning: diagrams are drawn in Liberation Sans" in proc.stderr
+    assert "fontconfig gives DejaVu" in proc.stderr and "fonts-liberation" in proc.stderr
+    # with the machine's own fontconfig: no warning
+    again = subprocess.run([sys.executable, "-m", "hfsmc", "diagram",
+                            str(ROOT / "examples/blinker/blinker.yaml"), "-o", str(out)],
+                           capture_output=True, text=True, timeout=120)
+    assert again.returncode == 0 and "warning" not in again.stderr, again.stderr
+
+
+@pytest.mark.parametrize(("text", "lines"), [
+    # a state's path is cut after a `/`, never inside a name that fits on a line
+    ('[active("Flight/Altitude/Correcting")]', ['[active("Flight/Altitude/', ' Correcting")]']),
+    ('[active("Flight/Mission/LinkLost")]', ['[active("Flight/Mission/', ' LinkLost")]']),
+    ("[ok + " + "a" * 12 + "_" + "b" * 12 + "]", ["[ok +", " " + "a" * 12 + "_" + "b" * 12 + "]"]),
+])
+def test_wrap_keeps_names_whole(text: str, lines: list[str]) -> None:
+    assert dot_text.wrap(text, 30, indent=" ") == lines

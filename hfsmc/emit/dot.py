@@ -37,6 +37,8 @@ running Graphviz.
 
 from __future__ import annotations
 
+import functools
+import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,7 +71,13 @@ ROW_MAX = 2
 # rows of this many, like lines of text, instead of one long column.
 CHAIN_ROW = 4
 
-FONT = "Helvetica,Arial,sans-serif"
+# Diagrams are drawn in Liberation Sans (Debian's fonts-liberation, which `make deps`
+# installs): it has Helvetica's and Arial's metrics, so dot measures every label the same way
+# on every machine, and a viewer that draws the SVG in Arial or Helvetica sees the same widths
+# (docs/diagrams.md).  Without it fontconfig gives another font (DejaVu Sans, wider): labels
+# drift from their arrows, and `hfsmc diagram` says so (font_warning).
+FONT_FAMILY = "Liberation Sans"
+FONT = f"{FONT_FAMILY},Arial,Helvetica,sans-serif"
 FINAL_FILL = "#c8c8c8"
 BORDER = "#4a5a70"
 INTERRUPT_COLOR = "#b03a2e"
@@ -194,6 +202,22 @@ def render(source: str, fmt: str) -> bytes:
     if not data:
         raise UsageError(f"Graphviz `dot` produced no {fmt.upper()} output")
     return data
+
+
+@functools.cache
+def font_warning() -> str | None:
+    """What to tell the user when fontconfig has no FONT_FAMILY to draw with (None when it
+    has, or when fontconfig's ``fc-match`` is not there to ask)."""
+    try:
+        got = subprocess.run(["fc-match", "-f", "%{family}", FONT_FAMILY], capture_output=True,
+                             text=True, timeout=10).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if FONT_FAMILY in got.split(","):
+        return None
+    return (f"diagrams are drawn in {FONT_FAMILY}, which this machine lacks (fontconfig gives "
+            f"{got.split(',')[0] or 'no font'}): labels may sit off their arrows; install "
+            "fonts-liberation (apt-get install fonts-liberation)")
 
 
 def _stderr_text(stderr: bytes | str | None) -> str:

@@ -62,8 +62,8 @@ class Spacing:
 
 def text_size(lines: list[str], fontsize: float, em: float = 0.5) -> tuple[float, float]:
     """Width and height (points) of text lines: ``em`` is the mean glyph width
-    as a fraction of the font size (about 0.5 for DejaVu Sans, which stands in
-    for Helvetica on Linux)."""
+    as a fraction of the font size (about 0.5, a little more than Liberation
+    Sans's mean: the estimate errs on the wide side)."""
     width = max((len(line) for line in lines), default=0) * fontsize * em
     return width, len(lines) * fontsize * 1.2
 

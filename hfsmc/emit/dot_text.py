@@ -23,6 +23,8 @@ from hfsmc.ir import Automaton, State
 WRAP = 30
 MAX_LINES = 8
 ELLIPSIS = "…"
+# A long word's first part goes after a line's words when it has this many characters.
+MIN_PART = 8
 BREAK_BEFORE = frozenset({"and", "or", "&&", "||"})
 
 
@@ -57,18 +59,30 @@ def _operator_starts(lines: list[str]) -> int:
 def _cut(word: str, room: int) -> int:
     """Where to cut a word too long for a line of ``room`` characters: after
     an opening parenthesis or a comma, else before ``.``, ``::`` or ``->``,
-    else after ``[``, as far on as the line allows; else at the line's end."""
+    else after ``[`` or ``/`` (a state's path), as far on as the line allows;
+    else at the line's end, but never inside a name that fits on a line of
+    its own (``LinkLost`` is not drawn as ``LinkLos`` / ``t``)."""
     tiers = (
         [i + 1 for i, ch in enumerate(word) if ch in "(,"],
         [i for i in range(1, len(word)) if word.startswith((".", "::", "->"), i)
          and not word.startswith("::", i - 1)],
-        [i + 1 for i, ch in enumerate(word) if ch == "["],
+        [i + 1 for i, ch in enumerate(word) if ch in "[/"],
     )
     for tier in tiers:
         fitting = [i for i in tier if room // 3 <= i <= room]
         if fitting:
             return max(fitting)
-    return room
+    start = room
+    while start > 0 and _in_name(word[start - 1]) and _in_name(word[start]):
+        start -= 1
+    end = room
+    while end < len(word) and _in_name(word[end]):
+        end += 1
+    return start if start > 0 and end - start <= room else room
+
+
+def _in_name(ch: str) -> bool:
+    return ch.isalnum() or ch == "_"
 
 
 def _greedy(text: str, width: int, indent: str) -> list[str]:
@@ -76,12 +90,18 @@ def _greedy(text: str, width: int, indent: str) -> list[str]:
     lines: list[str] = []
     line = ""
     for word in text.split(" "):
-        while True:  # a word longer than a line: cut, on lines of its own
+        while True:  # a word longer than a line: cut, its first part after the line's words
             room = width - (0 if not lines and not line else len(indent))
             if len(word) <= room:
                 break
             if line:
-                lines.append(line)
+                free = room - len(line) - 1
+                cut = _cut(word, free) if free >= MIN_PART else 0
+                if 0 < cut and not (_in_name(word[cut - 1]) and _in_name(word[cut])):
+                    lines.append(f"{line} {word[:cut]}")
+                    word = word[cut:]
+                else:
+                    lines.append(line)
                 line = ""
                 continue
             cut = _cut(word, room)
