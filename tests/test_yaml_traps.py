@@ -390,6 +390,19 @@ def test_colon_inside_a_value_suggests_the_quoted_value() -> None:
     assert notes[0] == "write: description: 'mode: homing'"
 
 
+def test_every_colon_inside_a_value_is_reported_in_one_run() -> None:
+    """Three unquoted `: ` in a model: one run names the three, each with its fix, at its
+    own place; an error of another kind after them is not guessed at."""
+    r = comp("description: mode: homing\ninitial: A\nstates:\n  A:\n    entry: log: x\n"
+             "    transitions:\n      - to: B\n        when: ready: now\n  B: {final: true}\n")
+    assert codes(r) == [("E002", 3, 18), ("E002", 7, 15), ("E002", 10, 20)]
+    assert [d.notes[0] for d in r.diagnostics] == [
+        "write: description: 'mode: homing'", "write: entry: 'log: x'", "write: when: 'ready: now'"]
+    # another syntax error below the first: said only once the colon is fixed
+    r = comp("description: mode: homing\ninitial: A\nstates:\n  A: {final: true\n")
+    assert codes(r) == [("E002", 3, 18)]
+
+
 @pytest.mark.parametrize(("value", "what"), [
     ("- x", "a list entry"), ("? x", "a complex mapping key"), ("> 3", "a folded block"),
     ("| x", "a literal block"), ("`x`", None), ("%x", None), ("ready ? a : b", None),

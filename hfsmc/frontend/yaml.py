@@ -20,11 +20,15 @@ from ruamel.yaml.scalarstring import (
 from hfsmc.errors import Diagnostic, Diagnostics, ParseError, Span, fail
 from hfsmc.frontend.source import MAX_DEPTH, MAX_NODES, Document, PathKey, split_lines
 from hfsmc.frontend.yaml_c import load_c
-from hfsmc.frontend.yaml_syntax import explain
+from hfsmc.frontend.yaml_syntax import COLON_IN_VALUE, explain, quote_colon_value
 from hfsmc.frontend.yaml_traps import PropertyScan, WatchedParser, may_have_properties
 from hfsmc.frontend.yaml_values import record_value, scalar
 
 Parser = Literal["auto", "libyaml", "ruamel"]
+
+
+# How many unquoted `: ` one run reports (each costs a parse of the document).
+MAX_COLONS = 50
 
 
 def _yaml() -> YAML:
@@ -135,7 +139,31 @@ def _fail_marked(file: str, lines: list[str], e: MarkedYAMLError, found: list[Di
     """Raise the syntax error, explained where hfsmc knows the mistake, after the
     tags and anchors found before it (the same spot is said once)."""
     diag = _marked_diagnostic(file, lines, e)
-    raise ParseError([*found, *([diag] if all(f.span != diag.span for f in found) else [])])
+    diags = [diag, *_more_colons(file, lines, diag)]
+    raise ParseError([*found, *(d for d in diags if all(f.span != d.span for f in found))])
+
+
+def _more_colons(file: str, lines: list[str], diag: Diagnostic) -> list[Diagnostic]:
+    """After an unquoted `: `, the others below it: the value is quoted and the document
+    parsed again, until it parses or stops on another error (which may come from the
+    first, so it is not said)."""
+    more: list[Diagnostic] = []
+    for _ in range(MAX_COLONS):
+        fixed = quote_colon_value(lines, diag)
+        if fixed is None:
+            break
+        lines = fixed
+        try:
+            _yaml().load("\n".join(lines))
+            break
+        except MarkedYAMLError as e:
+            diag = _marked_diagnostic(file, lines, e)
+        except Exception:
+            break
+        if diag.message != COLON_IN_VALUE:
+            break
+        more.append(diag)
+    return more
 
 
 def _marked_diagnostic(file: str, lines: list[str], e: MarkedYAMLError) -> Diagnostic:

@@ -14,6 +14,8 @@ from hfsmc.frontend.yaml_traps import SNIPPET_KEYS, quoted
 _SNIPPET_START = re.compile(
     r"(?:^\s*(?:-\s+)?|[{,]\s*)(?P<key>" + "|".join(sorted(SNIPPET_KEYS)) + r")\s*:\s+(?P<c>[!&*])")
 _NO_SPACE = re.compile(r"^(?P<lead>\s*(?:-\s+)?)(?P<key>[A-Za-z_][A-Za-z0-9_]*):(?P<rest>[^\s:/\\'\"])")
+COLON_IN_VALUE = ("`: ` inside a value that is not quoted: YAML reads it as a key and a value; "
+                  "quote the whole value (docs/quoting.md)")
 _KEY_AT = re.compile(r"(?P<key>[^\s#'\"{}\[\],:][^#:]*?)\s*:(?:\s|$)")
 _PLAIN_VALUE = re.compile(r"^\s*(?:-\s+)?(?P<key>[^\s#'\"{}\[\],:-][^#:]*?)\s*:\s+(?P<v>[^\s#'\"|>{\[&*!].*)$")
 _QUOTE_OPEN = re.compile(r"(?:^\s*(?:-\s+)?[^\s#'\"{\[][^#]*?:\s+|^\s*(?:-\s+)?)(?P<q>['\"])")
@@ -252,9 +254,19 @@ def _colon_in_value(file: str, lines: list[str], line: int, col: int, raw: str) 
     if vm is not None and vm.start("v") <= col:
         value = vm["v"].rstrip()
         notes.insert(0, f"write: {vm['key']}: {quoted(value)}")
-    return Diagnostic("E002", "`: ` inside a value that is not quoted: YAML reads it as a key "
-                      "and a value; quote the whole value (docs/quoting.md)",
-                      Span(file, line + 1, col + 1), "error", tuple(notes))
+    return Diagnostic("E002", COLON_IN_VALUE, Span(file, line + 1, col + 1), "error", tuple(notes))
+
+
+def quote_colon_value(lines: list[str], diag: Diagnostic) -> list[str] | None:
+    """``lines`` with the value that ``diag`` (an unquoted `: `) names quoted, so that the
+    parser can go on and find the next one; None when ``diag`` is another error."""
+    line = diag.span.line - 1
+    if diag.message != COLON_IN_VALUE or not 0 <= line < len(lines):
+        return None
+    vm = _PLAIN_VALUE.match(lines[line])
+    if vm is None:
+        return None
+    return [*lines[:line], lines[line][:vm.start("v")] + quoted(vm["v"].rstrip()), *lines[line + 1:]]
 
 
 _QUOTED_START = re.compile(r"^\s*(?:-\s+)?(?P<key>[^\s#'\"{}\[\],:-][^#:]*?)\s*:\s+(?P<v>(['\"]).*)$")
