@@ -602,12 +602,13 @@ def test_param_option_rejects_unknown_names() -> None:
 
 
 def test_world_clock_armed_holds_the_objects_until_arming(tmp_path: Path) -> None:
-    """--world-clock armed: nobody arms, so the object waits; by default it has moved."""
+    """By default (and with --world-clock armed) nobody arms, so the object waits; with
+    --world-clock start it has moved."""
     world = tmp_path / "moving.yaml"
     world.write_text("objects:\n  - {name: g, color: [0, 200, 0], speed: 1.0, "
                      "path: [[0, 0], [30, 0]]}\n")
     where = {}
-    for clock in ("armed", None):
+    for clock in ("armed", None, "start"):
         truth = tmp_path / f"truth-{clock}.json"
         args = ["--world-clock", clock] if clock else []
         proc = subprocess.run([sys.executable, "-c", RUN, "--no-camera", "--world", str(world),
@@ -616,4 +617,4 @@ def test_world_clock_armed_holds_the_objects_until_arming(tmp_path: Path) -> Non
                               cwd=ROOT, capture_output=True, text=True, timeout=30)
         assert proc.returncode == 0, proc.stderr
         where[clock] = json.loads(truth.read_text())["objects"][0]["north"]
-    assert where == {"armed": 0.0, None: 1.5}
+    assert where == {"armed": 0.0, None: 0.0, "start": 1.5}

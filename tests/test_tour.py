@@ -58,6 +58,7 @@ SIM_PORTS = (("udp", 14550), ("tcp", 8554))  # hfsmc sim's defaults: MAVLink, ca
 class Block:
     heading: str
     commands: list[str]
+    files: dict[str, str] = field(default_factory=dict)  # what the reader is told to write
 
 
 def tour() -> list[Block]:
@@ -68,12 +69,20 @@ def tour() -> list[Block]:
     section = text[start:end if end > 0 else len(text)]
     blocks: list[Block] = []
     heading = "Five-minute tour"
-    for m in re.finditer(r"^#{2,3} ([^\n]+)$|^```sh\n(.*?)^```", section, re.M | re.S):
+    files: dict[str, str] = {}
+    for m in re.finditer(r"^#{2,3} ([^\n]+)$|^( *)```(sh|yaml)\n(.*?)^ *```", section, re.M | re.S):
         if m.group(1):
             heading = m.group(1)
             continue
-        lines = (re.sub(r"(^|\s+)#\s.*$", "", line).strip() for line in m.group(2).splitlines())
-        blocks.append(Block(heading, [line for line in lines if line]))
+        body = "".join(line.removeprefix(m.group(2)) + "\n" for line in m.group(4).splitlines())
+        if m.group(3) == "yaml":  # `# file: PATH` first: the reader writes it there
+            first, _, rest = body.partition("\n")
+            if first.startswith("# file: "):
+                files[first.removeprefix("# file: ").strip()] = rest
+            continue
+        lines = (re.sub(r"(^|\s+)#\s.*$", "", line).strip() for line in body.splitlines())
+        blocks.append(Block(heading, [line for line in lines if line], files))
+        files = {}
     return blocks
 
 
@@ -105,13 +114,15 @@ class Copy:
     prelude: list[str] = field(default_factory=list)
     background: list[tuple[str, subprocess.Popen[bytes], Path]] = field(default_factory=list)
     terminals: list[Tmux] = field(default_factory=list)
+    ran: list[str] = field(default_factory=list)  # the blocks run to their end
 
     def shell(self, command: str) -> list[str]:
         """bash running ``command`` after the sourced files, as the README's shell would."""
         return ["bash", "--norc", "--noprofile", "-c", " && ".join([*self.prelude, command])]
 
     def log(self, name: str) -> Path:
-        return self.root / f"tour-{name}-{time.monotonic_ns()}.log"
+        """Beside the copy, not in it: the tour must leave only what it says it writes."""
+        return self.root.parent / f"tour-{name}-{time.monotonic_ns()}.log"
 
 
 @pytest.fixture(scope="module")
@@ -199,10 +210,22 @@ def start_in_background(copy: Copy, command: str) -> None:
     log = copy.log("background")
     proc = spawn(copy, command, log)
     copy.background.append((command, proc, log))
-    if "--monitor" in command:  # a person types the next command slower than a test does
-        wait_for_line(log, re.compile(r"monitor: listening on"), proc, timeout=60, step=0.1)
+    monitor = re.search(r"--monitor (\d+)", command)
+    if monitor:  # a person types the next command slower than a test does
+        wait_for_port(int(monitor.group(1)), proc, log)
     time.sleep(1.0)
     assert proc.poll() is None, f"`{command}` ended at once:\n{log.read_text(errors='replace')}"
+
+
+def wait_for_port(port: int, proc: subprocess.Popen[bytes], log: Path) -> None:
+    """Until the component listens on its monitor port (its log may go to a file of its own)."""
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, f"ended before it listened:\n{log.read_text(errors='replace')}"
+        with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), 0.5):
+            return
+        time.sleep(0.1)
+    pytest.fail(f"nothing listens on {port} after 60 s:\n{log.read_text(errors='replace')}")
 
 
 def run_display_in_a_terminal(copy: Copy, command: str) -> None:
@@ -278,12 +301,37 @@ def test_the_tour_runs_as_written(fresh: Copy, block: Block) -> None:
     # The tour is one shell session: what earlier blocks sourced holds here too.
     earlier = BLOCKS[:BLOCKS.index(block)]
     fresh.prelude = [c for b in earlier for c in b.commands if c.split()[0] in (".", "source")]
+    for name, text in block.files.items():
+        (fresh.root / name).parent.mkdir(parents=True, exist_ok=True)
+        (fresh.root / name).write_text(text)
     try:
         for command in commands:
             run(fresh, command)
+        fresh.ran.append(block.heading)
     finally:
         problems = stop_background(fresh)
         for t in fresh.terminals:
             t.kill()
         fresh.terminals.clear()
     assert not problems, "\n".join(problems)
+
+
+# What the tour may leave in the repository: build/ (git-ignored), the files the README tells the
+# reader to write, and the virtualenv. Anything else would show in `git status` after the tour.
+ALLOWED = ("build/", ".venv")
+
+
+def test_the_tour_leaves_the_repository_clean(fresh: Copy) -> None:
+    """After every block above (this test runs last in its file): `git status` would show only
+    the files the reader wrote, nothing that hfsmc or a component left behind."""
+    written = {name for b in BLOCKS for name in b.files}
+    assert written, "the tour writes no file of its own"
+    assert len(fresh.ran) == len(BLOCKS), f"run the whole tour first (ran: {fresh.ran})"
+    tracked = set(filter(None, subprocess.run(
+        ["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True,
+        timeout=60).stdout.decode().split("\0")))
+    left = sorted(os.path.relpath(os.path.join(folder, name), fresh.root)
+                  for folder, _, names in os.walk(fresh.root) for name in names)
+    extra = [name for name in left if name not in tracked and name not in written
+             and not name.startswith(ALLOWED) and "__pycache__" not in name]
+    assert not extra, f"the tour left files that git would show: {extra}"

@@ -104,7 +104,7 @@ class Simulator:
     def __init__(self, world: World, link: Link, *, boot_time: float = 3.0,
                  truth: str | None = None, drop_after: float | None = None,
                  drop_for: float = 5.0, params: dict[str, float] | None = None,
-                 world_clock: str = "start") -> None:
+                 world_clock: str = "armed") -> None:
         self.world = world
         self.link = link
         self.truth_path = truth
@@ -305,10 +305,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--follow", metavar="URL",
                    help="MAVLink URL of the vehicle whose camera to render")
     p.add_argument("--world-clock", choices=WORLD_CLOCKS, metavar="WHEN",
-                   help="when the world's objects start moving: start (when the simulator "
-                        "starts), armed (when the vehicle first arms) or takeoff (when it first "
-                        "leaves the ground); default: start, and armed with --follow, since a "
-                        "real autopilot may take a minute to be ready (docs/worlds.md)")
+                   help="when the world's objects start moving: armed (when the vehicle first "
+                        "arms, the default: a component may take a minute to build and start), "
+                        "takeoff (when it first leaves the ground) or start (when the simulator "
+                        "starts) (docs/worlds.md)")
     return p
 
 
@@ -368,7 +368,7 @@ def main(argv: list[str]) -> int:
     sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
                     drop_after=args.drop_link_after,
                     drop_for=5.0 if args.drop_link_for is None else args.drop_link_for,
-                    params=params, world_clock=args.world_clock or "start")
+                    params=params, world_clock=args.world_clock or "armed")
     try:
         with sim.signals():
             where = _start_camera(sim, args)
