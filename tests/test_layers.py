@@ -1,4 +1,4 @@
-"""The code's layers (README.md, "How the code is organised"): a pipeline stage imports only
+"""The code's layers (docs/architecture.md): a pipeline stage imports only
 earlier stages, no package of hfsmc has an import cycle (the contracts of lint-imports in
 pyproject.toml), and the component's runtime modules ship alone, without hfsmc."""
 
