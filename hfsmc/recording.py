@@ -34,6 +34,7 @@ VERSION = "1"  # the recording version this hfsmc reads
 MAX_RECORD_BYTES = 64 << 20  # one MCAP record (a frame of a 4K camera is about 30 MB)
 MAX_INFLATED_BYTES = 256 << 20  # what compressed chunks inflate to, at least ...
 INFLATION = 16  # ... or this many times the file's size
+MAX_MESSAGE_BYTES = 1 << 20  # a message that is not a frame (a snapshot is under 1 KB)
 MAX_DEPTH = 16  # how deep a JSON value of a message or the metadata nests
 MAX_INT = (1 << 62) - 1  # times (us), counts, ticks
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -217,7 +218,7 @@ class _Stream:
 
     def __init__(self, f: Any, size: int) -> None:
         self.f = f
-        self.inflate_budget = max(MAX_INFLATED_BYTES, INFLATION * size)
+        self.total = self.inflate_budget = max(MAX_INFLATED_BYTES, INFLATION * size)
         self.metadata: dict[str, dict[str, str]] = {}
         self.channels: dict[int, str] = {}
         self.messages: _Messages | None = None  # made at the first message: metadata first
@@ -245,10 +246,13 @@ class _Stream:
     def _inflate(self, chunk: Any) -> bytes:
         """A chunk's records, inflated: never more than it says, nor past the budget."""
         claimed = int(chunk.uncompressed_size)
-        if claimed > min(MAX_RECORD_BYTES, self.inflate_budget):
-            raise RecordingError(
-                f"corrupted or too large: a chunk would inflate to {claimed} bytes (the data "
-                f"of compressed chunks is bounded to {self.inflate_budget >> 20} MiB here)")
+        if claimed > MAX_RECORD_BYTES:
+            raise RecordingError(f"too large: a chunk would inflate to {claimed} bytes (hfsmc "
+                                 f"reads chunks of {MAX_RECORD_BYTES >> 20} MiB at most)")
+        if claimed > self.inflate_budget:
+            raise RecordingError(f"too large: its chunks would inflate past "
+                                 f"{self.total >> 20} MiB (hfsmc reads {INFLATION} times the "
+                                 f"file's size, or {MAX_INFLATED_BYTES >> 20} MiB, at most)")
         self.inflate_budget -= claimed
         if chunk.compression == "":
             data = bytes(chunk.data)
@@ -334,6 +338,9 @@ class _Messages:
             raise RecordingError(f"corrupted: a {_short(topic)} message logged at "
                                  f"{log_time} ns, before the run's start or too late")
         self.end = max(self.end, t)
+        if len(data) > MAX_MESSAGE_BYTES and not topic.startswith("/hfsmc/frame/"):
+            raise RecordingError(f"corrupted: a {_short(topic)} message of {len(data)} bytes "
+                                 f"(at most {MAX_MESSAGE_BYTES} are read)")
         if topic == "/hfsmc/trace":
             line = data.decode("utf-8", "replace").rstrip("\n")
             self.trace.append(TraceRecord(t, line, _object(line.encode(), topic)))

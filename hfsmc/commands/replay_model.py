@@ -117,11 +117,13 @@ def recorded_folder(rec: Recording, target: str) -> Path:
     digest = sources_hash(rec.sources).removeprefix("sha256:")
     base = cache_base()
     folder = base / digest[:16] / target
-    folder.mkdir(parents=True, exist_ok=True)
+    base.mkdir(parents=True, exist_ok=True)
     inside = os.path.realpath(base) + os.sep
-    if not os.path.realpath(folder).startswith(inside):
-        raise RecordingError(f"the replay cache folder {folder} leads out of {base} (a "
-                             "symbolic link?): not built")
+    for _ in range(2):  # before anything is made in it, and once made
+        if not os.path.realpath(folder).startswith(inside):
+            raise RecordingError(f"the replay cache folder {folder} leads out of {base} (a "
+                                 "symbolic link?): not built")
+        folder.mkdir(parents=True, exist_ok=True)
     return folder
 
 
