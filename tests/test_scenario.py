@@ -375,8 +375,9 @@ def test_the_examples_pass_in_python_and_a_wrong_scenario_fails(tmp_path: Path) 
     cache = tmp_path / "cache"
     report = tmp_path / "junit.xml"
     runs = tmp_path / "examples"
-    r = hfsmc_test("-t", "python", "--junit", str(report), "--keep", str(runs), *map(str, EXAMPLES),
-                   cache=cache)
+    # The examples' folder: its scenarios are found as pytest finds tests (its tests folders).
+    r = hfsmc_test("-t", "python", "--junit", str(report), "--keep", str(runs),
+                   str(ROOT / "examples"), cache=cache)
     assert r.returncode == 0, r.stdout + r.stderr
     for sc in EXAMPLES:
         assert f"{sc}::python PASSED\n" in r.stdout
@@ -409,16 +410,22 @@ def test_the_examples_pass_in_python_and_a_wrong_scenario_fails(tmp_path: Path) 
     subprocess.run([sys.executable, str(component), "--playback", str(kept), "--clock", "virtual",
                     "--until", "35s", "--record", str(recording)], cwd=kept, capture_output=True,
                    timeout=120, check=True)
+    # No model beside it: the code it carries runs only when asked (tests/test_replay_trust.py
+    # replays recordings against the model beside them).
     flight = ROOT / "examples/follow_colors/flight.mcap"  # a simulated flight, recorded
-    r = hfsmc_test(str(recording), str(flight), cache=cache)
+    r = hfsmc_test(str(recording), cache=cache)
+    assert r.returncode == 2 and r.stdout.startswith(f"{recording}::python ERROR\n"), r.stdout
+    r = hfsmc_test("--allow-recorded-code", str(recording), str(flight), cache=cache)
     assert r.returncode == 0, r.stdout + r.stderr
     assert r.stdout.startswith(f"{recording}::python PASSED\n{flight}::python PASSED\n")
+    # A file that is no recording errs alone: the scenario beside it runs.
     garbage = tmp_path / "garbage.mcap"
     garbage.write_bytes(b"no recording")
-    r = hfsmc_test(str(garbage), cache=cache)
-    assert r.returncode == 2
-    assert r.stderr == (f"{garbage}: not an MCAP file (a recording is written by a component's "
-                        "--record FILE)\nhfsmc test: 1 error(s): no scenario was run\n")
+    r = hfsmc_test(str(garbage), str(EXAMPLES[0]), "-t", "python", cache=cache)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.stdout.startswith(f"{EXAMPLES[0]}::python PASSED\n{garbage}::python ERROR\n")
+    assert (f"{garbage}: cannot be replayed: not an MCAP file (a recording is written by a "
+            "component's --record FILE)") in r.stdout
 
 
 @pytest.mark.timeout(1800)

@@ -155,7 +155,7 @@ Inputs::Inputs(const std::string& dir) : dir_(dir.empty() ? "." : dir) {
             if (const json::Value* missing = v.get("unrecorded")) {
                 if (missing->kind != json::Value::ARRAY)
                     throw InputError(where(line) + ": `unrecorded` must be a list of field names");
-                for (const json::Value& m : missing->items) e.unrecorded.push_back(text(m, "unrecorded", line));
+                for (const json::Value& m : missing->items) e.unrecorded.push_back(Inputs::text(m, "unrecorded", line));
             }
             by_interface_[iface].push_back(std::move(e));
         } else if (kind == "skip") {
