@@ -268,7 +268,7 @@ class _Stream:
                     left -= len(part)
             data = b"".join(parts)
         elif chunk.compression == "lz4":
-            import lz4.frame
+            import lz4.frame  # type: ignore[import-untyped]
 
             data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=claimed + 1)
         else:

@@ -338,8 +338,8 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
     started = time.monotonic()
     problems = Problems()
     paths, empty = find_scenarios(paths)
-    for folder in empty:
-        echo_err(f"hfsmc test: no scenario in {folder} (docs/testing.md: the files of folders "
+    for where in empty:
+        echo_err(f"hfsmc test: no scenario in {where} (docs/testing.md: the files of folders "
                  "named tests, test_*.yaml, *_test.yaml)")
     recordings = [p for p in paths if p.endswith(".mcap")]
     prepared = prepare([p for p in paths if not p.endswith(".mcap")], only, problems)
