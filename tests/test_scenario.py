@@ -309,6 +309,17 @@ def test_an_exact_trace_ignores_the_components_name_only(tmp_path: Path) -> None
           'trace.jsonl:6: {"t":1500,"ev":"log","state":"B","msg":"in B at 1.5 s"}'))]
 
 
+def test_deeply_nested_json_in_a_trace_fails_the_scenario_not_the_run(tmp_path: Path) -> None:
+    """Nesting past what Python's json reads (RecursionError), in the expected trace or in
+    the run's: the expectation fails, the run's trace ends there; nothing crashes."""
+    deep = "[" * 100_000 + "]" * 100_000
+    lines = TRACE.splitlines()
+    (tmp_path / "deep.jsonl").write_text("\n".join([*lines[:5], deep, *lines[6:]]) + "\n")
+    [(line, message, _)] = _check(tmp_path, "  - trace: deep.jsonl\n")
+    assert (line, message) == (4, f"first difference at {tmp_path}/deep.jsonl:6")
+    assert len(read_records("\n".join([*lines[:3], '{"t":5,"x":' + deep + "}", *lines[3:]]))) == 3
+
+
 def test_a_run_without_stop_or_with_an_error_fails_by_itself(tmp_path: Path) -> None:
     path = write(tmp_path, f"model: {FOLLOW}\nuntil: 3s\n")
     sc = load_scenario(str(path))
