@@ -428,7 +428,8 @@ def _format(value: Any) -> str:
 
 
 def _loads(data: str | bytes) -> Any:
-    """JSON, no deeper than MAX_DEPTH; ValueError otherwise."""
+    """JSON, no deeper than MAX_DEPTH, its whole numbers within +-MAX_INT (what both
+    components read back); ValueError otherwise."""
     try:
         value = json.loads(data)
     except RecursionError:
@@ -438,6 +439,8 @@ def _loads(data: str | bytes) -> Any:
         v, depth = todo.pop()
         if depth > MAX_DEPTH:
             raise ValueError("nested too deeply")
+        if isinstance(v, int) and not isinstance(v, bool) and abs(v) > MAX_INT:
+            raise ValueError("holds a number out of range")
         if isinstance(v, dict):
             todo.extend((x, depth + 1) for x in v.values())
         elif isinstance(v, list):
@@ -449,7 +452,8 @@ def _json(text: str, what: str) -> Any:
     try:
         return _loads(text)
     except ValueError as e:
-        why = "nests too deeply" if "nested" in str(e) else "is not JSON"
+        why = ("nests too deeply" if "nested" in str(e) else
+               "holds a number out of range" if "range" in str(e) else "is not JSON")
         raise RecordingError(f"corrupted: the metadata of {_short(what)} {why}") from None
 
 
@@ -460,6 +464,9 @@ def _object(data: bytes, topic: str) -> dict[str, Any]:
         if "nested" in str(e):
             raise RecordingError(f"corrupted: a {_short(topic)} message nests too deeply "
                                  f"(more than {MAX_DEPTH} levels)") from None
+        if "range" in str(e):
+            raise RecordingError(f"corrupted: a {_short(topic)} message holds a whole number "
+                                 f"out of range (more than {MAX_INT} in size)") from None
         body = None
     if not isinstance(body, dict):
         raise RecordingError(f"corrupted: a {_short(topic)} message is not a JSON object")

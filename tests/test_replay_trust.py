@@ -287,9 +287,13 @@ def test_every_corruption_is_one_line_and_exit_1(hop: Path) -> None:
                         "corrupted: a /hfsmc/command/drone message at 0.000 s lacks or garbles "
                         "'call'"),
         "count.mcap": ([*msgs, _message("/hfsmc/frame/camera",
-                                        '{"count":1' + "0" * 30 + ',"data":""}', start)],
+                                        '{"count":-5,"data":""}', start)],
                        "corrupted: a /hfsmc/frame/camera message at 0.000 s lacks or garbles a "
                        "whole number from 0 to"),
+        "huge.mcap": ([*msgs, _message("/hfsmc/interface/drone",
+                                       '{"t":0,"battery":' + "9" * 40 + "}", start)],
+                      "corrupted: a /hfsmc/interface/drone message holds a whole number out of "
+                      "range"),
         "time.mcap": ([*msgs, _message("/hfsmc/skip",
                                        '{"t":-1,"automaton":"","deadline":0,"missed":0}', start)],
                       "corrupted: a /hfsmc/skip message at 0.000 s lacks or garbles a whole "
