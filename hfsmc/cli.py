@@ -276,30 +276,42 @@ def view(target: str | None, replay: str | None, model: str | None, speed: float
 @main.command()
 @click.argument("recording", type=click.Path(dir_okay=False))
 @click.option("--model", "model_arg", metavar="MODEL", type=click.Path(dir_okay=False),
-              help="Replay this model (a changed version, or the twin in the other language) "
-                   "instead of the recorded one.")
+              help="Replay against this model (yours: the recorded one, a changed version, or "
+                   "the twin in the other language).")
+@click.option("--allow-recorded-code", "allow_code", is_flag=True,
+              help="Build and run the model the recording carries (its snippets are code: "
+                   "only for a recording you trust).")
 @click.option("-t", "--target", type=click.Choice(["python", "cpp"]),
               help="The component's language (default: the model's; the recorded model's is "
                    "the recording's).")
 @_guard
-def replay(recording: str, model_arg: str | None, target: str | None) -> None:
+def replay(recording: str, model_arg: str | None, allow_code: bool, target: str | None) -> None:
     """Run a recorded run again (a component's --record FILE) on the virtual clock, fed from
     the recording, and compare its trace and commands with the recorded ones.
 
-    Exit status 0: identical; 1: different (the first difference is shown), or the
-    recording cannot be replayed."""
-    from hfsmc.commands.replay import ReplayFailed, render
+    A recording is data: its model is built and run only with --allow-recorded-code; with
+    neither that nor --model, the replay says what the recording carries and stops.
+
+    Exit status 0: identical; 1: different (the first difference is shown), not run
+    (neither --model nor --allow-recorded-code), or the recording cannot be replayed."""
+    from hfsmc.commands.replay import NotAllowed, ReplayFailed, render
     from hfsmc.commands.replay import replay as run_replay
     from hfsmc.recording import RecordingError
 
     try:
-        report = run_replay(recording, model_arg, target)
+        report = run_replay(recording, model_arg, target, allow_code)
+    except NotAllowed as e:
+        for line in e.args[0]:
+            click.echo(line)
+        click.echo("hfsmc replay: not run: a recording's model is code, built and run only "
+                   "when asked (--model MODEL or --allow-recorded-code)", err=True)
+        sys.exit(1)
     except RecordingError as e:
         click.echo(f"{recording}: {e}", err=True)
         sys.exit(1)
     except ReplayFailed as e:
         if e.report is not None:
-            render(e.report)
+            render(e.report)  # type: ignore[arg-type]
         click.echo(f"hfsmc replay: {e}", err=True)
         for line in e.details:
             click.echo(f"  {line}", err=True)
@@ -309,9 +321,12 @@ def replay(recording: str, model_arg: str | None, target: str | None) -> None:
 
 
 @main.command("test")
-@click.argument("scenarios", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("scenarios", nargs=-1, required=True, type=click.Path())
 @click.option("-t", "--target", type=click.Choice(["python", "cpp"]),
               help="Run only this language's models (default: every language a scenario names).")
+@click.option("--allow-recorded-code", "allow_code", is_flag=True,
+              help="Replay a recording (*.mcap) with the model it carries, built and run (only "
+                   "for recordings you trust), rather than the model file of its name beside it.")
 @click.option("--junit", metavar="FILE", type=click.Path(dir_okay=False),
               help="Also write a JUnit XML report (for CI).")
 @click.option("--keep", metavar="DIR", type=click.Path(file_okay=False),
@@ -319,17 +334,21 @@ def replay(recording: str, model_arg: str | None, target: str | None) -> None:
 @click.option("--timeout", type=click.FloatRange(min=0, min_open=True), default=300.0,
               show_default=True, help="Seconds of real time a run may take before it is killed.")
 @_guard
-def test(scenarios: tuple[str, ...], target: str | None, junit: str | None, keep: str | None,
-         timeout: float) -> None:
+def test(scenarios: tuple[str, ...], target: str | None, allow_code: bool, junit: str | None,
+         keep: str | None, timeout: float) -> None:
     """Run models against scenario files (scripted inputs, expectations) on the virtual clock.
 
-    SCENARIOS are scenario files (YAML) or recordings (*.mcap: they pass when their replay
-    is identical). One line per scenario and language, then the failures (docs/testing.md).
-    Exit status: 0 all passed, 1 a scenario failed, 2 a scenario or its model has errors."""
+    SCENARIOS are scenario files (YAML), recordings (*.mcap: they pass when their replay
+    against the model file of their model's name, beside them, is identical) or folders
+    (searched for the *.yaml and *.mcap files of folders named tests, and test_*.yaml,
+    *_test.yaml). One line per scenario and language, then the failures (docs/testing.md).
+    Exit status: 0 all passed, 1 a scenario failed, 2 a scenario, its model or a recording
+    has errors."""
     from hfsmc.commands.scenario_run import run_all
 
     sys.exit(run_all(list(scenarios), target, junit, keep, timeout, click.echo,
-                     lambda s: click.echo(s, err=True), sys.stdout.isatty()))
+                     lambda s: click.echo(s, err=True), sys.stdout.isatty(),
+                     allow_code=allow_code))
 
 
 @main.command(cls=completion.SimCommand,

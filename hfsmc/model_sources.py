@@ -6,10 +6,10 @@ run can be replayed with exactly the model that made it, or told apart from a ch
 
 from __future__ import annotations
 
-import hashlib
 import os
 
 from hfsmc.ir import Model
+from hfsmc.recording import sources_hash
 
 
 def model_sources(model: Model) -> tuple[tuple[str, str], ...]:
@@ -29,7 +29,4 @@ def model_sources(model: Model) -> tuple[tuple[str, str], ...]:
 
 def model_hash(sources: tuple[tuple[str, str], ...]) -> str:
     """``sha256:`` and the hex digest of each path and text, NUL after each."""
-    h = hashlib.sha256()
-    for path, text in sources:
-        h.update(path.encode() + b"\0" + text.encode() + b"\0")
-    return "sha256:" + h.hexdigest()
+    return sources_hash(sources)

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import gc
-from collections.abc import Iterator
+import os
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -91,13 +92,18 @@ def _collect_new_cycles() -> Iterator[None]:
         gc.unfreeze()
 
 
-def compile_file(path: str, text: str | None = None, cxx: bool = False) -> Result:
+def compile_file(path: str, text: str | None = None, cxx: bool = False,
+                 texts: Mapping[str, str] | None = None) -> Result:
     """Every diagnostic of one model file; the model when it has no errors.
 
     With ``cxx``, a C++ model without other errors is also compiled by g++
-    (``-fsyntax-only``, see hfsmc/cxxcheck.py), as ``hfsmc check`` does."""
+    (``-fsyntax-only``, see hfsmc/cxxcheck.py), as ``hfsmc check`` does.  With ``texts``
+    (normalised path -> text: a recording's sources, ``path`` among them), nothing is
+    read from the disk."""
+    if texts is not None:
+        text = texts[os.path.normpath(path)]
     with _no_cyclic_gc():
-        result = _compile(path, text)
+        result = _compile(path, text, texts)
     if cxx and result.ok and result.model is not None and result.model.language == "cpp":
         from hfsmc.cxxcheck import check_cpp
 
@@ -113,10 +119,10 @@ def compile_file(path: str, text: str | None = None, cxx: bool = False) -> Resul
     return result
 
 
-def _compile(path: str, text: str | None) -> Result:
+def _compile(path: str, text: str | None, texts: Mapping[str, str] | None) -> Result:
     diags = Diagnostics()
     doc: Document | None = None
-    uses = UseLoader(path)
+    uses = UseLoader(path, texts)
     try:
         doc = load(path, diags, text)
         if not diags.has_errors:

@@ -6,13 +6,22 @@ last complete record: the mcap package's stream readers raise ``EndOfFile``,
 ``struct.error`` or ``UnicodeDecodeError`` where the file is cut
 (schemas/recording.md, "Cuts"), which here mean "the recording ends here".
 Anything else wrong with the file is a :class:`RecordingError`, said in one line.
+
+A recording is data from someone else (docs/recording.md, "Trust"): everything read is
+bounded before it is held (a record's size, what compressed chunks inflate to, how deep a
+JSON value nests, numbers), names and paths are checked, and the model's hash must be the
+one its sources give.
 """
 
 from __future__ import annotations
 
 import base64
 import binascii
+import hashlib
+import io
 import json
+import os
+import re
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -20,6 +29,16 @@ from pathlib import Path
 from typing import Any
 
 VERSION = "1"  # the recording version this hfsmc reads
+
+# Bounds on what a file may make hfsmc hold (docs/recording.md, "Trust").
+MAX_RECORD_BYTES = 64 << 20  # one MCAP record (a frame of a 4K camera is about 30 MB)
+MAX_INFLATED_BYTES = 256 << 20  # what compressed chunks inflate to, at least ...
+INFLATION = 16  # ... or this many times the file's size
+MAX_MESSAGE_BYTES = 1 << 20  # a message that is not a frame (a snapshot is under 1 KB)
+MAX_DEPTH = 16  # how deep a JSON value of a message or the metadata nests
+MAX_INT = (1 << 62) - 1  # times (us), counts, ticks
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_HASH = re.compile(r"sha256:[0-9a-f]{64}")
 
 
 class RecordingError(Exception):
@@ -107,6 +126,7 @@ class Recording:
 
     @property
     def model_hash(self) -> str:
+        """The model's hash: checked on reading to be the one its sources give."""
         return self.run.get("model_hash", "")
 
     @property
@@ -124,6 +144,15 @@ class Recording:
         return last if last is not None and last.get("ev") == "stop" else None
 
 
+def sources_hash(sources: tuple[tuple[str, str], ...]) -> str:
+    """``sha256:`` and the hex digest of each path and text, NUL after each (the hash a
+    component records as `model_hash`; hfsmc/model_sources.py)."""
+    h = hashlib.sha256()
+    for path, text in sources:
+        h.update(path.encode() + b"\0" + text.encode() + b"\0")
+    return "sha256:" + h.hexdigest()
+
+
 def _int_or_none(text: str) -> int | None:
     try:
         return int(text) if text else None
@@ -138,50 +167,135 @@ _LANGUAGES = ("python", "cpp")
 def read_recording(path: str | Path) -> Recording:
     """Read ``path``; raise :class:`RecordingError` when it cannot be replayed."""
     from mcap.exceptions import EndOfFile, InvalidMagic, McapError
-    from mcap.records import Channel, Footer, Message, Metadata
-    from mcap.stream_reader import CRCValidationError, StreamReader
+    from mcap.stream_reader import CRCValidationError
 
-    metadata: dict[str, dict[str, str]] = {}
-    channels: dict[int, str] = {}
-    reader: _Messages | None = None  # made at the first message: the metadata come first
-    cut = False
-    closed = False
     try:
         with open(path, "rb") as f:
+            size = _size(f)
+            stream = _Stream(f, size)
             try:
-                for record in StreamReader(f, validate_crcs=True).records:
-                    if isinstance(record, Metadata):
-                        metadata.setdefault(record.name, dict(record.metadata))
-                    elif isinstance(record, Channel):
-                        channels[record.id] = record.topic
-                    elif isinstance(record, Message):
-                        topic = channels.get(record.channel_id)
-                        if topic is None:
-                            raise RecordingError(f"corrupted: a message of channel "
-                                                 f"{record.channel_id}, which was never declared")
-                        reader = reader or _Messages(metadata)
-                        reader.add(topic, record.log_time, record.data)
-                    elif isinstance(record, Footer):
-                        closed = True
+                stream.read()
             except InvalidMagic:
                 raise RecordingError("not an MCAP file (a recording is written by a "
                                      "component's --record FILE)") from None
             except CRCValidationError:
                 raise RecordingError("corrupted: its data does not match its checksum") from None
             except (EndOfFile, struct.error, UnicodeDecodeError):
-                cut = True
-            except (McapError, ValueError, KeyError, MemoryError) as e:
-                raise RecordingError(f"corrupted: {e}") from None
+                stream.cut = True
+            except RecursionError:
+                raise RecordingError("corrupted: a value nests too deeply") from None
+            except (McapError, ValueError, KeyError, IndexError, MemoryError, OverflowError,
+                    EOFError) as e:
+                raise RecordingError(f"corrupted: {_said(e)}") from None
     except OSError as e:
-        raise RecordingError(f"cannot read it: {e.strerror}") from None
-    if not closed:
-        cut = True
-    if not metadata and reader is None:
-        if cut:
+        raise RecordingError(f"cannot read it: {e.strerror or e}") from None
+    if not stream.closed:
+        stream.cut = True
+    if not stream.metadata and stream.messages is None:
+        if stream.cut:
             raise RecordingError("the recording ends before its metadata (cut at the start: "
                                  "nothing to replay)")
         raise RecordingError("not a recording: an MCAP file without hfsmc's metadata")
-    return (reader or _Messages(metadata)).recording(str(path), cut)
+    return (stream.messages or _Messages(stream.metadata)).recording(str(path), stream.cut)
+
+
+def _size(f: Any) -> int:
+    try:
+        return os.fstat(f.fileno()).st_size
+    except (OSError, AttributeError):
+        return 0
+
+
+def _said(e: BaseException) -> str:
+    """An exception of the mcap reader in a few words, on one line."""
+    text = " ".join(str(e).split()) or type(e).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+class _Stream:
+    """The records of one file, read with the mcap package's stream reader; chunks are
+    inflated here, within bounds, before the package splits them into records."""
+
+    def __init__(self, f: Any, size: int) -> None:
+        self.f = f
+        self.total = self.inflate_budget = max(MAX_INFLATED_BYTES, INFLATION * size)
+        self.metadata: dict[str, dict[str, str]] = {}
+        self.channels: dict[int, str] = {}
+        self.messages: _Messages | None = None  # made at the first message: metadata first
+        self.cut = False
+        self.closed = False
+
+    def read(self) -> None:
+        from mcap.records import Chunk
+        from mcap.stream_reader import StreamReader, breakup_chunk
+
+        reader = StreamReader(self.f, emit_chunks=True, validate_crcs=True,
+                              record_size_limit=MAX_RECORD_BYTES)
+        for record in reader.records:
+            if isinstance(record, Chunk):
+                plain = Chunk(compression="", data=self._inflate(record),
+                              message_end_time=record.message_end_time,
+                              message_start_time=record.message_start_time,
+                              uncompressed_crc=record.uncompressed_crc,
+                              uncompressed_size=record.uncompressed_size)
+                for inner in breakup_chunk(plain, validate_crc=True):
+                    self._record(inner)
+            else:
+                self._record(record)
+
+    def _inflate(self, chunk: Any) -> bytes:
+        """A chunk's records, inflated: never more than it says, nor past the budget."""
+        claimed = int(chunk.uncompressed_size)
+        if claimed > MAX_RECORD_BYTES:
+            raise RecordingError(f"too large: a chunk would inflate to {claimed} bytes (hfsmc "
+                                 f"reads chunks of {MAX_RECORD_BYTES >> 20} MiB at most)")
+        if claimed > self.inflate_budget:
+            raise RecordingError(f"too large: its chunks would inflate past "
+                                 f"{self.total >> 20} MiB (hfsmc reads {INFLATION} times the "
+                                 f"file's size, or {MAX_INFLATED_BYTES >> 20} MiB, at most)")
+        self.inflate_budget -= claimed
+        if chunk.compression == "":
+            data = bytes(chunk.data)
+        elif chunk.compression == "zstd":
+            import zstandard
+
+            parts = []
+            left = claimed + 1
+            with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data),
+                                                            read_across_frames=True) as r:
+                while left > 0 and (part := r.read(min(left, 1 << 20))):
+                    parts.append(part)
+                    left -= len(part)
+            data = b"".join(parts)
+        elif chunk.compression == "lz4":
+            import lz4.frame  # type: ignore[import-untyped]
+
+            data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=claimed + 1)
+        else:
+            raise RecordingError(f"corrupted: a chunk compressed with unknown "
+                                 f"`{chunk.compression[:20]}` (zstd, lz4 or none)")
+        if len(data) != claimed:
+            more = "more" if len(data) > claimed else "fewer"
+            raise RecordingError(f"corrupted: a chunk inflates to {more} bytes than the "
+                                 f"{claimed} it says")
+        return data
+
+    def _record(self, record: Any) -> None:
+        from mcap.records import Channel, Footer, Message, Metadata
+
+        if isinstance(record, Metadata):
+            self.metadata.setdefault(record.name, dict(record.metadata))
+        elif isinstance(record, Channel):
+            self.channels[record.id] = record.topic
+        elif isinstance(record, Message):
+            topic = self.channels.get(record.channel_id)
+            if topic is None:
+                raise RecordingError(f"corrupted: a message of channel {record.channel_id}, "
+                                     "which was never declared")
+            self.messages = self.messages or _Messages(self.metadata)
+            self.messages.add(topic, record.log_time, record.data)
+        elif isinstance(record, Footer):
+            self.closed = True
 
 
 class _Messages:
@@ -195,22 +309,21 @@ class _Messages:
         self.run = run = metadata["hfsmc.run"]
         version = run.get("recording", "")
         if version != VERSION:
-            raise RecordingError(f"recording version `{version}`: this hfsmc reads version "
-                                 f"{VERSION} (a newer hfsmc wrote it?)")
+            raise RecordingError(f"recording version `{_short(version)}`: this hfsmc reads "
+                                 f"version {VERSION} (a newer hfsmc wrote it?)")
         if run.get("language") not in _LANGUAGES:
-            raise RecordingError(f"unknown component language `{run.get('language', '')}` "
-                                 "in its metadata")
+            raise RecordingError(f"unknown component language `{_short(run.get('language', ''))}`"
+                                 " in its metadata")
         try:
             self.start_ns = int(run.get("start_unix_ns", ""))
         except ValueError:
             raise RecordingError("its metadata has no start time (start_unix_ns)") from None
-        self.parameters = {k: _json(v, f"parameter `{k}`")
+        self.parameters = {_name(k, "parameter"): _json(v, f"parameter `{k}`")
                            for k, v in metadata["hfsmc.parameters"].items()}
-        self.interfaces = {k: _json(v, f"interface `{k}`")
+        self.interfaces = {_name(k, "interface"): _json(v, f"interface `{k}`")
                            for k, v in metadata["hfsmc.interfaces"].items()}
         self.sources = tuple(metadata["hfsmc.sources"].items())
-        if not self.sources:
-            raise RecordingError("its metadata holds no model source (hfsmc.sources)")
+        _check_sources(self.sources, run.get("model_hash", ""))
         self.snapshots: list[Snapshot] = []
         self.frames: list[Frame] = []
         self.commands: list[Command] = []
@@ -221,36 +334,47 @@ class _Messages:
 
     def add(self, topic: str, log_time: int, data: bytes) -> None:
         t = (log_time - self.start_ns) // 1000
+        if not 0 <= t <= MAX_INT:
+            raise RecordingError(f"corrupted: a {_short(topic)} message logged at "
+                                 f"{log_time} ns, before the run's start or too late")
         self.end = max(self.end, t)
+        if len(data) > MAX_MESSAGE_BYTES and not topic.startswith("/hfsmc/frame/"):
+            raise RecordingError(f"corrupted: a {_short(topic)} message of {len(data)} bytes "
+                                 f"(at most {MAX_MESSAGE_BYTES} are read)")
         if topic == "/hfsmc/trace":
             line = data.decode("utf-8", "replace").rstrip("\n")
             self.trace.append(TraceRecord(t, line, _object(line.encode(), topic)))
             return
         body = _object(data, topic)
         name = topic.rsplit("/", 1)[1]
+        if topic.startswith(("/hfsmc/interface/", "/hfsmc/frame/", "/hfsmc/command/")):
+            _name(name, "interface")
         try:
             if topic.startswith("/hfsmc/interface/"):
                 values = {k: v for k, v in body.items() if k != "t"}
-                self.snapshots.append(Snapshot(int(body["t"]), name, values))
+                self.snapshots.append(Snapshot(_int(body["t"]), name, values))
             elif topic.startswith("/hfsmc/frame/"):
                 crc = body.get("crc32")
-                self.frames.append(Frame(t, name, int(body["count"]),
+                self.frames.append(Frame(t, name, _int(body["count"]),
                                          base64.b64decode(body["data"], validate=True),
-                                         str(body.get("format", "png")),
-                                         None if crc is None else int(crc)))
+                                         _format(body.get("format", "png")),
+                                         None if crc is None else _int(crc)))
             elif topic.startswith("/hfsmc/command/"):
-                self.commands.append(Command(int(body["t"]), name, str(body["call"]),
-                                             tuple(body.get("args", ()))))
+                args = body.get("args", ())
+                if not isinstance(args, list | tuple):
+                    raise TypeError("args")
+                self.commands.append(Command(_int(body["t"]), name, str(body["call"]),
+                                             tuple(args)))
             elif topic == "/hfsmc/skip":
-                self.skips.append(Skip(int(body["t"]), str(body["automaton"]),
-                                       int(body["deadline"]), int(body["missed"])))
+                self.skips.append(Skip(_int(body["t"]), str(body["automaton"]),
+                                       _int(body["deadline"]), _int(body["missed"])))
             elif topic == "/hfsmc/signal":
-                self.signals.append(Signal(int(body["t"]), str(body["reason"]),
-                                           int(body["ticks"])))
+                self.signals.append(Signal(_int(body["t"]), str(body["reason"]),
+                                           _int(body["ticks"])))
             # other topics: written by a newer component, not needed to replay
         except (KeyError, TypeError, ValueError, binascii.Error) as e:
-            raise RecordingError(f"corrupted: a {topic} message at {t / 1e6:.3f} s lacks "
-                                 f"or garbles {e}") from None
+            raise RecordingError(f"corrupted: a {_short(topic)} message at {t / 1e6:.3f} s "
+                                 f"lacks or garbles {_said(e)}") from None
 
     def recording(self, path: str, cut: bool) -> Recording:
         return Recording(path, self.run, self.parameters, self.interfaces, self.sources,
@@ -259,18 +383,91 @@ class _Messages:
                          self.end)
 
 
+def _check_sources(sources: tuple[tuple[str, str], ...], digest: str) -> None:
+    """The sources' paths are relative paths, and the recorded hash is theirs."""
+    if not sources:
+        raise RecordingError("its metadata holds no model source (hfsmc.sources)")
+    for path, _ in sources:
+        parts = path.split("/")
+        if (not path or path.startswith("/") or "\\" in path or "\0" in path
+                or any(p in ("", ".") for p in parts) or ".." in parts[len(parts) - 1:]):
+            raise RecordingError(f"corrupted: a model source's path `{_short(path)}` is not a "
+                                 "relative file path")
+    if "/" in sources[0][0] or sources[0][0].startswith(".."):
+        raise RecordingError(f"corrupted: the model file `{_short(sources[0][0])}` is not a "
+                             "file name")
+    if not _HASH.fullmatch(digest):
+        raise RecordingError(f"corrupted: its model hash `{_short(digest)}` is not sha256: "
+                             "and 64 hex digits")
+    if sources_hash(sources) != digest:
+        raise RecordingError("corrupted: its model hash is not the hash of the model sources "
+                             "it holds (the sources or the hash were changed)")
+
+
+def _short(text: str) -> str:
+    text = text.encode("unicode_escape").decode("ascii")
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _name(name: str, what: str) -> str:
+    if not _NAME.fullmatch(name):
+        raise RecordingError(f"corrupted: {what} name `{_short(name)}` is not a name")
+    return name
+
+
+def _int(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_INT:
+        raise ValueError(f"a whole number from 0 to {MAX_INT} (`{_short(str(value))}`)")
+    return value
+
+
+def _format(value: Any) -> str:
+    if value not in ("png", "jpeg"):
+        raise ValueError(f"the frame format (png or jpeg, not `{_short(str(value))}`)")
+    return str(value)
+
+
+def _loads(data: str | bytes) -> Any:
+    """JSON, no deeper than MAX_DEPTH, its whole numbers within +-MAX_INT (what both
+    components read back); ValueError otherwise."""
+    try:
+        value = json.loads(data)
+    except RecursionError:
+        raise ValueError("nested too deeply") from None
+    todo = [(value, 0)]
+    while todo:
+        v, depth = todo.pop()
+        if depth > MAX_DEPTH:
+            raise ValueError("nested too deeply")
+        if isinstance(v, int) and not isinstance(v, bool) and abs(v) > MAX_INT:
+            raise ValueError("holds a number out of range")
+        if isinstance(v, dict):
+            todo.extend((x, depth + 1) for x in v.values())
+        elif isinstance(v, list):
+            todo.extend((x, depth + 1) for x in v)
+    return value
+
+
 def _json(text: str, what: str) -> Any:
     try:
-        return json.loads(text)
-    except ValueError:
-        raise RecordingError(f"corrupted: the metadata of {what} is not JSON") from None
+        return _loads(text)
+    except ValueError as e:
+        why = ("nests too deeply" if "nested" in str(e) else
+               "holds a number out of range" if "range" in str(e) else "is not JSON")
+        raise RecordingError(f"corrupted: the metadata of {_short(what)} {why}") from None
 
 
 def _object(data: bytes, topic: str) -> dict[str, Any]:
     try:
-        body = json.loads(data)
-    except ValueError:
+        body = _loads(data)
+    except ValueError as e:
+        if "nested" in str(e):
+            raise RecordingError(f"corrupted: a {_short(topic)} message nests too deeply "
+                                 f"(more than {MAX_DEPTH} levels)") from None
+        if "range" in str(e):
+            raise RecordingError(f"corrupted: a {_short(topic)} message holds a whole number "
+                                 f"out of range (more than {MAX_INT} in size)") from None
         body = None
     if not isinstance(body, dict):
-        raise RecordingError(f"corrupted: a {topic} message is not a JSON object")
+        raise RecordingError(f"corrupted: a {_short(topic)} message is not a JSON object")
     return body

@@ -12,6 +12,7 @@ once per file, with a note saying where it is used from.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -40,9 +41,15 @@ class UsedFile:
 class UseLoader:
     """Builds the states that `use` another file, for one compile of one model file."""
 
-    def __init__(self, main: str) -> None:
+    def __init__(self, main: str, texts: Mapping[str, str] | None = None) -> None:
+        # With ``texts`` (a recording's sources, by normalised path), used files are looked
+        # up there and the disk is never read: a recorded model is compiled as data.
+        self.texts = texts
         self.files: dict[str, UsedFile] = {}  # by real path
-        self.stack: list[tuple[str, str]] = [(os.path.realpath(main), main)]  # being built
+        self.stack: list[tuple[str, str]] = [(self._real(main), main)]  # being built
+
+    def _real(self, path: str) -> str:
+        return os.path.realpath(path) if self.texts is None else os.path.normpath(path)
 
     @property
     def sources(self) -> dict[str, list[str]]:
@@ -77,7 +84,7 @@ class UseLoader:
         return replace(auto, instance=Instance(used.path, written, model, bindings, site))
 
     def _file(self, path: str, written: str, site: Span, diags: Diagnostics) -> UsedFile | None:
-        real = os.path.realpath(path)
+        real = self._real(path)
         for k, (seen, _) in enumerate(self.stack):
             if seen == real:
                 chain = " -> ".join([shown for _, shown in self.stack[k:]] + [path])
@@ -86,14 +93,8 @@ class UseLoader:
                 return None
         used = self.files.get(real)
         if used is None:
-            if not os.path.exists(path):
-                diags.error("E170", f"used file `{written}` does not exist (looked for {path})", site)
-                return None
-            try:
-                text = read_text(path)
-            except HfsmcError as e:
-                why = e.diagnostics[0].message if e.diagnostics else "cannot be read"
-                diags.error("E171", f"used file `{written}` cannot be read: {why}", site)
+            text = self._text(path, written, site, diags)
+            if text is None:
                 return None
             self.stack.append((real, path))
             try:
@@ -105,6 +106,22 @@ class UseLoader:
             self.files[real] = used
         used.sites.append(site)
         return used
+
+    def _text(self, path: str, written: str, site: Span, diags: Diagnostics) -> str | None:
+        if self.texts is not None:
+            text = self.texts.get(os.path.normpath(path))
+            if text is None:
+                diags.error("E170", f"used file `{written}` is not in the recording", site)
+            return text
+        if not os.path.exists(path):
+            diags.error("E170", f"used file `{written}` does not exist (looked for {path})", site)
+            return None
+        try:
+            return read_text(path)
+        except HfsmcError as e:
+            why = e.diagnostics[0].message if e.diagnostics else "cannot be read"
+            diags.error("E171", f"used file `{written}` cannot be read: {why}", site)
+            return None
 
     def _build(self, path: str, text: str, written: str, site: Span,
                diags: Diagnostics) -> UsedFile | None:

@@ -361,3 +361,43 @@ def test_record_against_the_simulator(components: Components, sim: Path, tmp_pat
     drone, camera = snapshot_times(messages, "drone"), snapshot_times(messages, "camera")
     assert len(drone) >= 5 and camera == drone  # the last instant is complete
     assert drone == list(range(0, drone[-1] + 1, 100000))
+
+
+def _every_instant(until_us: int, camera: dict[int, dict[str, Any]]) -> list[dict[str, Any]]:
+    """A recorded run's script (`recorded` first): each interface's snapshot at every 100 ms
+    instant, the vehicle's from INPUTS, the camera's from ``camera`` (by time, held)."""
+    rows: list[dict[str, Any]] = [{"t": 0, "kind": "recorded"}]
+    drone: dict[str, Any] = {}
+    cam: dict[str, Any] = {"count": 0, "age": "inf", "frame": None}
+    for t in range(0, until_us + 1, 100000):
+        for r in INPUTS:
+            if r["t"] == t and r.get("interface") == "drone":
+                drone.update(r["values"])
+        cam = camera.get(t, cam)
+        rows.append({"t": t, "kind": "snapshot", "interface": "drone", "values": dict(drone)})
+        row = {"t": t, "kind": "snapshot", "interface": "camera",
+               "values": {k: v for k, v in cam.items() if k != "unrecorded"}}
+        if "unrecorded" in cam:
+            row["unrecorded"] = cam["unrecorded"]
+        rows.append(row)
+    return rows
+
+
+def test_both_languages_say_which_query_a_recording_cannot_answer(components: Components,
+                                                                  tmp_path: Path) -> None:
+    """A recorded run's script: a frame the recorded run never read (count 3 from 0.3 s) is
+    asked for at Look's tick at 0.4 s; a script that stops at 0 s cannot answer the vehicle's
+    query at the next instant. Both write the same first unanswered query, and run on."""
+    unread = {"count": 3, "age": 0.05, "frame": None, "unrecorded": ["frame"]}
+    _, trace, _ = both(components, tmp_path / "frame", _every_instant(1500000, {300000: unread}))
+    for lang in ("cpp", "py"):
+        assert (tmp_path / "frame" / lang / "unanswered.jsonl").read_text() == (
+            '{"t":400000,"interface":"camera","query":"frame","reason":"frame","count":3}\n')
+    assert [why for _, why in events(trace, "stop")] == ["final"]  # run on, as without a frame
+    _, trace, _ = both(components, tmp_path / "instant", _every_instant(0, {}))
+    for lang in ("cpp", "py"):
+        assert (tmp_path / "instant" / lang / "unanswered.jsonl").read_text() == (
+            '{"t":100000,"interface":"drone","query":"ready","reason":"instant"}\n')
+    # Without `recorded` (a scenario's script), values hold between entries: nothing unanswered.
+    both(components, tmp_path / "scenario", _every_instant(0, {})[1:])
+    assert not list((tmp_path / "scenario").rglob("unanswered.jsonl"))

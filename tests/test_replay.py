@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 from mcap.writer import Writer
 
-from hfsmc.commands.replay import NOT_EVIDENCE, write_sources
+from hfsmc.commands.replay import NOT_EVIDENCE
+from hfsmc.commands.replay_model import virtual_sources
 from hfsmc.recording import RecordingError, read_recording
 from tests.conftest import ROOT
 
@@ -53,6 +54,9 @@ INPUTS = [
 ]
 
 
+ALLOW = "--allow-recorded-code"
+
+
 def hfsmc(*args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "XDG_CACHE_HOME": str(cwd / "cache")}
     return subprocess.run([sys.executable, "-m", "hfsmc", *args], cwd=cwd, capture_output=True,
@@ -76,7 +80,7 @@ def hop(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_replay_of_the_recorded_model_is_identical(hop: Path) -> None:
-    r = hfsmc("replay", "hop.mcap", cwd=hop)
+    r = hfsmc("replay", "hop.mcap", ALLOW, cwd=hop)
     assert r.returncode == 0, r.stdout + r.stderr
     # 11: the stop says the vehicle is still armed (from the last snapshot, a fake too).
     assert r.stdout == ("replay of hop.mcap (python -> python): identical: 11 trace records, "
@@ -135,7 +139,7 @@ def test_a_signal_is_replayed(hop: Path, tmp_path: Path) -> None:
     rec = read_recording(tmp_path / "sig.mcap")
     assert [(g.t, g.reason) for g in rec.signals] == [(700000, "sigint")]
     assert rec.stop == {"t": 700, "ev": "stop", "reason": "sigint"}
-    r = hfsmc("replay", "sig.mcap", cwd=tmp_path)
+    r = hfsmc("replay", "sig.mcap", ALLOW, cwd=tmp_path)
     assert r.returncode == 0, r.stdout + r.stderr
     assert r.stdout == ("replay of sig.mcap (python -> python): identical: 8 trace records, "
                         "6 commands, 0-0.700 s\n")
@@ -152,7 +156,7 @@ def test_a_component_that_cannot_run_is_said_with_its_words(hop: Path) -> None:
 
 
 def test_a_model_in_the_other_language_needs_its_twin(hop: Path) -> None:
-    r = hfsmc("replay", "hop.mcap", "-t", "cpp", cwd=hop)
+    r = hfsmc("replay", "hop.mcap", ALLOW, "-t", "cpp", cwd=hop)
     assert r.returncode == 2
     assert r.stderr == ("hfsmc: error: -t cpp: the snippets of the recorded model (hop.yaml) "
                         "are python; give the model's cpp twin with --model\n")
@@ -181,7 +185,7 @@ def test_a_cut_recording_replays_up_to_the_cut(hop: Path, tmp_path: Path) -> Non
     rec = read_recording(tmp_path / "cut.mcap")
     assert 0 < len(rec.trace) < len(whole.trace)
     (tmp_path / "hop.yaml").write_text(HOP)
-    r = hfsmc("replay", "cut.mcap", cwd=tmp_path)
+    r = hfsmc("replay", "cut.mcap", ALLOW, cwd=tmp_path)
     assert r.returncode == 0, r.stdout + r.stderr
     lines = r.stdout.splitlines()
     assert lines[0] == (f"the recording ends at {rec.end_us / 1e6:.3f} s (cut: the component "
@@ -229,14 +233,12 @@ def test_broken_files_are_said_in_one_line(hop: Path, tmp_path: Path) -> None:
         assert (r.returncode, r.stdout, r.stderr) == (1, "", f"{name}: {message}\n")
 
 
-def test_sources_are_written_keeping_their_relative_paths(tmp_path: Path) -> None:
-    main = write_sources([("m.yaml", "a"), ("../../lib/x.yaml", "b"), ("sub/y.yaml", "c")],
-                         tmp_path)
-    assert main.read_text() == "a"
-    assert (main.parent / "../../lib/x.yaml").read_text() == "b"
-    assert (main.parent / "sub/y.yaml").read_text() == "c"
-    with pytest.raises(RecordingError, match="absolute"):
-        write_sources([("m.yaml", "a"), ("/etc/x.yaml", "b")], tmp_path)
+def test_recorded_sources_keep_their_relative_paths_in_memory() -> None:
+    main, texts = virtual_sources([("m.yaml", "a"), ("../../lib/x.yaml", "b"),
+                                   ("sub/y.yaml", "c")])
+    assert main == "/recording/m/m/m.yaml"
+    assert texts == {"/recording/m/m/m.yaml": "a", "/recording/lib/x.yaml": "b",
+                     "/recording/m/m/sub/y.yaml": "c"}
 
 
 # --- a real simulated flight -------------------------------------------------------------------
@@ -265,7 +267,7 @@ def test_a_flight_replays_identically(flown: Path) -> None:
     rec = read_recording(flown / "flight.mcap")
     assert not rec.cut and rec.time_limit_us == TIME_LIMIT_S * 1_000_000 and rec.frames
     assert rec.stop == {"t": rec.end_us // 1000, "ev": "stop", "reason": "time_limit"}
-    r = hfsmc("replay", "flight.mcap", cwd=flown)
+    r = hfsmc("replay", "flight.mcap", ALLOW, cwd=flown)
     assert r.returncode == 0, r.stdout + r.stderr
     assert r.stdout == (f"replay of flight.mcap (python -> python): identical: {len(rec.trace)} "
                         f"trace records, {len(rec.commands)} commands, "

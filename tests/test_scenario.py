@@ -288,7 +288,9 @@ def test_each_broken_expectation_names_the_record_that_broke_it(tmp_path: Path) 
          ('trace.jsonl:4: {"t":1500,"ev":"exit","state":"A"}',)),
         (8, "no such record: the run stopped (until) at 3 s",
          ('trace.jsonl:7: {"t":3000,"ev":"stop","reason":"until"}',)),
-        (9, "sent only with other arguments", (f"commands.jsonl:1: {COMMANDS.strip()}",)),
+        # a command's time in ms too, as the trace's (the file itself counts us)
+        (9, "sent only with other arguments",
+         ("commands.jsonl:1: at 1500 ms: drone.set_velocity(1.0, 0.0, 0.5, 0.0)",)),
         (10, "no such record: the run stopped (until) at 3 s",
          ('trace.jsonl:7: {"t":3000,"ev":"stop","reason":"until"}',)),
         (11, "the run stopped otherwise", ('trace.jsonl:7: {"t":3000,"ev":"stop","reason":"until"}',)),
@@ -305,6 +307,17 @@ def test_an_exact_trace_ignores_the_components_name_only(tmp_path: Path) -> None
         (4, f"first difference at {tmp_path}/other.jsonl:6",
          ('expected: {"t":1550,"ev":"log","state":"B","msg":"in B at 1.5 s"}',
           'trace.jsonl:6: {"t":1500,"ev":"log","state":"B","msg":"in B at 1.5 s"}'))]
+
+
+def test_deeply_nested_json_in_a_trace_fails_the_scenario_not_the_run(tmp_path: Path) -> None:
+    """Nesting past what Python's json reads (RecursionError), in the expected trace or in
+    the run's: the expectation fails, the run's trace ends there; nothing crashes."""
+    deep = "[" * 100_000 + "]" * 100_000
+    lines = TRACE.splitlines()
+    (tmp_path / "deep.jsonl").write_text("\n".join([*lines[:5], deep, *lines[6:]]) + "\n")
+    [(line, message, _)] = _check(tmp_path, "  - trace: deep.jsonl\n")
+    assert (line, message) == (4, f"first difference at {tmp_path}/deep.jsonl:6")
+    assert len(read_records("\n".join([*lines[:3], '{"t":5,"x":' + deep + "}", *lines[3:]]))) == 3
 
 
 def test_a_run_without_stop_or_with_an_error_fails_by_itself(tmp_path: Path) -> None:
@@ -373,8 +386,9 @@ def test_the_examples_pass_in_python_and_a_wrong_scenario_fails(tmp_path: Path) 
     cache = tmp_path / "cache"
     report = tmp_path / "junit.xml"
     runs = tmp_path / "examples"
-    r = hfsmc_test("-t", "python", "--junit", str(report), "--keep", str(runs), *map(str, EXAMPLES),
-                   cache=cache)
+    # The examples' folder: its scenarios are found as pytest finds tests (its tests folders).
+    r = hfsmc_test("-t", "python", "--junit", str(report), "--keep", str(runs),
+                   str(ROOT / "examples"), cache=cache)
     assert r.returncode == 0, r.stdout + r.stderr
     for sc in EXAMPLES:
         assert f"{sc}::python PASSED\n" in r.stdout
@@ -407,16 +421,22 @@ def test_the_examples_pass_in_python_and_a_wrong_scenario_fails(tmp_path: Path) 
     subprocess.run([sys.executable, str(component), "--playback", str(kept), "--clock", "virtual",
                     "--until", "35s", "--record", str(recording)], cwd=kept, capture_output=True,
                    timeout=120, check=True)
+    # No model beside it: the code it carries runs only when asked (tests/test_replay_trust.py
+    # replays recordings against the model beside them).
     flight = ROOT / "examples/follow_colors/flight.mcap"  # a simulated flight, recorded
-    r = hfsmc_test(str(recording), str(flight), cache=cache)
+    r = hfsmc_test(str(recording), cache=cache)
+    assert r.returncode == 2 and r.stdout.startswith(f"{recording}::python ERROR\n"), r.stdout
+    r = hfsmc_test("--allow-recorded-code", str(recording), str(flight), cache=cache)
     assert r.returncode == 0, r.stdout + r.stderr
     assert r.stdout.startswith(f"{recording}::python PASSED\n{flight}::python PASSED\n")
+    # A file that is no recording errs alone: the scenario beside it runs.
     garbage = tmp_path / "garbage.mcap"
     garbage.write_bytes(b"no recording")
-    r = hfsmc_test(str(garbage), cache=cache)
-    assert r.returncode == 2
-    assert r.stderr == (f"{garbage}: not an MCAP file (a recording is written by a component's "
-                        "--record FILE)\nhfsmc test: 1 error(s): no scenario was run\n")
+    r = hfsmc_test(str(garbage), str(EXAMPLES[0]), "-t", "python", cache=cache)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.stdout.startswith(f"{EXAMPLES[0]}::python PASSED\n{garbage}::python ERROR\n")
+    assert (f"{garbage}: cannot be replayed: not an MCAP file (a recording is written by a "
+            "component's --record FILE)") in r.stdout
 
 
 @pytest.mark.timeout(1800)

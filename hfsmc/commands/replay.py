@@ -21,24 +21,24 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hfsmc.commands.replay_model import (
+    Built,
+    NotAllowed,
+    ReplayFailed,
+    build,
+    given_model,
+    recorded_model,
+    what_it_carries,
+)
+
+__all__ = ["NotAllowed", "ReplayFailed", "Report", "render", "replay"]
 from hfsmc.durations import format_us
 from hfsmc.errors import HfsmcError, UsageError
-from hfsmc.fsutil import write_atomic
 from hfsmc.ir import Model, Transition
-from hfsmc.pipeline import Result, compile_file
-from hfsmc.recording import Command, Frame, Recording, RecordingError, read_recording
+from hfsmc.recording import Command, Frame, Recording, read_recording
 
 NOT_EVIDENCE = ("from here on the vehicle would have been commanded differently: "
                 "the recording is no longer evidence")
-
-
-class ReplayFailed(Exception):
-    """Replay could not run (a model that does not compile, a component that failed)."""
-
-    def __init__(self, message: str, details: Sequence[str] = ()) -> None:
-        super().__init__(message)
-        self.details = tuple(details)
-        self.report: Report | None = None  # what was said before it failed
 
 
 @dataclass
@@ -52,115 +52,6 @@ class Report:
         self.lines.append((style, text))
 
 
-# --- the model ----------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Built:
-    model: Model
-    label: str  # how the report names it
-    recorded: bool  # the recorded model (same hash)
-    files: Mapping[str, str]  # a model file's path as spans give it -> as the report shows it
-
-
-def write_sources(sources: Sequence[tuple[str, str]], base: Path) -> Path:
-    """Write the recorded sources below ``base`` keeping their relative paths (a used file
-    may be `../lib/x.yaml`: the model goes deep enough); return the model file's path."""
-    ups = 0
-    for path, _ in sources:
-        parts = Path(path).parts
-        if Path(path).is_absolute():
-            raise RecordingError(f"a source path is absolute: `{path}`")
-        depth = 0
-        for part in parts:
-            depth += -1 if part == ".." else (0 if part == "." else 1)
-            ups = max(ups, -depth)
-    home = base.joinpath("src", *(["m"] * ups))
-    root = os.path.realpath(base / "src")
-    for path, text in sources:
-        target = home / path
-        if not os.path.realpath(target).startswith(root + os.sep):
-            raise RecordingError(f"a source path leaves the model's tree: `{path}`")
-        target.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(target, text)  # a replay of the same recording beside it reads whole files
-    return home / sources[0][0]
-
-
-def _compile(path: str) -> Result:
-    result = compile_file(path)
-    if not result.ok or result.model is None:
-        raise HfsmcError(result.diagnostics)
-    return result
-
-
-def cache_base() -> Path:
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "hfsmc" / "replay"
-
-
-def recorded_model(rec: Recording) -> Built:
-    """The recorded model, compiled from the text the recording holds."""
-    base = cache_base() / rec.model_hash.removeprefix("sha256:")[:16]
-    main = write_sources(rec.sources, base)
-    result = _compile(str(main))
-    assert result.model is not None
-    home = main.parent
-    files = {os.path.normpath(home / p): p for p, _ in rec.sources}
-    return Built(result.model, f"the recorded model ({rec.sources[0][0]})", True, files)
-
-
-def given_model(rec: Recording, path: str) -> tuple[Built, list[str]]:
-    """The model of ``--model``, and what the report says of it against the recorded one."""
-    from hfsmc.model_sources import model_hash, model_sources
-
-    result = compile_file(path)
-    if not result.ok or result.model is None:
-        raise HfsmcError(result.diagnostics)
-    sources = model_sources(result.model)
-    digest = model_hash(sources)
-    same = digest == rec.model_hash
-    if same:
-        notes = [f"{path} is the recorded model ({digest[:19]}...)"]
-    elif result.model.language != rec.language:
-        notes = [f"{path} is a {result.model.language} model, the recorded one "
-                 f"({rec.sources[0][0]}) {rec.language}: replayed as its twin"]
-    else:
-        recorded = dict(rec.sources)
-        main = sources[0][0]
-        if main != rec.sources[0][0]:  # the model file itself, whatever its name now
-            recorded.pop(rec.sources[0][0])
-            recorded[main] = rec.sources[0][1]
-        changed = [p for p, text in sources if p in recorded and recorded[p] != text]
-        new = [p for p, _ in sources if p not in recorded]
-        gone = [p for p in recorded if p not in dict(sources)]
-        what = "; ".join(x for x in (
-            f"changed: {', '.join(changed)}" if changed else "",
-            f"not in the recording: {', '.join(new)}" if new else "",
-            f"recorded but not used now: {', '.join(gone)}" if gone else "") if x)
-        notes = [f"{path} is not the recorded model ({what or 'other paths'}; hash "
-                 f"{digest[:19]}... against the recorded {rec.model_hash[:19]}...)"]
-    return Built(result.model, path, same, {}), notes
-
-
-def build(built: Built, target: str, model_arg: str | None, rec: Recording) -> list[str]:
-    """Write (and for C++ compile) the component; its command line."""
-    from hfsmc.component import cache_folder, write_component
-
-    model = built.model
-    if model_arg is not None:
-        folder = cache_folder(model_arg, model.name + ("-cpp" if target == "cpp" else ""))
-    else:
-        folder = cache_base() / rec.model_hash.removeprefix("sha256:")[:16] / target
-    written = write_component(model, target, folder)
-    if target == "python":
-        return [sys.executable, str(written.main)]
-    from hfsmc.cppcompile import compile_component
-
-    diags = compile_component(folder, model.file)
-    if any(d.severity == "error" for d in diags):
-        raise ReplayFailed("the C++ component did not build",
-                           [f"{d.span}: {d.message}" for d in diags][:10])
-    return [str(written.main)]
-
-
 # --- the playback folder ------------------------------------------------------------------
 
 def _frame_file(fr: Frame) -> str:
@@ -168,7 +59,13 @@ def _frame_file(fr: Frame) -> str:
 
 
 def write_playback(rec: Recording, folder: Path) -> None:
-    """DIR/inputs.jsonl, and the frames as the files the recording holds (JPEG or PNG)."""
+    """DIR/inputs.jsonl, and the frames as the files the recording holds (JPEG or PNG).
+
+    The script says it is a recorded run (its first entry, `recorded`): the component then
+    knows that an instant without a snapshot of an interface is one the recorded run did
+    not have, and a camera snapshot says when its frame was never read then (`unrecorded`):
+    a query of what the recording does not hold is written down, not answered as if it
+    were recorded (schemas/recording.md, "Playback")."""
     frames: dict[tuple[str, int], Frame] = {}
     for fr in rec.frames:
         if (fr.interface, fr.count) not in frames:
@@ -176,16 +73,21 @@ def write_playback(rec: Recording, folder: Path) -> None:
             frames[fr.interface, fr.count] = fr
     cameras = {n for n, spec in rec.interfaces.items()
                if isinstance(spec, Mapping) and spec.get("type") == "camera"}
-    entries: list[tuple[int, dict[str, Any]]] = []
+    entries: list[tuple[int, dict[str, Any]]] = [(0, {"t": 0, "kind": "recorded"})]
     for s in rec.snapshots:
         values = dict(s.values)
+        entry: dict[str, Any] = {"t": s.t, "kind": "snapshot", "interface": s.interface,
+                                 "values": values}
         if s.interface in cameras:
-            seen = frames.get((s.interface, int(values.get("count", 0))))
+            count = values.get("count", 0)
+            known = isinstance(count, int) and not isinstance(count, bool)
+            seen = frames.get((s.interface, count)) if known else None
             values["frame"] = None if seen is None else _frame_file(seen)
             if seen is not None and seen.crc32 is not None:
                 values["crc32"] = seen.crc32  # the component checks the pixels it decodes
-        entries.append((s.t, {"t": s.t, "kind": "snapshot", "interface": s.interface,
-                              "values": values}))
+            if seen is None and known and count > 0:
+                entry["unrecorded"] = ["frame"]  # frames came, this one was never read
+        entries.append((s.t, entry))
     for k in rec.skips:
         entries.append((k.t, {"t": k.t, "kind": "skip", "automaton": k.automaton,
                               "deadline": k.deadline, "missed": k.missed}))
@@ -196,6 +98,31 @@ def write_playback(rec: Recording, folder: Path) -> None:
     with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
         for _, entry in entries:
             f.write(json.dumps(entry, separators=(",", ":")) + "\n")
+
+
+def unanswered(folder: Path) -> dict[str, Any] | None:
+    """The first query the recording could not answer (DIR/unanswered.jsonl), if any."""
+    for u in read_jsonl(folder / "unanswered.jsonl"):
+        if isinstance(u.get("t"), int) and all(isinstance(u.get(k), str)
+                                               for k in ("interface", "query", "reason")):
+            return u
+    return None
+
+
+def unanswered_text(u: Mapping[str, Any]) -> str:
+    """The first query the recording cannot answer, and what it means, in one line."""
+    asked = f"at {seconds(int(u['t']))} the model asked {u['interface']}.{u['query']}()"
+    reason = u["reason"]
+    if reason == "frame":
+        what = f"for frame {u.get('count')}, which the recorded run never read"
+    elif reason == "instant":
+        what = "at an instant the recorded run did not have"
+    elif reason == "interface":
+        what = "of an interface the recording does not hold"
+    else:
+        what = f"for `{reason}`, which the recording does not hold"
+    return (f"{asked} {what}: the recording holds no evidence from there on (nothing after it "
+            "is compared)")
 
 
 def until_us(rec: Recording) -> int:
@@ -250,8 +177,8 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
     for line in path.read_text("utf-8", errors="replace").splitlines():
         try:
             obj = json.loads(line)
-        except ValueError:
-            continue  # a line the component could not finish
+        except (ValueError, RecursionError):
+            continue  # a line the component could not finish (or a value nested too deep)
         if isinstance(obj, dict):
             out.append(obj)
     return out
@@ -310,14 +237,33 @@ def seconds(us: int) -> str:
 
 def compare(rec: Recording, now_trace: list[dict[str, Any]], now_commands: list[Command],
             recorded_built: Built | None, now_built: Built, changed: bool, title: str,
-            cross: bool) -> Report:
+            cross: bool, asked: Mapping[str, Any] | None = None) -> Report:
+    """The report; with ``asked`` (the first query the recording could not answer), only
+    what came before its instant is compared."""
+    report = _compare(rec, now_trace, now_commands, recorded_built, now_built, changed, title,
+                      cross, None if asked is None else int(asked["t"]))
+    if asked is not None:
+        report.add(unanswered_text(asked), "yellow")
+        report.status = 1
+    return report
+
+
+def _compare(rec: Recording, now_trace: list[dict[str, Any]], now_commands: list[Command],
+             recorded_built: Built | None, now_built: Built, changed: bool, title: str,
+             cross: bool, cutoff: int | None) -> Report:
     report = Report()
     variables = not cross
     a = normalise((r.record for r in rec.trace), variables)
     b = normalise(now_trace, variables)
-    i = first_difference(a, b, rec.cut)
     rec_cmds = list(rec.commands)
     cmds_now = list(now_commands)
+    if cutoff is not None:  # from the unanswered query on, nothing is evidence
+        a = [r for r in a if int(r.get("t", 0)) * 1000 < cutoff]
+        b = [r for r in b if int(r.get("t", 0)) * 1000 < cutoff]
+        rec_cmds = [c for c in rec_cmds if c.t < cutoff]
+        cmds_now = [c for c in cmds_now if c.t < cutoff]
+        now_commands = cmds_now
+    i = first_difference(a, b, rec.cut)
     if rec.cut:  # the last instant's commands may be partly recorded: compare what was
         before = [c for c in now_commands if c.t < rec.end_us]
         last = [c for c in now_commands if c.t >= rec.end_us]
@@ -326,6 +272,8 @@ def compare(rec: Recording, now_trace: list[dict[str, Any]], now_commands: list[
     if i is None and j is None:
         span = f"0-{seconds(rec.end_us)}"
         what = "identical up to the cut" if rec.cut else "identical"
+        if cutoff is not None:
+            what, span = f"identical up to {seconds(cutoff)}", f"0-{seconds(cutoff)}"
         report.add(f"{title}: {what}: {len(a)} trace records, {len(rec_cmds)} commands, "
                    f"{span}", "bold green")
         return report
@@ -462,26 +410,31 @@ def _command_text(c: Command | None) -> str:
 
 # --- the command --------------------------------------------------------------------------
 
-def replay(recording: str, model_arg: str | None, target: str | None) -> Report:
-    """Replay ``recording``; raise RecordingError, ReplayFailed, HfsmcError, UsageError."""
+def replay(recording: str, model_arg: str | None, target: str | None,
+           allow_code: bool = False) -> Report:
+    """Replay ``recording`` against ``model_arg`` or, with ``allow_code``, the recorded
+    model; raise NotAllowed (neither: the lines say what the recording carries),
+    RecordingError, ReplayFailed, HfsmcError, UsageError."""
     report = Report()
     try:
-        return _replay(recording, model_arg, target, report)
+        return _replay(recording, model_arg, target, allow_code, report)
     except ReplayFailed as e:
         e.report = report
         raise
 
 
-def _replay(recording: str, model_arg: str | None, target: str | None,
+def _replay(recording: str, model_arg: str | None, target: str | None, allow_code: bool,
             report: Report) -> Report:
-    rec = read_recording(recording)
+    rec = read_recording(recording)  # its model hash checked against its sources
+    if model_arg is None and not allow_code:
+        raise NotAllowed(what_it_carries(rec, recording))
     if rec.cut:
         report.add(f"the recording ends at {seconds(rec.end_us)} (cut: the component did not "
                    "close it)", "yellow")
     recorded_built: Built | None = None
     try:
-        recorded_built = recorded_model(rec)
-    except (HfsmcError, RecordingError):
+        recorded_built = recorded_model(rec)  # as data: in memory, nothing runs
+    except HfsmcError:
         if model_arg is None:
             raise
     if model_arg is not None:
@@ -497,7 +450,7 @@ def _replay(recording: str, model_arg: str | None, target: str | None,
                          f"give the model's {target} twin with --model")
     target = language
     changed = not now_built.recorded
-    command = build(now_built, target, model_arg if model_arg is not None else None, rec)
+    command = build(now_built, target, model_arg, rec)
     with tempfile.TemporaryDirectory(prefix="hfsmc-replay-") as tmp:
         folder = Path(tmp)
         write_playback(rec, folder)
@@ -515,9 +468,10 @@ def _replay(recording: str, model_arg: str | None, target: str | None,
         commands = [Command(int(c.get("t", 0)), str(c.get("interface", "")),
                             str(c.get("call", "")), tuple(c.get("args", ())))
                     for c in read_jsonl(folder / "commands.jsonl")]
+        asked = unanswered(folder)
     title = f"replay of {recording} ({rec.language} -> {target})"
     result = compare(rec, trace, commands, recorded_built, now_built, changed, title,
-                     cross=rec.language != target)
+                     cross=rec.language != target, asked=asked)
     report.lines.extend(result.lines)
     report.status = result.status
     return report

@@ -8,6 +8,11 @@ model into the same cache as `hfsmc run` (a C++ one compiled incrementally).
 The report is pytest's shape: one line per scenario and language, then the
 failures; ``--junit FILE`` writes JUnit XML for CI.  Exit status: 0 every run
 passed, 1 a run failed, 2 a scenario or a model could not be run.
+
+A recording (``*.mcap``) is replayed against the model file of its recorded name in its
+folder (or the folder above), never with the code it carries unless
+``--allow-recorded-code`` says so; one that cannot be replayed is an ERROR of its own and
+the others still run.  A folder stands for the scenarios in it (``find_scenarios``).
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ class Outcome:
     seconds: float = 0.0
     folder: Path | None = None  # the run's folder, when kept
     stderr_tail: tuple[str, ...] = ()
+    errored: bool = False  # it could not be run (a recording that cannot be replayed)
 
     @property
     def id(self) -> str:
@@ -83,10 +89,58 @@ class Recorded:
 
     path: str
     language: str
+    model: str | None  # the model replayed (None: the recorded one, --allow-recorded-code)
+    error: str | None = None  # why it cannot be replayed
 
 
-def prepare_recordings(paths: list[str], only: str | None, problems: Problems) -> list[Recorded]:
-    """Check that each recording can be read; the ones to replay (in their own language)."""
+SKIPPED_FOLDERS = ("build", "dist", "node_modules", "venv", "__pycache__")
+
+
+def find_scenarios(paths: list[str]) -> tuple[list[str], list[str]]:
+    """Each folder of ``paths`` replaced by the scenarios below it, as pytest collects
+    tests: in folders named `tests`, every *.yaml, *.yml and *.mcap file; anywhere,
+    test_*.yaml and *_test.yaml; folders starting with `.` or `_` and build folders
+    skipped.  Also the folders in which nothing was found."""
+    out: list[str] = []
+    empty: list[str] = []
+    for path in paths:
+        if not os.path.isdir(path):
+            out.append(path)
+            continue
+        found = []
+        for folder, dirs, files in os.walk(path):
+            dirs[:] = sorted(d for d in dirs
+                             if not d.startswith((".", "_")) and d not in SKIPPED_FOLDERS)
+            in_tests = "tests" in Path(folder).relative_to(path).parts or (
+                Path(folder).name == "tests")
+            for name in sorted(files):
+                stem, ext = os.path.splitext(name)
+                if (in_tests and ext in (".yaml", ".yml", ".mcap")) or (
+                        ext in (".yaml", ".yml") and (stem.startswith("test_")
+                                                      or stem.endswith("_test"))):
+                    found.append(os.path.join(folder, name))
+        out.extend(found)
+        if not found:
+            empty.append(path)
+    return out, empty
+
+
+def recorded_model_file(rec_path: str, name: str) -> str | None:
+    """The model file of the recorded name (`follow_colors.yaml`: a file name, checked on
+    reading) in the recording's folder, or the folder above (a recording kept in tests/)."""
+    here = Path(rec_path).parent
+    for folder in (here, here.parent):
+        candidate = folder / name
+        if candidate.is_file():
+            return str(candidate)
+    return None
+
+
+def prepare_recordings(paths: list[str], only: str | None, allow_code: bool) -> list[Recorded]:
+    """Each recording to replay, with its model; one that cannot be read or has no model
+    to replay with is kept with its error, to be reported as such (the others still run)."""
+    from hfsmc.commands.replay_model import ALLOW_FLAG
+    from hfsmc.pipeline import compile_file
     from hfsmc.recording import RecordingError, read_recording
 
     out = []
@@ -94,32 +148,63 @@ def prepare_recordings(paths: list[str], only: str | None, problems: Problems) -
         try:
             rec = read_recording(path)
         except RecordingError as e:
-            problems.notes.append(f"{path}: {e}")
+            out.append(Recorded(path, only or "python", None, str(e)))
             continue
-        language = str(rec.run.get("language", "python"))
+        except Exception as e:  # anything else a forged file does: this one errs, not the run
+            out.append(Recorded(path, only or "python", None, f"cannot be read: {e!r}"[:200]))
+            continue
+        if allow_code:
+            if only is None or only == rec.language:
+                out.append(Recorded(path, rec.language, None))
+            continue
+        name = rec.sources[0][0]
+        model = recorded_model_file(path, name)
+        if model is None:
+            out.append(Recorded(path, only or rec.language, None, (
+                f"no model `{name}` beside it to replay it with (a recording's own model is "
+                f"code, run only with {ALLOW_FLAG}; or hfsmc replay {path} --model MODEL)")))
+            continue
+        result = compile_file(model)
+        language = result.model.language if result.model is not None else rec.language
         if only is None or only == language:
-            out.append(Recorded(path, language))
+            out.append(Recorded(path, language, model))
     return out
 
 
 def run_recording(r: Recorded) -> Outcome:
-    """`hfsmc replay` of one recording: identical passes, the first difference fails."""
-    from hfsmc.commands.replay import ReplayFailed, replay
+    """`hfsmc replay` of one recording: identical passes, the first difference fails; a
+    recording that cannot be replayed errs."""
+    from hfsmc.commands.replay import NotAllowed, ReplayFailed, replay
     from hfsmc.recording import RecordingError
 
     started = time.monotonic()
     outcome = Outcome(r.path, Path(r.path).stem, r.language)
     try:
-        report = replay(r.path, None, None)
+        if r.error is not None:
+            raise RecordingError(r.error)
+        report = replay(r.path, r.model, None, allow_code=r.model is None)
         if report.status != 0:
             outcome.failures.append(Failure(None, "the replay differs from the recording",
                                             tuple(text for _, text in report.lines)))
     except ReplayFailed as e:
+        outcome.errored = True
         outcome.failures.append(Failure(None, f"the replay failed: {e}", e.details))
-    except (RecordingError, HfsmcError, UsageError) as e:
-        outcome.failures.append(Failure(None, f"the replay failed: {e}"))
+    except (RecordingError, HfsmcError, UsageError, NotAllowed) as e:
+        outcome.errored = True
+        outcome.failures.append(Failure(None, f"cannot be replayed: {_one_line(e)}"))
+    except Exception as e:  # a bug, or a file that finds one: this run errs, not the others
+        outcome.errored = True
+        outcome.failures.append(Failure(None, f"cannot be replayed: internal error: "
+                                        f"{type(e).__name__}: {e}"[:300]))
     outcome.seconds = time.monotonic() - started
     return outcome
+
+
+def _one_line(e: Exception) -> str:
+    if isinstance(e, HfsmcError) and e.diagnostics:
+        d = e.diagnostics[0]
+        return f"{d.span}: {d.message}"
+    return " ".join(str(e).split())
 
 
 def prepare(paths: list[str], only: str | None, problems: Problems) -> list[Prepared]:
@@ -247,13 +332,18 @@ def run_one(sc: Scenario, model: Model, language: str, component: Component, fol
 
 
 def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | None,
-            timeout: float, echo: Echo, echo_err: Echo, color: bool) -> int:
+            timeout: float, echo: Echo, echo_err: Echo, color: bool,
+            allow_code: bool = False) -> int:
     """The whole command; returns the exit status."""
     started = time.monotonic()
     problems = Problems()
+    paths, empty = find_scenarios(paths)
+    for where in empty:
+        echo_err(f"hfsmc test: no scenario in {where} (docs/testing.md: the files of folders "
+                 "named tests, test_*.yaml, *_test.yaml)")
     recordings = [p for p in paths if p.endswith(".mcap")]
     prepared = prepare([p for p in paths if not p.endswith(".mcap")], only, problems)
-    recorded = prepare_recordings(recordings, only, problems) if recordings else []
+    recorded = prepare_recordings(recordings, only, allow_code) if recordings else []
     if not problems.diagnostics:
         components: dict[tuple[str, str], Component | None] = {}
         for p in prepared:
@@ -289,7 +379,8 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
 
                     echo_err(render_text(e.diagnostics, {p.scenario.file: list(p.scenario.lines)},
                                          color).rstrip("\n"))
-                    return 2
+                    o = Outcome(p.scenario.file, p.scenario.name, lang, errored=True)
+                    o.failures.append(Failure(None, "its inputs cannot be read (above)"))
                 o.folder = folder if keep else None
                 outcomes.append(o)
                 _say(o, echo, color)
@@ -301,15 +392,18 @@ def run_all(paths: list[str], only: str | None, junit: str | None, keep: str | N
         if not keep:
             shutil.rmtree(base, ignore_errors=True)
     report(outcomes, time.monotonic() - started, echo, color)
-    if not keep and any(not o.passed for o in outcomes):
+    if not keep and any(not o.passed and not o.errored for o in outcomes):
         echo("(--keep DIR keeps each run's inputs.jsonl, trace.jsonl, commands.jsonl and stderr.txt)")
     if junit:
         write_junit(Path(junit), outcomes)
+    if any(o.errored for o in outcomes):
+        return 2
     return 0 if all(o.passed for o in outcomes) else 1
 
 
 def _say(o: Outcome, echo: Echo, color: bool) -> None:
-    word = _tint("PASSED", "32", color) if o.passed else _tint("FAILED", "31", color)
+    word = (_tint("PASSED", "32", color) if o.passed else
+            _tint("ERROR", "31", color) if o.errored else _tint("FAILED", "31", color))
     echo(f"{o.id} {word}")
 
 
@@ -326,15 +420,20 @@ def _rule(title: str, fill: str = "=") -> str:
 
 def report(outcomes: list[Outcome], seconds: float, echo: Echo, color: bool) -> None:
     failed = [o for o in outcomes if not o.passed]
-    if failed:
-        echo(_rule("FAILURES"))
-        for o in failed:
+    for title, group in (("ERRORS", [o for o in failed if o.errored]),
+                         ("FAILURES", [o for o in failed if not o.errored])):
+        if group:
+            echo(_rule(title))
+        for o in group:
             echo(_rule(o.id, "_"))
             for line in failure_lines(o):
                 echo(line)
+    errors = sum(o.errored for o in failed)
     passed = len(outcomes) - len(failed)
-    words = ", ".join(w for w in (f"{len(failed)} failed" if failed else "",
-                                  f"{passed} passed" if passed else "") if w)
+    words = ", ".join(w for w in (f"{len(failed) - errors} failed" if len(failed) > errors else "",
+                                  f"{passed} passed" if passed else "",
+                                  f"{errors} error{'s' if errors > 1 else ''}" if errors else "")
+                      if w)
     echo(_tint(_rule(f"{words} in {seconds:.2f}s"), "31" if failed else "32", color))
 
 
@@ -359,12 +458,14 @@ def failure_lines(o: Outcome) -> list[str]:
 
 def write_junit(path: Path, outcomes: list[Outcome]) -> None:
     """JUnit XML (testsuites/testsuite/testcase/failure), as CI tools read it."""
-    failed = sum(not o.passed for o in outcomes)
+    errors = sum(o.errored for o in outcomes)
+    failed = sum(not o.passed for o in outcomes) - errors
     total = sum(o.seconds for o in outcomes)
     suites = ET.Element("testsuites", name="hfsmc test", tests=str(len(outcomes)),
-                        failures=str(failed), errors="0", time=f"{total:.3f}")
+                        failures=str(failed), errors=str(errors), time=f"{total:.3f}")
     suite = ET.SubElement(suites, "testsuite", name="hfsmc test", tests=str(len(outcomes)),
-                          failures=str(failed), errors="0", skipped="0", time=f"{total:.3f}")
+                          failures=str(failed), errors=str(errors), skipped="0",
+                          time=f"{total:.3f}")
     for o in outcomes:
         case = ET.SubElement(suite, "testcase", classname=_classname(o.file),
                              name=f"{o.name}[{o.language}]", file=o.file, time=f"{o.seconds:.3f}")
@@ -372,7 +473,8 @@ def write_junit(path: Path, outcomes: list[Outcome]) -> None:
             first = o.failures[0]
             message = (f"expected {first.expectation.describe()}: {first.message}"
                        if first.expectation else first.message)
-            fail = ET.SubElement(case, "failure", message=message, type="expectation")
+            fail = ET.SubElement(case, "error" if o.errored else "failure", message=message,
+                                 type="replay" if o.errored else "expectation")
             fail.text = "\n".join(failure_lines(o))
     ET.indent(suites)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -180,6 +180,8 @@ def load_trace(path: str) -> list[dict[str, Any]]:
                     rec = json.loads(line)
                 except ValueError as e:
                     raise _ViewError(f"{path}:{n}: bad trace record: {getattr(e, 'msg', e)}") from None
+                except RecursionError:
+                    raise _ViewError(f"{path}:{n}: bad trace record: nested too deeply") from None
                 why: str | None = hfsmc_view.check_record(rec)
                 if why is not None:
                     raise _ViewError(f"{path}:{n}: bad trace record: {why}")

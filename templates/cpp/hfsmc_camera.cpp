@@ -268,6 +268,7 @@ const std::string& Camera::url() const { return g_->url; }
 /// The latest frame (H x W, CV_8UC3, BGR); an empty Mat before the first. The
 /// same pixels until a newer frame comes: clone it before drawing on it for keeps.
 cv::Mat Camera::frame() const {
+  evidence_.asked("frame", "frame");
   if (snap_count_ != 0 && snap_count_ != recorded_) record_frame();
   std::lock_guard<std::mutex> lock(g_->mutex);
   g_->seen = snap_frame_;  // for the monitor's viewers: a header copy
@@ -319,6 +320,7 @@ void Camera::take_snapshot(long long t_us) {
   snap_frame_ = image_;
   snap_count_ = fed_.count;
   snap_age_ = fed_.age;
+  evidence_.at(inputs_, g_->name, t_us, next_ > 0 ? &entries[next_ - 1] : nullptr, fed_.count);
 }
 
 std::string Camera::snapshot_fields() const {

@@ -97,6 +97,11 @@ Mavlink::~Mavlink() {
 /// What the component says when it stops with the vehicle still armed (then nothing
 /// lands it: --until, an error without on_interrupt...); "" when disarmed.
 std::string Mavlink::warning_at_stop() const {
+  evidence_.quiet(true);  // the runtime reads the last snapshot: no snippet asks
+  struct Loud {
+    const playback::Evidence& e;
+    ~Loud() { e.quiet(false); }
+  } loud{evidence_};
   if (!armed()) return "";
   char alt[64];
   std::snprintf(alt, sizeof alt, "%.1f", altitude());
@@ -114,6 +119,7 @@ std::string Mavlink::warning_at_stop() const {
 /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
 /// pending, timeout, not_sent; "" when never sent.
 std::string Mavlink::last_ack(const std::string& command) const {
+  evidence_.asked("last_ack", "acks");
   auto it = snap_.acks.find(command);
   return it == snap_.acks.end() ? std::string() : it->second;
 }
@@ -134,6 +140,7 @@ void Mavlink::take_snapshot(long long t_us) {
   const std::vector<playback::Entry>& entries = inputs_->entries(name_);
   for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
   snap_ = fed_;
+  evidence_.at(inputs_, name_, t_us, next_ > 0 ? &entries[next_ - 1] : nullptr, -1);
 }
 
 std::string Mavlink::snapshot_fields() const {

@@ -151,7 +151,13 @@ Inputs::Inputs(const std::string& dir) : dir_(dir.empty() ? "." : dir) {
             const json::Value* values = v.get("values");
             if (values == nullptr || values->kind != json::Value::OBJECT)
                 throw InputError(where(line) + ": `values` must be an object");
-            by_interface_[iface].push_back({t, line, *values});
+            Entry e{t, line, *values, {}};
+            if (const json::Value* missing = v.get("unrecorded")) {
+                if (missing->kind != json::Value::ARRAY)
+                    throw InputError(where(line) + ": `unrecorded` must be a list of field names");
+                for (const json::Value& m : missing->items) e.unrecorded.push_back(Inputs::text(m, "unrecorded", line));
+            }
+            by_interface_[iface].push_back(std::move(e));
         } else if (kind == "skip") {
             skips_.push_back({t, line, text_of(v, "automaton", line), integer(v, "deadline", line),
                               integer(v, "missed", line)});
@@ -161,9 +167,11 @@ Inputs::Inputs(const std::string& dir) : dir_(dir.empty() ? "." : dir) {
                 throw InputError(where(line) + ": `reason` must be sigint, sigterm or time_limit, not " +
                                  json_string(s.reason));
             signals_.push_back(s);
+        } else if (kind == "recorded") {
+            recorded_ = true;
         } else {
             throw InputError(where(line) + ": unknown kind " + json_string(kind) +
-                             " (kinds: snapshot, skip, signal)");
+                             " (kinds: snapshot, skip, signal, recorded)");
         }
     }
     const std::string out = dir_ + "/commands.jsonl";
@@ -185,6 +193,23 @@ void Inputs::command(long long t, const std::string& iface, const char* call, co
                          std::strerror(errno));
         broken_ = true;
     }
+}
+
+// A query the inputs cannot answer: the first one goes to DIR/unanswered.jsonl.
+void Inputs::unanswered(long long t, const std::string& iface, const char* query, const std::string& reason,
+                        long long count) {
+    if (!answered_all_) return;
+    answered_all_ = false;
+    std::string line = "{\"t\":" + std::to_string(t) + ",\"interface\":" + json_string(iface) +
+                       ",\"query\":" + json_string(query) + ",\"reason\":" + json_string(reason);
+    if (count >= 0) line += ",\"count\":" + std::to_string(count);
+    line += "}\n";
+    const std::string out = dir_ + "/unanswered.jsonl";
+    std::FILE* f = std::fopen(out.c_str(), "wb");
+    if (f == nullptr || std::fwrite(line.data(), 1, line.size(), f) != line.size()) {
+        std::fprintf(stderr, "playback: cannot write %s: %s\n", out.c_str(), std::strerror(errno));
+    }
+    if (f != nullptr) std::fclose(f);
 }
 
 }  // namespace playback

@@ -6,6 +6,14 @@ the snapshots of the interfaces over time, the ticks a real clock skipped and th
 signals acted on (schemas/recording.md, "Playback"); the fakes keep the real
 interfaces' names and types, so a model runs unchanged; every command a snippet sends
 is appended to ``DIR/commands.jsonl`` and goes nowhere else.
+
+A script that starts with a ``recorded`` entry is a recorded run (`hfsmc replay`): it
+holds each interface's snapshot at every instant of that run, and says which values it
+lacks (a camera frame no snippet read then). A query it cannot answer (such a frame, any
+value at an instant the recorded run did not have, an interface it does not hold) is
+answered with the "nothing yet" value, and the first one is written to
+``DIR/unanswered.jsonl``: from there on the run is no evidence of what the model would
+have done (the C++ runtime does the same, templates/cpp/hfsmc/playback.hpp).
 """
 
 from __future__ import annotations
@@ -19,6 +27,12 @@ from typing import IO, Any
 from hfsmc_record import plain  # type: ignore[import-not-found]  # beside the component
 
 _FLOATS = {"heartbeat_age", "altitude", "yaw", "age"}
+# Each query of the fakes and the snapshot field it reads.
+VEHICLE_QUERIES = {"connected": "heartbeat_age", "heartbeat_age": "heartbeat_age",
+                   "ready": "ready", "armed": "armed", "mode": "mode", "position": "position",
+                   "altitude": "altitude", "velocity": "velocity", "yaw": "yaw",
+                   "battery": "battery", "last_ack": "acks"}
+CAMERA_QUERIES = {"frame": "frame", "age": "age", "ok": "age", "count": "count"}
 _TRIPLES = {"position", "velocity"}
 
 
@@ -63,7 +77,10 @@ class Playback:
 
     def __init__(self, folder: str) -> None:
         self.folder = folder
-        self.snapshots: dict[str, list[tuple[int, dict[str, Any]]]] = {}
+        self.snapshots: dict[str, list[tuple[int, dict[str, Any], frozenset[str]]]] = {}
+        self.recorded = False  # a recorded run: a snapshot of every interface at each instant
+        self.t = 0
+        self.unanswered: dict[str, Any] | None = None  # the first query it could not answer
         self.skips: dict[tuple[int, str], tuple[int, int]] = {}
         self.signals: list[tuple[int, int, str]] = []  # (ticks, t, reason)
         self.fakes: dict[str, Any] = {}
@@ -108,24 +125,30 @@ class Playback:
             frame = values.get("frame")
             if frame is not None and not os.path.isfile(os.path.join(self.folder, str(frame))):
                 raise ValueError(f"frame `{frame}` is not a file in {self.folder}")
+            missing = entry.get("unrecorded", [])
+            if not isinstance(missing, list) or not all(isinstance(m, str) for m in missing):
+                raise ValueError("`unrecorded` must be a list of field names")
             self.snapshots.setdefault(str(entry["interface"]), []).append(
-                (t, {k: v if k == "frame" else _normal(k, v) for k, v in values.items()}))
+                (t, {k: v if k == "frame" else _normal(k, v) for k, v in values.items()},
+                 frozenset(missing)))
         elif kind == "skip":
             self.skips[(t, str(entry["automaton"]))] = (int(entry["deadline"]), int(entry["missed"]))
         elif kind == "signal":
             self.signals.append((int(entry["ticks"]), t, str(entry["reason"])))
+        elif kind == "recorded":
+            self.recorded = True
         else:
-            raise ValueError(f"unknown kind `{kind}` (snapshot, skip, signal)")
+            raise ValueError(f"unknown kind `{kind}` (snapshot, skip, signal, recorded)")
 
     def fake(self, name: str, kind: str) -> Any:
         """The fake of interface ``name`` (None for a kind that has none)."""
         fake: Any
         if kind == "mavlink":
             import hfsmc_mavlink  # type: ignore[import-not-found]  # beside the component
-            fake = fake_vehicle(name, hfsmc_mavlink)
+            fake = fake_vehicle(name, hfsmc_mavlink, self)
         elif kind == "camera":
             import hfsmc_camera  # type: ignore[import-not-found]  # beside the component
-            fake = fake_camera(name, hfsmc_camera, self.folder)
+            fake = fake_camera(name, hfsmc_camera, self.folder, self)
         else:
             return None
         self.fakes[name] = fake
@@ -133,7 +156,9 @@ class Playback:
         return fake
 
     def advance(self, t_us: int) -> None:
-        """Apply every entry up to ``t_us`` to the fakes (before they take a snapshot)."""
+        """Apply every entry up to ``t_us`` to the fakes (before they take a snapshot), and
+        tell each what the script holds of it at this instant."""
+        self.t = t_us
         for name, fake in self.fakes.items():
             rows = self.snapshots.get(name, ())
             k = self.place[name]
@@ -141,6 +166,29 @@ class Playback:
                 fake.apply(rows[k][1])
                 k += 1
             self.place[name] = k
+            last = rows[k - 1] if k > 0 else None
+            if not self.recorded:
+                fake.lacks = None
+            elif last is None:
+                fake.lacks = "interface"  # the recording holds nothing of it
+            elif last[0] != t_us:
+                fake.lacks = "instant"  # the recorded run had no instant then
+            else:
+                fake.lacks = last[2] or None
+
+    def asked(self, name: str, query: str, reason: str, count: int | None) -> None:
+        """A query the script cannot answer: the first one goes to DIR/unanswered.jsonl."""
+        if self.unanswered is not None:
+            return
+        self.unanswered = {"t": self.t, "interface": name, "query": query, "reason": reason}
+        if count is not None:
+            self.unanswered["count"] = count
+        try:
+            with open(os.path.join(self.folder, "unanswered.jsonl"), "w", encoding="ascii") as f:
+                f.write(json.dumps(self.unanswered, separators=(",", ":")) + "\n")
+        except OSError as e:
+            sys.stderr.write(f"playback: cannot write {self.folder}/unanswered.jsonl: "
+                             f"{e.strerror}\n")
 
     def command(self, t_us: int, name: str, call: str, args: list[Any]) -> None:
         self.commands.write(json.dumps({"t": t_us, "interface": name, "call": call,
@@ -151,12 +199,49 @@ class Playback:
         self.commands.close()
 
 
-def fake_vehicle(name: str, module: Any) -> Any:
+class Evidence:
+    """What the script holds of a fake at the current instant (Playback.advance sets
+    ``lacks``): None all of it; "interface" or "instant" none of it; else the fields it
+    lacks.  Each query tells the playback when it reads what the script does not hold."""
+
+    lacks: Any = None
+    quiet = False  # the runtime's own reads (the warning at stop) are no query
+    playback: Any = None
+    name = ""
+
+    def _asked(self, query: str, field: str) -> None:
+        lacks = self.lacks
+        if lacks is None or self.quiet or self.playback is None:
+            return
+        if isinstance(lacks, str):
+            self.playback.asked(self.name, query, lacks, None)
+        elif field in lacks:
+            count = self.state.get("count") if field == "frame" else None  # type: ignore[attr-defined]
+            self.playback.asked(self.name, query, field, count)
+
+
+def _guarded(cls: Any, queries: dict[str, str]) -> Any:
+    """``cls`` with each query first telling what it reads (Evidence._asked)."""
+    def wrap(query: str, field: str, base: Any) -> Any:
+        def method(self: Any, *args: Any) -> Any:
+            self._asked(query, field)
+            return base(self, *args)
+        method.__name__ = query
+        method.__doc__ = base.__doc__
+        return method
+
+    for query, field in queries.items():
+        setattr(cls, query, wrap(query, field, getattr(cls, query)))
+    return cls
+
+
+def fake_vehicle(name: str, module: Any, playback: Any = None) -> Any:
     """A vehicle whose snapshot comes from the script; it sends nothing."""
 
-    class Fake(module.VehicleQueries):  # type: ignore[misc]
+    class Fake(Evidence, module.VehicleQueries):  # type: ignore[misc]
         def __init__(self) -> None:
             self.name = name
+            self.playback = playback
             self.on_command = None
             self.state: dict[str, Any] = dict(module.NEVER_HEARD)
             self._snap = self.state
@@ -171,16 +256,24 @@ def fake_vehicle(name: str, module: Any) -> Any:
             self._snap = self.state
             return self._snap
 
-    return Fake()
+        def warning_at_stop(self) -> str | None:
+            self.quiet = True  # the runtime reads the last snapshot: no snippet asks
+            try:
+                return super().warning_at_stop()  # type: ignore[no-any-return]
+            finally:
+                self.quiet = False
+
+    return _guarded(Fake, VEHICLE_QUERIES)()
 
 
-def fake_camera(name: str, module: Any, folder: str) -> Any:
+def fake_camera(name: str, module: Any, folder: str, playback: Any = None) -> Any:
     """A camera whose frames are PNG files named by the script."""
     import cv2
 
-    class Fake(module.CameraQueries):  # type: ignore[misc]
+    class Fake(Evidence, module.CameraQueries):  # type: ignore[misc]
         def __init__(self) -> None:
             self.name = name
+            self.playback = playback
             self.on_frame = None
             self.state: dict[str, Any] = {**module.NO_FRAME, "frame": None}
             self._snap = module.NO_FRAME
@@ -220,5 +313,5 @@ def fake_camera(name: str, module: Any, folder: str) -> Any:
                 self.images = {file: img}  # the frame of the moment: the previous one goes
             return img
 
-    return Fake()
+    return _guarded(Fake, CAMERA_QUERIES)()
 

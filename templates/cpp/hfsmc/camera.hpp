@@ -76,13 +76,13 @@ class Camera : public Feed, public Source {
   cv::Mat frame() const;
 
   /// Seconds since the latest frame arrived; +inf before the first.
-  double age() const { return snap_age_; }
+  double age() const { evidence_.asked("age", "age"); return snap_age_; }
 
   /// Frames are coming: the latest is less than a second old.
-  bool ok() const { return age() < kStaleS; }
+  bool ok() const { evidence_.asked("ok", "age"); return snap_age_ < kStaleS; }
 
   /// Frames received so far (a new one since the last tick when it has grown).
-  long count() const { return snap_count_; }
+  long count() const { evidence_.asked("count", "count"); return snap_count_; }
 
   // -- Source: the snapshot of each instant ---------------------------------------------
   const std::string& source_name() const override { return name(); }
@@ -138,6 +138,7 @@ class Camera : public Feed, public Source {
   playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake
   Fed fed_;
   std::size_t next_ = 0;  // the next entry to apply
+  playback::Evidence evidence_;  // with --playback: what the inputs hold of this instant
   std::string loaded_;  // the file image_ holds
   cv::Mat image_;
   bool warned_ = false;  // said that a frame's pixels are not the recorded ones

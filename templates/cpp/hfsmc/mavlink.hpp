@@ -90,35 +90,35 @@ class Mavlink : public Feed, public Source {
 
   // -- state: the snapshot of the instant (never waits on the network) ----------------
   /// A heartbeat from the vehicle within the last 2 s.
-  bool connected() const { return snap_.heartbeat_age < kLinkTimeoutS; }
+  bool connected() const { evidence_.asked("connected", "heartbeat_age"); return snap_.heartbeat_age < kLinkTimeoutS; }
 
   /// Seconds since the vehicle's last heartbeat; +inf before the first.
-  double heartbeat_age() const { return snap_.heartbeat_age; }
+  double heartbeat_age() const { evidence_.asked("heartbeat_age", "heartbeat_age"); return snap_.heartbeat_age; }
 
   /// The vehicle would accept GUIDED: connected, a 3D GPS fix, an absolute EKF position
   /// (while disarmed a predicted one will do; once armed not in constant-position mode).
-  bool ready() const { return snap_.ready; }
+  bool ready() const { evidence_.asked("ready", "ready"); return snap_.ready; }
 
   /// The vehicle's last heartbeat says its motors are armed.
-  bool armed() const { return snap_.armed; }
+  bool armed() const { evidence_.asked("armed", "armed"); return snap_.armed; }
 
   /// The flight mode's name (GUIDED, LAND, RTL, ...); "" before the first heartbeat.
-  std::string mode() const { return snap_.mode; }
+  std::string mode() const { evidence_.asked("mode", "mode"); return snap_.mode; }
 
   /// (north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any.
-  Eigen::Vector3d position() const { return snap_.position; }
+  Eigen::Vector3d position() const { evidence_.asked("position", "position"); return snap_.position; }
 
   /// m above home (GLOBAL_POSITION_INT.relative_alt, else -down); NaN before any.
-  double altitude() const { return snap_.altitude; }
+  double altitude() const { evidence_.asked("altitude", "altitude"); return snap_.altitude; }
 
   /// (vn, ve, vd) in m/s (LOCAL_POSITION_NED); NaN before any.
-  Eigen::Vector3d velocity() const { return snap_.velocity; }
+  Eigen::Vector3d velocity() const { evidence_.asked("velocity", "velocity"); return snap_.velocity; }
 
   /// Heading in rad (ATTITUDE), 0 north, positive clockwise; NaN before any.
-  double yaw() const { return snap_.yaw; }
+  double yaw() const { evidence_.asked("yaw", "yaw"); return snap_.yaw; }
 
   /// Battery remaining in percent (SYS_STATUS); -1 when unknown.
-  int battery() const { return snap_.battery; }
+  int battery() const { evidence_.asked("battery", "battery"); return snap_.battery; }
 
   /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
   /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
@@ -299,6 +299,7 @@ class Mavlink : public Feed, public Source {
   playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake
   Snap fed_;  // with --playback: the entries applied so far
   std::size_t next_ = 0;  // the next entry to apply
+  playback::Evidence evidence_;  // with --playback: what the inputs hold of this instant
   double rate_ = kFastRateHz;
   double ack_timeout_ = kAckTimeoutS;
   uint8_t sysid_ = 255;

@@ -8,6 +8,14 @@
 // become fakes fed from it (mavlink.hpp, camera.hpp), and every command they are
 // given is appended to DIR/commands.jsonl instead of being sent. Inputs reads the file in
 // src/hfsmc_record.cpp (library hfsmc_runtime).
+//
+// A script that starts with a `recorded` entry is a recorded run (`hfsmc replay`): it holds
+// each interface's snapshot at every instant of that run, and says which values it lacks
+// (a camera frame no snippet read then: `unrecorded`). A query it cannot answer (such a
+// frame, any value at an instant the recorded run did not have, an interface it does not
+// hold) is answered with the "nothing yet" value, and the first one is written to
+// DIR/unanswered.jsonl: from there on the run is no evidence of what the model would have
+// done (templates/python/hfsmc_playback.py does the same).
 #pragma once
 
 #include <sys/stat.h>
@@ -36,6 +44,7 @@ struct Entry {  // a snapshot entry of one interface
     long long t;
     int line;
     json::Value values;  // an object
+    std::vector<std::string> unrecorded;  // fields the recording does not hold then
 };
 struct Skip {
     long long t;
@@ -68,6 +77,11 @@ public:
         return found == by_interface_.end() ? none : found->second;
     }
     const std::vector<Skip>& skips() const { return skips_; }
+    // A recorded run: every interface has a snapshot entry at every instant of that run.
+    bool recorded() const { return recorded_; }
+    // A query the inputs cannot answer: the first one goes to DIR/unanswered.jsonl.
+    void unanswered(long long t, const std::string& iface, const char* query, const std::string& reason,
+                    long long count);
     const std::vector<Signal>& signals() const { return signals_; }
 
     // A command an interface was given: one line of DIR/commands.jsonl, on disk at once.
@@ -121,6 +135,51 @@ private:
     std::vector<Signal> signals_;
     std::FILE* commands_ = nullptr;
     bool broken_ = false;
+    bool recorded_ = false;
+    bool answered_all_ = true;  // no query left unanswered yet
+};
+
+// What the inputs hold of one fake interface at the current instant: each query tells it
+// what it reads (asked), and the first query they cannot answer is written down.
+class Evidence {
+public:
+    // After the entries up to instant t were applied (`last`: the latest applied, or null).
+    void at(Inputs* inputs, const std::string& name, long long t, const Entry* last, long long count) {
+        inputs_ = inputs;
+        name_ = name;
+        t_ = t;
+        count_ = count;
+        lacks_.clear();
+        whole_ = nullptr;
+        if (inputs == nullptr || !inputs->recorded()) return;
+        if (last == nullptr) {
+            whole_ = "interface";  // the recording holds nothing of it
+        } else if (last->t != t) {
+            whole_ = "instant";  // the recorded run had no instant then
+        } else {
+            lacks_ = last->unrecorded;
+        }
+    }
+    void asked(const char* query, const char* field) const {
+        if (inputs_ == nullptr || quiet_ || (whole_ == nullptr && lacks_.empty())) return;
+        if (whole_ != nullptr) {
+            inputs_->unanswered(t_, name_, query, whole_, -1);
+            return;
+        }
+        for (const std::string& f : lacks_)
+            if (f == field) inputs_->unanswered(t_, name_, query, f, f == "frame" ? count_ : -1);
+    }
+    // The runtime's own reads (the warning at stop) are no query.
+    void quiet(bool q) const { quiet_ = q; }
+
+private:
+    Inputs* inputs_ = nullptr;
+    std::string name_;
+    long long t_ = 0;
+    long long count_ = -1;
+    const char* whole_ = nullptr;
+    std::vector<std::string> lacks_;
+    mutable bool quiet_ = false;
 };
 
 // The inputs of this run; nullptr unless --playback was given (set before the automaton
