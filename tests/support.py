@@ -186,6 +186,13 @@ needs_browser = pytest.mark.skipif(
 WEB_URL = r"web view on (http://127\.0\.0\.1:\d+/\?token=[\w-]+) "
 
 
+def screenshot(driver: Any, name: str, tmp_path: Path) -> None:
+    """Saved for a person to look at: in $HFSMC_SCREENSHOTS when set, else beside the test."""
+    folder = Path(os.environ.get("HFSMC_SCREENSHOTS") or tmp_path)
+    folder.mkdir(parents=True, exist_ok=True)
+    assert driver.save_screenshot(str(folder / f"{name}.png"))
+
+
 def chromium(profile: Path, *flags: str) -> Any:
     """Debian's chromium driven by its chromedriver (never a driver Selenium would fetch)."""
     from selenium import webdriver

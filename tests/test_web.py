@@ -47,6 +47,7 @@ from tests.support import (
     many_states,
     needs_browser,
     read_messages,
+    screenshot,
     wait_until,
     write_used_models,
 )
@@ -828,13 +829,6 @@ def moved_on(driver: Any) -> None:
     """Wait until another leaf than the one drawn now is drawn green."""
     seen = green_leaf(page(driver))
     wait_page(driver, lambda s: green_leaf(s) not in (None, seen), timeout=5)
-
-
-def screenshot(driver: Any, name: str, tmp_path: Path) -> None:
-    """Saved for a person to look at: in $HFSMC_SCREENSHOTS when set, else beside the test."""
-    folder = Path(os.environ.get("HFSMC_SCREENSHOTS") or tmp_path)
-    folder.mkdir(parents=True, exist_ok=True)
-    assert driver.save_screenshot(str(folder / f"{name}.png"))
 
 
 async def _garbage(url: str) -> None:
