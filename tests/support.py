@@ -420,10 +420,15 @@ MONITOR_VALIDATOR = _monitor_validator()
 class Client:
     """A raw monitor client: JSON lines, each checked against the schema."""
 
-    def __init__(self, port: int, rcvbuf: int | None = None, timeout: float = 20) -> None:
+    def __init__(self, port: int, rcvbuf: int | None = None, timeout: float = 20,
+                 source: str | None = None) -> None:
+        """Connected to 127.0.0.1:``port``, from the address ``source`` when given (another
+        address of 127.0.0.0/8 is another address to the server)."""
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         if rcvbuf is not None:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        if source is not None:
+            self.sock.bind((source, 0))
         self.sock.settimeout(timeout)
         self.sock.connect(("127.0.0.1", port))
         self.stream = self.sock.makefile("rb")
