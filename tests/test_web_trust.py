@@ -70,6 +70,10 @@ class Web:
     def err(self) -> str:
         return self.p.err_path.read_text()
 
+    def says(self, text: str, timeout: float = 5) -> bool:
+        """Whether ``text`` appears on the web view's stderr within ``timeout`` seconds."""
+        return wait_until(lambda: text in self.err(), timeout)
+
 
 @pytest.fixture
 def web(logged: Callable[..., Process], tmp_path: Path) -> Web:
@@ -131,9 +135,9 @@ def test_the_websocket_opens_only_for_the_page_s_own_origin(web: Web) -> None:
     # A browser's request for a file or a drawing from another site, even with the cookie.
     for site in ("cross-site", "same-site"):
         for path in ("/app.js", "/sub?state=Blinking", "/ws"):
-            headers = {"Cookie": web.cookie, "Sec-Fetch-Site": site, "Sec-Fetch-Mode": "no-cors",
-                       **(HANDSHAKE if path == "/ws" else {})}
-            assert web.ask(path, headers)[0] == 403, (site, path)
+            asked = {"Cookie": web.cookie, "Sec-Fetch-Site": site, "Sec-Fetch-Mode": "no-cors",
+                     **(HANDSHAKE if path == "/ws" else {})}
+            assert web.ask(path, asked)[0] == 403, (site, path)
     # A link from another site to the token's URL: a redirect would lose a SameSite=Strict
     # cookie, so the page sets it and goes on to the clean URL itself.
     status, headers, text = web.ask(f"/?token={web.token}", {"Sec-Fetch-Site": "cross-site",
@@ -265,8 +269,7 @@ def test_a_page_of_another_origin_cannot_use_the_web_view(
             driver.get(f"{origin}/attack.html")
             seen = attacked(driver)
             assert seen == {"ws": ["close"], "fetch": "refused"}, (origin, seen)
-            assert wait_until(lambda o=origin: f"refused GET /ws: a page of another origin ({o})"
-                              in web.err(), 5), web.err()
+            assert web.says(f"refused GET /ws: a page of another origin ({origin})"), web.err()
             driver.switch_to.frame(driver.find_element("id", "frame"))
             assert driver.find_elements("id", "hv-diagram") == []  # not drawn in a frame
             driver.switch_to.default_content()
@@ -275,7 +278,7 @@ def test_a_page_of_another_origin_cannot_use_the_web_view(
     saved.write_text(attack)
     driver.get(saved.as_uri())
     assert attacked(driver) == {"ws": ["close"], "fetch": "refused"}
-    assert wait_until(lambda: "refused GET /ws: a page of another origin (null)" in web.err(), 5)
+    assert web.says("refused GET /ws: a page of another origin (null)"), web.err()
     # The user's page still works.
     driver.get(f"http://127.0.0.1:{web.port}/")
     assert wait_until(lambda: the_view_is_shown(driver), 15)
