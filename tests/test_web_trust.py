@@ -13,6 +13,7 @@ import http.client
 import http.server
 import json
 import re
+import signal
 import sys
 import threading
 import time
@@ -315,3 +316,20 @@ def test_a_link_from_another_site_opens_the_page(web: Web, browsers: Callable[..
         assert wait_until(lambda: the_view_is_shown(driver), 15), driver.page_source[:500]
     assert driver.current_url == f"http://127.0.0.1:{web.port}/"
 
+
+
+@needs_browser
+def test_a_page_left_open_across_a_restart_says_its_token_is_not_accepted(
+        logged: Callable[..., Process], browsers: Callable[..., Any], tmp_path: Path) -> None:
+    web = Web(logged, tmp_path, "0")
+    driver = browsers()
+    driver.get(web.url)
+    assert wait_until(lambda: the_view_is_shown(driver), 15)
+    assert web.p.kill(signal.SIGTERM) == 0
+    again = Web(logged, tmp_path, str(web.port))  # the same port, a new token
+    banner = ("this page's token is not accepted (the web view was started again?): open the "
+              "URL hfsmc view printed")
+    assert wait_until(lambda: driver.find_element("id", "hv-banner").text == banner, 15)
+    assert again.says("refused GET /ws: no token")
+    driver.get(again.url)
+    assert wait_until(lambda: the_view_is_shown(driver), 15)
