@@ -121,6 +121,9 @@ def test_a_sub_automaton_is_drawn_alone_from_the_picture_s_model() -> None:
         assert await bridge.sub_svg("Blinking") is sub  # drawn once
         for wrong in ("Paused", "Nope", "", "Blinking/Lit"):
             assert await bridge.sub_svg(wrong) is None, wrong
+        for n in range(2000):  # junk paths draw nothing and are not kept
+            assert await bridge.sub_svg(f"Nope{n}/" + "x" * 500) is None
+        assert set(bridge._subs) == {"Blinking"}
 
     asyncio.run(asyncio.wait_for(story(), 20))
 
