@@ -94,6 +94,8 @@ CODES: dict[str, str] = {
     "E145": "`goto` called as a method in a C++ snippet: the method is `go_to`",
     "E146": "active() with a literal path that names no state",
     "E147": "bracket left open or closed without opening in a C++ snippet",
+    "E148": "an interface has no such method or attribute (a Python snippet)",
+    "E149": "an interface method called with arguments its parameters do not take (a Python snippet)",
     # output
     "E150": "output cannot be written (a value the output format cannot hold, a failing tool)",
     # warnings

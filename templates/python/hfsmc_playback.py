@@ -164,6 +164,9 @@ def fake_vehicle(name: str, module: Any) -> Any:
         def __repr__(self) -> str:
             return f"<mavlink {name} (playback)>"
 
+        def close(self) -> None:
+            """Nothing to stop (the real one's reader thread and socket)."""
+
         def apply(self, values: dict[str, Any]) -> None:
             self.state = {**self.state, **values}
 
@@ -192,6 +195,9 @@ def fake_camera(name: str, module: Any, folder: str) -> Any:
 
         def __repr__(self) -> str:
             return f"<camera {name} (playback)>"
+
+        def close(self) -> None:
+            """Nothing to stop (the real one's grabber)."""
 
         def apply(self, values: dict[str, Any]) -> None:
             self.state = {**self.state, **values}

@@ -725,7 +725,9 @@ def reporter(sources: Sequence[tuple[str, str, int, int]], snippets: Sequence[tu
             if hit is not None:
                 head = hit
                 body.append(f"  {file}:{hit[1]} in {where(hit[0])}\n    {(fs.line or '').strip()}\n")
-            elif os.path.abspath(fs.filename) != runtime:
+            elif os.path.abspath(fs.filename) != runtime and not (
+                    fs.name == "__getattr__" and os.path.dirname(os.path.abspath(fs.filename))
+                    == os.path.dirname(runtime)):  # a driver naming what it lacks: its own words
                 body.append(f'  File "{fs.filename}", line {fs.lineno}, in {fs.name}\n'
                             f"    {(fs.line or '').strip()}\n")
         what = "".join(traceback.format_exception_only(type(exc), exc)).strip()
