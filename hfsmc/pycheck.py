@@ -480,6 +480,10 @@ def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver]
         method = d.methods.get(node.attr)
         if method is None and node.attr not in d.names:
             _unknown_member(sn, iface, d, node.attr, where, diags)
+        elif method is None and id(node) in called:  # name, url: called as C++ has them
+            diags.error("E148", f"`{iface}.{node.attr}` is an attribute in Python, not a "
+                        f"method: write `{iface}.{node.attr}` (C++: `{iface}.{node.attr}()`)",
+                        where)
         elif method is not None and id(node) in called:
             _check_arguments(sn, iface, method, called[id(node)], where, diags)
 

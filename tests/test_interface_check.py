@@ -62,7 +62,8 @@ drone.takeoff()
 drone.goto(1, 2, 3, 4)
 drone.takeoff(3, alt=3)
 drone.land(now=True)
-y = drone.altitud""")
+y = drone.altitud
+z = cam.url()""")
     assert found(text) == [
         ("E148", 12, 13, "`drone` (mavlink interface) has no method `fly_to`"),
         ("E148", 13, 15, "`cam` (camera interface) has no method `frames`"),
@@ -72,6 +73,8 @@ y = drone.altitud""")
         ("E149", 17, 13, "`drone.takeoff` takes 1 argument (alt): `alt` given twice"),
         ("E149", 18, 13, "`drone.land` takes no arguments: no parameter `now`"),
         ("E148", 19, 17, "`drone` (mavlink interface) has no method `altitud`"),
+        ("E148", 20, 15, "`cam.url` is an attribute in Python, not a method: write `cam.url` "
+                         "(C++: `cam.url()`)"),
     ]
     notes = {d.message: d.notes for d in compile_file("m.yaml", text).diagnostics}
     assert notes["`cam` (camera interface) has no method `frames`"] == ("did you mean `frame`?",)
