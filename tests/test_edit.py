@@ -14,7 +14,9 @@ import pytest
 
 from hfsmc.edit.session import Conflict, EditSession
 from hfsmc.edit.text import EditError, TextEdit, apply_edits
+from hfsmc.edit.xml_ops import XmlOps
 from hfsmc.edit.yaml_ops import YamlOps
+from hfsmc.pipeline import compile_file
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
@@ -165,3 +167,44 @@ def regenerate() -> None:
 
 if __name__ == "__main__" and "--regen" in sys.argv:
     regenerate()
+
+
+XML = ROOT / "examples" / "traffic_light" / "traffic_light.xml"
+
+
+def xml_diff(edit: Callable[[XmlOps], list[TextEdit]]) -> str:
+    text = XML.read_text()
+    new = apply_edits(text, edit(XmlOps(text)))
+    assert not [d for d in compile_file(str(XML), new).diagnostics if d.severity == "error"], new
+    return "".join(x for x in difflib.unified_diff(text.splitlines(True), new.splitlines(True), n=0)
+                   if x[:1] in "+-" and x[:3] not in ("+++", "---"))
+
+
+def test_xml_operations_keep_the_formatting() -> None:
+    assert xml_diff(lambda o: o.rename("Amber", "Yellow")) == (
+        '-      <transition name="button" to="Amber">\n'
+        '+      <transition name="button" to="Yellow">\n'
+        '-    <state name="Amber">\n'
+        '+    <state name="Yellow">\n')
+    assert xml_diff(lambda o: o.rename("Green", "Go")).count("Go") == 3  # name, initial, to
+    assert xml_diff(lambda o: o.set_state_field("Amber", "exit", 'log("x < y")')) == (
+        '+      <exit>log("x &lt; y")</exit>\n')
+    assert xml_diff(lambda o: o.set_state_field("", "period", "50ms")) == (
+        '-  <automaton period="100ms" initial="Green">\n'
+        '+  <automaton period="50ms" initial="Green">\n')
+    assert xml_diff(lambda o: o.add_state("", "Off", {"final": True})) == (
+        '+    <state name="Off" final="true"/>\n')
+    moved = xml_diff(lambda o: o.move_state("Night", 0))
+    assert moved == '+    <state name="Night" final="true"/>\n-    <state name="Night" final="true"/>\n'
+    text = XML.read_text()
+    deleted = apply_edits(text, XmlOps(text).delete_state("Amber"))
+    assert '<state name="Amber">' not in deleted and deleted.count("\n") == text.count("\n") - 6
+    assert apply_edits(deleted, XmlOps(deleted).set_state_field("Night", "entry", "log('n')")).count(
+        "<entry>log('n')</entry>") == 1
+
+
+def test_xml_session_renames_and_undoes() -> None:
+    s = EditSession(str(XML), XML.read_text())
+    s.apply(lambda o: o.rename("Red", "Stop"))
+    assert 'name="Stop"' in s.text and not [d for d in s.diagnostics if d.severity == "error"]
+    assert s.undo() and s.text == XML.read_text()

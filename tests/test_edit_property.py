@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -29,7 +30,7 @@ SETTINGS = settings(max_examples=40, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow])
 
 
-def _ops(o: YamlOps, draw: st.DrawFn) -> list[TextEdit]:
+def _ops(o: YamlOps, draw: Any) -> list[TextEdit]:
     states = sorted(p for p, e in o.index.elements.items() if e.kind == "state")
     kind = draw(st.sampled_from(["add", "delete", "move", "set", "clear", "transition", "param",
                                  "import", "paste", "wrap"]))

@@ -27,7 +27,7 @@ pytestmark = pytest.mark.asyncio(loop_scope="module")
 
 @pytest_lsp.fixture(config=ClientServerConfig(server_command=[sys.executable, "-m", "hfsmc", "lsp"],
                                               server_env={"HFSMC_LSP_DEBOUNCE_MS": "20"}),
-                    scope="module")
+                    scope="module")  # type: ignore[untyped-decorator]
 async def client(lsp_client: LanguageClient):  # type: ignore[no-untyped-def]
     await lsp_client.initialize_session(types.InitializeParams(
         capabilities=client_capabilities("visual-studio-code"), root_uri=ROOT.as_uri()))

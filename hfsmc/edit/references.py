@@ -115,9 +115,9 @@ class Index:
             for k, v in zip(with_.keys, with_.items, strict=True):
                 if v.kind == "scalar":
                     for m in _DOLLAR.finditer(v.value):
-                        s = self.tree.text.find("$" + m.group(1), v.start, v.end + 1)
-                        if s >= 0:
-                            self.refs.append(Ref("parameter", m.group(1), s + 1, s + 1 + len(m.group(1)),
+                        at = self.tree.text.find("$" + m.group(1), v.start, v.end + 1)
+                        if at >= 0:
+                            self.refs.append(Ref("parameter", m.group(1), at + 1, at + 1 + len(m.group(1)),
                                                  False, "with", (*dpath, "with", k.value)))
         trans = node.get("transitions")
         if trans is not None and trans.kind == "seq":
@@ -154,7 +154,7 @@ class Index:
             walked = ""
             for seg in m.group(2).split("/"):
                 if seg:
-                    walked = walked + "/" + seg if walked else seg
+                    walked = f"{walked}/{seg}" if walked else seg
                     self.refs.append(Ref("state", walked, pos, pos + len(seg), False, "active", dpath))
                 pos += len(seg) + 1
         if not self.names:

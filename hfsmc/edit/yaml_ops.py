@@ -77,9 +77,9 @@ class YamlOps:
                 and node.get("regions") is not None:
             raise EditError(f"`{parent}` has regions: add the state to one of them")
         edits = splice.add_entry(self.sp, (*owner, "states"), name, body or {}, index)
-        if states is None or states.kind == "map" and not states.keys:
-            if node is None or node.get("initial") is None:
-                edits = self._also(edits, lambda sp: _set_initial(sp, owner, name))
+        if (states is None or (states.kind == "map" and not states.keys)) and \
+                (node is None or node.get("initial") is None):
+            edits = self._also(edits, lambda sp: _set_initial(sp, owner, name))
         return edits
 
     def _also(self, first: list[TextEdit], more: Any) -> list[TextEdit]:
@@ -215,7 +215,7 @@ class YamlOps:
         (name,) = data
         name = str(name)
         siblings = {p.rsplit("/", 1)[-1] for p in self.index.elements
-                    if p.rsplit("/", 1)[0] == parent and "/" in p or not parent and "/" not in p}
+                    if (p.rsplit("/", 1)[0] == parent and "/" in p) or (not parent and "/" not in p)}
         new, n = name, 2
         while new in siblings:
             new, n = f"{name}{n}", n + 1

@@ -70,8 +70,7 @@ def scalar(value: Any, hint: str, flow: bool, indent: int, nl: str) -> str:
     s = str(value)
     if is_multiline(s) or hint in ("|", ">"):
         if not flow:
-            return block_scalar(s if hint in ("|", ">") or s.endswith("\n") or "\n" in s else s,
-                                indent, nl)
+            return block_scalar(s, indent, nl)
         return quoted(s, '"')
     if hint in ("'", '"'):
         return quoted(s, hint)

@@ -143,18 +143,16 @@ def delete(sp: Splicer, path: PathKey) -> list[TextEdit]:
     """Remove the entry at ``path`` (a mapping's key or a list's item)."""
     parent = _container(sp, path[:-1])
     sp.node(path)
-    i = parent.key_index(path[-1]) if parent.kind == "map" else path[-1]
+    i = parent.key_index(str(path[-1])) if parent.kind == "map" else path[-1]
     assert isinstance(i, int)
     s, e = sp.entry_range(parent, i)
     edits = [TextEdit(s, e, "")]
-    if not parent.flow and len(parent.items) == 1:
+    owner = sp.tree.find_key(path[:-1]) if len(path) >= 2 else None
+    if not parent.flow and len(parent.items) == 1 and owner is not None:
         # the last entry of a block collection: it becomes `{}` or `[]`
-        if len(path) >= 2:
-            owner = sp.tree.find_key(path[:-1])
-            if owner is not None:
-                at = sp.colon_after(owner)
-                if at <= s:
-                    edits.insert(0, TextEdit(at, at, " {}" if parent.kind == "map" else " []"))
+        at = sp.colon_after(owner)
+        if at <= s:
+            edits.insert(0, TextEdit(at, at, " {}" if parent.kind == "map" else " []"))
     if e == len(sp.text) and not sp.text[s:e].endswith(("\n", "\r")) and s > 0:
         edits[-1] = TextEdit(s - len(sp.nl) if sp.text[s - 1] in "\r\n" else s, e, "")
     return edits
@@ -182,8 +180,8 @@ def set_value(sp: Splicer, path: PathKey, value: Any, hint: str | None = None) -
             return [TextEdit(node.start, node.end, (" " if sp.text[node.start - 1:node.start] == ":"
                                                     else "") + new)]
         return [TextEdit(node.start, node.end, new)]
-    if flow or node.flow and not isinstance(value, (dict, list)) or \
-            node.flow and render.fits_flow(value):
+    if flow or (node.flow and not isinstance(value, (dict, list))) or \
+            (node.flow and render.fits_flow(value)):
         if not isinstance(value, (dict, list)):
             return [TextEdit(node.start, node.end, render.scalar(value, hint or "", flow, 0, sp.nl))]
         return [TextEdit(node.start, node.end, render.flow(value, hint or ""))]
@@ -231,7 +229,7 @@ def add_entry(sp: Splicer, map_path: PathKey, key: str, value: Any, index: int |
     """Add ``key: value`` to the mapping at ``map_path`` (created when absent), at
     ``index`` among its entries (default: last)."""
     node = sp.tree.find(map_path)
-    if node is None or node.kind == "scalar" and not node.value and not node.style:
+    if node is None or (node.kind == "scalar" and not node.value and not node.style):
         if node is None and not map_path:
             raise EditError("the document is empty")
         if node is None:
@@ -278,7 +276,7 @@ def add_item(sp: Splicer, seq_path: PathKey, value: Any, index: int | None = Non
              hint: str | None = None) -> list[TextEdit]:
     """Add ``value`` to the list at ``seq_path`` (created when absent) at ``index``."""
     node = sp.tree.find(seq_path)
-    if node is None or node.kind == "scalar" and not node.value and not node.style:
+    if node is None or (node.kind == "scalar" and not node.value and not node.style):
         return set_value(sp, seq_path, [value], hint)
     node = sp.node(seq_path)
     if node.kind != "seq":
@@ -302,7 +300,7 @@ def move(sp: Splicer, path: PathKey, index: int) -> list[TextEdit]:
     """Move the entry at ``path`` to position ``index`` among its siblings."""
     parent = _container(sp, path[:-1])
     sp.node(path)
-    i = parent.key_index(path[-1]) if parent.kind == "map" else path[-1]
+    i = parent.key_index(str(path[-1])) if parent.kind == "map" else path[-1]
     assert isinstance(i, int)
     n = len(parent.items)
     index = max(0, min(index, n - 1))

@@ -14,7 +14,7 @@ Offsets are indices into the Python string (characters, not bytes).
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,9 +23,11 @@ import yaml
 from hfsmc.frontend.source import PathKey
 
 try:
-    from yaml._yaml import CParser as _Parser
+    from yaml._yaml import CParser
 except ImportError:  # PyYAML without libyaml
-    _Parser = None
+    HAVE_C = False
+else:
+    HAVE_C = True
 
 _BREAK = re.compile(r"\r\n|\r|\n")
 
@@ -139,8 +141,8 @@ class YamlTree:
 
 
 def _events(text: str) -> list[Any]:
-    if _Parser is not None:
-        parser = _Parser(text)
+    if HAVE_C:
+        parser = CParser(text)
         out: list[Any] = []
         try:
             while True:
@@ -166,7 +168,7 @@ def _read(tree: YamlTree, text: str) -> Node | None:
     for ev in _events(text):
         if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
             kind = "map" if isinstance(ev, yaml.MappingStartEvent) else "seq"
-            start = off(ev.start_mark.line, ev.start_mark.column)
+            start = _at(off, ev.start_mark)
             node = Node(kind, start, start, "flow" if ev.flow_style else "block", anchor=ev.anchor)
             _attach(stack, node)
             if not stack and root is None:
@@ -175,14 +177,14 @@ def _read(tree: YamlTree, text: str) -> Node | None:
         elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
             node = stack.pop()
             if node.flow:
-                node.end = off(ev.end_mark.line, ev.end_mark.column)
+                node.end = _at(off, ev.end_mark)
             else:
                 node.end = max((c.end for c in (*node.keys, *node.items)), default=node.start)
             if node.anchor:
                 anchors[node.anchor] = node
         elif isinstance(ev, yaml.ScalarEvent):
-            start = off(ev.start_mark.line, ev.start_mark.column)
-            end = off(ev.end_mark.line, ev.end_mark.column)
+            start = _at(off, ev.start_mark)
+            end = _at(off, ev.end_mark)
             style = ev.style or ""
             if style in ("|", ">"):
                 while end > start and text[end - 1] in " \t\r\n":
@@ -195,14 +197,19 @@ def _read(tree: YamlTree, text: str) -> Node | None:
             else:
                 _attach(stack, node)
         elif isinstance(ev, yaml.AliasEvent):
-            start = off(ev.start_mark.line, ev.start_mark.column)
-            end = off(ev.end_mark.line, ev.end_mark.column)
-            node = Node("alias", start, end, "", ev.anchor, target=anchors.get(ev.anchor))
+            start = _at(off, ev.start_mark)
+            end = _at(off, ev.end_mark)
+            name = ev.anchor or ""
+            node = Node("alias", start, end, "", name, target=anchors.get(name))
             if stack:
                 _attach(stack, node)
         elif isinstance(ev, yaml.DocumentEndEvent) and root is not None:
             break
     return root
+
+
+def _at(off: Callable[[int, int], int], mark: Any) -> int:
+    return off(mark.line, mark.column) if mark is not None else 0
 
 
 def _attach(stack: list[Node], node: Node) -> None:

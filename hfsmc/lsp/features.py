@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -123,7 +124,10 @@ def symbols(a: Analysis) -> list[types.DocumentSymbol]:
             range=a.lines.range(el.key.start, end), selection_range=a.lines.range(el.key.start, el.key.end),
             children=[])
         parent = by_path.get(path.rsplit("/", 1)[0]) if "/" in path else None
-        (parent.children if parent is not None and parent.children is not None else roots).append(sym)
+        if parent is not None and isinstance(parent.children, list):
+            parent.children.append(sym)
+        else:
+            roots.append(sym)
         by_path[path] = sym
     return roots
 
@@ -154,7 +158,7 @@ def context_of(path: tuple[Any, ...]) -> str | None:
     if len(path) >= 2 and path[-2] == "regions":
         return "region"
     if len(path) == 2 and path[0] in ("parameters", "interfaces"):
-        return path[0][:-1]
+        return str(path[0])[:-1]
     return None
 
 
@@ -266,7 +270,8 @@ def _describe(ref: Ref) -> str:
 
 # ----- code actions
 
-def code_actions(a: Analysis, uri: str, diagnostics: list[types.Diagnostic]) -> list[types.CodeAction]:
+def code_actions(a: Analysis, uri: str,
+                 diagnostics: Sequence[types.Diagnostic]) -> list[types.CodeAction]:
     out: list[types.CodeAction] = []
     for d in diagnostics:
         data = d.data if isinstance(d.data, dict) else {}

@@ -7,7 +7,6 @@ import re
 from lsprotocol import types
 
 
-
 def utf16_col(line: str, chars: int) -> int:
     """The UTF-16 column of the character column ``chars`` of ``line``."""
     head = line[:chars]
