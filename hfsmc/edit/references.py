@@ -13,6 +13,7 @@ or built at run time is not seen.
 
 from __future__ import annotations
 
+import gc
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -60,6 +61,15 @@ class Index:
     """The definitions and references of one YAML text."""
 
     def __init__(self, tree: YamlTree) -> None:
+        was = gc.isenabled()
+        gc.disable()  # many small objects that stay: see hfsmc/pipeline.py
+        try:
+            self._build(tree)
+        finally:
+            if was:
+                gc.enable()
+
+    def _build(self, tree: YamlTree) -> None:
         self.tree = tree
         self.refs: list[Ref] = []
         self.elements: dict[str, Element] = {}

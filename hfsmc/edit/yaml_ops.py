@@ -31,9 +31,10 @@ def _ident(name: str, what: str) -> None:
 class YamlOps:
     """Operations on one YAML text; each returns the edits that make it."""
 
-    def __init__(self, text: str) -> None:
-        self.sp = Splicer(text)
-        self.index = Index(self.sp.tree)
+    def __init__(self, text: str, index: Index | None = None) -> None:
+        """``index``: one already built for this text (the language server keeps one)."""
+        self.sp = Splicer(text, index.tree if index is not None else None)
+        self.index = index if index is not None and index.tree is self.sp.tree else Index(self.sp.tree)
 
     @property
     def text(self) -> str:

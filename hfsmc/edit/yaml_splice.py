@@ -23,9 +23,9 @@ _COMMENT_LINE = re.compile(r"[ ]*#")
 class Splicer:
     """A YAML text, its tree, its line break and indentation step."""
 
-    def __init__(self, text: str) -> None:
+    def __init__(self, text: str, tree: YamlTree | None = None) -> None:
         self.text = text
-        self.tree = YamlTree(text)
+        self.tree = tree if tree is not None and tree.text == text else YamlTree(text)
         self.nl = newline_of(text)
         self.step = self._step()
 

@@ -13,6 +13,7 @@ Offsets are indices into the Python string (characters, not bytes).
 
 from __future__ import annotations
 
+import gc
 import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -72,7 +73,15 @@ class YamlTree:
     def __init__(self, text: str) -> None:
         self.text = text
         self.line_starts = [0] + [m.end() for m in _BREAK.finditer(text)]
-        self.root: Node | None = _read(self, text)
+        # Hundreds of thousands of small objects that all stay alive: the cyclic collector's
+        # passes over them cost more than the read itself (as in hfsmc/pipeline.py).
+        was = gc.isenabled()
+        gc.disable()
+        try:
+            self.root: Node | None = _read(self, text)
+        finally:
+            if was:
+                gc.enable()
 
     def offset(self, line: int, col: int) -> int:
         """The offset of a 0-based (line, column)."""

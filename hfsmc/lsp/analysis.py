@@ -1,10 +1,11 @@
 """What the language server knows of one document: `check`'s diagnostics for its
-text, and (for YAML) its tree and reference index, the last good ones kept while
-the text does not parse (a document mid-typing)."""
+text, and (for YAML) its tree and reference index, built when a request needs them,
+from the last text that parsed (a document mid-typing keeps its last good symbols)."""
 
 from __future__ import annotations
 
 import re
+import threading
 from dataclasses import dataclass, field
 
 import yaml
@@ -21,6 +22,8 @@ from hfsmc.pipeline import compile_file
 _MODEL = re.compile(r"^hfsm[ \t]*:", re.MULTILINE)
 _DID_YOU_MEAN = re.compile(r"did you mean `([^`]+)`\?")
 _WORD = re.compile(r"[\w$./\"'-]*")
+# Codes that say the text is not YAML (or XML) at all: its tree is the last good one.
+SYNTAX = frozenset({"E001", "E002", "E003", "E006"})
 
 
 def is_model(text: str) -> bool:
@@ -31,6 +34,25 @@ def is_model(text: str) -> bool:
 
 
 @dataclass
+class Source:
+    """A text that parses, and its tree and index once built (shared by the analyses
+    of later texts that do not parse)."""
+
+    text: str
+    _index: Index | None = None
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def index(self) -> Index | None:
+        with self._lock:
+            if self._index is None:
+                try:
+                    self._index = Index(YamlTree(self.text))
+                except yaml.YAMLError:
+                    return None
+            return self._index
+
+
+@dataclass
 class Analysis:
     """One version of a document, checked."""
 
@@ -38,9 +60,25 @@ class Analysis:
     text: str
     lines: Lines
     diagnostics: list[Diagnostic] = field(default_factory=list)
-    tree: YamlTree | None = None
-    index: Index | None = None
-    parsed: bool = False  # the tree is this text's (not the last good one)
+    source: Source | None = None  # this text, or the last one that parsed
+
+    @property
+    def parsed(self) -> bool:
+        return self.source is not None and self.source.text == self.text
+
+    @property
+    def index(self) -> Index | None:
+        return self.source.index() if self.source is not None else None
+
+    @property
+    def tree(self) -> YamlTree | None:
+        index = self.index
+        return index.tree if index is not None else None
+
+    def for_text(self, text: str) -> Analysis:
+        """This analysis read against newer ``text`` (completion reads the line as typed,
+        the tree as last checked)."""
+        return Analysis(self.path, text, Lines(text), self.diagnostics, self.source)
 
 
 def analyse(path: str, text: str, last: Analysis | None, cxx: bool = False) -> Analysis:
@@ -48,13 +86,11 @@ def analyse(path: str, text: str, last: Analysis | None, cxx: bool = False) -> A
     a = Analysis(path, text, Lines(text))
     a.diagnostics = compile_file(path, text, cxx=cxx).diagnostics
     if not is_xml(text):
-        try:
-            a.tree = YamlTree(text)
-            a.index = Index(a.tree)
-            a.parsed = True
-        except yaml.YAMLError:
-            if last is not None:
-                a.tree, a.index = last.tree, last.index
+        broken = any(d.code in SYNTAX and d.span.file == path for d in a.diagnostics)
+        if not broken:
+            a.source = Source(text)
+        elif last is not None:
+            a.source = last.source
     return a
 
 

@@ -93,7 +93,7 @@ def rename(a: Analysis, offset: int, new: str) -> types.WorkspaceEdit:
     ref = a.index.at(offset)
     if ref is None or ref.kind == "file":
         raise EditError("no state, region, parameter, variable or interface here")
-    ops = YamlOps(a.text)
+    ops = YamlOps(a.text, a.index)
     if ref.kind in ("state", "region"):
         if ref.target not in a.index.elements:
             raise EditError(f"`{ref.target}` is not defined in this file (a used file's states "

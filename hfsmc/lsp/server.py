@@ -193,8 +193,8 @@ def completion(ls: HfsmcServer, params: types.CompletionParams) -> types.Complet
         return types.CompletionList(False, [])
     text = ls.text(params.text_document.uri)
     a = doc.analysis
-    if a.text != text:  # completion reads the line as typed, the tree as last checked
-        a = Analysis(a.path, text, type(a.lines)(text), a.diagnostics, a.tree, a.index, False)
+    if a.text != text:
+        a = a.for_text(text)
     return types.CompletionList(False, features.completion(a, a.lines.offset(params.position)))
 
 
