@@ -41,13 +41,13 @@ class Bench:
         self.client = LanguageClient("bench", "1")
         self.waiting: dict[str, asyncio.Future[list[types.Diagnostic]]] = {}
 
-        @self.client.feature(types.TEXT_DOCUMENT_PUBLISH_DIAGNOSTICS)
+        @self.client.feature(types.TEXT_DOCUMENT_PUBLISH_DIAGNOSTICS)  # type: ignore[untyped-decorator]
         def diagnostics(params: types.PublishDiagnosticsParams) -> None:
             fut = self.waiting.pop(params.uri, None)
             if fut is not None and not fut.done():
                 fut.set_result(list(params.diagnostics))
 
-        @self.client.feature(types.WINDOW_SHOW_MESSAGE)
+        @self.client.feature(types.WINDOW_SHOW_MESSAGE)  # type: ignore[untyped-decorator]
         def message(params: types.ShowMessageParams) -> None:
             pass
 
@@ -113,7 +113,7 @@ class Bench:
     async def stop(self) -> None:
         await self.client.shutdown_async(None)
         self.client.exit(None)
-        await self.client.stop()
+        await self.client.stop()  # type: ignore[no-untyped-call]
 
 
 def peak_rss_mib(pid: int) -> float:
