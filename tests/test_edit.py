@@ -208,3 +208,22 @@ def test_xml_session_renames_and_undoes() -> None:
     s.apply(lambda o: o.rename("Red", "Stop"))
     assert 'name="Stop"' in s.text and not [d for d in s.diagnostics if d.severity == "error"]
     assert s.undo() and s.text == XML.read_text()
+
+
+def test_merge_keeps_everything_and_unshares_an_alias_that_differs() -> None:
+    import copy
+
+    from hfsmc.edit.merge import merge_into
+    from hfsmc.errors import Diagnostics
+    from hfsmc.frontend.yaml import load_yaml
+
+    text = MODEL.read_text()
+    data = load_yaml("m.yaml", text, Diagnostics()).data
+    assert merge_into(text, data) == text
+    new = copy.deepcopy(data)
+    new["states"]["Mission"]["states"]["FollowBlue"]["states"]["Track"]["during"] = "steer(seen, 2)"
+    merged = merge_into(text, new)
+    assert load_yaml("m.yaml", merged, Diagnostics()).data == new
+    assert merged.count("*follow") == 2 and "steer(seen, 2)" in merged
+    a, b = text.splitlines(), merged.splitlines()
+    assert a[:a.index("        states: *follow")] == b[:a.index("        states: *follow")]

@@ -32,12 +32,16 @@ def convert_model(result: Result, out: Path) -> list[str]:
                 existing = None
         if existing is not None and _is_model(existing):
             from hfsmc.edit.merge import merge_into
+            from hfsmc.edit.text import EditError
             from hfsmc.emit.data import model_to_data
 
             data = model_to_data(model)
             if "\nlanguage:" not in "\n" + existing and data.get("language") == "python":
                 del data["language"]  # the default, which the user left out
-            text = merge_into(existing, data)
+            try:
+                text = merge_into(existing, data)
+            except EditError as e:
+                raise UsageError(f"{out}: cannot be edited in place ({e}); write another file") from None
         else:
             existing = None
             text = to_yaml(model, out)

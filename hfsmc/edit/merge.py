@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from hfsmc.edit import yaml_render as render
 from hfsmc.edit import yaml_splice as splice
 from hfsmc.edit.text import EditError, TextEdit, apply_edits
 from hfsmc.edit.yaml_splice import Splicer
@@ -24,7 +25,12 @@ def merge_into(text: str, new: dict[str, Any]) -> str:
     for _ in range(MAX_STEPS):
         old = load_yaml("<merge>", text, Diagnostics()).data
         sp = Splicer(text)
-        edits = _diff(sp, (), old, new)
+        try:
+            edits = _diff(sp, (), old, new)
+        except _Shared as e:
+            # a value written once under an anchor and shared through an alias differs in
+            # this copy only: the alias is replaced by the copy's own value
+            edits = _unshare(sp, e.path, new)
         if not edits:
             return text
         text = apply_edits(text, edits)
@@ -32,7 +38,40 @@ def merge_into(text: str, new: dict[str, Any]) -> str:
 
 
 
+class _Shared(Exception):
+    def __init__(self, path: PathKey) -> None:
+        self.path = path
+
+
+def _unshare(sp: Splicer, path: PathKey, new: Any) -> list[TextEdit]:
+    for i in range(len(path) + 1):
+        node = sp.tree.root
+        for k in path[:i]:
+            node = node.get(k) if node is not None else None
+        if node is not None and node.kind == "alias":
+            value = new
+            for k in path[:i]:
+                value = value[k]
+            flow = sp.in_flow(path[:i])
+            text = render.flow(value) if flow or render.fits_flow(value) else \
+                render.after_key(value, sp.col(_key_start(sp, path[:i])), sp.step, sp.nl)
+            if not flow and not render.fits_flow(value):
+                colon = sp.colon_after(sp.tree.find_key(path[:i]))  # type: ignore[arg-type]
+                return [TextEdit(colon, node.end, text)]
+            return [TextEdit(node.start, node.end, text)]
+    raise EditError(f"{'/'.join(map(str, path))}: cannot be edited")
+
+
+def _key_start(sp: Splicer, path: PathKey) -> int:
+    key = sp.tree.find_key(path)
+    if key is None:
+        raise EditError("an alias in a list")
+    return key.start
+
+
 def _diff(sp: Splicer, path: PathKey, old: Any, new: Any) -> list[TextEdit] | None:
+    if sp.tree.shared(path) is not None and old != new:
+        raise _Shared(path)
     if isinstance(old, dict) and isinstance(new, dict):
         for k in old:
             if k not in new:
