@@ -26,17 +26,29 @@ FILES = sorted({*ROOT.glob("examples/**/*.yaml"), *ROOT.glob("tests/conformance/
                 *ROOT.glob("tests/legacy/golden/*.yaml")})
 MODELS = [p for p in FILES if p.read_text().lstrip().startswith(("hfsm:", "#")) and
           "\nhfsm:" in "\n" + p.read_text()]
+APPLIED: list[int] = []  # operations made, over the whole run (see the last test)
 SETTINGS = settings(max_examples=40, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow])
 
 
-def _ops(o: YamlOps, draw: Any) -> list[TextEdit]:
+def _ops(o: YamlOps, draw: Any, where: list[tuple[int, int]]) -> list[TextEdit]:
+    """A random operation's edits; ``where`` gets the text range they must stay in."""
     states = sorted(p for p, e in o.index.elements.items() if e.kind == "state")
     kind = draw(st.sampled_from(["add", "delete", "move", "set", "clear", "transition", "param",
                                  "import", "paste", "wrap"]))
     if not states:
         return o.add_state("", "Fresh", {"final": True})
     s = draw(st.sampled_from(states))
+    el = o.index.elements[s]
+    text = o.text
+    if kind in ("delete", "set", "clear", "transition"):
+        # the state's own lines (and the comment lines above it)
+        where.append((0, len(text)))
+        lo = text.rfind("\n", 0, el.key.start) + 1
+        while lo > 0 and text[text.rfind("\n", 0, lo - 1) + 1:lo].lstrip().startswith("#"):
+            lo = text.rfind("\n", 0, lo - 1) + 1
+        hi = text.find("\n", el.node.end)
+        where[-1] = (lo, len(text) if hi < 0 else hi + 1)
     parent = s.rsplit("/", 1)[0] if "/" in s else ""
     if kind == "add":
         return o.add_state(parent, "Fresh", {"entry": "log('x')"})
@@ -76,11 +88,16 @@ def test_random_operations_keep_the_rest_and_undo_exactly(data: st.DataObject) -
     for _ in range(data.draw(st.integers(1, 4))):
         before = s.text
         try:
-            edits = _ops(YamlOps(before), data.draw)
+            where: list[tuple[int, int]] = []
+            edits = _ops(YamlOps(before), data.draw, where)
         except EditError:
             continue
         if not edits:
             continue
+        for lo, hi in where:  # the edits stay inside the element they are about
+            # (the last entry of a block mapping leaves `{}` after its key)
+            assert all(lo <= e.start <= e.end <= hi for e in edits if e.new not in (" {}", " []")), \
+                (lo, hi, edits)
         after = apply_edits(before, edits)
         # every byte outside the edited ranges is kept, in order
         pos = 0
@@ -90,6 +107,7 @@ def test_random_operations_keep_the_rest_and_undo_exactly(data: st.DataObject) -
         assert after.endswith(before[pos:])
         assert after.startswith(before[:min(e.start for e in edits)])
         s.replace(after)
+        APPLIED.append(1)
         _loads(path, s.text)
     while s.undo():
         pass
@@ -129,3 +147,11 @@ def test_a_rename_checks_as_before_and_touches_only_lines_with_the_name(data: st
         os.chdir(cwd)
     if before.ok:
         assert after.ok, [str(d.span) + d.message for d in after.diagnostics]
+
+
+def test_the_random_operations_were_made() -> None:
+    """Runs after the property test in this file: most drawn operations applied (an
+    operation the engine refuses, such as a sibling's name, is skipped)."""
+    if not APPLIED:
+        test_random_operations_keep_the_rest_and_undo_exactly()
+    assert len(APPLIED) >= 40
