@@ -30,6 +30,7 @@ from types import FrameType
 from typing import Any
 
 from hfsmc.fsutil import write_atomic
+from hfsmc.sim import lockstep
 from hfsmc.sim.autopilot import Autopilot
 from hfsmc.sim.telemetry import latlon
 from hfsmc.sim.vehicle import Body
@@ -67,6 +68,8 @@ class Link:
             self.sock.close()
             raise
         self.up = True
+        self.sent = 0  # datagrams sent (the lockstep's count, docs/worlds.md)
+        self.received = 0  # datagrams read, kept or dropped (a link down drops them)
 
     def describe(self) -> str:
         if self.kind == "udpout" and self.peer is not None:
@@ -78,6 +81,7 @@ class Link:
         if self.up and self.peer is not None:
             with contextlib.suppress(OSError):  # nobody listening yet, a full buffer: lost
                 self.sock.sendto(data, self.peer)
+                self.sent += 1
 
     def receive(self) -> list[bytes]:
         out: list[bytes] = []
@@ -88,6 +92,7 @@ class Link:
                 break
             except OSError:
                 continue  # an ICMP error reported on the socket: try the next datagram
+            self.received += 1
             if self.up:
                 if self.kind == "udpin":
                     self.peer = addr
@@ -129,26 +134,30 @@ class Simulator:
     def run(self, duration: float | None = None) -> None:
         """Fly until stopped (a signal) or until ``duration`` simulated seconds."""
         dt = self.body.dt
-        per_second = round(1.0 / dt)
-        start = time.monotonic()
+        start = time.monotonic() - self.body.t  # real time goes on from where lockstep left
         while not self.stopping:
             self._faults()
             for data in self.link.receive():
                 self.ap.receive(data)
-            self.ap.step()
-            b = self.body
-            if self.clock.update(b.t, b.armed, b.altitude):
-                self.log(f"the world's clock starts (vehicle {self.clock.start})")
-            self.pose = (self.clock.time(b.t), b.north, b.east, b.down, b.yaw)
-            if self.truth_path and self.body.steps % per_second == 0:
-                self.write_truth()
-            if duration is not None and self.body.t >= duration - 1e-9:
+            if self.advance(duration):
                 break
             late = time.monotonic() - (start + self.body.steps * dt)
             if late < 0:
                 time.sleep(-late)
             elif late > 0.5:  # stalled (suspended, overloaded): go on from now, no burst
                 start += late
+
+    def advance(self, duration: float | None = None) -> bool:
+        """One physics step and what follows it (the world's clock, the pose, the truth each
+        second); True when ``duration`` is reached."""
+        self.ap.step()
+        b = self.body
+        if self.clock.update(b.t, b.armed, b.altitude):
+            self.log(f"the world's clock starts (vehicle {self.clock.start})")
+        self.pose = (self.clock.time(b.t), b.north, b.east, b.down, b.yaw)
+        if self.truth_path and b.steps % round(1.0 / b.dt) == 0:
+            self.write_truth()
+        return duration is not None and b.t >= duration - 1e-9
 
     def _faults(self) -> None:
         forced = self._link_toggles % 2 == 1
@@ -266,6 +275,17 @@ def _param(text: str) -> tuple[str, float]:
     return name.strip().upper(), number
 
 
+def _speedup(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive rate (10: ten times real time), "
+                                         f"not {text!r}")
+    return v
+
+
 def _port(text: str) -> int:
     v = int(text)
     if not 0 <= v <= 65535:
@@ -304,6 +324,16 @@ def parser() -> argparse.ArgumentParser:
                    help="only render the camera for another vehicle (with --follow)")
     p.add_argument("--follow", metavar="URL",
                    help="MAVLink URL of the vehicle whose camera to render")
+    p.add_argument("--lockstep", metavar="[HOST:]PORT",
+                   help="be the time master of one component started with --clock sim:PORT: "
+                        "wait for it on this TCP port (loopback unless a host is named), then "
+                        "step only when it is done (as fast as both go; docs/worlds.md)")
+    p.add_argument("--speedup", type=_speedup, metavar="N",
+                   help="with --lockstep: hold simulated time to N times real time "
+                        "(a person watching; default: as fast as it goes)")
+    p.add_argument("--component-gone", choices=("stop", "realtime"), default="stop",
+                   help="with --lockstep, when the component ends or dies: stop (the default) "
+                        "or go on in real time")
     p.add_argument("--world-clock", choices=WORLD_CLOCKS, metavar="WHEN",
                    help="when the world's objects start moving: armed (when the vehicle first "
                         "arms, the default: a component may take a minute to build and start), "
@@ -342,6 +372,11 @@ def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
     if args.drop_link_for is not None and args.drop_link_after is None:
         return _fail("--drop-link-for needs --drop-link-after")
+    if args.speedup is not None and args.lockstep is None:
+        return _fail("--speedup needs --lockstep (in real time the simulator runs at 1x)")
+    if args.lockstep is not None and args.camera_only:
+        return _fail("--lockstep and --camera-only: the camera follows another simulator's "
+                     "time, not its own")
     if bool(args.camera_only) != bool(args.follow):
         return _fail("--camera-only and --follow URL go together")
     try:
@@ -365,28 +400,43 @@ def main(argv: list[str]) -> int:
         link = Link(args.mavlink)
     except (ValueError, OSError) as e:
         return _fail(str(e))
+    server = None
+    if args.lockstep is not None:
+        try:
+            server = lockstep.Server(args.lockstep)
+        except (ValueError, OSError) as e:
+            link.close()
+            return _fail(f"--lockstep {args.lockstep}: {e}")
     sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
                     drop_after=args.drop_link_after,
                     drop_for=5.0 if args.drop_link_for is None else args.drop_link_for,
                     params=params, world_clock=args.world_clock or "armed")
     try:
         with sim.signals():
-            where = _start_camera(sim, args)
+            where = _start_camera(sim, args, thread=server is None)
             if where is None:
                 return 2
-            print(f"sim: {link.describe()}, {where}", file=sys.stderr, flush=True)
+            more = f", {server.describe()}" if server is not None else ""
+            print(f"sim: {link.describe()}, {where}{more}", file=sys.stderr, flush=True)
             try:
-                sim.run(args.duration)
+                if server is None or lockstep.fly(sim, server, args.duration,
+                                                  args.speedup or math.inf,
+                                                  args.component_gone):
+                    if sim.camera is not None and server is not None:
+                        sim.camera.start_thread()
+                    sim.run(args.duration)
             finally:
                 sim.write_truth()
     finally:
         if sim.camera is not None:
             sim.camera.stop()
+        if server is not None:
+            server.close()
         link.close()
     return 0
 
 
-def _start_camera(sim: Simulator, args: argparse.Namespace) -> str | None:
+def _start_camera(sim: Simulator, args: argparse.Namespace, thread: bool = True) -> str | None:
     """Start the camera; what to print about it, or None after an error."""
     if args.no_camera:
         return "no camera (--no-camera)"
@@ -396,7 +446,7 @@ def _start_camera(sim: Simulator, args: argparse.Namespace) -> str | None:
     feed = camera.CameraFeed(sim.world, pose=lambda: sim.pose, host="127.0.0.1",
                              port=args.camera_port)
     try:
-        url = feed.start()
+        url = feed.start(thread=thread)
     except OSError as e:
         _fail(f"camera: cannot serve on 127.0.0.1:{args.camera_port}: {e}")
         return None
