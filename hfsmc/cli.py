@@ -262,15 +262,20 @@ def run(model: str, args: tuple[str, ...]) -> None:
 @click.option("--no-autofocus", is_flag=True, help="Show every branch, not only the active ones.")
 @click.option("--web", metavar="[HOST:]PORT",
               help="Serve a web page that draws the component live (or plays --replay), on "
-                   "loopback unless a host is named (port 0 picks one); see docs/web.md.")
+                   "loopback unless a host is named (port 0 picks one), to whoever opens the "
+                   "URL it prints (with its token); see docs/web.md.")
+@click.option("--allow-host", "allow_hosts", metavar="NAME", multiple=True,
+              help="With --web: also serve the page under this host name or address (as "
+                   "another machine reaches it); repeatable. Loopback names always work.")
 @_guard
 def view(target: str | None, replay: str | None, model: str | None, speed: float,
-         focus: str | None, no_autofocus: bool, web: str | None) -> None:
+         focus: str | None, no_autofocus: bool, web: str | None,
+         allow_hosts: tuple[str, ...]) -> None:
     """Watch a component started with --monitor [HOST:]PORT, or replay a trace."""
     from hfsmc.commands.view import view as run_view
 
     sys.exit(run_view(target, replay, focus=focus, autofocus=not no_autofocus, speed=speed,
-                      model=model, web=web))
+                      model=model, web=web, allow_hosts=allow_hosts))
 
 
 @main.command()

@@ -63,7 +63,7 @@ CODES: dict[str, str] = {
     "E171": "used file cannot be read",
     "E172": "used file is not an hfsm model (a legacy file, another kind of document)",
     "E173": "used file is a model of another language",
-    "E174": "used model has on_interrupt, interrupt_timeout or on_shutdown",
+    "E174": "used model has on_interrupt, interrupt_timeout, time_limit or on_shutdown",
     "E175": "`use` cycle",
     "E176": "`use` together with states, regions, initial, period or history",
     "E177": "`with` names neither a parameter nor an interface of the used model",
@@ -94,6 +94,8 @@ CODES: dict[str, str] = {
     "E145": "`goto` called as a method in a C++ snippet: the method is `go_to`",
     "E146": "active() with a literal path that names no state",
     "E147": "bracket left open or closed without opening in a C++ snippet",
+    "E148": "an interface has no such method or attribute (a Python snippet)",
+    "E149": "an interface method called with arguments its parameters do not take (a Python snippet)",
     # output
     "E150": "output cannot be written (a value the output format cannot hold, a failing tool)",
     # warnings
@@ -112,6 +114,7 @@ CODES: dict[str, str] = {
     "W212": "duration written without a unit: a bare number means milliseconds",
     "W213": "a state named like a state key (`final`, `history`...): maybe a key indented wrongly",
     "W215": "done() in a state without a sub-automaton: always false",
+    "W216": "time_limit without on_interrupt: the time limit stops the component where it is",
     "W220": "legacy code problem that `convert` carries into the new model (fix it there)",
 }
 

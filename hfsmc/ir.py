@@ -226,6 +226,9 @@ class Model:
     span: Span = field(compare=False)
     on_interrupt_span: Span | None = field(default=None, compare=False)
     interrupt_timeout_span: Span | None = field(default=None, compare=False)
+    # `time_limit`: the mission's time limit, as --time-limit (which overrides it) gives one.
+    time_limit_us: int | None = None
+    time_limit_span: Span | None = field(default=None, compare=False)
     # States whose `use` could not be built (the error says why): checks that would only
     # repeat it (done() there, active() paths below them) leave them out.
     unresolved_uses: tuple[str, ...] = field(default=(), compare=False)

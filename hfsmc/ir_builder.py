@@ -111,6 +111,11 @@ class _IrBuilder:
         language = d.get("language", "python")
         root = self.automaton(d, (), "", DEFAULT_ROOT_PERIOD_MS)
         interrupt_us = self.duration(d, (), "interrupt_timeout")
+        limit_us = self.duration(d, (), "time_limit")
+        if limit_us is not None and limit_us <= 0:
+            self.diags.error("E103", f"time_limit `{d['time_limit']}` must be more than 0",
+                             self.doc.span(("time_limit",)))
+            limit_us = None
         return Model(
             name=d["name"],
             language=language,
@@ -131,6 +136,8 @@ class _IrBuilder:
             source=self.doc.text,
             interrupt_timeout_span=(self.doc.key_span(("interrupt_timeout",))
                                     if "interrupt_timeout" in d else None),
+            time_limit_us=limit_us,
+            time_limit_span=self.doc.key_span(("time_limit",)) if "time_limit" in d else None,
         )
 
     def interfaces(self) -> tuple[Interface, ...]:

@@ -101,6 +101,10 @@ def resolve_interrupt(model: Model, diags: Diagnostics) -> Model:
     if model.interrupt_timeout_us is not None and target is None:
         diags.error("E139", "interrupt_timeout has no effect without on_interrupt",
                     model.interrupt_timeout_span or model.span)
+    if model.time_limit_us is not None and target is None:
+        diags.warning("W216", "time_limit without on_interrupt stops the component where it is: "
+                      "nothing lands a vehicle then", model.time_limit_span or model.span,
+                      "name a landing state in `on_interrupt` (examples/lib/land.yaml)")
     return model
 
 

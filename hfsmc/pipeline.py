@@ -17,9 +17,10 @@ from hfsmc.lower import lower
 from hfsmc.uses import UseLoader
 
 # Errors inside snippet code (syntax, names, parameters assigned, imports, C++ keywords and
-# brackets, active() paths): the model's structure is sound, so it can still be drawn and a
+# brackets, active() paths, interface methods): the model's structure is sound, so it can still be drawn and a
 # legacy file converted; check and build refuse it.
-SNIPPET_CODES = frozenset({"E140", "E141", "E142", "E143", "E145", "E146", "E147"})
+SNIPPET_CODES = frozenset({"E140", "E141", "E142", "E143", "E145", "E146", "E147", "E148",
+                           "E149"})
 
 
 @dataclass

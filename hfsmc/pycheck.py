@@ -31,6 +31,7 @@ from typing import Any
 from pyflakes import messages as pyflakes_messages
 from pyflakes.checker import Checker
 
+from hfsmc.drivers import CPP_NAMES, Driver, Method, driver
 from hfsmc.errors import Diagnostics, Span, did_you_mean
 from hfsmc.ir import HELPERS, Code, Model
 
@@ -156,7 +157,7 @@ def _module_names(tree: ast.AST) -> set[str]:
 
 
 def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = True) -> None:
-    """E140-E143, E146 and W215 for every Python snippet of the model.
+    """E140-E143, E146, E148, E149 and W215 for every Python snippet of the model.
 
     Without ``prefilter`` every snippet gets its ast tree and every chunk
     goes to pyflakes (the tests compare both ways)."""
@@ -170,6 +171,9 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
     parsed: list[tuple[Snippet, frozenset[str] | set[str] | None]] = []
     builtin_names = set(dir(builtins))
     names = known | builtin_names
+    drivers = _drivers(model)
+    uses = (re.compile(r"\b(?:" + "|".join(map(re.escape, drivers)) + r")\s*\.") if drivers
+            else None)
     for sn in snippets(model):
         text = sn.code.text
         table = _table(sn) if prefilter else None
@@ -184,7 +188,8 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
         if table is not None and writes:
             writes = _assigns(table, params)  # no table binds a parameter: nothing to say
         helpers = "active" in text or "done" in text
-        if tree is None and (writes or helpers or sn.kind == "functions"):
+        calls = uses is not None and uses.search(text) is not None
+        if tree is None and (writes or helpers or calls or sn.kind == "functions"):
             tree = _parse(sn, diags)
             if tree is None:  # pragma: no cover - the symbol table pass parsed it
                 continue
@@ -199,6 +204,8 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
             _check_param_writes(sn, tree, params, diags)
         if helpers:
             _check_helper_calls(model, sn, tree, diags)
+        if calls:
+            _check_interface_uses(sn, tree, drivers, diags)
     _check_undefined(model.file, parsed, variables, params, known, diags)
 
 
@@ -433,3 +440,97 @@ def _where(sn: Snippet, rows: list[str], node: ast.expr) -> Span:
     row = rows[node.lineno - 1] if 0 < node.lineno <= len(rows) else ""
     col = len(row.encode("utf-8")[:node.col_offset].decode("utf-8", "replace")) + 1
     return sn.code.position(node.lineno, col)
+
+
+# ---------------------------------------------------------------------------
+# interface methods (C++ snippets: the compiler knows them)
+
+
+def _drivers(model: Model) -> dict[str, Driver]:
+    """The model's interfaces that have a driver, by name."""
+    out = {}
+    for i in model.interfaces:
+        d = driver(i.type)
+        if d is not None:
+            out[i.name] = d
+    return out
+
+
+def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver],
+                          diags: Diagnostics) -> None:
+    """E148 for ``drone.fly_to`` (no such method or attribute), E149 for a call of a
+    method with arguments its parameters do not take. A snippet that binds an
+    interface's name itself (a parameter, an assignment) is not checked for that name."""
+    bound = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and not isinstance(n.ctx, ast.Load)}
+    bound |= {a.arg for n in ast.walk(tree) if isinstance(n, ast.arguments)
+              for a in (*n.posonlyargs, *n.args, *n.kwonlyargs, n.vararg, n.kwarg) if a is not None}
+    bound |= {(a.asname or a.name).split(".")[0] for n in ast.walk(tree)
+              if isinstance(n, (ast.Import, ast.ImportFrom)) for a in n.names}
+    bound |= {n.name for n in ast.walk(tree)
+              if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))}
+    rows = sn.code.text.split("\n")
+    called = {id(n.func): n for n in ast.walk(tree) if isinstance(n, ast.Call)}
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                and node.value.id in drivers and node.value.id not in bound
+                and not node.attr.startswith("_")):  # private: the driver's, not the interface's
+            continue
+        iface, d = node.value.id, drivers[node.value.id]
+        where = _attr_where(sn, rows, node)
+        method = d.methods.get(node.attr)
+        if method is None and node.attr not in d.names:
+            _unknown_member(sn, iface, d, node.attr, where, diags)
+        elif method is None and id(node) in called:  # name, url: called as C++ has them
+            diags.error("E148", f"`{iface}.{node.attr}` is an attribute in Python, not a "
+                        f"method: write `{iface}.{node.attr}` (C++: `{iface}.{node.attr}()`)",
+                        where)
+        elif method is not None and id(node) in called:
+            _check_arguments(sn, iface, method, called[id(node)], where, diags)
+
+
+def _unknown_member(sn: Snippet, iface: str, d: Driver, attr: str, where: Span,
+                    diags: Diagnostics) -> None:
+    python = {v: k for k, v in CPP_NAMES.items()}.get(attr)
+    note = (f"`{attr}` is the C++ name; in Python the method is `{python}`" if python
+            else did_you_mean(attr, d.names))
+    if note is None:
+        listed = ", ".join(m.signature() for m in d.methods.values())
+        note = f"{d.type} methods: {listed}; attributes: name, url"
+    diags.error("E148", f"`{iface}` ({d.type} interface) has no method `{attr}`", where, note)
+
+
+def _check_arguments(sn: Snippet, iface: str, m: Method, call: ast.Call, where: Span,
+                     diags: Diagnostics) -> None:
+    if any(isinstance(a, ast.Starred) for a in call.args) or any(k.arg is None for k in call.keywords):
+        return  # *args or **kwargs: the count is known at run time only
+    given = len(call.args)
+    keywords = [k.arg for k in call.keywords if k.arg is not None]
+    problem = None
+    if given > len(m.params):
+        problem = f"{given} given"
+    else:
+        unknown = [k for k in keywords if k not in m.params]
+        twice = [k for k in keywords if k in m.params[:given]]
+        missing = [p for p in m.params[given:m.required] if p not in keywords]
+        if unknown:
+            problem = f"no parameter `{unknown[0]}`"
+        elif twice:
+            problem = f"`{twice[0]}` given twice"
+        elif missing:
+            problem = f"missing {', '.join(f'`{p}`' for p in missing)}"
+    if problem is None:
+        return
+    count = len(m.params)
+    takes = ("no arguments" if count == 0 else
+             f"{count} argument{'s' if count > 1 else ''} ({', '.join(m.params)})")
+    diags.error("E149", f"`{iface}.{m.name}` takes {takes}: {problem}", where,
+                f"{m.signature()}: {m.doc.replace('``', '`')}")
+
+
+def _attr_where(sn: Snippet, rows: list[str], node: ast.Attribute) -> Span:
+    """The model position of the attribute's name (after the dot), as E145 gives it."""
+    line = node.end_lineno or node.lineno
+    end = node.end_col_offset if node.end_col_offset is not None else node.col_offset
+    row = rows[line - 1] if 0 < line <= len(rows) else ""
+    col = len(row.encode("utf-8")[:end].decode("utf-8", "replace")) - len(node.attr) + 1
+    return sn.code.position(line, max(col, 1))

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from hfsmc.drivers import driver
 from hfsmc.durations import has_unit, parse_us
 from hfsmc.errors import Diagnostics, HfsmcError, Span, did_you_mean
 from hfsmc.frontend import read_text
@@ -41,14 +42,8 @@ MAVLINK_FIELDS: dict[str, str] = {
 CAMERA_FIELDS: dict[str, str] = {"image": "image", "world": "world", "rate": "number"}
 FIELDS = {"mavlink": MAVLINK_FIELDS, "camera": CAMERA_FIELDS}
 RAMPABLE = frozenset({"number", "vector"})
-ACK_COMMANDS = ("arm", "disarm", "takeoff", "land", "rtl", "set_mode")
 ACK_OUTCOMES = ("accepted", "denied", "temporarily_rejected", "unsupported", "failed",
                 "cancelled", "pending", "timeout", "not_sent")
-COMMANDS: dict[str, tuple[str, ...]] = {
-    "mavlink": ("set_mode", "arm", "disarm", "takeoff", "land", "rtl", "hold", "set_velocity",
-                "goto"),
-    "camera": (),
-}
 STOP_REASONS = ("final", "until", "shutdown", "sigint", "sigterm", "error", "timeout",
                 "time_limit")
 DEFAULT_UNTIL_US = 600_000_000  # 10 min of virtual time
@@ -497,11 +492,12 @@ class _Reader:
         if m is None:
             return None
         out = []
+        acked = acknowledged("mavlink")
         for cmd, outcome in m.items():
-            if cmd not in ACK_COMMANDS:
-                note = did_you_mean(cmd, ACK_COMMANDS)
+            if cmd not in acked:
+                note = did_you_mean(cmd, acked)
                 self.error("E193", f"no acknowledgement for `{cmd}`", self.key_at((*path, cmd)),
-                           *([note] if note else []), f"commands acknowledged: {', '.join(ACK_COMMANDS)}")
+                           *([note] if note else []), f"commands acknowledged: {', '.join(acked)}")
             elif outcome not in ACK_OUTCOMES:
                 note = did_you_mean(str(outcome), ACK_OUTCOMES)
                 self.error("E193", f"`{outcome}` is not an outcome", self.at((*path, cmd)),
@@ -728,12 +724,24 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
                 note = did_you_mean(iname, interfaces)
                 diags.error("E195", f"{where} has no interface `{iname}`", x.subject_span,
                             *([note] if note else []))
-            elif _call(call) not in COMMANDS.get(iface.type, ()):
-                commands = COMMANDS.get(iface.type, ())
+            elif _call(call) not in commands_of(iface.type):
+                commands = commands_of(iface.type)
                 note = did_you_mean(call, commands)
                 diags.error("E199", f"`{call}` is not a command of a {iface.type} interface",
                             x.subject_span, *([note] if note else []),
                             f"commands: {', '.join(commands) or 'none'}")
+
+
+def commands_of(kind: str) -> tuple[str, ...]:
+    """The commands of an interface type, as its driver defines them (hfsmc/drivers.py)."""
+    d = driver(kind)
+    return () if d is None else d.commands
+
+
+def acknowledged(kind: str) -> tuple[str, ...]:
+    """The commands of an interface type whose outcome ``last_ack`` gives."""
+    d = driver(kind)
+    return () if d is None else d.acknowledged
 
 
 def _call(name: str) -> str:

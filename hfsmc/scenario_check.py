@@ -45,6 +45,17 @@ class Run:
     commands: list[Record]
     trace_name: str  # how the report names the trace file
     exit_status: int | None
+    # The component's `file:line:col: error: ...` lines (stderr), which place each error in
+    # the model: the line that matters in a failure report.
+    errors: tuple[str, ...] = ()
+
+
+_MODEL_ERROR = re.compile(r"^\S+:\d+:\d+: error: .+$")
+
+
+def model_errors(stderr: Iterable[str]) -> tuple[str, ...]:
+    """The lines of the component's stderr that place an error in a snippet."""
+    return tuple(line for line in stderr if _MODEL_ERROR.match(line))
 
 
 def read_records(text: str) -> list[Record]:
@@ -73,7 +84,8 @@ def check(sc: Scenario, run: Run) -> list[Failure]:
         errors = [r for r in run.trace if r.data.get("ev") == "error"]
         if errors:
             failures.append(Failure(None, "an error in a snippet (an `error` expectation "
-                                    "allows it)", tuple(_where(run, r) for r in errors[:3])))
+                                    "allows it)", (*run.errors[:1],
+                                                   *(_where(run, r) for r in errors[:3]))))
     for x in sc.expect:
         f = _CHECKS[x.kind](x, run, stop)
         if f is not None:

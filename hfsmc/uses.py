@@ -24,7 +24,7 @@ from hfsmc.ir_builder import build_ir, coerce_literal, literal_traps
 from hfsmc.lower import lower
 
 # A used model runs inside the using component, which alone decides how it stops.
-_COMPONENT_KEYS = ("on_interrupt", "interrupt_timeout", "on_shutdown")
+_COMPONENT_KEYS = ("on_interrupt", "interrupt_timeout", "time_limit", "on_shutdown")
 
 
 @dataclass

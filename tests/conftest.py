@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
@@ -15,8 +16,10 @@ from tests.support import (
     ROOT,
     SANITIZERS,
     Client,
+    Process,
     Tmux,
     build_blinker,
+    chromium,
     compile_observers,
     stop_processes,
 )
@@ -72,6 +75,36 @@ def processes() -> Iterator[list[subprocess.Popen[bytes]]]:
     made: list[subprocess.Popen[bytes]] = []
     yield made
     stop_processes(made)
+
+
+@pytest.fixture
+def logged(tmp_path: Path) -> Iterator[Callable[..., Process]]:
+    """Starts processes whose output goes to files in tmp_path, each killed at the end."""
+    made: list[Process] = []
+
+    def start(args: list[str], name: str) -> Process:
+        made.append(Process(args, tmp_path, f"{name}{len(made)}"))
+        return made[-1]
+
+    yield start
+    for p in made:
+        p.kill()
+
+
+@pytest.fixture
+def browsers(tmp_path: Path) -> Iterator[Callable[..., Any]]:
+    """Starts headless chromium browsers (extra flags as arguments), each quit at the end."""
+    made: list[Any] = []
+
+    def start(*flags: str) -> Any:
+        made.append(chromium(tmp_path / f"profile{len(made)}", *flags))
+        return made[-1]
+
+    yield start
+    for driver in made:
+        with contextlib.suppress(Exception):
+            driver.quit()
+    shutil.rmtree(tmp_path, ignore_errors=True)
 
 
 @pytest.fixture

@@ -1,7 +1,8 @@
 """Helpers the test files share: free ports, waiting, processes, a tmux screen, traces,
-the monitor's clients, and the blinker example's structure and trace.
+the monitor's clients, the blinker example's structure and trace, and the browser.
 
-Fixtures built on them (``processes``, ``tmux``, ``clients``) are in tests/conftest.py.
+Fixtures built on them (``processes``, ``logged``, ``tmux``, ``clients``, ``browsers``) are in
+tests/conftest.py.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import jsonschema
+import pytest
 from referencing import Registry, Resource
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -143,6 +145,68 @@ def hfsmc(*args: str, cwd: Path = ROOT, timeout: float = 120,
 def py(*args: object) -> str:
     """A shell command line running this interpreter with ``args``."""
     return " ".join(shlex.quote(str(a)) for a in (sys.executable, *args))
+
+
+class Process:
+    """A process whose stdout and stderr go to files; killed at the end of the test
+    (the ``logged`` fixture)."""
+
+    def __init__(self, args: list[str], tmp: Path, name: str) -> None:
+        self.err_path = tmp / f"{name}.err"
+        self.out_path = tmp / f"{name}.out"
+        with open(self.err_path, "w") as err, open(self.out_path, "w") as out:
+            self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=out, stderr=err,
+                                         cwd=tmp)
+
+    def wait_for(self, pattern: str, where: str = "err", timeout: float = 15) -> re.Match[str]:
+        path = self.err_path if where == "err" else self.out_path
+        deadline = time.monotonic() + timeout
+        while not (m := re.search(pattern, path.read_text())):
+            assert time.monotonic() < deadline and self.proc.poll() is None, path.read_text()
+            time.sleep(0.02)
+        return m
+
+    def kill(self, sig: int = signal.SIGKILL) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        return self.proc.wait(10)
+
+
+# -- the web view in a browser -------------------------------------------------------------------
+CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
+# The flags every test browser gets (the ``browsers`` fixture): headless, and nothing of its own
+# on the network.
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update",
+                  "--disable-sync", "--window-size=1280,800")
+needs_browser = pytest.mark.skipif(
+    not (os.path.exists(CHROMIUM) and os.path.exists(CHROMEDRIVER)),
+    reason="chromium and chromium-driver are not installed (`make deps` installs them)")
+# What `hfsmc view --web` prints on stdout, and the URL (with the run's token) in it.
+WEB_URL = r"web view on (http://127\.0\.0\.1:\d+/\?token=[\w-]+) "
+
+
+def screenshot(driver: Any, name: str, tmp_path: Path) -> None:
+    """Saved for a person to look at: in $HFSMC_SCREENSHOTS when set, else beside the test."""
+    folder = Path(os.environ.get("HFSMC_SCREENSHOTS") or tmp_path)
+    folder.mkdir(parents=True, exist_ok=True)
+    assert driver.save_screenshot(str(folder / f"{name}.png"))
+
+
+def chromium(profile: Path, *flags: str) -> Any:
+    """Debian's chromium driven by its chromedriver (never a driver Selenium would fetch)."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    os.environ["SE_OFFLINE"] = "true"  # never let Selenium Manager fetch a driver
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in (*CHROMIUM_FLAGS, *flags, f"--user-data-dir={profile}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver.set_page_load_timeout(15)
+    driver.set_script_timeout(10)
+    return driver
 
 
 # -- traces -------------------------------------------------------------------------------------
@@ -356,10 +420,15 @@ MONITOR_VALIDATOR = _monitor_validator()
 class Client:
     """A raw monitor client: JSON lines, each checked against the schema."""
 
-    def __init__(self, port: int, rcvbuf: int | None = None, timeout: float = 20) -> None:
+    def __init__(self, port: int, rcvbuf: int | None = None, timeout: float = 20,
+                 source: str | None = None) -> None:
+        """Connected to 127.0.0.1:``port``, from the address ``source`` when given (another
+        address of 127.0.0.0/8 is another address to the server)."""
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         if rcvbuf is not None:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        if source is not None:
+            self.sock.bind((source, 0))
         self.sock.settimeout(timeout)
         self.sock.connect(("127.0.0.1", port))
         self.stream = self.sock.makefile("rb")

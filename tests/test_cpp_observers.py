@@ -598,3 +598,62 @@ def test_display_of_a_used_file_on_a_terminal(build: tuple[Path, dict[str, str]]
         assert b"\x1b[1;32m\xe2\x97\x8f Blinking\x1b[0m\x1b[2m \xc2\xb7 lib/blink.yaml\x1b[0m" in frame
     finally:
         tty.close()
+
+
+def test_busy_is_said_and_one_address_cannot_take_every_slot(
+        observers_program: Path, run: Callable[..., Run], clients: Callable[..., Client]) -> None:
+    """As the Python monitor: 16 slots, at most 8 for one address, `busy` and why to the others."""
+    r = run(observers_program, "--monitor", "0", "--gate-at", "9")
+    r.at_gate()
+    mine = [clients(r.port) for _ in range(8)]
+    for c in mine:
+        assert c.message() is not None
+    ninth = clients(r.port)
+    assert ninth.message() == {"type": "busy", "reason": "the viewers from 127.0.0.1 hold 8 of "
+                               "the 16 slots, the most one address may; close one"}
+    assert ninth.message() is None
+    others = [clients(r.port, source="127.0.0.2") for _ in range(8)]
+    for c in others:
+        assert c.message() is not None
+    last = clients(r.port, source="127.0.0.3")
+    assert last.message() == {"type": "busy",
+                              "reason": "all 16 viewer slots are taken; try again later"}
+    assert last.message() is None
+    shown = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), "-m", "hfsmc", "view",
+                            f"127.0.0.1:{r.port}"], capture_output=True, text=True, timeout=60,
+                           stdin=subprocess.DEVNULL)
+    assert shown.returncode == 1 and shown.stderr.splitlines()[-1] == (
+        "hfsmc view: error: the component's monitor is busy: all 16 viewer slots are taken; "
+        "try again later")
+    for c in (*mine, *others):
+        c.close()
+    r.finish()
+
+
+def test_subscribing_again_and_again_makes_no_more_frames(
+        observers_program: Path, run: Callable[..., Run]) -> None:
+    """The stand-in camera has a new frame each time the monitor asks, numbered: however often
+    a client subscribes, frames are made at most 4 times a second."""
+    r = run(observers_program, "--monitor", "0", "--feeds", "--gate-at", "9")
+    r.at_gate()
+    quiet = socket.create_connection(("127.0.0.1", r.port), timeout=5)
+    flood = socket.create_connection(("127.0.0.1", r.port), timeout=5)
+    try:
+        quiet.sendall(b'{"type":"subscribe","frames":true}\n')
+        flood.setblocking(False)
+        start, lines = time.monotonic(), 0
+        while lines < 6000:
+            flood.sendall(b'{"type":"subscribe","frames":true}\n{"type":"subscribe","frames":false}\n'
+                          * 50 + b'{"type":"subscribe","frames":true}\n')
+            lines += 101
+            time.sleep(0.03)
+            with contextlib.suppress(BlockingIOError):
+                flood.recv(1 << 20)  # what it is sent, unread
+        seen = [m for m in read_messages(quiet, 0.3) if m["type"] == "frame"]
+        seconds = time.monotonic() - start
+        made = int(seen[-1]["jpeg"])  # the stand-in's count of the frames it was asked to make
+        assert 2 <= len(seen) <= made <= 4 * seconds + 2, (len(seen), made, seconds)
+    finally:
+        quiet.close()
+        flood.close()
+    r.finish()

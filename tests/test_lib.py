@@ -118,7 +118,7 @@ def test_climb_timeout_lands(tmp_path: Path) -> None:
     at = {r["state"]: int(str(r["t"])) for r in records if r["ev"] == "enter"}
     assert at["TakeOff/TimedOut"] - at["TakeOff/Climb"] >= 1500
     assert [(r["state"], r["msg"]) for r in records if r["ev"] == "log"] == [
-        ("TakeOff/Climb", "take-off timed out")]
+        ("TakeOff/Climb", "take-off timed out (set_mode: accepted, arm: accepted, takeoff: denied)")]
     assert commands(fake)[-1] == MAV.MAV_CMD_NAV_LAND and not fake.armed
 
 

@@ -206,6 +206,35 @@ def test_sigint_mid_flight_lands_and_disarms(tmp_path: Path, mission: list[str] 
         assert truth["armed"] is False and truth["landed"] is True
 
 
+@pytest.mark.parametrize("mission", LANGUAGES, indirect=True)
+def test_a_link_lost_at_the_landing_lands_once_it_is_back(tmp_path: Path,
+                                                          mission: list[str] | None) -> None:
+    """The link drops in the mission (SIGUSR1 to the simulator: both ways), then Ctrl+C sends
+    the component to Land: its land command goes nowhere. examples/lib/land sends it again,
+    saying why, until the link is back: the vehicle lands and disarms, nothing is left armed.
+    (Sent once, the landing never came: `WARNING: ARMED in GUIDED` at the stop.)"""
+    with flight(tmp_path, command=mission) as f:
+        f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=60)
+        f.sim.send_signal(signal.SIGUSR1)  # the link drops
+        f.wait_for("enter", "state", "LinkLost", timeout=15)
+        f.component.send_signal(signal.SIGINT)  # on_interrupt: Land, into the void
+        again = f.wait_for("log", "state", "Land/Landing", timeout=20)
+        f.sim.send_signal(signal.SIGUSR1)  # the link comes back
+        status = f.component.wait(timeout=90)
+        time.sleep(1.5)  # one more truth write
+        truth = f.truth()
+        f.stop_sim()
+        log = (f.folder / "component.log").read_text()
+        assert status == 130, log[-3000:]
+    assert again["msg"] == "still armed in GUIDED (land: timeout, link lost): sending land again"
+    enters = [r["state"] for r in f.trace if r["ev"] == "enter"]
+    assert enters[-3:] == ["Land/Landing", "Land/Landed", "Done"], enters
+    assert enters.count("Land/Landing") >= 2  # sent again at least once
+    assert "drone: land: no acknowledgement in 3 s" in log and "land accepted" in log
+    assert truth["armed"] is False and truth["landed"] is True and truth["mode"] == "LAND"
+    assert "WARNING: ARMED" not in log
+
+
 @pytest.mark.slow
 def test_link_loss_fires_the_failsafe_and_the_mission_resumes(tmp_path: Path) -> None:
     drop_at = 64.0  # while following blue (the 2nd stage): history must bring it back

@@ -35,6 +35,7 @@ from tests.support import (
     Client,
     Tmux,
     py,
+    read_messages,
 )
 
 hfsmc_monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
@@ -290,22 +291,46 @@ def test_a_client_killed_mid_stream_changes_nothing(server: Any, clients: Any) -
     assert srv._thread.is_alive()
 
 
-def test_too_many_clients_are_turned_away(server: Any, clients: Any) -> None:
-    srv = server(max_clients=2)
+def test_too_many_clients_are_told_busy_and_one_address_cannot_take_every_slot(
+        server: Any, clients: Any) -> None:
+    srv = server(max_clients=4)
     srv.start(STRUCTURE)
     first, second = clients(srv.port), clients(srv.port)
     for c in (first, second):
         assert c.message() is not None
+    # 127.0.0.1 has its half of the slots: a third viewer from it is told why, and closed.
     third = clients(srv.port)
+    assert third.message() == {"type": "busy", "reason": "the viewers from 127.0.0.1 hold 2 of "
+                               "the 4 slots, the most one address may; close one"}
     assert third.message() is None
+    # Another address still finds a slot, until every slot is taken.
+    others = [clients(srv.port, source="127.0.0.2") for _ in range(2)]
+    for c in others:
+        assert c.message() is not None and c.message()["type"] == "snapshot"
+    fifth = clients(srv.port, source="127.0.0.3")
+    assert fifth.message() == {"type": "busy",
+                               "reason": "all 4 viewer slots are taken; try again later"}
+    assert fifth.message() is None
     first.close()
     deadline = time.monotonic() + 10
-    while len(srv._clients) > 1:  # a send to the closed client fails, freeing its place
+    while len(srv._clients) > 3:  # a send to the closed client fails, freeing its place
         assert time.monotonic() < deadline
         srv.record(RECORDS[0])
         time.sleep(0.05)
     fourth = clients(srv.port)
     assert fourth.message() is not None and fourth.message() is not None
+
+
+def test_a_viewer_turned_away_says_the_component_is_busy(server: Any, clients: Any) -> None:
+    srv = server(max_clients=1)
+    srv.start(STRUCTURE)
+    assert clients(srv.port).message() is not None
+    shown = subprocess.run([sys.executable, "-m", "hfsmc", "view", f"127.0.0.1:{srv.port}"],
+                           capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert shown.returncode == 1
+    assert shown.stderr.splitlines()[-1] == (
+        "hfsmc view: error: the component's monitor is busy: all 1 viewer slots are taken; "
+        "try again later")
 
 
 def test_close_is_quick_even_with_a_stuck_client(server: Any, clients: Any) -> None:
@@ -591,3 +616,45 @@ def test_viewer_says_disconnected_when_the_component_dies(component: Callable[..
             viewer.communicate(timeout=10)
     assert viewer.returncode == 0
     assert err.splitlines()[-1] == f"hfsmc view: disconnected from 127.0.0.1:{comp.port}"
+
+
+class ChangingCamera:
+    """A camera whose snippets read a new picture every time the monitor looks."""
+
+    def __init__(self) -> None:
+        self.looks = 0
+
+    def _last_seen(self) -> Any:
+        import numpy as np
+
+        self.looks += 1
+        return np.full((48, 64, 3), self.looks % 256, np.uint8)
+
+
+def test_subscribing_again_and_again_encodes_no_more_frames(server: Any) -> None:
+    """A client that sends `subscribe` thousands of times a second is given the frame already
+    made: the component encodes at most 4 frames a second (every client gets each one)."""
+    srv = server()
+    srv.watch({"camera": ChangingCamera()})
+    srv.start(STRUCTURE)
+    quiet = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+    flood = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+    try:
+        quiet.sendall(b'{"type":"subscribe","frames":true}\n')
+        flood.setblocking(False)
+        start = time.monotonic()
+        lines = 0
+        while lines < 6000:
+            flood.sendall(b'{"type":"subscribe","frames":true}\n{"type":"subscribe","frames":false}\n'
+                          * 50 + b'{"type":"subscribe","frames":true}\n')
+            lines += 101
+            time.sleep(0.03)
+            with contextlib.suppress(BlockingIOError):
+                flood.recv(1 << 20)  # what it is sent, unread
+        seen = read_messages(quiet, 0.3)
+        seconds = time.monotonic() - start
+        made = [m["jpeg"] for m in seen if m["type"] == "frame"]
+        assert 2 <= len(made) <= 4 * seconds + 2, (len(made), seconds)
+    finally:
+        quiet.close()
+        flood.close()

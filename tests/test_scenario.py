@@ -26,7 +26,9 @@ from tests.support import ROOT
 FOLLOW = ROOT / "examples/follow_colors/follow_colors.yaml"
 FOLLOW_TESTS = ROOT / "examples/follow_colors/tests"
 MONITOR_TESTS = ROOT / "examples/monitor_area/tests"
-EXAMPLES = sorted(FOLLOW_TESTS.glob("*.yaml")) + sorted(MONITOR_TESTS.glob("*.yaml"))
+LIB_TESTS = ROOT / "examples/lib/tests"  # the library's behaviours alone (land through a lost link)
+EXAMPLES = (sorted(FOLLOW_TESTS.glob("*.yaml")) + sorted(MONITOR_TESTS.glob("*.yaml"))
+            + sorted(LIB_TESTS.glob("*.yaml")))
 
 
 def write(folder: Path, text: str, name: str = "sc.yaml") -> Path:

@@ -30,6 +30,7 @@ from hfsmc.sim.follow import _Follower, run_follow
 from hfsmc.sim.mjpeg import MjpegServer
 from hfsmc.sim.world import World, WorldClock, WorldError, load_world, parse_world
 from tests.conftest import ROOT
+from tests.support import free_port, wait_until
 
 GREEN = (0, 200, 0)
 RED = (220, 20, 20)
@@ -277,7 +278,7 @@ def test_opencv_reads_the_stream_with_several_clients(feed: CameraFeed) -> None:
 
 def test_the_stream_runs_at_the_cameras_rate(feed: CameraFeed) -> None:
     with socket.create_connection(("127.0.0.1", feed.port), timeout=3) as s:
-        s.sendall(b"GET /bottom.mjpg HTTP/1.1\r\nHost: x\r\n\r\n")
+        s.sendall(f"GET /bottom.mjpg HTTP/1.1\r\nHost: 127.0.0.1:{feed.port}\r\n\r\n".encode())
         data = b""
         t0 = time.monotonic()
         while time.monotonic() - t0 < 1.5:
@@ -380,14 +381,60 @@ def test_the_server_alone_and_a_busy_port() -> None:
         s.stop()
 
 
+def ask(port: int, host: str | None) -> tuple[int, dict[str, str], bytes]:
+    """GET /snapshot.jpg with the ``Host`` given (none at all for None, as HTTP/1.0 allows)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=3) as s:
+        s.sendall(b"GET /snapshot.jpg HTTP/1.0\r\n" + (f"Host: {host}\r\n".encode() if host is not None
+                                                        else b"") + b"\r\n")
+        data = b""
+        while chunk := s.recv(65536):
+            data += chunk
+    head, _, body = data.partition(b"\r\n\r\n")
+    lines = head.decode().split("\r\n")
+    headers = dict(line.split(": ", 1) for line in lines[1:])
+    return int(lines[0].split()[1]), headers, body
+
+
+def test_the_camera_answers_loopback_names_only_and_a_bounded_number_of_clients() -> None:
+    """DNS rebinding: a page under another name pointed at 127.0.0.1 is refused; pages of other
+    origins may not embed the frames; the 17th connection at once is told 503 and closed."""
+    from hfsmc.sim.mjpeg import MAX_CLIENTS
+
+    s = MjpegServer(port=0)
+    s.start()
+    held: list[socket.socket] = []
+    try:
+        s.publish(b"\xff\xd8fake\xff\xd9")
+        for host in (f"127.0.0.1:{s.port}", f"localhost:{s.port}", "[::1]", None):
+            status, headers, body = ask(s.port, host)
+            assert (status, body) == (200, b"\xff\xd8fake\xff\xd9"), host
+            assert headers["Cross-Origin-Resource-Policy"] == "same-origin"
+            assert headers["X-Content-Type-Options"] == "nosniff"
+        for host in (f"rebind.test:{s.port}", "127.0.0.1.nip.io", "a b", ""):
+            status, _, body = ask(s.port, host)
+            assert status == 403 and b"not a name this camera answers to" in body, host
+        # Streams held open (every one reading) fill the slots; one more is refused at once.
+        for _ in range(MAX_CLIENTS):
+            c = socket.create_connection(("127.0.0.1", s.port), timeout=3)
+            c.sendall(f"GET /bottom.mjpg HTTP/1.0\r\nHost: 127.0.0.1:{s.port}\r\n\r\n".encode())
+            assert c.recv(12) == b"HTTP/1.0 200"
+            held.append(c)
+        status, _, body = ask(s.port, f"127.0.0.1:{s.port}")
+        assert (status, body) == (503, b"too many camera clients at once\n")
+        held.pop().close()  # its thread sees it gone at the next frame
+
+        def served() -> bool:
+            s.publish(b"\xff\xd8fake\xff\xd9")
+            return ask(s.port, f"127.0.0.1:{s.port}")[0] == 200
+
+        assert wait_until(served, 5, step=0.1)
+    finally:
+        for c in held:
+            c.close()
+        s.stop()
+
+
 # --- following another vehicle ---------------------------------------------------------------
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
 
 class FakeVehicle:
     """Plays a MAVLink vehicle: heartbeats, LOCAL_POSITION_NED and ATTITUDE at 20 Hz."""
@@ -452,7 +499,7 @@ def test_the_camera_follows_another_vehicle(tmp_path: Path, sig: int) -> None:
     world_file = tmp_path / "world.yaml"
     world_file.write_text("objects:\n  - {name: r, color: [220, 20, 20], radius: 0.5,"
                           " path: [[10, 5]]}\n")
-    port = free_udp_port()
+    port = free_port(socket.SOCK_DGRAM)
     vehicle = FakeVehicle(port)
     with open(tmp_path / "stderr", "w") as err:
         proc = subprocess.Popen([sys.executable, "-c", FOLLOW, str(world_file),
@@ -505,7 +552,7 @@ def test_follow_stops_on_its_event_and_reports_a_bad_link(tmp_path: Path) -> Non
     result: list[int] = []
     with open(out, "w") as f:
         t = threading.Thread(target=lambda: result.append(
-            run_follow(world(), f"udpin:127.0.0.1:{free_udp_port()}", 0, stop=stop, out=f)))
+            run_follow(world(), f"udpin:127.0.0.1:{free_port(socket.SOCK_DGRAM)}", 0, stop=stop, out=f)))
         t.start()
         assert wait_for(lambda: "camera http://" in out.read_text(), 10)
         stop.set()

@@ -12,6 +12,7 @@ import json
 import math
 import os
 import random
+import re
 import signal
 import socket
 import subprocess
@@ -31,6 +32,7 @@ from pymavlink.dialects.v20 import ardupilotmega as v20
 from hfsmc.sim.autopilot import Autopilot
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World, load_world
+from tests.support import free_port
 
 ROOT = Path(__file__).resolve().parent.parent
 RUN = "import sys; from hfsmc.sim.run import main; sys.exit(main(sys.argv[1:]))"
@@ -42,17 +44,11 @@ POSITION_ONLY = 0b0000_1101_1111_1000  # ignore velocity, acceleration, yaw, yaw
 FAST_WORLD = "vehicle: {max_speed: 5, max_accel: 4, max_climb: 3}\n"
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 class Sim:
     """One `hfsmc sim` process and the pymavlink ground station listening for it."""
 
     def __init__(self, tmp: Path, args: list[str], boot: float) -> None:
-        self.port = free_udp_port()
+        self.port = free_port(socket.SOCK_DGRAM)
         self.gs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}",
                                              source_system=255, dialect="ardupilotmega")
         self.truth_path = tmp / f"truth-{self.port}.json"
@@ -421,7 +417,7 @@ def test_truth_file(tmp_path: Path) -> None:
                      "objects: [{name: red, color: [220, 0, 0], speed: 1.0,"
                      " path: [[5, 0], [15, 0]]}]\n")
     truth = tmp_path / "truth.json"
-    port = free_udp_port()
+    port = free_port(socket.SOCK_DGRAM)
     proc = subprocess.run(
         [sys.executable, "-c", RUN, "--world", str(world), "--seed", "42", "--no-camera",
          "--mavlink", f"udpout:127.0.0.1:{port}", "--boot-time", "0.5", "--duration", "1.5",
@@ -612,9 +608,97 @@ def test_world_clock_armed_holds_the_objects_until_arming(tmp_path: Path) -> Non
         truth = tmp_path / f"truth-{clock}.json"
         args = ["--world-clock", clock] if clock else []
         proc = subprocess.run([sys.executable, "-c", RUN, "--no-camera", "--world", str(world),
-                               "--mavlink", f"udpout:127.0.0.1:{free_udp_port()}",
+                               "--mavlink", f"udpout:127.0.0.1:{free_port(socket.SOCK_DGRAM)}",
                                "--duration", "1.5", "--truth", str(truth), *args],
                               cwd=ROOT, capture_output=True, text=True, timeout=30)
         assert proc.returncode == 0, proc.stderr
         where[clock] = json.loads(truth.read_text())["objects"][0]["north"]
     assert where == {"armed": 0.0, None: 0.0, "start": 1.5}
+
+
+# -- the link obeys its peer only ------------------------------------------------------------------
+def armed(hb: Any) -> bool:
+    return bool(hb.base_mode & ML.MAV_MODE_FLAG_SAFETY_ARMED)
+
+
+def test_only_the_peer_commands_the_vehicle(sims: Callable[..., Sim]) -> None:
+    """With udpout the vehicle obeys the address it sends to: another local process that
+    writes to its socket cannot change the mode, arm or take off (docs/worlds.md)."""
+    sim = sims()
+    sim.wait_ready()
+    (vehicle,) = sim.gs.clients  # the simulator's own socket, where replies go
+    stranger = mavutil.mavlink_connection(f"udpout:{vehicle[0]}:{vehicle[1]}",
+                                          source_system=255, dialect="ardupilotmega")
+    try:
+        for _ in range(3):
+            stranger.mav.set_mode_send(1, ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)
+            stranger.mav.command_long_send(1, 1, ML.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                           1, 0, 0, 0, 0, 0, 0)
+            stranger.mav.command_long_send(1, 1, ML.MAV_CMD_NAV_TAKEOFF, 0,
+                                           0, 0, 0, 0, 0, 0, 5)
+            time.sleep(0.2)
+        beats = sim.collect("HEARTBEAT", 1.5)
+        assert beats and not any(armed(hb) or hb.custom_mode == GUIDED for hb in beats)
+        assert stranger.recv_match(type="COMMAND_ACK", blocking=True, timeout=0.5) is None
+        assert sim.latest("GLOBAL_POSITION_INT").relative_alt < 200
+        stranger_port = stranger.port.getsockname()[1]
+    finally:
+        stranger.close()
+    # The peer does.
+    assert sim.set_mode(GUIDED) == ML.MAV_RESULT_ACCEPTED
+    assert sim.command(ML.MAV_CMD_COMPONENT_ARM_DISARM, 1) == ML.MAV_RESULT_ACCEPTED
+    status, err = sim.close()
+    assert status == 0
+    said = (f"ignoring MAVLink from 127.0.0.1:{stranger_port}: the vehicle obeys its peer "
+            f"127.0.0.1:{sim.port} only")
+    assert err.count(said) == 1, err
+    assert re.search(r"ignored (\d+) MAVLink datagrams from other addresses than the peer", err)
+
+
+def test_udpin_obeys_the_first_address_until_it_falls_silent(tmp_path: Path) -> None:
+    """With udpin the first address that writes is the peer; another is ignored until the
+    peer has been silent for PEER_QUIET_S, then takes over (a restarted ground station)."""
+    from hfsmc.sim.run import PEER_QUIET_S
+
+    port = free_port(socket.SOCK_DGRAM)
+    err = tmp_path / "sim.err"
+    with open(err, "w") as e:
+        proc = subprocess.Popen([sys.executable, "-c", RUN, "--mavlink", f"udpin:127.0.0.1:{port}",
+                                 "--no-camera", "--boot-time", "0.3"], cwd=ROOT, stderr=e)
+    first = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255,
+                                       dialect="ardupilotmega")
+    second = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=254,
+                                        dialect="ardupilotmega")
+    try:
+        def beat(gs: Any) -> None:
+            gs.mav.heartbeat_send(ML.MAV_TYPE_GCS, ML.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+
+        deadline = time.monotonic() + 10
+        while first.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2) is None:
+            assert time.monotonic() < deadline and proc.poll() is None, err.read_text()
+            beat(first)
+        # The second writes (and asks to arm) while the first is alive: ignored, and not told.
+        for _ in range(5):
+            beat(first)
+            beat(second)
+            second.mav.command_long_send(1, 1, ML.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                         1, 0, 0, 0, 0, 0, 0)
+            time.sleep(0.2)
+        assert second.recv_match(blocking=True, timeout=0.5) is None
+        assert not armed(first.recv_match(type="HEARTBEAT", blocking=True, timeout=3))
+        # The first falls silent: after PEER_QUIET_S the second is the peer.
+        deadline = time.monotonic() + PEER_QUIET_S + 10
+        while second.recv_match(type="HEARTBEAT", blocking=True, timeout=0.3) is None:
+            assert time.monotonic() < deadline, err.read_text()
+            beat(second)
+        first_port, second_port = (c.port.getsockname()[1] for c in (first, second))
+        text = err.read_text()
+        assert text.count(f"ignoring MAVLink from 127.0.0.1:{second_port}: the vehicle obeys "
+                          f"its peer 127.0.0.1:{first_port} only") == 1, text
+        assert (f"MAVLink peer is now 127.0.0.1:{second_port} (127.0.0.1:{first_port} silent "
+                f"for {PEER_QUIET_S:g} s)") in text
+    finally:
+        first.close()
+        second.close()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(10) == 0

@@ -257,9 +257,11 @@ def serve_a_web_view(copy: Copy, command: str) -> None:
     with interrupted_at_the_end(copy, command, log) as proc:
         text = wait_for_line(log, re.compile(r"web view on (http://127\.0\.0\.1:\d+/)"), proc,
                              timeout=60, step=0.1).string
-        url = re.search(r"web view on (http://\S+/)", text)
+        url = re.search(r"web view on (http://\S+/\?token=[\w-]+) ", text)
         assert url, text
-        with urllib.request.urlopen(url.group(1), timeout=10) as page:
+        # The token's URL sets a cookie and redirects to the page, which needs it (web.md, Trust).
+        browser = urllib.request.build_opener(urllib.request.HTTPCookieProcessor())
+        with browser.open(url.group(1), timeout=10) as page:
             assert page.status == 200 and b"<html" in page.read().lower()
         if "--replay" not in command:
             wait_for_line(log, re.compile(r"hfsmc view: connected to 127\.0\.0\.1:"), proc,

@@ -307,12 +307,13 @@ def test_convert_keeps_use_as_written_both_ways(tmp_path: Path) -> None:
 
 
 def test_a_used_model_has_no_stopping_keys(tmp_path: Path) -> None:
-    lib = CLIMB.replace("initial: Arm\n", "initial: Arm\non_interrupt: Top\ninterrupt_timeout: 5s\n")
+    lib = CLIMB.replace("initial: Arm\n", "initial: Arm\non_interrupt: Top\ninterrupt_timeout: 5s\n"
+                        "time_limit: 1m\n")
     write(tmp_path, {"lib/climb.yaml": lib, "lib/hold.xml": HOLD_XML, "main.yaml": MAIN})
     result = compile_file(str(tmp_path / "main.yaml"))
     climb = tmp_path / "lib" / "climb.yaml"
-    assert found(result) == [
-        ("E174", f"{climb}:10:1"), ("E174", f"{climb}:11:1")], show(result.diagnostics)
+    assert found(result) == [("E174", f"{climb}:10:1"), ("E174", f"{climb}:11:1"),
+                             ("E174", f"{climb}:12:1")], show(result.diagnostics)
     main = tmp_path / "main.yaml"
     assert all(d.notes[-1] == f"used from {main}:12:10, {main}:16:10" for d in result.diagnostics)
 

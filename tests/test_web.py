@@ -12,13 +12,12 @@ import io
 import json
 import os
 import re
-import shutil
 import signal
 import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ from hfsmc.web.bridge import Bridge, Page, Picture
 from hfsmc.web.picture import model_from_structure, svg_of
 from hfsmc.web.replay import Replay, active_at, view_at
 from hfsmc.web.server import listen, make_app, painter
+from hfsmc.web.trust import Trust
 from tests.conftest import ROOT
 from tests.cppbuild import need_toolchain
 from tests.support import (
@@ -40,10 +40,14 @@ from tests.support import (
     PARALLEL_STRUCTURE,
     RECORDS,
     STRUCTURE,
+    WEB_URL,
+    Process,
     build_blinker,
     free_port,
     many_states,
+    needs_browser,
     read_messages,
+    screenshot,
     wait_until,
     write_used_models,
 )
@@ -51,7 +55,6 @@ from tests.support import (
 monitor = importlib.import_module("hfsmc.templates.python.hfsmc_monitor")
 viewstate = importlib.import_module("hfsmc.templates.python.hfsmc_viewstate")
 
-CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 GREEN = "rgb(76, 175, 80)"  # --active in app.css
 WHITE = "rgb(255, 255, 255)"
 LEAVES = ("Blinking/Lit", "Blinking/Dark")
@@ -118,6 +121,9 @@ def test_a_sub_automaton_is_drawn_alone_from_the_picture_s_model() -> None:
         assert await bridge.sub_svg("Blinking") is sub  # drawn once
         for wrong in ("Paused", "Nope", "", "Blinking/Lit"):
             assert await bridge.sub_svg(wrong) is None, wrong
+        for n in range(2000):  # junk paths draw nothing and are not kept
+            assert await bridge.sub_svg(f"Nope{n}/" + "x" * 500) is None
+        assert set(bridge._subs) == {"Blinking"}
 
     asyncio.run(asyncio.wait_for(story(), 20))
 
@@ -306,20 +312,23 @@ async def _slow_and_fast_pages() -> None:
         return Picture(None, "")
 
     bridge = Bridge("127.0.0.1", 9, no_picture, log=io.StringIO(), queue_limit=8)
-    runner = web.AppRunner(make_app(bridge))
-    await runner.setup()
     sock = listen("127.0.0.1", 0)
     port = sock.getsockname()[1]
+    trust = Trust.new(sock)
+    runner = web.AppRunner(make_app(bridge, trust, io.StringIO()))
+    await runner.setup()
     await web.SockSite(runner, sock).start()
     # A browser that never reads: a WebSocket handshake by hand on a socket left alone.
     slow = socket.socket()
     slow.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     slow.connect(("127.0.0.1", port))
-    slow.sendall(b"GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                 b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
+    slow.sendall(f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nCookie: {trust.cookie}={trust.token}"
+                 "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                 "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+                 .encode())
     try:
         async with aiohttp.ClientSession() as session, \
-                session.ws_connect(f"http://127.0.0.1:{port}/ws") as fast:
+                session.ws_connect(f"http://127.0.0.1:{port}/ws?token={trust.token}") as fast:
             assert json.loads((await fast.receive(timeout=5)).data)["type"] == "state"
             while len(bridge.pages) < 2:
                 await asyncio.sleep(0.01)
@@ -686,98 +695,24 @@ def test_web_usage_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) ->
 
 
 # -- in a real browser ----------------------------------------------------------------------------
-needs_browser = pytest.mark.skipif(
-    not (os.path.exists(CHROMIUM) and os.path.exists(CHROMEDRIVER)),
-    reason="chromium and chromium-driver are not installed (`make deps` installs them)")
-
-
 @pytest.fixture(scope="module")
 def blinker(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_blinker(tmp_path_factory.mktemp("component") / "blinker")
 
 
-def free_udp_port() -> int:
-    return free_port(socket.SOCK_DGRAM)
-
-
-class Process:
-    """A process whose stderr goes to a file; killed at the end of the test."""
-
-    def __init__(self, args: list[str], tmp: Path, name: str) -> None:
-        self.err_path = tmp / f"{name}.err"
-        self.out_path = tmp / f"{name}.out"
-        with open(self.err_path, "w") as err, open(self.out_path, "w") as out:
-            self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=out, stderr=err,
-                                         cwd=tmp)
-
-    def wait_for(self, pattern: str, where: str = "err", timeout: float = 15) -> re.Match[str]:
-        path = self.err_path if where == "err" else self.out_path
-        deadline = time.monotonic() + timeout
-        while not (m := re.search(pattern, path.read_text())):
-            assert time.monotonic() < deadline and self.proc.poll() is None, path.read_text()
-            time.sleep(0.02)
-        return m
-
-    def kill(self, sig: int = signal.SIGKILL) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-        return self.proc.wait(10)
-
-
-@pytest.fixture
-def processes(tmp_path: Path) -> Iterator[Callable[..., Process]]:
-    made: list[Process] = []
-
-    def start(args: list[str], name: str) -> Process:
-        made.append(Process(args, tmp_path, f"{name}{len(made)}"))
-        return made[-1]
-
-    yield start
-    for p in made:
-        p.kill()
-
-
-def component(processes: Callable[..., Process], main: Path, port: int = 0,
+def component(logged: Callable[..., Process], main: Path, port: int = 0,
               until: str = "60s") -> tuple[Process, int]:
     """The blinker on the real clock, blinking until ``until``; its monitor port."""
-    p = processes([sys.executable, str(main), "--monitor", str(port), "--clock", "real",
+    p = logged([sys.executable, str(main), "--monitor", str(port), "--clock", "real",
                    "--until", until, "--param", "blinks=100000"], "component")
     return p, int(p.wait_for(r"monitor: listening on 127\.0\.0\.1:(\d+)").group(1))
 
 
-def web_view(processes: Callable[..., Process], port: int) -> tuple[Process, str]:
-    p = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
+def web_view(logged: Callable[..., Process], port: int) -> tuple[Process, str]:
+    p = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
                    "--model", str(ROOT / BLINKER)], "web")
-    url = p.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+    url = p.wait_for(WEB_URL, where="out").group(1)
     return p, url
-
-
-@pytest.fixture
-def browsers(tmp_path: Path) -> Iterator[Callable[[], Any]]:
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    os.environ["SE_OFFLINE"] = "true"  # never let Selenium Manager fetch a driver
-    made: list[Any] = []
-
-    def start() -> Any:
-        options = webdriver.ChromeOptions()
-        options.binary_location = CHROMIUM
-        for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                     "--no-first-run", "--disable-background-networking",
-                     "--disable-component-update", "--disable-sync", "--window-size=1280,800",
-                     f"--user-data-dir={tmp_path / f'profile{len(made)}'}"):
-            options.add_argument(flag)
-        made.append(webdriver.Chrome(service=Service(CHROMEDRIVER), options=options))
-        made[-1].set_page_load_timeout(15)
-        made[-1].set_script_timeout(10)
-        return made[-1]
-
-    yield start
-    for driver in made:
-        with contextlib.suppress(Exception):
-            driver.quit()
-    shutil.rmtree(tmp_path, ignore_errors=True)
 
 
 # What the page shows, read from its DOM: the SVG elements and tree rows marked active, and
@@ -899,18 +834,12 @@ def moved_on(driver: Any) -> None:
     wait_page(driver, lambda s: green_leaf(s) not in (None, seen), timeout=5)
 
 
-def screenshot(driver: Any, name: str, tmp_path: Path) -> None:
-    """Saved for a person to look at: in $HFSMC_SCREENSHOTS when set, else beside the test."""
-    folder = Path(os.environ.get("HFSMC_SCREENSHOTS") or tmp_path)
-    folder.mkdir(parents=True, exist_ok=True)
-    assert driver.save_screenshot(str(folder / f"{name}.png"))
-
-
 async def _garbage(url: str) -> None:
     """Things no page sends, on the page's WebSocket and on the web view's port."""
     import aiohttp
 
-    ws_url = url.replace("http://", "ws://") + "ws"
+    base, token = url.split("?token=")
+    ws_url = f"{base.replace('http://', 'ws://')}ws?token={token}"  # a script: the token, no Origin
     async with aiohttp.ClientSession() as session:
         async with session.ws_connect(ws_url) as ws:
             for junk in ("not json", '{"type":"state","active":[]}', "{" * 10_000, "\0\1\2"):
@@ -923,7 +852,7 @@ async def _garbage(url: str) -> None:
             while (await ws.receive(timeout=5)).type not in (aiohttp.WSMsgType.CLOSE,
                                                               aiohttp.WSMsgType.CLOSED):
                 pass
-    host, port = url[len("http://"):].rstrip("/").split(":")
+    host, port = base[len("http://"):].rstrip("/").split(":")
     with socket.create_connection((host, int(port)), timeout=5) as raw:
         raw.sendall(os.urandom(3000) + b"\r\n\r\n")
         with contextlib.suppress(OSError):
@@ -931,10 +860,10 @@ async def _garbage(url: str) -> None:
 
 
 @needs_browser
-def test_the_page_draws_the_running_component(blinker: Path, processes: Callable[..., Process],
-                                               browsers: Callable[[], Any], tmp_path: Path) -> None:
-    _, port = component(processes, blinker)
-    web, url = web_view(processes, port)
+def test_the_page_draws_the_running_component(blinker: Path, logged: Callable[..., Process],
+                                               browsers: Callable[..., Any], tmp_path: Path) -> None:
+    _, port = component(logged, blinker)
+    web, url = web_view(logged, port)
     first = browsers()
     first.get(url)
     shown = wait_page(first, lambda s: green_leaf(s) is not None)
@@ -970,11 +899,11 @@ def test_the_page_draws_the_running_component(blinker: Path, processes: Callable
 
 @needs_browser
 def test_the_page_says_when_the_component_goes_and_comes_back(
-        blinker: Path, processes: Callable[..., Process], browsers: Callable[[], Any],
+        blinker: Path, logged: Callable[..., Process], browsers: Callable[..., Any],
         tmp_path: Path) -> None:
     port = free_port()
-    first, _ = component(processes, blinker, port)
-    web, url = web_view(processes, port)
+    first, _ = component(logged, blinker, port)
+    web, url = web_view(logged, port)
     driver = browsers()
     driver.get(url)
     wait_page(driver, lambda s: green_leaf(s) is not None)
@@ -982,7 +911,7 @@ def test_the_page_says_when_the_component_goes_and_comes_back(
     gone = wait_page(driver, lambda s: s["status"] == "disconnected", timeout=5)
     assert gone["banner"] == f"disconnected from 127.0.0.1:{port}; trying again"
     screenshot(driver, "web-disconnected", tmp_path)
-    second, _ = component(processes, blinker, port)
+    second, _ = component(logged, blinker, port)
     back = wait_page(driver, lambda s: green_leaf(s) is not None, timeout=10)
     assert back["banner"] == ""
     assert second.kill(signal.SIGINT) == 130  # on_interrupt: Done, then the stop
@@ -1008,17 +937,17 @@ return Object.fromEntries([...document.querySelectorAll('#hv-vars tr[data-name]'
 
 
 @needs_browser
-def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Process],
-                                  browsers: Callable[[], Any], tmp_path: Path) -> None:
+def test_the_page_replays_a_trace(blinker: Path, logged: Callable[..., Process],
+                                  browsers: Callable[..., Any], tmp_path: Path) -> None:
     trace = tmp_path / "blinker.trace"
     subprocess.run([sys.executable, str(blinker), "--clock", "virtual", "--until", "12s",
                     "--trace", str(trace)], check=True, capture_output=True, timeout=60,
                    stdin=subprocess.DEVNULL)
     records = [json.loads(line) for line in trace.read_text().splitlines()]
     fires = sorted({r["t"] for r in records if r["ev"] == "fire"})
-    web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", "--replay", str(trace),
+    web = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0", "--replay", str(trace),
                      "--model", str(ROOT / BLINKER)], "web")
-    url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) \(replay of ", where="out").group(1)
+    url = web.wait_for(WEB_URL + r"\(replay of ", where="out").group(1)
     driver = browsers()
     driver.get(url)
 
@@ -1056,9 +985,9 @@ def test_the_page_replays_a_trace(blinker: Path, processes: Callable[..., Proces
                     "--trace", str(trace), "--trace-variables"], check=True, capture_output=True,
                    timeout=60, stdin=subprocess.DEVNULL)
     records = [json.loads(line) for line in trace.read_text().splitlines()]
-    web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", "--replay", str(trace),
+    web = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0", "--replay", str(trace),
                      "--model", str(ROOT / BLINKER)], "web")
-    url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) \(replay of ", where="out").group(1)
+    url = web.wait_for(WEB_URL + r"\(replay of ", where="out").group(1)
     driver.get(url)
     shown_at(0)
     assert not driver.find_elements("css selector", "#hv-vars tr.hv-hint")
@@ -1092,7 +1021,7 @@ return {status: document.body.dataset.status,
 
 @needs_browser
 def test_a_500_state_model_opens_and_colours_its_active_state(
-        processes: Callable[..., Process], browsers: Callable[[], Any], tmp_path: Path) -> None:
+        logged: Callable[..., Process], browsers: Callable[..., Any], tmp_path: Path) -> None:
     structure = many_states()
     assert len(structure["states"]) == 500
     srv = monitor.MonitorServer(port=0, announce=io.StringIO())
@@ -1102,9 +1031,9 @@ def test_a_500_state_model_opens_and_colours_its_active_state(
                     {"t": 0, "ev": "enter", "state": "G7"},
                     {"t": 0, "ev": "enter", "state": "G7/S13"}):
             srv.record(rec)
-        web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0",
+        web = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0",
                          f"127.0.0.1:{srv.port}"], "web")
-        url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+        url = web.wait_for(WEB_URL, where="out").group(1)
         driver = browsers()
         driver.get(url)
 
@@ -1152,7 +1081,7 @@ return {status: document.body.dataset.status,
 
 @needs_browser
 def test_the_page_lights_every_region_of_a_parallel_state(
-        processes: Callable[..., Process], browsers: Callable[[], Any], tmp_path: Path) -> None:
+        logged: Callable[..., Process], browsers: Callable[..., Any], tmp_path: Path) -> None:
     """Drawn from the structure alone: each region a group in the tree and a cluster in the
     picture, the active state of every region green at once, autofocus keeping them all."""
     srv = monitor.MonitorServer(port=0, announce=io.StringIO())
@@ -1161,9 +1090,9 @@ def test_the_page_lights_every_region_of_a_parallel_state(
     try:
         for rec in PARALLEL_RECORDS[:7]:  # at 200 ms: Nav in B, Watch in Ok
             srv.record(rec)
-        web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0",
+        web = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0",
                          f"127.0.0.1:{srv.port}"], "web")
-        url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+        url = web.wait_for(WEB_URL, where="out").group(1)
         driver = browsers()
         driver.get(url)
 
@@ -1216,7 +1145,7 @@ return {status: document.body.dataset.status,
 
 @needs_browser
 def test_the_page_names_the_files_sub_automata_are_used_from(
-        processes: Callable[..., Process], browsers: Callable[[], Any], tmp_path: Path) -> None:
+        logged: Callable[..., Process], browsers: Callable[..., Any], tmp_path: Path) -> None:
     """Drawn from the structure alone: the tree row of a using state and its cluster in the
     picture name the file, a nested use too; the instance's states light as any others."""
     result = compile_file(str(write_used_models(tmp_path)))
@@ -1231,9 +1160,9 @@ def test_the_page_names_the_files_sub_automata_are_used_from(
                     {"t": 200, "ev": "enter", "state": "First/Hold"},
                     {"t": 200, "ev": "enter", "state": "First/Hold/Wait"}]:
             srv.record(rec)
-        web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0",
+        web = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0",
                          f"127.0.0.1:{srv.port}"], "web")
-        url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+        url = web.wait_for(WEB_URL, where="out").group(1)
         driver = browsers()
         driver.get(url)
         deadline = time.monotonic() + 30
@@ -1294,16 +1223,16 @@ return {
 @needs_browser
 @pytest.mark.timeout(CPP_BUILD_TIMEOUT + 240)
 def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
-        follow_colors_cpp: Path, processes: Callable[..., Process], browsers: Callable[[], Any],
+        follow_colors_cpp: Path, logged: Callable[..., Process], browsers: Callable[..., Any],
         tmp_path: Path) -> None:
-    udp, http = free_udp_port(), free_port()
+    udp, http = free_port(socket.SOCK_DGRAM), free_port()
     config = {"parameters": {"report": str(tmp_path / "report.json")},
               "interfaces": {"drone": {"type": "mavlink", "url": f"udpin:127.0.0.1:{udp}"},
                              "camera": {"type": "camera",
                                         "url": f"http://127.0.0.1:{http}/bottom.mjpg"}}}
     (tmp_path / "config.yaml").write_text(json.dumps(config))
     truth = tmp_path / "truth.json"
-    processes([sys.executable, "-m", "hfsmc", "sim", "--world",
+    logged([sys.executable, "-m", "hfsmc", "sim", "--world",
                str(ROOT / "examples" / "follow_colors" / "world.yaml"), "--mavlink",
                f"udpout:127.0.0.1:{udp}", "--camera-port", str(http), "--truth", str(truth)], "sim")
     bad = subprocess.run([str(follow_colors_cpp), "--trace-variables"], capture_output=True,
@@ -1311,13 +1240,13 @@ def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
     assert (bad.returncode, bad.stderr) == (
         2, "follow_colors_cpp: --trace-variables needs --trace FILE\n")
     trace = tmp_path / "trace.jsonl"
-    comp = processes([str(follow_colors_cpp), "--config", str(tmp_path / "config.yaml"),
+    comp = logged([str(follow_colors_cpp), "--config", str(tmp_path / "config.yaml"),
                       "--monitor", "0", "--until", "90s", "--trace", str(trace),
                       "--trace-variables"], "component")
     port = int(comp.wait_for(r"monitor: listening on 127\.0\.0\.1:(\d+)").group(1))
-    web = processes([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
+    web = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
                      "--model", str(FOLLOW_CPP)], "web")
-    url = web.wait_for(r"web view on (http://127\.0\.0\.1:\d+/) ", where="out").group(1)
+    url = web.wait_for(WEB_URL, where="out").group(1)
     driver = browsers()
     driver.set_window_size(1280, 900)
     driver.get(url)

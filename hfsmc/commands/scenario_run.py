@@ -40,7 +40,7 @@ from hfsmc.scenario import (
     grid_us,
     read_scenario,
 )
-from hfsmc.scenario_check import Failure, Run, check, read_records
+from hfsmc.scenario_check import Failure, Run, check, model_errors, read_records
 from hfsmc.scenario_inputs import write_playback
 
 Echo = Callable[[str], None]
@@ -321,7 +321,8 @@ def run_one(sc: Scenario, model: Model, language: str, component: Component, fol
     text = trace.read_text("utf-8", errors="replace") if trace.is_file() else ""
     commands_file = folder / "commands.jsonl"
     commands = commands_file.read_text("utf-8", errors="replace") if commands_file.is_file() else ""
-    run = Run(read_records(text), read_records(commands), "trace.jsonl", status)
+    run = Run(read_records(text), read_records(commands), "trace.jsonl", status,
+              model_errors(stderr))
     if status is not None:
         outcome.failures.extend(check(sc, run))
     if outcome.failures and (status not in (0, 1, 124) or not run.trace

@@ -36,7 +36,7 @@ class _ViewError(Exception):
 
 def view(target: str | None, replay: str | None, focus: str | None = None,
          autofocus: bool = True, speed: float = 1.0, model: str | None = None,
-         web: str | None = None) -> int:
+         web: str | None = None, allow_hosts: tuple[str, ...] = ()) -> int:
     """Run ``hfsmc view`` and return its exit status.
 
     ``target`` is ``[HOST:]PORT`` of a component started with ``--monitor``;
@@ -45,20 +45,24 @@ def view(target: str | None, replay: str | None, focus: str | None = None,
     given, else inferred from the paths in the trace. With ``web``
     (``[HOST:]PORT``) the component is shown in a browser instead
     (docs/web.md), drawn from ``model`` when given, or the trace ``replay``
-    is played there, from the pages' controls. Errors are one line on
-    stderr: exit 2 for usage errors, 1 for anything else.
+    is played there, from the pages' controls; the pages are served under loopback
+    names, the host of ``web`` and the names ``allow_hosts`` (``--allow-host``). Errors
+    are one line on stderr: exit 2 for usage errors, 1 for anything else.
     """
     try:
         if (target is None) == (replay is None):
             raise _ViewError("give either [HOST:]PORT or --replay TRACE", 2)
+        if allow_hosts and web is None:
+            raise _ViewError("--allow-host is for the web view (--web [HOST:]PORT)", 2)
         if web is not None:
             if focus is not None:
                 raise _ViewError("--focus is for the terminal view; the web view draws every state",
                                  2)
+            allowed = _allowed_names(allow_hosts)
             if replay is not None:
-                return _web_replay(web, replay, model, autofocus, speed)
+                return _web_replay(web, replay, model, autofocus, speed, allowed)
             assert target is not None
-            return _web(web, target, model, autofocus)
+            return _web(web, target, model, autofocus, allowed)
         if replay is not None:
             return _replay(replay, focus, autofocus, speed, model)
         assert target is not None
@@ -90,6 +94,15 @@ def _attach(target: str, focus: str | None, autofocus: bool) -> int:
     return int(hfsmc_view.run_viewer(items, focus, autofocus, stop=hang_up))
 
 
+def _allowed_names(given: tuple[str, ...]) -> tuple[str, ...]:
+    from hfsmc.hosts import allowed_name
+
+    try:
+        return tuple(allowed_name(text) for text in given)
+    except ValueError as e:
+        raise _ViewError(str(e), 2) from None
+
+
 def _web_listen(web: str) -> Any:
     """The web view's listening socket at ``web`` ([HOST:]PORT)."""
     try:
@@ -110,14 +123,14 @@ def _web_listen(web: str) -> Any:
 
 
 def _web_replay(web: str, path: str, model_path: str | None, autofocus: bool,
-                speed: float) -> int:
+                speed: float, allow: tuple[str, ...]) -> int:
     from hfsmc.errors import UsageError
 
     if not (speed > 0 and speed <= 1000):  # also refuses NaN
         raise _ViewError(f"bad --speed {speed}: the web view plays from more than 0 to 1000 "
                          "times real time", 2)
     try:
-        hfsmc_monitor.parse_address(web)
+        named = hfsmc_monitor.parse_address(web)[0]
     except ValueError as e:
         raise _ViewError(str(e), 2) from None
     records = load_trace(path)
@@ -126,20 +139,22 @@ def _web_replay(web: str, path: str, model_path: str | None, autofocus: bool,
     try:
         from hfsmc.web import replay
 
-        return int(replay(sock, path, records, model, speed=speed, autofocus=autofocus))
+        return int(replay(sock, path, records, model, speed=speed, autofocus=autofocus,
+                          named=named, allow=allow))
     except UsageError as e:
         raise _ViewError(str(e)) from None
     finally:
         sock.close()
 
 
-def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
+def _web(web: str, target: str, model_path: str | None, autofocus: bool,
+         allow: tuple[str, ...]) -> int:
     from hfsmc.errors import UsageError
     from hfsmc.web import watch
 
     try:
         host, port = hfsmc_monitor.parse_address(target)
-        hfsmc_monitor.parse_address(web)
+        named = hfsmc_monitor.parse_address(web)[0]
     except ValueError as e:
         raise _ViewError(str(e), 2) from None
     if port == 0:
@@ -147,7 +162,8 @@ def _web(web: str, target: str, model_path: str | None, autofocus: bool) -> int:
     model = _load_model(model_path) if model_path is not None else None
     sock = _web_listen(web)
     try:
-        return int(watch(sock, host, port, model, autofocus=autofocus))
+        return int(watch(sock, host, port, model, autofocus=autofocus, named=named,
+                         allow=allow))
     except UsageError as e:
         raise _ViewError(str(e)) from None
     finally:

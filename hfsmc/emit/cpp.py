@@ -226,6 +226,7 @@ class CppComponentView:
     interfaces: tuple[InterfaceView, ...]
     machine: MachineView[CppSnippet]
     interrupt_timeout_us: int  # -1 without one
+    time_limit_us: int  # the model's time_limit, -1 without one
     transition_indices: tuple[TransitionIndices, ...]
     first_child: tuple[int, ...]  # per state: where its sub-automata start in _hfsm_CHILDREN
     has_regions: bool  # the engine keeps its chain sorted only with regions
@@ -359,6 +360,7 @@ class CppWalk(Walk[CppSnippet]):
             machine=machine,
             interrupt_timeout_us=(m.interrupt_timeout_us if m.interrupt_timeout_us is not None
                                   else -1),
+            time_limit_us=m.time_limit_us if m.time_limit_us is not None else -1,
             transition_indices=tuple(
                 TransitionIndices(self.index[s.path], self.target(s, t.target), t.index,
                                   cpp_string(t.name or ""))

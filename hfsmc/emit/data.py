@@ -52,6 +52,8 @@ def model_to_data(model: Model) -> dict[str, Any]:
         d["on_interrupt"] = model.on_interrupt
     if model.interrupt_timeout_us is not None:
         d["interrupt_timeout"] = format_us(model.interrupt_timeout_us)
+    if model.time_limit_us is not None:
+        d["time_limit"] = format_us(model.time_limit_us)
     d.update(_automaton(model.root))
     return d
 

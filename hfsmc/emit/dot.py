@@ -431,6 +431,8 @@ class _Drawing:
         lines = ["interrupt"]
         if model.interrupt_timeout_us is not None:
             lines.append(f"timeout {format_us(model.interrupt_timeout_us)}")
+        if model.time_limit_us is not None:
+            lines.append(f"time limit {format_us(model.time_limit_us)}")
         marker = "#interrupt"
         head = _node_id(self.entry_anchor(target))
         g.node(marker, label=esc_lines(lines), shape="octagon", style="filled",

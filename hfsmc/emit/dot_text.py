@@ -97,7 +97,7 @@ def _greedy(text: str, width: int, indent: str) -> list[str]:
             if line:
                 free = room - len(line) - 1
                 cut = _cut(word, free) if free >= MIN_PART else 0
-                if 0 < cut and not (_in_name(word[cut - 1]) and _in_name(word[cut])):
+                if cut > 0 and not (_in_name(word[cut - 1]) and _in_name(word[cut])):
                     lines.append(f"{line} {word[:cut]}")
                     word = word[cut:]
                 else:

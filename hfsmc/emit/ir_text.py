@@ -40,6 +40,8 @@ def dump(model: Model) -> str:
     if model.on_interrupt:
         timeout = format_us(model.interrupt_timeout_us) if model.interrupt_timeout_us else "none"
         out.append(f"  on_interrupt {model.on_interrupt} timeout {timeout}")
+    if model.time_limit_us is not None:
+        out.append(f"  time_limit {format_us(model.time_limit_us)}")
     out += _automaton(model.root, "  ")
     return "\n".join(out) + "\n"
 

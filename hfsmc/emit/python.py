@@ -168,6 +168,7 @@ class PythonComponentView:
     interfaces: tuple[InterfaceView, ...]
     machine: MachineView[PythonSnippet]
     interrupt_timeout_us: int | None
+    time_limit_us: int | None  # the model's time_limit (--time-limit overrides it)
     transition_paths: tuple[TransitionPaths, ...]
     instances: tuple[PythonInstanceView, ...]
     config: str  # the body of NAME.yaml
@@ -219,6 +220,7 @@ class PythonWalk(Walk[PythonSnippet]):
                              for i in m.interfaces),
             machine=machine,
             interrupt_timeout_us=m.interrupt_timeout_us,
+            time_limit_us=m.time_limit_us,
             transition_paths=tuple(
                 TransitionPaths(s.path, f"{s.path.rpartition('/')[0]}/{t.target}".lstrip("/"),
                                 t.index, t.name)

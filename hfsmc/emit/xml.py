@@ -61,7 +61,8 @@ def to_xml(model: Model, comments: Sequence[tuple[int, str]] = ()) -> str:
     w.code(1, "functions", model.functions)
     w.code(1, "on_shutdown", model.on_shutdown)
     root_extra = [("on_interrupt", model.on_interrupt),
-                  ("interrupt_timeout", _duration(model.interrupt_timeout_us))]
+                  ("interrupt_timeout", _duration(model.interrupt_timeout_us)),
+                  ("time_limit", _duration(model.time_limit_us))]
     w.automaton(1, model.root, root_extra)
     w.comments_before(None, 1)
     w.close(0, "hfsm")

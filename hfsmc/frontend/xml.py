@@ -385,7 +385,7 @@ class _Converter:
 
     # -- states ----------------------------------------------------------------
     def automaton(self, el: Element, path: PathKey, d: dict[str, Any]) -> None:
-        for name in ("period", "initial", "on_interrupt", "interrupt_timeout"):
+        for name in ("period", "initial", "on_interrupt", "interrupt_timeout", "time_limit"):
             self.attr(el, path, d, name)
         self.attr(el, path, d, "history", convert=_flag)
         states: dict[str, Any] = {}

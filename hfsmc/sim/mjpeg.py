@@ -15,6 +15,12 @@ do not know.
 A paused server looks like a camera that has dropped: streams are cut (the
 reader sees the end of its stream) and new requests get ``503`` until it
 resumes.
+
+It answers only its own machine's programs (docs/worlds.md, "The camera"): a request
+whose ``Host`` is not a loopback name (a page under a name a DNS server pointed at
+127.0.0.1) gets ``403``, a browser page of another origin may not embed the frames
+(``Cross-Origin-Resource-Policy``), and beyond MAX_CLIENTS connections at once a new
+one is answered ``503`` and closed without a thread of its own.
 """
 
 from __future__ import annotations
@@ -26,12 +32,19 @@ import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
 
+from hfsmc.hosts import host_name, is_loopback, is_unspecified, normal_name
+
 log = logging.getLogger("hfsmc.sim.mjpeg")
 
 STREAM_PATH = "/bottom.mjpg"
 SNAPSHOT_PATH = "/snapshot.jpg"
 BOUNDARY = "hfsmcframe"
 CLIENT_TIMEOUT = 5.0  # seconds a client may take to send its request or to take a frame
+MAX_CLIENTS = 16  # connections served at once; more are answered 503 and closed
+BUSY = (b"HTTP/1.0 503 Service Unavailable\r\nContent-Type: text/plain\r\nConnection: close\r\n"
+        b"\r\ntoo many camera clients at once\n")
+HEADERS = {"Cache-Control": "no-store", "X-Content-Type-Options": "nosniff",
+           "Cross-Origin-Resource-Policy": "same-origin"}
 
 
 class _Frames:
@@ -77,6 +90,29 @@ class _Frames:
 class _HttpServer(ThreadingHTTPServer):
     daemon_threads = True
     frames: _Frames
+    names: frozenset[str] = frozenset()  # besides loopback names, the Host names answered
+    active = 0  # connections being served (their threads)
+    count_lock = threading.Lock()
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        with self.count_lock:
+            busy = self.active >= MAX_CLIENTS
+            if not busy:
+                self.active += 1
+        if busy:  # answered here, on the server's thread: a short write to an empty socket
+            with contextlib.suppress(OSError):
+                request.settimeout(0.5)
+                request.sendall(BUSY)
+            self.shutdown_request(request)
+            return
+        super().process_request(request, client_address)
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            with self.count_lock:
+                self.active -= 1
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         # A client that hangs up mid-frame is ordinary; anything else is worth a line.
@@ -106,7 +142,17 @@ class _Handler(BaseHTTPRequestHandler):
     def log_message(self, format: str, *args: Any) -> None:
         log.debug("camera %s: " + format, self.address_string(), *args)
 
+    def end_headers(self) -> None:
+        for key, value in HEADERS.items():
+            self.send_header(key, value)
+        super().end_headers()
+
     def do_GET(self) -> None:
+        given = self.headers.get("Host")
+        name = host_name(given)
+        if given is not None and (name is None or not (is_loopback(name) or name in self.server.names)):
+            self.send_error(403, "not a name this camera answers to")
+            return
         path = self.path.split("?", 1)[0]
         if path not in (STREAM_PATH, SNAPSHOT_PATH):
             self.send_error(404, "no such stream: try " + STREAM_PATH)
@@ -128,14 +174,12 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_response(200)
         self.send_header("Content-Type", "image/jpeg")
         self.send_header("Content-Length", str(len(jpeg)))
-        self.send_header("Cache-Control", "no-store")
         self.end_headers()
         self.wfile.write(jpeg)
 
     def _stream(self) -> None:
         self.send_response(200)
         self.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
-        self.send_header("Cache-Control", "no-store")
         self.send_header("Connection", "close")
         self.end_headers()
         frames = self.server.frames
@@ -161,6 +205,9 @@ class MjpegServer:
         self._frames = _Frames()
         self._httpd = _HttpServer((host, port), _Handler, bind_and_activate=False)
         self._httpd.frames = self._frames
+        self._httpd.count_lock = threading.Lock()
+        named = normal_name(host)
+        self._httpd.names = frozenset([named] if named and not is_unspecified(named) else [])
         self._thread: threading.Thread | None = None
         self.host = host
 

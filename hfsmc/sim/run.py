@@ -3,6 +3,10 @@
 The vehicle is reached as ArduPilot SITL is: it sends from its own UDP socket to
 127.0.0.1:14550 (``udpout``) and reads the replies that come back to that
 socket, so a component or MAVProxy listens with ``udpin:127.0.0.1:14550``.
+It obeys its peer only (docs/worlds.md, "The MAVLink link"): with ``udpout`` the
+address it sends to, with ``udpin`` the first address that writes to it (another
+one may take over once that one has been silent for PEER_QUIET_S); datagrams
+from any other address are dropped, counted, and said once per address.
 
 The physics runs at a fixed step driven by the monotonic clock with absolute
 deadlines; simulated time is steps * dt, so timestamps, telemetry instants and
@@ -25,7 +29,7 @@ import signal
 import socket
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from types import FrameType
 from typing import Any
 
@@ -38,6 +42,8 @@ from hfsmc.sim.world import WORLD_CLOCKS, World, WorldClock, WorldError, load_wo
 
 DEFAULT_MAVLINK = "udpout:127.0.0.1:14550"
 MAX_DATAGRAMS = 500  # per step: a flood must not starve the physics
+PEER_QUIET_S = 5.0  # udpin: a peer silent this long (while the link is up) may be replaced
+STRANGERS_SAID = 16  # addresses whose ignored datagrams are said; later ones are only counted
 
 
 def parse_url(url: str) -> tuple[str, str, int]:
@@ -52,10 +58,16 @@ def parse_url(url: str) -> tuple[str, str, int]:
 
 
 class Link:
-    """The vehicle's UDP socket. Down, it sends nothing and drops what arrives."""
+    """The vehicle's UDP socket. Down, it sends nothing and drops what arrives. It takes
+    datagrams from its peer only; ``ignored`` counts the others, ``log`` says whose."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, log: Callable[[str], None] | None = None) -> None:
         self.kind, host, port = parse_url(url)
+        self.log = log if log is not None else _stderr
+        self.ignored = 0
+        self._strangers: set[tuple[str, int]] = set()
+        self._heard = 0.0  # when the peer was last heard (monotonic), or the link came up
+        self._up = True
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setblocking(False)
         self.peer: tuple[str, int] | None = None
@@ -67,15 +79,24 @@ class Link:
         except OSError:
             self.sock.close()
             raise
-        self.up = True
         self.sent = 0  # datagrams sent (the lockstep's count, docs/worlds.md)
-        self.received = 0  # datagrams read, kept or dropped (a link down drops them)
+        self.received = 0  # the peer's datagrams read, kept or dropped (a link down drops them)
+
+    @property
+    def up(self) -> bool:
+        return self._up
+
+    @up.setter
+    def up(self, on: bool) -> None:
+        if on and not self._up:  # the peer's silence while the link was down does not count
+            self._heard = time.monotonic()
+        self._up = on
 
     def describe(self) -> str:
         if self.kind == "udpout" and self.peer is not None:
             return f"MAVLink to udp:{self.peer[0]}:{self.peer[1]}"
         host, port = self.sock.getsockname()
-        return f"MAVLink on udpin:{host}:{port} (answers whoever writes to it)"
+        return f"MAVLink on udpin:{host}:{port} (obeys the first address that writes to it)"
 
     def send(self, data: bytes) -> None:
         if self.up and self.peer is not None:
@@ -92,12 +113,33 @@ class Link:
                 break
             except OSError:
                 continue  # an ICMP error reported on the socket: try the next datagram
-            self.received += 1
-            if self.up:
-                if self.kind == "udpin":
-                    self.peer = addr
+            mine = self._from_peer(addr) if self.up else addr == self.peer
+            if mine:
+                self.received += 1
+            if self.up and mine:
                 out.append(data)
         return out
+
+    def _from_peer(self, addr: tuple[str, int]) -> bool:
+        """Whether a datagram from ``addr`` is the peer's (udpin: the first one to write, or
+        one that writes after the peer has been silent for PEER_QUIET_S)."""
+        now = time.monotonic()
+        if addr != self.peer and self.kind == "udpin" and \
+                (self.peer is None or now - self._heard > PEER_QUIET_S):
+            if self.peer is not None:
+                self.log(f"MAVLink peer is now {addr[0]}:{addr[1]} ({self.peer[0]}:"
+                         f"{self.peer[1]} silent for {PEER_QUIET_S:g} s)")
+            self.peer = addr
+        if addr == self.peer:
+            self._heard = now
+            return True
+        self.ignored += 1
+        if addr not in self._strangers and len(self._strangers) < STRANGERS_SAID:
+            self._strangers.add(addr)
+            peer = f"{self.peer[0]}:{self.peer[1]}" if self.peer else "none"
+            self.log(f"ignoring MAVLink from {addr[0]}:{addr[1]}: the vehicle obeys its peer "
+                     f"{peer} only")
+        return False
 
     def close(self) -> None:
         self.sock.close()
@@ -115,6 +157,7 @@ class Simulator:
         self.truth_path = truth
         self.drop = None if drop_after is None else (drop_after, drop_after + drop_for)
         self.body = Body(world.vehicle, world.seed)
+        link.log = self.log
         self.ap = Autopilot(world, self.body, link.send, boot_time=boot_time, log=self.log)
         self.ap.set_params(params or {})
         self.clock = WorldClock(world_clock)
@@ -250,6 +293,10 @@ class Simulator:
             if not self._truth_failed:  # say it once; the flight goes on
                 self._truth_failed = True
                 self.log(f"cannot write the truth file: {e}")
+
+
+def _stderr(text: str) -> None:
+    print(f"sim: {text}", file=sys.stderr, flush=True)
 
 
 def _r(x: float, digits: int) -> float:
@@ -427,6 +474,9 @@ def main(argv: list[str]) -> int:
                     sim.run(args.duration)
             finally:
                 sim.write_truth()
+                if link.ignored:
+                    sim.log(f"ignored {link.ignored} MAVLink datagrams from other addresses "
+                            "than the peer")
     finally:
         if sim.camera is not None:
             sim.camera.stop()

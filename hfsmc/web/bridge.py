@@ -125,6 +125,7 @@ class Bridge:
         self._said = ""  # the last status line written to the log
         self._subs_of: Picture | None = None  # the picture the sub-automata below were drawn for
         self._subs: dict[str, str | None] = {}
+        self._drawable: frozenset[str] = frozenset()  # the picture's composite states and regions
         self.feeds: dict[str, list[str]] = {"vehicle": [], "camera": []}  # from the hello
         self.vehicles: dict[str, dict[str, Any]] = {}  # the latest vehicle message of each
         self.frames: dict[str, dict[str, Any]] = {}  # the latest frame of each camera
@@ -137,10 +138,13 @@ class Bridge:
         ``hfsmc diagram --state PATH``), drawn once per picture; None when there is no
         such composite state or no model to draw it from."""
         picture = self.picture
-        if picture.source is None or len(path) > 1000:
+        if picture.source is None:
             return None
         if picture is not self._subs_of:
             self._subs_of, self._subs = picture, {}
+            self._drawable = _drawable(picture.source)
+        if path not in self._drawable:  # nothing drawn, nothing kept: the cache stays the model's size
+            return None
         if path not in self._subs:
             source = picture.source
             try:
@@ -399,6 +403,12 @@ class Bridge:
             # Both at once: a page that attached while dot was drawing got the old pair.
             self.structure, self.picture = structure, picture
             self._broadcast(self.model_message())
+
+
+def _drawable(model: Model) -> frozenset[str]:
+    """The paths ``/sub`` draws: the composite states and the regions of ``model``."""
+    return frozenset([s.path for s in model.states() if s.automata]
+                     + [a.path for a in model.automata() if a.region is not None])
 
 
 def _int(x: object) -> int:

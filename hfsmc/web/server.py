@@ -23,6 +23,7 @@ from aiohttp import WSMsgType, web
 
 from hfsmc.errors import UsageError
 from hfsmc.web.bridge import Bridge, Page, Picture
+from hfsmc.web.trust import Trust, guard, headers, loopback_only
 
 MAX_PAGES = 64  # pages served at once; more WebSockets are closed at once
 WS_MESSAGE_LIMIT = 1 << 16  # a page sends nothing legitimate: a bigger frame closes its socket
@@ -30,7 +31,8 @@ STATIC = {"": ("index.html", "text/html"), "app.js": ("app.js", "text/javascript
           "app.css": ("app.css", "text/css")}
 # Only the page's own files and its WebSocket; the SVG is inline.
 CSP = ("default-src 'none'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
-       "img-src 'self' data:; connect-src 'self'; base-uri 'none'; form-action 'none'")
+       "img-src 'self' data:; connect-src 'self'; base-uri 'none'; form-action 'none'; "
+       "frame-ancestors 'none'")
 _BRIDGE = web.AppKey("bridge", Bridge)
 _FILES = web.AppKey("files", dict)
 
@@ -41,9 +43,11 @@ def static_files() -> dict[str, tuple[bytes, str]]:
     return {route: ((folder / name).read_bytes(), kind) for route, (name, kind) in STATIC.items()}
 
 
-def make_app(bridge: Bridge) -> web.Application:
-    """The web application that serves ``bridge``'s view."""
-    app = web.Application()
+def make_app(bridge: Bridge, trust: Trust, log: TextIO | None = None) -> web.Application:
+    """The web application that serves ``bridge``'s view to those ``trust`` lets in
+    (refusals said once each on ``log``, stderr by default)."""
+    app = web.Application(middlewares=[guard(trust, log)])
+    app.on_response_prepare.append(headers)
     app[_BRIDGE] = bridge
     app[_FILES] = static_files()
     app.router.add_get("/", _file)
@@ -120,26 +124,34 @@ def listen(host: str, port: int) -> socket.socket:
     return sock
 
 
-def url_of(sock: socket.socket) -> str:
+def url_of(sock: socket.socket, token: str) -> str:
+    """The URL to open: on loopback when the server listens on every address."""
     host, port = sock.getsockname()[:2]
-    return f"http://[{host}]:{port}/" if ":" in host else f"http://{host}:{port}/"
+    host = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(host, host)
+    where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+    return f"http://{where}/?token={token}"
 
 
-async def serve(sock: socket.socket, bridge: Bridge, out: TextIO | None = None,
-                stop: asyncio.Event | None = None) -> None:
-    """Serve the page on ``sock`` and run ``bridge`` until ``stop`` is set (or SIGINT/SIGTERM)."""
+async def serve(sock: socket.socket, bridge: Bridge, trust: Trust, out: TextIO | None = None,
+                stop: asyncio.Event | None = None, log: TextIO | None = None) -> None:
+    """Serve the page on ``sock`` to those ``trust`` lets in, and run ``bridge``, until
+    ``stop`` is set (or SIGINT/SIGTERM). The URL goes to ``out`` (stdout), a warning for a
+    server other machines can reach and the refusals to ``log`` (stderr)."""
     out = out if out is not None else sys.stdout
+    log = log if log is not None else sys.stderr
     stop = stop if stop is not None else asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
             loop.add_signal_handler(sig, stop.set)
-    runner = web.AppRunner(make_app(bridge), access_log=None, handle_signals=False)
+    runner = web.AppRunner(make_app(bridge, trust, log), access_log=None, handle_signals=False)
     await runner.setup()
     watching = asyncio.create_task(bridge.run())
     try:
         await web.SockSite(runner, sock, shutdown_timeout=1.0).start()
-        print(f"hfsmc view: web view on {url_of(sock)} ({bridge.watching})",
+        if not loopback_only(sock):
+            print(network_warning(sock, trust), file=log, flush=True)
+        print(f"hfsmc view: web view on {url_of(sock, trust.token)} ({bridge.watching})",
               file=out, flush=True)
         await stop.wait()
     finally:
@@ -152,6 +164,17 @@ async def serve(sock: socket.socket, bridge: Bridge, out: TextIO | None = None,
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
                 loop.remove_signal_handler(sig)
+
+
+def network_warning(sock: socket.socket, trust: Trust) -> str:
+    """What a server that other machines can reach says on stderr."""
+    host, port = sock.getsockname()[:2]
+    where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+    names = ", ".join(sorted(trust.names)) or "none"
+    return (f"hfsmc view: warning: the web view on {where} can be reached from other machines: "
+            "whoever has its URL with the token sees the component's states, variables, log "
+            "and camera, unencrypted; it answers to loopback names and to these others "
+            f"(--allow-host): {names}")
 
 
 def painter(drawn: Picture | None, model_structure: dict[str, Any] | None,

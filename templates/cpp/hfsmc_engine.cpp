@@ -392,7 +392,8 @@ bool EngineCore::boundary() {
     } else if (reason == "error" || !sig_reason.empty() || reason == "shutdown" || reason == "time_limit") {
         const std::string why = reason == "error" ? "error" : !sig_reason.empty() ? sig_reason : reason;
         if (rec_ && why != "error" && why != "shutdown") rec_->signal(t, why, ticks_);
-        if (tb_.on_interrupt >= 0) interrupt(why);
+        if (why == "time_limit" && !interrupting_.empty()) limit_said("during the interrupt (" + interrupting_ + ") in");
+        else if (tb_.on_interrupt >= 0) interrupt(why);
         else stop(why);
     } else {
         return false;
@@ -404,9 +405,8 @@ void EngineCore::interrupt(const std::string& reason) {
     if (t != snap_t_) world();  // a time no instant ran at: the world as it is now
     const int target = tb_.on_interrupt;
     end_lockstep();  // the target's sub-automata start at the interrupt's time
-    interrupting_ = reason;
+    interrupting_ = reason;  // a time limit reached from now on only says so (§11)
     signals::hard = 1;
-    time_limit_us_ = -1;  // stopping already: the time limit has nothing left to do
     if (tb_.interrupt_timeout_us >= 0) timeout_at_ = t + tb_.interrupt_timeout_us;
     set_limit();
     if (recording_) {
@@ -421,7 +421,24 @@ void EngineCore::interrupt(const std::string& reason) {
         leave_root();
         owner = root_;
         enter_state(target);
+    } else if (reason == "time_limit") {
+        limit_said("in");
     }
+}
+
+// The time limit reached while the model already lands (in its on_interrupt state, or
+// during an interrupt): nothing is cut short, and a log line says so and how long it may
+// still take (docs/semantics.md §11).
+void EngineCore::limit_said(const std::string& where) {
+    char left[96];
+    if (timeout_at_ < 0)
+        std::snprintf(left, sizeof left, "with no bound (no interrupt_timeout)");
+    else
+        std::snprintf(left, sizeof left, "%g s at most (interrupt_timeout)",
+                      static_cast<double>(timeout_at_ - t) / 1e6);
+    owner = root_;
+    log("time limit reached " + where + " " + tb_.states[cur_[0]].path +
+        ": it goes on until the root's final state, " + left);
 }
 
 void EngineCore::stop(const std::string& reason) {

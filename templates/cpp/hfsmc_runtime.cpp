@@ -489,7 +489,8 @@ void print_help(const Tables& tb) {
         "  --clock real|virtual   the clock (default real)\n"
         "  --until DURATION       stop after that much time (e.g. 10s)\n"
         "  --time-limit DURATION  after that much time, stop as on SIGINT: through on_interrupt\n"
-        "                         (a drone lands), exit status 124\n"
+        "                         (a drone lands), exit status 124; overrides the model's\n"
+        "                         time_limit\n"
         "  --record FILE          record the run in an MCAP file, for `hfsmc replay`\n"
         "  --realtime [PRIORITY]  SCHED_FIFO at PRIORITY (1 to 99, default %d) and locked memory,\n"
         "                         when the process may\n\n",
@@ -577,6 +578,7 @@ void Startup::begin(const Tables& tb, int argc, char** argv) {
     config = configure(tb, argc, argv, options, help);
     if (help) return;
     if (!options.until.empty()) until = parse_duration_us(options.until);
+    time_limit = tb.time_limit_us;  // the model's, unless --time-limit gives another
     if (!options.time_limit.empty()) time_limit = parse_duration_us(options.time_limit);
     if (!options.playback.empty()) {  // the interfaces become fakes fed from DIR, on the virtual clock
         inputs = std::make_unique<playback::Inputs>(options.playback);

@@ -78,6 +78,13 @@ class CameraQueries:
     _told: int = 0  # the number of the last frame told to on_frame
     on_frame: Callable[[int, Any, Any], None] | None
 
+    def __getattr__(self, attr: str) -> Any:
+        """Only for a name the class does not have: say which interface lacks it, not
+        which Python class."""
+        name = self.__dict__.get("name", "?")
+        raise AttributeError(f"the camera interface `{name}` has no method or attribute "
+                             f"`{attr}` (docs/interfaces.md)", name=attr, obj=self)
+
     def frame(self) -> Any:
         """The latest frame when the instant began (an H x W x 3 BGR numpy array); None
         before the first. The same array until a newer one comes: copy it before drawing

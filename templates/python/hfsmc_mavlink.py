@@ -117,6 +117,13 @@ class VehicleQueries:
     _snap: dict[str, Any]
     on_command: Callable[[str, list[Any]], None] | None
 
+    def __getattr__(self, attr: str) -> Any:
+        """Only for a name the class does not have: say which interface lacks it (the
+        error a snippet calling ``drone.fly_to()`` gets), not which Python class."""
+        name = self.__dict__.get("name", "?")
+        raise AttributeError(f"the mavlink interface `{name}` has no method or attribute "
+                             f"`{attr}` (docs/interfaces.md)", name=attr, obj=self)
+
     # -- state (the instant's snapshot) ----------------------------------------------
     def connected(self) -> bool:
         """A heartbeat from the vehicle within the last 2 s."""

@@ -10,6 +10,8 @@ client that connects late gets the current state at once. A slow client never
 holds up the automaton or the other clients: each has a bounded buffer and is
 dropped when it overflows. What clients send is read and thrown away, but
 for one request: ``{"type":"subscribe","frames":true}`` asks for camera frames.
+A connection beyond the client slots, or beyond one address's share of them, is
+told ``busy`` (and why) and closed.
 
 Minor version 1 adds two messages, for components with those interfaces: the
 ``vehicle`` of a ``mavlink`` interface (what the driver already holds, a few
@@ -42,7 +44,10 @@ else:  # copied beside the generated component, where the modules are top level
 
 PROTOCOL = 1
 MINOR = 1  # additions old viewers ignore: feeds in hello, vehicle and frame messages
-MAX_CLIENTS = 16  # more connections at once are closed as soon as they are accepted
+MAX_CLIENTS = 16  # more connections at once are told "busy" and closed
+# One address (127.0.0.1 too) may hold at most this share of the slots: a viewer elsewhere
+# always finds one.
+MAX_PER_ADDRESS = MAX_CLIENTS // 2
 BUFFER_LIMIT = 1 << 20  # bytes waiting for one client; beyond, the client is dropped
 INPUT_LIMIT = 1 << 20  # bytes one client may send (all ignored); beyond, it is dropped
 LINE_LIMIT = 1 << 24  # longest message a viewer reads
@@ -137,17 +142,25 @@ def frame_message(name: str, t_ms: int, image: Any, cv2: Any) -> dict[str, Any] 
             "jpeg": base64.b64encode(jpeg.tobytes()).decode("ascii")}
 
 
-class _Client:
-    __slots__ = ("events", "frames", "inbuf", "out", "reading", "received", "sock")
+def busy_message(reason: str) -> bytes:
+    """What a connection the monitor cannot serve is told before it is closed."""
+    return encode({"type": "busy", "reason": reason})
 
-    def __init__(self, sock: socket.socket) -> None:
+
+class _Client:
+    __slots__ = ("addr", "events", "frames", "inbuf", "out", "reading", "received", "sent",
+                 "sock")
+
+    def __init__(self, sock: socket.socket, addr: str) -> None:
         self.sock = sock
+        self.addr = addr  # the peer's address, whose share of the slots it takes
         self.out = bytearray()
         self.reading = True  # until the client shuts its side down
         self.received = 0
         self.events = 0  # what the selector watches for it
         self.inbuf = b""  # the start of a request line
         self.frames = False  # it asked for camera frames
+        self.sent: dict[str, Any] = {}  # per camera, the image whose frame it was given last
 
 
 class MonitorServer:
@@ -160,7 +173,7 @@ class MonitorServer:
 
     def __init__(self, host: str = "127.0.0.1", port: int = 0, *, announce: TextIO | None = None,
                  max_clients: int = MAX_CLIENTS, buffer_limit: int = BUFFER_LIMIT,
-                 input_limit: int = INPUT_LIMIT) -> None:
+                 input_limit: int = INPUT_LIMIT, max_per_address: int | None = None) -> None:
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         self._listener = socket.create_server((host, port), family=family, backlog=max_clients)
         self._listener.setblocking(False)
@@ -173,12 +186,14 @@ class MonitorServer:
         self._signalled = False
         self._thread: threading.Thread | None = None
         self._max_clients, self._buffer_limit, self._input_limit = max_clients, buffer_limit, input_limit
+        self._max_per_address = max_per_address if max_per_address is not None \
+            else max(1, max_clients // 2)
         self._structure: dict[str, Any] = {}
         self._clients: dict[int, _Client] = {}
         self._sel = selectors.DefaultSelector()
         self._vehicles: dict[str, Any] = {}
         self._cameras: dict[str, Any] = {}
-        self._sent_frame: dict[str, Any] = {}  # per camera, the last frame encoded
+        self._encoded: dict[str, tuple[Any, bytes]] = {}  # per camera, the last image and its frame
         self._next_feed = 0.0
         self._cv2: Any = None
         print(f"monitor: listening on {format_address(self.host, self.port)}",
@@ -317,20 +332,26 @@ class MonitorServer:
         if not takers:
             return
         for name, camera in self._cameras.items():
+            # Each new image is encoded once, here, at most every FEED_EVERY_S: however often
+            # clients subscribe, a subscriber is only given the frame already made.
             try:
                 image = camera._last_seen()
-                if image is None or image is self._sent_frame.get(name):
+                if image is None:
                     continue
-                self._sent_frame[name] = image
-                msg = frame_message(name, view.t_ms, image, self._cv2)
+                if name not in self._encoded or self._encoded[name][0] is not image:
+                    msg = frame_message(name, view.t_ms, image, self._cv2)
+                    if msg is None:
+                        continue
+                    self._encoded[name] = (image, encode(msg))
             except Exception:
                 continue
-            if msg is None:
-                continue
-            data = encode(msg)
+            image, data = self._encoded[name]
             for c in takers:
-                # Frames are skipped, never queued without bound: the client is not dropped.
-                if self._alive(c) and len(c.out) + len(data) <= min(FRAME_BACKLOG, self._buffer_limit):
+                # Frames are skipped, never queued without bound: the client is not dropped,
+                # and gets the latest frame once it has caught up.
+                if self._alive(c) and c.sent.get(name) is not image and \
+                        len(c.out) + len(data) <= min(FRAME_BACKLOG, self._buffer_limit):
+                    c.sent[name] = image
                     c.out += data
                     self._flush(c)
 
@@ -345,22 +366,43 @@ class MonitorServer:
     def _accept(self, view: _view.ViewState) -> None:
         while True:
             try:
-                sock, _ = self._listener.accept()
+                sock, peer = self._listener.accept()
             except OSError:  # nothing more to accept (or out of descriptors: try later)
                 return
-            if len(self._clients) >= self._max_clients:
-                sock.close()
+            addr = str(peer[0]) if isinstance(peer, tuple) else str(peer)
+            reason = self._no_room_for(addr)
+            if reason is not None:
+                self._turn_away(sock, reason)
                 continue
             sock.setblocking(False)
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            c = _Client(sock)
+            c = _Client(sock, addr)
             self._clients[sock.fileno()] = c
             hello = {"type": "hello", "protocol": PROTOCOL, "minor": MINOR,
                      "structure": self._structure,
                      "feeds": {"vehicle": list(self._vehicles), "camera": list(self._cameras)}}
             c.out += encode(hello) + encode(view.snapshot())
             self._flush(c)
+
+    def _no_room_for(self, addr: str) -> str | None:
+        """Why a new client from ``addr`` cannot be served (None: it can)."""
+        if len(self._clients) >= self._max_clients:
+            return f"all {self._max_clients} viewer slots are taken; try again later"
+        mine = sum(1 for c in self._clients.values() if c.addr == addr)
+        if mine >= self._max_per_address:
+            return (f"the viewers from {addr} hold {mine} of the {self._max_clients} slots, "
+                    "the most one address may; close one")
+        return None
+
+    @staticmethod
+    def _turn_away(sock: socket.socket, reason: str) -> None:
+        """Tell a connection why it is not served, without waiting for it, and close it."""
+        with contextlib.suppress(OSError):
+            sock.setblocking(False)
+            sock.send(busy_message(reason))
+            sock.shutdown(socket.SHUT_WR)
+        sock.close()
 
     def _read(self, c: _Client) -> None:
         try:
@@ -394,10 +436,11 @@ class MonitorServer:
         except ValueError:
             return
         if isinstance(msg, dict) and msg.get("type") == "subscribe" and isinstance(msg.get("frames"), bool):
+            # The latest frame goes to a new subscriber at the next feed (within FEED_EVERY_S),
+            # already encoded: asking again and again costs the component no encoding.
+            if msg["frames"] and not c.frames:
+                c.sent = {}
             c.frames = msg["frames"]
-            if c.frames:
-                self._sent_frame.clear()  # the newcomer gets the latest frame at once
-                self._next_feed = 0.0
 
     def _flush(self, c: _Client) -> None:
         try:
@@ -475,6 +518,8 @@ def item(msg: object) -> _view.Item | None:
         if isinstance(t, int) and isinstance(values, dict) and isinstance(overruns, int):
             return "sample", (t, values, overruns)
         return None
+    if kind == "busy":
+        return "error", f"the component's monitor is busy: {msg.get('reason')}"
     if kind == "bye":
         reason = msg.get("reason")
         return "end", (f"component stopped ({reason})" if reason else "component closed the monitor")

@@ -249,6 +249,9 @@ def fake_vehicle(name: str, module: Any, playback: Any = None) -> Any:
         def __repr__(self) -> str:
             return f"<mavlink {name} (playback)>"
 
+        def close(self) -> None:
+            """Nothing to stop (the real one's reader thread and socket)."""
+
         def apply(self, values: dict[str, Any]) -> None:
             self.state = {**self.state, **values}
 
@@ -285,6 +288,9 @@ def fake_camera(name: str, module: Any, folder: str, playback: Any = None) -> An
 
         def __repr__(self) -> str:
             return f"<camera {name} (playback)>"
+
+        def close(self) -> None:
+            """Nothing to stop (the real one's grabber)."""
 
         def apply(self, values: dict[str, Any]) -> None:
             self.state = {**self.state, **values}

@@ -548,7 +548,9 @@ class Engine:
             why = "error" if reason == "error" else sig or str(reason)
             if self.recorder is not None and why not in ("error", "shutdown"):
                 self.recorder.signal(self.t, why, self.ticks)  # acted on here (a replay: too)
-            if self.m["on_interrupt"] >= 0:
+            if why == "time_limit" and self.interrupting is not None:
+                self.limit_said(f"during the interrupt ({self.interrupting}) in")
+            elif self.m["on_interrupt"] >= 0:
                 self.interrupt(why)
             else:
                 self.stop(why)
@@ -558,8 +560,7 @@ class Engine:
 
     def interrupt(self, reason: str) -> None:
         target = self.m["on_interrupt"]
-        self.interrupting = reason
-        self.time_limit_us = None  # stopping already: the time limit has nothing left to do
+        self.interrupting = reason  # a time limit reached from now on only says so (§11)
         if self.m["interrupt_timeout_us"] is not None:
             self.timeout_at = self.t + self.m["interrupt_timeout_us"]
         self.set_limit()
@@ -571,6 +572,18 @@ class Engine:
             self.EXIT[current]()
             self.owner = self.root
             self.ENTER[target]()
+        elif reason == "time_limit":
+            self.limit_said("in")
+
+    def limit_said(self, where: str) -> None:
+        """The time limit reached while the model already lands (in its on_interrupt state,
+        or during an interrupt): nothing is cut short, and a log line says so and how long
+        it may still take (docs/semantics.md §11)."""
+        left = ("with no bound (no interrupt_timeout)" if self.timeout_at is None else
+                f"{(self.timeout_at - self.t) / 1e6:g} s at most (interrupt_timeout)")
+        self.owner = self.root
+        self.log(f"time limit reached {where} {self.paths[self.cur[0]]}: it goes on until "
+                 f"the root's final state, {left}")
 
     def stop(self, reason: str) -> None:
         self.stopping = True
@@ -765,7 +778,9 @@ def reporter(sources: Sequence[tuple[str, str, int, int]], snippets: Sequence[tu
             if hit is not None:
                 head = hit
                 body.append(f"  {file}:{hit[1]} in {where(hit[0])}\n    {(fs.line or '').strip()}\n")
-            elif os.path.abspath(fs.filename) != runtime:
+            elif os.path.abspath(fs.filename) != runtime and not (
+                    fs.name == "__getattr__" and os.path.dirname(os.path.abspath(fs.filename))
+                    == os.path.dirname(runtime)):  # a driver naming what it lacks: its own words
                 body.append(f'  File "{fs.filename}", line {fs.lineno}, in {fs.name}\n'
                             f"    {(fs.line or '').strip()}\n")
         what = "".join(traceback.format_exception_only(type(exc), exc)).strip()
@@ -873,7 +888,7 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
     p.add_argument("--until", metavar="DURATION", help="stop after that much time (e.g. 10s)")
     p.add_argument("--time-limit", metavar="DURATION",
                    help="after that much time, stop as on SIGINT: through on_interrupt "
-                        "(a drone lands), exit status 124")
+                        "(a drone lands), exit status 124; overrides the model's time_limit")
     p.add_argument("--record", metavar="FILE",
                    help="record what the automaton receives, for `hfsmc replay` (MCAP)")
     p.add_argument("--realtime", nargs="?", const=str(REALTIME_PRIORITY), metavar="PRIORITY",
@@ -1115,7 +1130,8 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
     try:
         args = _arguments(engine.name, argv, engine.m)
         until = parse_duration_us(args.until) if args.until else None
-        time_limit = parse_duration_us(args.time_limit) if args.time_limit else None
+        time_limit = (parse_duration_us(args.time_limit) if args.time_limit
+                      else engine.m.get("time_limit_us"))  # the model's, unless the flag says
         priority = _realtime_priority(args.realtime) if args.realtime is not None else 0
         _check_focus(engine, args.focus)
         if args.clock not in ("real", "virtual") and args.playback is None:

@@ -588,7 +588,8 @@
   function connect() {
     const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
     socket = ws;
-    ws.onopen = () => { retry = 250; };
+    let opened = false;
+    ws.onopen = () => { retry = 250; opened = true; };
     ws.onmessage = onMessage;
     ws.onclose = (ev) => {
       showStatus("offline", ev.code === 1008
@@ -596,6 +597,15 @@
         : "the web view server is gone; reconnecting");
       setTimeout(connect, retry);
       retry = Math.min(retry * 2, RETRY_MAX_MS);
+      // Refused before it opened: a web view started again has a new token (docs/web.md, Trust).
+      if (!opened) {
+        fetch("app.css", {cache: "no-store"}).then((r) => {
+          if (r.status === 403) {
+            showStatus("offline", "this page's token is not accepted (the web view was started " +
+              "again?): open the URL hfsmc view printed");
+          }
+        }, () => {});
+      }
     };
   }
 

@@ -5,7 +5,9 @@
 // ViewState, from which a client that connects late gets the current state at once.
 // Minor version 1: the registered Feeds (observer.hpp: a `mavlink` vehicle, a `camera`)
 // are sent too, a vehicle's state to every client a few times a second, a camera's frames
-// only to the clients that asked for them with {"type":"subscribe","frames":true}.
+// only to the clients that asked for them with {"type":"subscribe","frames":true}, each new
+// frame made once per feed whatever the clients ask. A connection beyond the client slots,
+// or beyond one address's share of them, is told `busy` (and why) and closed.
 #pragma once
 
 #include <arpa/inet.h>
@@ -25,6 +27,7 @@
 #include <cstdio>
 #include <cstring>
 #include <deque>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
@@ -92,7 +95,10 @@ public:
     static constexpr int FEED_EVERY_MS = 250;  // vehicle records and frames: at most 4 a second
     static constexpr std::size_t FRAME_BACKLOG = 1 << 18;  // more unsent bytes: no new frame
     static constexpr std::size_t REQUEST_LIMIT = 1024;  // a longer request line is ignored
-    static constexpr std::size_t MAX_CLIENTS = 16;  // more are closed as soon as accepted
+    static constexpr std::size_t MAX_CLIENTS = 16;  // more are told "busy" and closed
+    // One address (127.0.0.1 too) may hold at most this share of the slots: a viewer
+    // elsewhere always finds one.
+    static constexpr std::size_t MAX_PER_ADDRESS = MAX_CLIENTS / 2;
     static constexpr std::size_t BUFFER_LIMIT = 1 << 20;  // bytes waiting for one client
     static constexpr std::size_t INPUT_LIMIT = 1 << 20;  // bytes one client may send (ignored)
     static constexpr std::size_t SLICE = 1 << 16;  // bytes made before the sockets are served again
@@ -192,13 +198,19 @@ private:
     };
     struct Client {
         int fd;
+        std::string addr;  // the peer's address, whose share of the slots it takes
         std::string out;  // bytes not sent yet, from `sent` on
         std::size_t sent = 0;
         bool reading = true;  // until the client shuts its side down
         std::size_t received = 0;
         bool frames = false;  // it asked for camera frames
         std::string inbuf{};  // the start of a request line
+        std::map<std::string, unsigned long> got{};  // per camera, the number of the frame it was given
         std::size_t pending() const { return out.size() - sent; }
+    };
+    struct Frame {  // a camera's latest frame message, made once
+        unsigned long number = 0;
+        std::string line;
     };
 
     std::string host_;
@@ -215,6 +227,7 @@ private:
     std::vector<std::unique_ptr<Client>> clients_;
     ViewState view_;
     bool has_feeds_ = false, has_cameras_ = false;
+    std::map<std::string, Frame> frames_;  // per camera
     std::chrono::steady_clock::time_point next_feed_{};
 
     void push(Item&& item) {
@@ -326,7 +339,6 @@ private:
         bool takers = false;
         for (const auto& c : clients_) takers = takers || c->frames;
         std::string vehicles;
-        std::vector<std::string> frames;
         {
             std::lock_guard<std::mutex> lock(feeds_mutex());
             for (Feed* f : feeds()) {
@@ -339,23 +351,30 @@ private:
                     continue;
                 }
                 if (msg.empty()) continue;
-                if (camera) {
-                    frames.push_back(msg + "\n");
+                if (camera) {  // a new frame, made here once, at most every FEED_EVERY_MS
+                    Frame& made = frames_[f->feed_name()];
+                    ++made.number;
+                    made.line = msg + "\n";
                 } else {
                     vehicles += msg + "\n";
                 }
             }
         }
         if (!vehicles.empty()) send_all(vehicles);
-        for (const std::string& frame : frames) {
-            // Frames are skipped, never queued without bound: the client is not dropped.
+        if (!takers) return;
+        for (const auto& [name, frame] : frames_) {
+            // Frames are skipped, never queued without bound: the client is not dropped, and
+            // gets the latest frame once it has caught up.
             for (std::size_t i = 0; i < clients_.size();) {
                 Client& c = *clients_[i];
-                if (!c.frames || c.pending() + frame.size() > std::min(FRAME_BACKLOG, BUFFER_LIMIT)) {
+                unsigned long& got = c.got[name];
+                if (!c.frames || got == frame.number ||
+                    c.pending() + frame.line.size() > std::min(FRAME_BACKLOG, BUFFER_LIMIT)) {
                     ++i;
                     continue;
                 }
-                c.out.append(frame);
+                got = frame.number;
+                c.out.append(frame.line);
                 if (flush(c)) ++i;
             }
         }
@@ -369,10 +388,10 @@ private:
         for (char ch : line)
             if (ch != ' ' && ch != '\t' && ch != '\r') compact += ch;
         if (compact.find("\"frames\":true") != std::string::npos) {
+            // The latest frame goes to a new subscriber at the next feed (within
+            // FEED_EVERY_MS), already made: asking again and again costs the component nothing.
+            if (!c.frames) c.got.clear();
             c.frames = true;
-            next_feed_ = std::chrono::steady_clock::now();
-            std::lock_guard<std::mutex> lock(feeds_mutex());
-            for (Feed* f : feeds()) f->feed_reset();  // the newcomer gets the latest frame at once
         } else if (compact.find("\"frames\":false") != std::string::npos) {
             c.frames = false;
         }
@@ -439,17 +458,52 @@ private:
 
     void accept(const std::string& hello) {
         while (true) {
-            int fd = ::accept4(listener_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+            sockaddr_storage peer{};
+            socklen_t len = sizeof peer;
+            int fd = ::accept4(listener_, reinterpret_cast<sockaddr*>(&peer), &len,
+                               SOCK_NONBLOCK | SOCK_CLOEXEC);
             if (fd < 0) return;  // nothing more to accept (or out of descriptors: try later)
-            if (clients_.size() >= MAX_CLIENTS) {
-                ::close(fd);
+            std::string addr = address_of(peer);
+            std::string reason = no_room_for(addr);
+            if (!reason.empty()) {
+                turn_away(fd, reason);
                 continue;
             }
             int one = 1;
             setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-            clients_.push_back(std::make_unique<Client>(Client{fd, hello + view_.snapshot_json() + "\n"}));
+            clients_.push_back(std::make_unique<Client>(Client{fd, addr, hello + view_.snapshot_json() + "\n"}));
             flush(*clients_.back());
         }
+    }
+
+    static std::string address_of(const sockaddr_storage& peer) {
+        char name[INET6_ADDRSTRLEN] = "";
+        if (peer.ss_family == AF_INET6) {
+            inet_ntop(AF_INET6, &reinterpret_cast<const sockaddr_in6*>(&peer)->sin6_addr, name, sizeof name);
+        } else if (peer.ss_family == AF_INET) {
+            inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(&peer)->sin_addr, name, sizeof name);
+        }
+        return name;
+    }
+
+    // Why a new client from `addr` cannot be served ("": it can).
+    std::string no_room_for(const std::string& addr) const {
+        if (clients_.size() >= MAX_CLIENTS)
+            return "all " + std::to_string(MAX_CLIENTS) + " viewer slots are taken; try again later";
+        std::size_t mine = 0;
+        for (const auto& c : clients_) mine += c->addr == addr;
+        if (mine >= MAX_PER_ADDRESS)
+            return "the viewers from " + addr + " hold " + std::to_string(mine) + " of the " +
+                   std::to_string(MAX_CLIENTS) + " slots, the most one address may; close one";
+        return "";
+    }
+
+    // Tell a connection why it is not served, without waiting for it, and close it.
+    static void turn_away(int fd, const std::string& reason) {
+        std::string line = "{\"type\":\"busy\",\"reason\":" + json_string(reason) + "}\n";
+        (void)!::send(fd, line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+        ::shutdown(fd, SHUT_WR);
+        ::close(fd);
     }
 
     // Each returns whether the client is still served.

@@ -114,6 +114,7 @@ struct Tables {
     int n_parameters;
     int on_interrupt;  // state index, or -1
     long long interrupt_timeout_us;  // -1 when none
+    long long time_limit_us;  // the model's time_limit (--time-limit overrides it), -1 when none
     const ParameterInfo* parameter_info;  // n_parameters of them, or nullptr
     const char* version;  // of the hfsmc that generated it
     const char* model_hash;  // "sha256:" + hex, of the sources (schemas/recording.md)
@@ -438,6 +439,7 @@ private:
     bool playback_signal(bool within);
     bool boundary();
     void interrupt(const std::string& reason);
+    void limit_said(const std::string& where);
     void stop(const std::string& reason);
     void finish(const std::string& reason);
     Structure structure() const;

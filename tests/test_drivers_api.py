@@ -1,0 +1,111 @@
+"""The interfaces' methods are described once, by the Python drivers (hfsmc/drivers.py reads
+them): what `hfsmc check` knows must be what the drivers have, and the C++ headers, the
+docs' tables, the scenario files and the playback's test doubles must agree with it."""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import re
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from hfsmc.drivers import ATTRIBUTES, CPP_NAMES, SOURCES, driver
+from hfsmc.scenario import acknowledged, commands_of
+from tests.conftest import ROOT
+
+TEMPLATES = ROOT / "templates"
+KINDS = sorted(SOURCES)
+
+
+def _module(kind: str) -> ModuleType:
+    return importlib.import_module(f"hfsmc.templates.python.{SOURCES[kind][0][:-3]}")
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_check_knows_every_public_method_of_the_imported_driver(kind: str) -> None:
+    """The ast reading against the classes Python itself builds: same names, same parameters
+    (a method added, renamed or given another parameter shows here)."""
+    module = _module(kind)
+    _, queries, live = SOURCES[kind]
+    found = {}
+    for cls in (getattr(module, queries), getattr(module, live)):
+        for name, fn in inspect.getmembers(cls, inspect.isfunction):
+            if not name.startswith("_") and name != "snapshot":
+                found[name] = tuple(inspect.signature(fn).parameters)[1:]
+    d = driver(kind)
+    assert d is not None
+    assert {m.name: m.params for m in d.methods.values()} == found
+    for m in d.methods.values():
+        params = inspect.signature(getattr(getattr(module, live), m.name)).parameters.values()
+        assert m.required == sum(p.default is inspect.Parameter.empty for p in params) - 1
+
+
+def test_commands_are_what_the_scenarios_expect_and_script() -> None:
+    assert commands_of("mavlink") == ("set_mode", "arm", "disarm", "takeoff", "land", "rtl",
+                                      "hold", "set_velocity", "goto")
+    assert acknowledged("mavlink") == ("set_mode", "arm", "disarm", "takeoff", "land", "rtl")
+    assert commands_of("camera") == () and commands_of("ros_topic") == ()
+    # the docs' list of last_ack's commands is the driver's
+    text = (ROOT / "docs/interfaces.md").read_text()
+    row = next(line for line in text.splitlines() if line.startswith("| `last_ack(command)`"))
+    assert re.findall(r"`(\w+)`", row.split("the last outcome of ")[1].split(":")[0]) == \
+        ["arm", "disarm", "takeoff", "land", "rtl", "set_mode"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_cpp_header_declares_the_same_methods(kind: str) -> None:
+    d = driver(kind)
+    assert d is not None
+    header = (TEMPLATES / "cpp/hfsmc" / f"{kind}.hpp").read_text()
+    cls = {"mavlink": "Mavlink", "camera": "Camera"}[kind]
+    body = header[header.index(f"class {cls} ") :]
+    body = body[: body.index("\n};")]
+    public = body.split("private:")[0]
+    for m in (*d.methods.values(),):
+        name = CPP_NAMES.get(m.name, m.name)
+        decl = re.search(rf"\b{name}\(([^)]*)\)", public)
+        assert decl is not None, f"{cls} has no public {name}()"
+        count = 0 if not decl.group(1).strip() else decl.group(1).count(",") + 1
+        assert count == len(m.params), (name, decl.group(0))
+    for attr in ATTRIBUTES:  # C++: methods
+        assert re.search(rf"\b{attr}\(\)", header), attr
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_docs_table_lists_every_method(kind: str) -> None:
+    d = driver(kind)
+    assert d is not None
+    text = (ROOT / "docs/interfaces.md").read_text()
+    section = text[text.index(f"## `{kind}`") :]
+    section = section[: section.index("\n## ", 3)] if "\n## " in section[3:] else section
+    rows = set(re.findall(r"^\| `(\w+)\(([^)]*)\)`", section, re.M))
+    assert {(m.name, ", ".join(m.params)) for m in d.methods.values()} == rows
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_playback_doubles_answer_every_method_and_name_the_interface(
+        kind: str, tmp_path: Path) -> None:
+    """hfsmc test's test doubles (hfsmc_playback.py) have every method, and a method the
+    interface lacks is said with the interface's name, not the double's class."""
+    sys.path.insert(0, str(TEMPLATES / "python"))
+    try:
+        playback = importlib.import_module("hfsmc_playback")
+        module = importlib.import_module(SOURCES[kind][0][:-3])
+        fake = (playback.fake_vehicle("drone", module) if kind == "mavlink"
+                else playback.fake_camera("cam", module, str(tmp_path)))
+    finally:
+        sys.path.remove(str(TEMPLATES / "python"))
+    d = driver(kind)
+    assert d is not None
+    for m in d.methods.values():
+        assert callable(getattr(fake, m.name)), m.name
+    with pytest.raises(AttributeError) as e:
+        fake.fly_to(1, 2, 3)
+    name = "drone" if kind == "mavlink" else "cam"
+    assert str(e.value).startswith(f"the {kind} interface `{name}` has no method or attribute "
+                                   "`fly_to`")
+    assert "Fake" not in str(e.value)
