@@ -168,6 +168,7 @@ def observers_asan_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
 # every test.)
 LONGEST_FIRST = (
     "test_conformance.py", "test_missions.py", "test_tour.py", "test_monitor_area.py", "test_scenario.py",
+    "test_lockstep.py",
     "test_replay.py",
     "test_cpp.py", "test_drone_faults.py", "test_cxxcheck.py",
     "test_component_flags.py", "test_web.py", "test_cpp_drivers.py", "test_view.py",

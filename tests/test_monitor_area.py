@@ -16,15 +16,8 @@ from ruamel.yaml import YAML
 
 from tests.conftest import ROOT
 from tests.cppbuild import need_toolchain
-from tests.test_missions import (
-    CPP_BUILD_TIMEOUT,
-    HFSMC,
-    LANGUAGES,
-    Flight,
-    fired_into,
-    flight,
-    mission_seconds,
-)
+from tests.support import HFSMC, Flight, fired_into, flight
+from tests.test_missions import CPP_BUILD_TIMEOUT, LANGUAGES, mission_seconds
 
 MONITOR = ROOT / "examples/monitor_area"
 MODEL = MONITOR / "monitor_area.yaml"

@@ -251,7 +251,7 @@ TIME_LIMIT_S = 20
 def flown(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """follow_colors flown by its Python component in the simulator up to its time limit and
     landed, recorded: the folder holding flight.mcap."""
-    from tests.test_missions import flight
+    from tests.support import flight
 
     d = tmp_path_factory.mktemp("flown")
     with flight(d, component_args=("--record", str(d / "flight.mcap"),
@@ -312,7 +312,7 @@ def test_flights_replay_across_languages(flown: Path, monkeypatch: pytest.Monkey
     records the same flight, which replays with the Python model (no other C++ build)."""
     from hfsmc.component import cache_folder
     from tests.cppbuild import need_toolchain
-    from tests.test_missions import flight
+    from tests.support import flight
 
     need_toolchain()
     twin = ROOT / "examples" / "follow_colors_cpp" / "follow_colors_cpp.yaml"

@@ -389,6 +389,11 @@ class CameraFeed:
         return self._server.port
 
     @property
+    def stamped(self) -> bool:
+        """Frames carry their number and simulated time (the simulator in lockstep)."""
+        return self._stamped
+
+    @property
     def paused(self) -> bool:
         return self._server is not None and self._server.paused
 

@@ -282,6 +282,8 @@ class Simulator:
                          "north": _r(o.position(world_t)[0], 3),
                          "east": _r(o.position(world_t)[1], 3)}
                         for o in w.objects],
+            **({"camera": {"frame": self.camera.count, "time": _r(self.camera.frame_us / 1e6, 3)}}
+               if self.camera is not None and self.camera.stamped else {}),
         }
 
     def write_truth(self) -> None:
