@@ -478,7 +478,7 @@ def check_layout(source: str) -> None:
     """Every transition's label, as dot places it, is by its arrow (an ordinary
     label within 16 pt of the curve, a label node at both halves' ends),
     inside the cluster of its sub-automaton and outside every other cluster,
-    and covers no state."""
+    and covers no state and no other label."""
     graph = layout(source)
     objects = {o["_gvid"]: o for o in graph["objects"] if "nodes" not in o}
     clusters = {o["name"].removeprefix("cluster_"): as_box(o["bb"])
@@ -517,6 +517,8 @@ def check_layout(source: str) -> None:
             x, y = map(float, node["pos"].split(","))
             r = float(node["width"]) * 36
             assert box_distance(box, (x, y)) >= r - 2, (src, "over state", name)
+    for (one, a), (other, b) in itertools.combinations(labels, 2):
+        assert not overlap(a, b), (one, "label over the label of", other)
 
 
 # ---------------------------------------------------------------------------

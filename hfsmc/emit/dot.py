@@ -396,7 +396,11 @@ class _Drawing:
         into = dst.path in self.expanded
         ident = _transition_id(src, t)
         in_row = row_of.get(tail, -1) == row_of.get(head, -2)  # both in one row
-        if not out_of and not into and (not clusters or in_row):
+        # A self-transition in a row runs through a label node on the row's rank: dot puts
+        # an ordinary self-loop's label beside it, over the label of the arrow to the row's
+        # next state.
+        loop_in_row = in_row and tail == head and bool(clusters)
+        if not out_of and not into and (not clusters or in_row) and not loop_in_row:
             g.edge(tail, head, label=label, id=ident)
             self.plan.edge(tail, head, size)
             return
@@ -415,6 +419,8 @@ class _Drawing:
         g.node(via, label=label, shape="plaintext", style="", width="0", height="0",
                margin="0.04,0.02", fontsize=EDGE_ATTRS["fontsize"], id=f"{ident}:label")
         self.plan.node(via, size, clusters)
+        if loop_in_row and self.rows:
+            self.same_rank(g, [tail, via])
         g.edge(tail, via, arrowhead="none", id=ident,
                **({"ltail": _cluster_id(src.path)} if out_of else {}))
         g.edge(via, head, id=f"{ident}:head", **({"lhead": _cluster_id(dst.path)} if into else {}))
