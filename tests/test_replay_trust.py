@@ -30,26 +30,13 @@ from mcap.writer import CompressionType, Writer
 
 from hfsmc.commands.scenario_run import find_scenarios
 from hfsmc.recording import MAX_DEPTH, sources_hash
-from tests.test_replay import ALLOW, HOP, INPUTS, hfsmc
+from tests import test_replay
+from tests.test_replay import ALLOW, HOP, hfsmc
+
+hop = test_replay.hop  # the fixture: hop.yaml and its run recorded, as test_replay makes them
 
 # A snippet that writes a file: what a forged recording would run, were it run.
 PWNED = "pwned.txt"
-
-
-@pytest.fixture(scope="module")
-def hop(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """hop.yaml and hop.mcap, its run in --playback of the script, recorded."""
-    d = tmp_path_factory.mktemp("hop")
-    (d / "hop.yaml").write_text(HOP)
-    r = hfsmc("build", "hop.yaml", "-o", "component", cwd=d)
-    assert r.returncode == 0, r.stderr
-    (d / "script").mkdir()
-    (d / "script" / "inputs.jsonl").write_text("".join(json.dumps(e) + "\n" for e in INPUTS))
-    run = subprocess.run([sys.executable, str(d / "component" / "hop.py"), "--playback", "script",
-                          "--record", "hop.mcap", "--until", "5s"], cwd=d, capture_output=True,
-                         text=True, timeout=60)
-    assert run.returncode == 0, run.stderr
-    return d
 
 
 def read_all(path: Path) -> tuple[dict[str, dict[str, str]], list[tuple[str, int, bytes]]]:
