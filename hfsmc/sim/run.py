@@ -31,7 +31,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from types import FrameType
-from typing import Any
+from typing import IO, Any
 
 from hfsmc.fsutil import write_atomic
 from hfsmc.sim import lockstep
@@ -44,6 +44,7 @@ DEFAULT_MAVLINK = "udpout:127.0.0.1:14550"
 MAX_DATAGRAMS = 500  # per step: a flood must not starve the physics
 PEER_QUIET_S = 5.0  # udpin: a peer silent this long (while the link is up) may be replaced
 STRANGERS_SAID = 16  # addresses whose ignored datagrams are said; later ones are only counted
+TRUTH_LOG_S = 0.5  # s of simulated time between two lines of --truth-log
 
 
 def parse_url(url: str) -> tuple[str, str, int]:
@@ -151,10 +152,12 @@ class Simulator:
     def __init__(self, world: World, link: Link, *, boot_time: float = 3.0,
                  truth: str | None = None, drop_after: float | None = None,
                  drop_for: float = 5.0, params: dict[str, float] | None = None,
-                 world_clock: str = "armed") -> None:
+                 world_clock: str = "armed", truth_log: IO[str] | None = None) -> None:
         self.world = world
         self.link = link
         self.truth_path = truth
+        self.truth_log = truth_log
+        self._logged_step = -1
         self.drop = None if drop_after is None else (drop_after, drop_after + drop_for)
         self.body = Body(world.vehicle, world.seed)
         link.log = self.log
@@ -192,7 +195,7 @@ class Simulator:
 
     def advance(self, duration: float | None = None) -> bool:
         """One physics step and what follows it (the world's clock, the pose, the truth each
-        second); True when ``duration`` is reached."""
+        second, its log each half second); True when ``duration`` is reached."""
         self.ap.step()
         b = self.body
         if self.clock.update(b.t, b.armed, b.altitude):
@@ -200,6 +203,8 @@ class Simulator:
         self.pose = (self.clock.time(b.t), b.north, b.east, b.down, b.yaw)
         if self.truth_path and b.steps % round(1.0 / b.dt) == 0:
             self.write_truth()
+        if self.truth_log is not None and b.steps % round(TRUTH_LOG_S / b.dt) == 0:
+            self.log_truth()
         return duration is not None and b.t >= duration - 1e-9
 
     def _faults(self) -> None:
@@ -286,6 +291,19 @@ class Simulator:
                if self.camera is not None and self.camera.stamped else {}),
         }
 
+    def log_truth(self) -> None:
+        """One line of the truth log (`--truth-log`), once per step."""
+        if self.truth_log is None or self._logged_step == self.body.steps:
+            return
+        self._logged_step = self.body.steps
+        try:
+            self.truth_log.write(json.dumps(self.truth(), separators=(",", ":")) + "\n")
+            self.truth_log.flush()
+        except OSError as e:
+            if not self._truth_failed:
+                self._truth_failed = True
+                self.log(f"cannot write the truth log: {e}")
+
     def write_truth(self) -> None:
         if not self.truth_path:
             return
@@ -360,6 +378,9 @@ def parser() -> argparse.ArgumentParser:
                         "WPNAV_ACCEL_Z, MOT_SPOOL_TIME, TKOFF_SLEW_TIME... (docs/worlds.md)")
     p.add_argument("--truth", metavar="FILE",
                    help="write the ground truth (JSON) every second and at exit")
+    p.add_argument("--truth-log", metavar="FILE",
+                   help=f"append the ground truth as one JSON line every {TRUTH_LOG_S} "
+                        "simulated seconds and at exit (a flight's whole track)")
     p.add_argument("--duration", type=_seconds, metavar="S",
                    help="exit after S simulated seconds (default: until SIGINT/SIGTERM)")
     p.add_argument("--drop-link-after", type=_seconds, metavar="S",
@@ -456,10 +477,17 @@ def main(argv: list[str]) -> int:
         except (ValueError, OSError) as e:
             link.close()
             return _fail(f"--lockstep {args.lockstep}: {e}")
+    try:
+        truth_log = None if args.truth_log is None else open(args.truth_log, "w")  # noqa: SIM115
+    except OSError as e:
+        link.close()
+        if server is not None:
+            server.close()
+        return _fail(f"--truth-log {args.truth_log}: {e.strerror or e}")
     sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
                     drop_after=args.drop_link_after,
                     drop_for=5.0 if args.drop_link_for is None else args.drop_link_for,
-                    params=params, world_clock=args.world_clock or "armed")
+                    params=params, world_clock=args.world_clock or "armed", truth_log=truth_log)
     try:
         with sim.signals():
             where = _start_camera(sim, args, thread=server is None)
@@ -476,6 +504,7 @@ def main(argv: list[str]) -> int:
                     sim.run(args.duration)
             finally:
                 sim.write_truth()
+                sim.log_truth()
                 if link.ignored:
                     sim.log(f"ignored {link.ignored} MAVLink datagrams from other addresses "
                             "than the peer")
@@ -484,6 +513,8 @@ def main(argv: list[str]) -> int:
             sim.camera.stop()
         if server is not None:
             server.close()
+        if truth_log is not None:
+            truth_log.close()
         link.close()
     return 0
 
