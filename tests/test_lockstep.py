@@ -8,18 +8,20 @@ import json
 import math
 import multiprocessing
 import re
+import shlex
 import signal
 import socket
 import subprocess
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 
+from tests.conftest import ROOT
 from tests.cppbuild import need_toolchain
-from tests.support import FOLLOW, FOLLOW_CPP, HFSMC, flight, free_port, wait_for_line
+from tests.support import FOLLOW, FOLLOW_CPP, HFSMC, Client, Tmux, flight, free_port, wait_for_line
 from tests.test_missions import CPP_BUILD_TIMEOUT
 
 SHORT = "40s"  # a take-off and the start of the first stage
@@ -109,8 +111,10 @@ def test_python_and_cpp_fly_the_same_trace_in_lockstep(tmp_path: Path,
     assert status == 0, (py / "component.log").read_text()[-2000:]
     status, cpp = fly(tmp_path / "cpp", command=cpp_follow_colors)
     assert status == 0, (cpp / "component.log").read_text()[-2000:]
-    py_trace = (py / "trace.jsonl").read_text()
-    cpp_trace = (cpp / "trace.jsonl").read_text().replace("follow_colors_cpp", "follow_colors")
+    # The same but for the component's name and the run's folder (the report's path, logged).
+    py_trace = (py / "trace.jsonl").read_text().replace(str(py), "DIR")
+    cpp_trace = (cpp / "trace.jsonl").read_text().replace(str(cpp), "DIR") \
+        .replace("follow_colors_cpp", "follow_colors")
     assert cpp_trace == py_trace
     assert (cpp / "truth.json").read_bytes() == (py / "truth.json").read_bytes()
     assert json.loads((py / "report.json").read_text())["stages"] == \
@@ -218,3 +222,54 @@ def test_the_frame_read_at_t_was_rendered_for_t(tmp_path: Path) -> None:
     assert seen == [f"at {t} ms frame {t // 100 + 1} age 0.000" for t in range(0, 3001, 100)]
     truth = json.loads((tmp_path / "truth.json").read_text())
     assert truth["camera"] == {"frame": 31, "time": 3.0}  # rendered for the last step, 3 s
+
+
+RATE = re.compile(r"(\d+\.\d{3}) s simulated, (\d+\.\d)× real time")
+
+
+def blinker(tmp: Path, lang: str) -> list[str]:
+    """examples/blinker (Python) or blinker_cpp (compiled): its command."""
+    if lang == "python":
+        model, out = ROOT / "examples/blinker/blinker.yaml", tmp / "blinker"
+        r = subprocess.run([*HFSMC, "build", str(model), "-o", str(out)], capture_output=True,
+                           text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        return [HFSMC[0], str(out / "blinker.py")]
+    need_toolchain()
+    model, out = ROOT / "examples/blinker_cpp/blinker_cpp.yaml", tmp / "blinker_cpp"
+    r = subprocess.run([*HFSMC, "build", "-t", "cpp", str(model), "-o", str(out), "--compile"],
+                       capture_output=True, text=True, timeout=CPP_BUILD_TIMEOUT)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return [str(out / "build" / "blinker_cpp")]
+
+
+@pytest.mark.parametrize("lang", ["python", pytest.param(
+    "cpp", marks=pytest.mark.timeout(CPP_BUILD_TIMEOUT + 120))])
+def test_the_live_views_show_simulated_time_and_its_rate(
+        tmp_path: Path, lang: str, tmux: Callable[..., Tmux],
+        clients: Callable[..., Client]) -> None:
+    """--clock sim at --speedup 5: the terminal view (--display) says its time is simulated
+    and how fast it runs; the monitor's samples carry sim_rate (schemas/monitor.md, minor 2),
+    never above the speedup but for the measuring's jitter."""
+    command = blinker(tmp_path, lang)
+    port, monitor = free_port(), free_port()
+    with (tmp_path / "sim.log").open("wb") as log:
+        sim = subprocess.Popen([*HFSMC, "sim", "--no-camera", "--mavlink",
+                                f"udpout:127.0.0.1:{free_port(socket.SOCK_DGRAM)}",
+                                "--lockstep", str(port), "--speedup", "5"],
+                               stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    try:
+        t = tmux(shlex.join([*command, "--clock", f"sim:{port}", "--param", "blinks=1000",
+                             "--until", "300s", "--display", "--monitor", str(monitor)]),
+                 tmp_path)
+        screen = t.wait(lambda s: any(float(m[2]) > 0 for m in RATE.finditer(s)), timeout=60)
+        shown = RATE.search(screen)
+        assert shown is not None and 0 < float(shown[2]) <= 6.0, screen
+        c = clients(monitor)
+        msgs = c.until(lambda m: m["type"] == "sample" and m["t"] > 3000)
+        samples = [m for m in msgs if m["type"] == "sample"][-5:]
+        assert samples and all(0 <= m["sim_rate"] <= 6.0 for m in samples), samples
+        assert msgs[0]["minor"] == 2
+    finally:
+        sim.kill()
+        sim.wait(timeout=20)

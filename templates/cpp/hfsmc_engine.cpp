@@ -6,6 +6,7 @@
 #include <poll.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <map>
@@ -548,7 +549,18 @@ void EngineCore::sample() {
     std::vector<std::string> now = values();
     for (auto& v : now)
         if (v.size() > 80) v = v.substr(0, 77) + "...";
-    for (auto& o : observers_) o->sample(t / 1000, now, overruns_);
+    double rate = -1;
+    if (sim_) {  // simulated seconds per real second over about the last second
+        rate_window_.emplace_back(clock, t);
+        while (rate_window_.size() > 2 && clock - rate_window_[1].first >= 1000000000LL)
+            rate_window_.pop_front();
+        const auto& a = rate_window_.front();
+        const auto& b = rate_window_.back();
+        rate = b.first > a.first ? std::round(100.0 * (b.second - a.second) * 1000.0 /
+                                              static_cast<double>(b.first - a.first)) / 100.0
+                                 : 0.0;
+    }
+    for (auto& o : observers_) o->sample(t / 1000, now, overruns_, rate);
 }
 
 Structure EngineCore::structure() const {

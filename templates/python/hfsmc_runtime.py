@@ -33,6 +33,7 @@ _DURATION = re.compile(r"^\s*([0-9]+(?:\.[0-9]+)?)\s*(ms|s|m)?\s*$")
 _US = {"ms": 1000, "s": 1_000_000, "m": 60_000_000}
 _COMMENT_LINE = re.compile(r"^[ \t]*#.*$", re.M)
 _SAMPLE_EVERY_S = 0.1
+_RATE_OVER_S = 1.0  # --clock sim: the rate the views show is over the last second
 
 
 class UsageError(Exception):
@@ -341,6 +342,7 @@ class Engine:
         self.time_limit_us = time_limit_us  # --time-limit: a stop through on_interrupt
         self.timeout_at: int | None = None
         self.next_sample = 0.0
+        self.rate_window: list[tuple[float, int]] = []  # --clock sim: (monotonic s, t us)
         self.clock_start = time.monotonic_ns()
         self.recording = self.trace is not None or bool(self.observers) or self.recorder is not None
         self.watched = self.real or self.playback is not None
@@ -657,8 +659,19 @@ class Engine:
         self.next_sample = clock + _SAMPLE_EVERY_S
         ns = self.m["namespace"]
         values = {v: _short(ns.get(v)) for v in self.m["variables"]}
+        rate = self.sim_rate(clock) if self.sim is not None else None
         for o in self.observers:
-            o.sample(self.t // 1000, values, self.overruns)
+            o.sample(self.t // 1000, values, self.overruns, rate)
+
+    def sim_rate(self, clock: float) -> float:
+        """--clock sim: simulated seconds per real second over about the last second (the
+        views show it beside the simulated time; 0 until a second sample)."""
+        window = self.rate_window
+        window.append((clock, self.t))
+        while len(window) > 2 and clock - window[1][0] >= _RATE_OVER_S:
+            window.pop(0)
+        (c0, t0), (c1, t1) = window[0], window[-1]
+        return round((t1 - t0) / 1e6 / (c1 - c0), 2) if c1 > c0 else 0.0
 
     # --- signals ---------------------------------------------------------------------------
     def install_signals(self) -> None:

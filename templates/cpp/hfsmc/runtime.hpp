@@ -29,6 +29,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <deque>
 #include <exception>
 #include <limits>
 #include <map>
@@ -463,6 +464,7 @@ private:
     std::string limit_why_ = "until";
     long long overruns_ = 0;
     long long start_ns_ = 0, next_sample_ns_ = 0;
+    std::deque<std::pair<long long, long long>> rate_window_;  // --clock sim: (monotonic ns, t us)
     int status_ = 0;
     std::unique_ptr<Trace> trace_;
     bool trace_variables_ = false;
