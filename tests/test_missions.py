@@ -118,8 +118,10 @@ def test_a_link_lost_at_the_landing_lands_once_it_is_back(tmp_path: Path,
     """The link drops in the mission (SIGUSR1 to the simulator: both ways), then Ctrl+C sends
     the component to Land: its land command goes nowhere. examples/lib/land sends it again,
     saying why, until the link is back: the vehicle lands and disarms, nothing is left armed.
-    (Sent once, the landing never came: `WARNING: ARMED in GUIDED` at the stop.)"""
-    with flight(tmp_path, command=mission) as f:
+    (Sent once, the landing never came: `WARNING: ARMED in GUIDED` at the stop.)
+    In lockstep at 5 times real time: the signals act at whatever step they come, the link's
+    watch and the land command's resends run on simulated time."""
+    with flight(tmp_path, "--speedup", "5", command=mission, lockstep=True) as f:
         f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=60)
         f.sim.send_signal(signal.SIGUSR1)  # the link drops
         f.wait_for("enter", "state", "LinkLost", timeout=15)
@@ -127,9 +129,8 @@ def test_a_link_lost_at_the_landing_lands_once_it_is_back(tmp_path: Path,
         again = f.wait_for("log", "state", "Land/Landing", timeout=20)
         f.sim.send_signal(signal.SIGUSR1)  # the link comes back
         status = f.component.wait(timeout=90)
-        time.sleep(1.5)  # one more truth write
+        f.sim.wait(timeout=30)  # it stops with its component, the truth written
         truth = f.truth()
-        f.stop_sim()
         log = (f.folder / "component.log").read_text()
         assert status == 130, log[-3000:]
     assert again["msg"] == "still armed in GUIDED (land: timeout, link lost): sending land again"
@@ -185,7 +186,7 @@ def test_time_limit_lands_and_exits_124(tmp_path: Path) -> None:
     assert [r["state"] for r in f.trace if r["ev"] == "enter"][-4:] == [
         "Land", "Land/Landing", "Land/Landed", "Done"]
     assert truth["armed"] is False and truth["landed"] is True and truth["mode"] == "LAND"
-    assert "still ARMED" not in log
+    assert "still ARMED" not in log  # (the stop's summary line is the real clock's only)
 
 
 @pytest.mark.slow
