@@ -39,7 +39,7 @@ deps:
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[dev]'
+	$(BIN)/python -m pip install -q -e '.[dev,lsp]'
 	touch $@
 
 setup: deps $(STAMP)
@@ -72,6 +72,7 @@ bench: setup
 	$(BIN)/python bench/vision.py --json bench/results.json
 	$(BIN)/python bench/cpp.py --json bench/results.json
 	$(BIN)/python bench/mcap.py --json bench/results.json
+	$(BIN)/python bench/edit.py --json bench/results.json
 	$(BIN)/python bench/cppbuild.py --json bench/results.json
 	$(BIN)/python bench/web.py --json bench/results.json
 	$(BIN)/python bench/realtime.py --json bench/results.json

@@ -369,3 +369,16 @@ def sim(args: tuple[str, ...]) -> None:
     from hfsmc.sim.run import main as run_sim
 
     sys.exit(run_sim(list(args)))
+
+
+@main.command()
+@click.option("--stdio", is_flag=True, help="Speak on stdin/stdout (the default; editors pass it).")
+def lsp(stdio: bool) -> None:
+    """Language server for model files on stdio (docs/editors.md): diagnostics as you type,
+    definition, references, rename, completion, hover, symbols, quick fixes."""
+    try:
+        from hfsmc.lsp.server import main as serve
+    except ImportError as e:
+        raise click.ClickException(f"the language server needs the `lsp` extra "
+                                   f"(pip install 'hfsmc[lsp]'): {e}") from None
+    serve()

@@ -279,12 +279,14 @@ def test_misbehaving_clients_change_nothing(build: tuple[Path, dict[str, str]], 
 
 def test_too_many_clients_are_turned_away(observers_program: Path, run: Callable[..., Run],
                                           clients: Callable[..., Client]) -> None:
+    """16 served (8 an address), the 17th told busy and closed, the 16 see the run's end."""
     r = run(observers_program, "--monitor", "0")
-    served = [clients(r.port) for _ in range(16)]
+    served = [clients(r.port, source=f"127.0.0.{1 + i % 2}") for i in range(16)]
     for c in served:
         assert c.message() is not None
-    extra = clients(r.port)
-    assert _drain(extra) == b"", "the 17th connection is closed at once"
+    extra = clients(r.port, source="127.0.0.3")
+    assert _drain(extra) == (b'{"type":"busy","reason":"all 16 viewer slots are taken; '
+                             b'try again later"}\n'), "the 17th connection is told why and closed"
     r.release()
     for c in served:
         assert c.until_bye()[-1]["type"] == "bye"

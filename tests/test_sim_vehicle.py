@@ -421,7 +421,7 @@ def test_truth_file(tmp_path: Path) -> None:
     proc = subprocess.run(
         [sys.executable, "-c", RUN, "--world", str(world), "--seed", "42", "--no-camera",
          "--mavlink", f"udpout:127.0.0.1:{port}", "--boot-time", "0.5", "--duration", "1.5",
-         "--truth", str(truth)],
+         "--truth", str(truth), "--world-clock", "start"],  # the objects move from the start
         cwd=ROOT, capture_output=True, text=True, timeout=20)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.splitlines()[0] == \

@@ -1,7 +1,7 @@
 """``hfsmc convert``: YAML ↔ XML (and legacy XML → version 1).
 
-The writers are hfsmc/emit/yaml.py (an existing YAML file is edited in place,
-its comments kept) and hfsmc/emit/xml.py (the comments of a YAML source carried over).
+The writers are hfsmc/emit/yaml.py (a new YAML file; an existing one is edited by the
+edit engine, hfsmc/edit/merge.py, which changes only the text of what changed) and hfsmc/emit/xml.py (the comments of a YAML source carried over).
 """
 
 from __future__ import annotations
@@ -30,7 +30,21 @@ def convert_model(result: Result, out: Path) -> list[str]:
                 existing = out.read_text("utf-8")
             except (OSError, UnicodeDecodeError):
                 existing = None
-        text = to_yaml(model, existing, out)
+        if existing is not None and _is_model(existing):
+            from hfsmc.edit.merge import merge_into
+            from hfsmc.edit.text import EditError
+            from hfsmc.emit.data import model_to_data
+
+            data = model_to_data(model)
+            if "\nlanguage:" not in "\n" + existing and data.get("language") == "python":
+                del data["language"]  # the default, which the user left out
+            try:
+                text = merge_into(existing, data)
+            except EditError as e:
+                raise UsageError(f"{out}: cannot be edited in place ({e}); write another file") from None
+        else:
+            existing = None
+            text = to_yaml(model, out)
         how = "edited in place" if existing is not None else "wrote"
     elif suffix == ".xml":
         from hfsmc.emit.xml import to_xml
@@ -48,6 +62,17 @@ def convert_model(result: Result, out: Path) -> list[str]:
     if moved:
         report.append(f"{out}: `use` paths written from its folder: {', '.join(dict.fromkeys(moved))}")
     return report
+
+
+def _is_model(text: str) -> bool:
+    """Whether ``text`` is a YAML model (a mapping) that an edit can go into."""
+    from hfsmc.errors import Diagnostics, HfsmcError
+    from hfsmc.frontend.yaml import load_yaml
+
+    try:
+        return isinstance(load_yaml("<out>", text, Diagnostics()).data, dict)
+    except HfsmcError:
+        return False
 
 
 def relocate_uses(model: Model, out: Path) -> tuple[Model, list[str]]:

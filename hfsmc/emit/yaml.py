@@ -1,9 +1,8 @@
 """The YAML writer: a model as a version-1 YAML file (``hfsmc convert``).
 
-YAML is written with ruamel.yaml's round-trip dumper.  When the output YAML
-file already exists and holds a model, it is edited in place: unchanged keys
-keep their comments and their layout, changed values are replaced, removed
-keys are dropped and new keys added.
+A new YAML file is written with ruamel.yaml's dumper.  An existing one is never
+dumped again: ``hfsmc convert`` edits it through the edit engine
+(hfsmc/edit/merge.py), which changes only the text of what changed.
 """
 
 from __future__ import annotations
@@ -15,7 +14,6 @@ from typing import Any
 
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
-from ruamel.yaml.error import YAMLError
 from ruamel.yaml.scalarstring import LiteralScalarString
 
 from hfsmc.durations import parse_us
@@ -46,26 +44,20 @@ def _styled(v: Any) -> Any:
     return v
 
 
-def _merge(old: Any, new: Any) -> Any:
-    """``new`` written over ``old``, keeping what of ``old`` (comments, style) still holds."""
-    if isinstance(old, CommentedMap) and isinstance(new, dict):
-        for k in [k for k in old if k not in new]:
-            del old[k]
-        for k, v in new.items():
-            old[k] = _merge(old[k], v) if k in old else _styled(v)
-        return old
-    if isinstance(old, CommentedSeq) and isinstance(new, list) and len(old) == len(new):
-        for i, v in enumerate(new):
-            old[i] = _merge(old[i], v)
-        return old
-    if not isinstance(new, (dict, list)) and _same(old, new):
-        return old
-    if _same_variable(old, new) or _same_variable(new, old):
-        return old
+def same_spelling(old: Any, new: Any) -> bool:
+    """Whether the text's value ``old`` already says ``new`` (an editor keeps it)."""
+    if isinstance(old, (dict, list)) or isinstance(new, (dict, list)):
+        return bool(old == new) or _same_variable(old, new) or _same_variable(new, old)
+    return _same(old, new)
+
+
+def short_form(old: Any, new: Any) -> Any:
+    """What to write for ``new`` where the text has ``old``: a variable written bare
+    (`v: 0.0`) and edited to 0.5 stays in the short form."""
     if _bare_type(old) is not None and _typed(new) and _bare_type(old) == new["type"] \
             == _bare_type(new["init"]):
-        return _styled(new["init"])  # `v: 0.0` edited to 0.5 stays in the short form
-    return _styled(new)
+        return new["init"]
+    return new
 
 
 def _bare_type(value: Any) -> str | None:
@@ -101,21 +93,9 @@ def schema_line(out: Path) -> str:
     return f"# yaml-language-server: $schema={rel}\n"
 
 
-def to_yaml(model: Model, existing: str | None = None, out: Path | None = None) -> str:
-    """The model as YAML; over ``existing`` YAML text when given (comments kept)."""
+def to_yaml(model: Model, out: Path | None = None) -> str:
+    """The model as a new YAML file (an existing one is edited by hfsmc/edit/merge.py)."""
     data = model_to_data(model)
-    y = _yaml()
-    doc: Any = None
-    if existing is not None:
-        try:
-            doc = y.load(existing)
-        except YAMLError:
-            doc = None
     buf = io.StringIO()
-    if isinstance(doc, CommentedMap):
-        if "language" not in doc and data["language"] == "python":
-            del data["language"]  # the default, which the user left out
-        y.dump(_merge(doc, data), buf)
-        return buf.getvalue()
-    y.dump(_styled(data), buf)
+    _yaml().dump(_styled(data), buf)
     return (schema_line(out) if out is not None else "") + buf.getvalue()

@@ -321,3 +321,15 @@ def _copy(data: Any) -> Any:
     if type(data) is list:
         return [_copy(v) for v in data]
     return data
+
+
+def resolves_to_str(value: str) -> bool:
+    """Whether ``value`` written as a plain scalar reads back as a string (YAML 1.2, as
+    hfsmc reads it): what an editor checks before it writes a string unquoted."""
+    global _resolver
+    if _resolver is None:
+        _resolver = _Resolver()
+    try:
+        return type(_resolver.plain(value)) is str
+    except _Fallback:
+        return False

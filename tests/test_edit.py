@@ -1,0 +1,229 @@
+"""The edit engine (hfsmc/edit, docs/editing.md): what each operation writes into
+examples/follow_colors/follow_colors.yaml, shown as diffs (tests/golden/edit/;
+`python tests/test_edit.py --regen` rewrites them), and its refusals, undo/redo,
+diagnostics by element and the conflict with a file changed on disk."""
+
+from __future__ import annotations
+
+import difflib
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from hfsmc.edit.session import Conflict, EditSession
+from hfsmc.edit.text import EditError, TextEdit, apply_edits
+from hfsmc.edit.xml_ops import XmlOps
+from hfsmc.edit.yaml_ops import YamlOps
+from hfsmc.pipeline import compile_file
+
+ROOT = Path(__file__).resolve().parent.parent
+MODEL = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
+GOLDEN = ROOT / "tests" / "golden" / "edit"
+
+Op = Callable[[YamlOps], list[TextEdit]]
+OPS: dict[str, Op] = {
+    "rename_state": lambda o: o.rename("Mission", "Flight"),
+    "rename_nested_state": lambda o: o.rename("Mission/FollowRed", "FollowCrimson"),
+    "rename_anchored_state": lambda o: o.rename("Mission/FollowGreen/Track", "Chase"),
+    "rename_variable": lambda o: o.rename_declaration("variable", "stages", "steps"),
+    "rename_parameter": lambda o: o.rename_declaration("parameter", "altitude", "height"),
+    "add_state": lambda o: o.add_state("", "Hover", {"entry": "drone.hold()",
+                                                      "transitions": [{"to": "Land", "after": "5s"}]}),
+    "add_state_in_composite": lambda o: o.add_state("Mission", "Wait", {}, 0),
+    "add_first_child": lambda o: o.add_state("Done", "Rest", {"final": True}),
+    "delete_state": lambda o: o.delete_state("LinkLost"),
+    "move_state": lambda o: o.move_state("Done", 0),
+    "add_transition": lambda o: o.add_transition("LinkLost", {"to": "Land", "when": "now() > 600"}),
+    "delete_transition": lambda o: o.delete_transition("Mission", 0),
+    "move_transition": lambda o: o.move_transition("Mission", 1, 0),
+    "set_snippet_block": lambda o: o.set_state_field("Land", "entry", "log('landing')\nlog('now')\n"),
+    "set_snippet_line": lambda o: o.set_state_field("Mission/FollowGreen", "during",
+                                                    'seen = blob("green") or seen'),
+    "clear_snippet": lambda o: o.set_state_field("LinkLost", "entry", None),
+    "set_period": lambda o: o.set_state_field("", "period", "20ms"),
+    "add_parameter": lambda o: o.add_declaration("parameter", "speed", {"type": "float", "default": 1.0}),
+    "remove_variable": lambda o: o.remove_declaration("variable", "frames"),
+    "add_interface": lambda o: o.add_declaration("interface", "gimbal", {"type": "mavlink",
+                                                                          "url": "udpin:127.0.0.1:14560"}),
+    "add_import": lambda o: o.add_import("os"),
+    "remove_import": lambda o: o.remove_import("cv2"),
+    "wrap_states": lambda o: o.wrap_states("", ["LinkLost", "Land"], "Ending"),
+    "paste_state": lambda o: o.paste_state("", o.copy_state("LinkLost"))[0],
+}
+
+
+def diff_of(name: str) -> str:
+    text = MODEL.read_text()
+    new = apply_edits(text, OPS[name](YamlOps(text)))
+    return "".join(difflib.unified_diff(text.splitlines(True), new.splitlines(True),
+                                        "follow_colors.yaml", f"follow_colors.yaml ({name})", n=1))
+
+
+@pytest.mark.parametrize("name", sorted(OPS))
+def test_golden_edit(name: str) -> None:
+    assert diff_of(name) == (GOLDEN / f"{name}.diff").read_text()
+
+
+def test_renamed_and_edited_model_checks_clean() -> None:
+    for name in ("rename_state", "rename_nested_state", "rename_anchored_state", "rename_variable",
+                 "rename_parameter", "add_parameter", "move_state", "paste_state"):
+        s = EditSession(str(MODEL), MODEL.read_text())
+        s.apply(OPS[name])
+        assert not [d for d in s.check() if d.severity == "error"], name
+
+
+def test_state_shared_through_an_alias_is_edited_at_its_anchor() -> None:
+    o = YamlOps(MODEL.read_text())
+    with pytest.raises(EditError, match=r"anchor &follow .*edit it at the anchor"):
+        o.rename("Mission/FollowBlue/Track", "Chase")
+
+
+def test_states_inside_used_files_are_read_only() -> None:
+    o = YamlOps(MODEL.read_text())
+    with pytest.raises(EditError, match=r"no state or region `TakeOff/Airborne`"):
+        o.rename("TakeOff/Airborne", "Up")
+    idx = o.index
+    assert any(r.target == "TakeOff/Airborne" and r.via == "active" for r in idx.refs)
+
+
+@pytest.mark.parametrize("bad", ["1x", "a-b", "", "a b"])
+def test_rename_refuses_bad_names(bad: str) -> None:
+    with pytest.raises(EditError, match="not a valid state name"):
+        YamlOps(MODEL.read_text()).rename("Done", bad)
+
+
+def test_rename_refuses_a_sibling_name() -> None:
+    with pytest.raises(EditError, match="`Land` already exists"):
+        YamlOps(MODEL.read_text()).rename("Done", "Land")
+
+
+def test_an_edit_that_breaks_the_model_is_made_and_diagnosed_by_element() -> None:
+    s = EditSession(str(MODEL), MODEL.read_text())
+    s.apply(lambda o: o.set_state_field("LinkLost", "during", "undefined_name()"))
+    s.apply(lambda o: o.delete_state("Done"))
+    keyed = s.by_element()
+    assert any(d.code == "E141" for d in keyed["LinkLost"]), keyed
+    assert any("Done" in d.message for ds in keyed.values() for d in ds)
+    assert s.undo() and s.undo()
+    assert s.text == MODEL.read_text()
+    assert s.redo() and "undefined_name" in s.text
+
+
+def test_undo_redo_are_exact_texts() -> None:
+    original = MODEL.read_text()
+    s = EditSession(str(MODEL), original)
+    s.apply(OPS["wrap_states"])
+    wrapped = s.text
+    s.apply(OPS["add_import"])
+    assert s.undo() and s.text == wrapped
+    assert s.undo() and s.text == original
+    assert not s.undo()
+    assert s.redo() and s.text == wrapped
+
+
+def test_a_file_changed_on_disk_under_unsaved_edits_is_a_conflict(tmp_path: Path) -> None:
+    p = tmp_path / "m.yaml"
+    p.write_text(MODEL.read_text().replace("../lib/", str(ROOT / "examples" / "lib") + "/"))
+    s = EditSession.open(str(p))
+    s.apply(OPS["add_import"])
+    p.write_text(p.read_text() + "# someone else\n")
+    with pytest.raises(Conflict, match="changed on disk"):
+        s.save()
+    assert p.read_text().endswith("# someone else\n")
+    s.save(force=True)
+    assert "numpy as np, os]" in p.read_text()
+
+
+def test_flow_and_empty_collections() -> None:
+    text = "hfsm: 1\nname: m\ninitial: A\nstates: {A: {final: true}}\n"
+    o = YamlOps(text)
+    new = apply_edits(text, o.add_state("", "B", {"final": True}))
+    assert new == "hfsm: 1\nname: m\ninitial: A\nstates: {A: {final: true}, B: {final: true}}\n"
+    o = YamlOps(new)
+    assert apply_edits(new, o.move_state("B", 0)).endswith("states: {B: {final: true}, A: {final: true}}\n")
+    assert apply_edits(new, o.delete_state("A")).endswith("states: {B: {final: true}}\n")
+    text2 = "hfsm: 1\nname: m\nimports: []\ninitial: A\nstates:\n  A:\n    final: true"
+    o = YamlOps(text2)
+    assert "imports: [math]\n" in apply_edits(text2, o.add_import("math"))
+    assert apply_edits(text2, o.add_state("", "B")).endswith("    final: true\n  B: {}")
+    assert apply_edits(text2, o.delete_state("A")).endswith("states: {}")
+
+
+def test_strings_are_quoted_when_plain_would_change_them() -> None:
+    text = "hfsm: 1\nname: m\ninitial: A\nstates:\n  A: {final: true}\n"
+    o = YamlOps(text)
+    for value, written in (("no", '"no"'), ("010", '"010"'), ("a: b", '"a: b"'), ("x # y", '"x # y"'),
+                           ("5s", "5s"), ("log(1)", "log(1)")):
+        assert f"description: {written}\n" in apply_edits(text, o.set_state_field("", "description", value))
+
+
+def regenerate() -> None:
+    GOLDEN.mkdir(parents=True, exist_ok=True)
+    for name in OPS:
+        (GOLDEN / f"{name}.diff").write_text(diff_of(name))
+
+
+if __name__ == "__main__" and "--regen" in sys.argv:
+    regenerate()
+
+
+XML = ROOT / "examples" / "traffic_light" / "traffic_light.xml"
+
+
+def xml_diff(edit: Callable[[XmlOps], list[TextEdit]]) -> str:
+    text = XML.read_text()
+    new = apply_edits(text, edit(XmlOps(text)))
+    assert not [d for d in compile_file(str(XML), new).diagnostics if d.severity == "error"], new
+    return "".join(x for x in difflib.unified_diff(text.splitlines(True), new.splitlines(True), n=0)
+                   if x[:1] in "+-" and x[:3] not in ("+++", "---"))
+
+
+def test_xml_operations_keep_the_formatting() -> None:
+    assert xml_diff(lambda o: o.rename("Amber", "Yellow")) == (
+        '-      <transition name="button" to="Amber">\n'
+        '+      <transition name="button" to="Yellow">\n'
+        '-    <state name="Amber">\n'
+        '+    <state name="Yellow">\n')
+    assert xml_diff(lambda o: o.rename("Green", "Go")).count("Go") == 3  # name, initial, to
+    assert xml_diff(lambda o: o.set_state_field("Amber", "exit", 'log("x < y")')) == (
+        '+      <exit>log("x &lt; y")</exit>\n')
+    assert xml_diff(lambda o: o.set_state_field("", "period", "50ms")) == (
+        '-  <automaton period="100ms" initial="Green">\n'
+        '+  <automaton period="50ms" initial="Green">\n')
+    assert xml_diff(lambda o: o.add_state("", "Off", {"final": True})) == (
+        '+    <state name="Off" final="true"/>\n')
+    moved = xml_diff(lambda o: o.move_state("Night", 0))
+    assert moved == '+    <state name="Night" final="true"/>\n-    <state name="Night" final="true"/>\n'
+    text = XML.read_text()
+    deleted = apply_edits(text, XmlOps(text).delete_state("Amber"))
+    assert '<state name="Amber">' not in deleted and deleted.count("\n") == text.count("\n") - 6
+    assert apply_edits(deleted, XmlOps(deleted).set_state_field("Night", "entry", "log('n')")).count(
+        "<entry>log('n')</entry>") == 1
+
+
+def test_xml_session_renames_and_undoes() -> None:
+    s = EditSession(str(XML), XML.read_text())
+    s.apply(lambda o: o.rename("Red", "Stop"))
+    assert 'name="Stop"' in s.text and not [d for d in s.diagnostics if d.severity == "error"]
+    assert s.undo() and s.text == XML.read_text()
+
+
+def test_merge_keeps_everything_and_unshares_an_alias_that_differs() -> None:
+    import copy
+
+    from hfsmc.edit.merge import merge_into
+    from hfsmc.errors import Diagnostics
+    from hfsmc.frontend.yaml import load_yaml
+
+    text = MODEL.read_text()
+    data = load_yaml("m.yaml", text, Diagnostics()).data
+    assert merge_into(text, data) == text
+    new = copy.deepcopy(data)
+    new["states"]["Mission"]["states"]["FollowBlue"]["states"]["Track"]["during"] = "steer(seen, 2)"
+    merged = merge_into(text, new)
+    assert load_yaml("m.yaml", merged, Diagnostics()).data == new
+    assert merged.count("*follow") == 2 and "steer(seen, 2)" in merged
+    a, b = text.splitlines(), merged.splitlines()
+    assert a[:a.index("        states: *follow")] == b[:a.index("        states: *follow")]
