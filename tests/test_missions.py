@@ -89,6 +89,17 @@ def test_follow_colors_flies_the_four_stages_and_lands_over_red(
         assert summary is not None, log[-2000:]
         ticks, overruns = int(summary[1]), int(summary[2])
         assert ticks > 2000 and overruns < 0.05 * (ticks + overruns), summary[0]
+    # The same flight in lockstep (docs/worlds.md#simulated-time) reaches the same stages and
+    # lands within 0.2 m of the real-time one: lockstep is faithful (this real-time flight,
+    # kept for its overruns, is the comparison's other half).
+    with flight(tmp_path / "lockstep", command=mission, lockstep=True) as g:
+        status = g.component.wait(timeout=240)
+        g.sim.wait(timeout=30)  # it stops with its component
+        assert status == 0, (g.folder / "component.log").read_text()[-3000:]
+        lockstep = json.loads((g.folder / "report.json").read_text())
+    assert lockstep["stages"] == report["stages"] == ["green", "blue", "green", "red"]
+    a, b = lockstep["landing"], report["landing"]
+    assert math.dist((a["north"], a["east"]), (b["north"], b["east"])) < 0.2, (a, b)
 
 
 @pytest.mark.slow
