@@ -392,13 +392,15 @@ def test_the_client_keeps_what_it_understands() -> None:
         line({"type": "sample", "t": 5, "variables": {"led": "True"}, "overruns": 1}),
         line({"type": "sample", "t": 6, "variables": {}, "overruns": 1, "sim_rate": 24.8}),
         line({"type": "sample", "t": 7, "variables": {}, "overruns": 1, "sim_rate": "fast"}),
+        line({"type": "sample", "t": 8, "variables": {}, "overruns": 1, "sim_rate": -2}),
         line({"type": "news", "text": "later versions may add types"}),
         line({"type": "bye", "reason": "final"}),
         line({"type": "record", "record": RECORDS[1]}),  # after bye: not read
     ])
     assert got == [("structure", STRUCTURE), ("snapshot", snapshot), ("record", RECORDS[0]),
                    ("sample", (5, {"led": "True"}, 1, None)), ("sample", (6, {}, 1, 24.8)),
-                   ("sample", (7, {}, 1, None)), ("end", "component stopped (final)")]
+                   ("sample", (7, {}, 1, None)), ("sample", (8, {}, 1, None)),
+                   ("end", "component stopped (final)")]
 
 
 def test_the_client_refuses_another_protocol() -> None:

@@ -519,8 +519,9 @@ def item(msg: object) -> _view.Item | None:
     if kind == "sample":
         t, values, overruns = msg.get("t"), msg.get("variables"), msg.get("overruns")
         rate = msg.get("sim_rate")
-        if not isinstance(rate, int | float) or isinstance(rate, bool) or not math.isfinite(rate):
-            rate = None  # absent (not on the simulator's clock) or not a number: not shown
+        if not isinstance(rate, int | float) or isinstance(rate, bool) or not math.isfinite(rate) \
+                or rate < 0:
+            rate = None  # absent (not on the simulator's clock) or not a rate: not shown
         if isinstance(t, int) and isinstance(values, dict) and isinstance(overruns, int):
             return "sample", (t, values, overruns, rate)
         return None
