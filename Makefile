@@ -77,6 +77,7 @@ bench: setup
 	$(BIN)/python bench/web.py --json bench/results.json
 	$(BIN)/python bench/realtime.py --json bench/results.json
 	$(BIN)/python bench/record.py --json bench/results.json
+	$(BIN)/python bench/lockstep.py --json bench/results.json
 
 # A longer run of the front end's fuzzer than `make test` does (crashes become
 # files in tests/invalid/): FUZZ_SECONDS=3600 make fuzz.

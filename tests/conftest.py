@@ -167,14 +167,16 @@ def observers_asan_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
 # a marked test's node id, which pytest 9.2 no longer lets it do, so --dist loadgroup spreads
 # every test.)
 LONGEST_FIRST = (
-    "test_conformance.py", "test_missions.py", "test_tour.py", "test_monitor_area.py", "test_scenario.py",
-    "test_replay.py",
-    "test_cpp.py", "test_drone_faults.py", "test_cxxcheck.py",
+    "test_conformance.py", "test_missions.py", "test_tour.py", "test_drone_faults.py", "test_scenario.py",
+    "test_lockstep.py",
+    "test_replay.py", "test_monitor_area.py",  # monitor_area flies in lockstep: 10-30 s a language
+    "test_cpp.py", "test_cxxcheck.py",
     "test_component_flags.py", "test_web.py", "test_cpp_drivers.py", "test_view.py",
     "test_cpp_observers.py", "test_build.py", "test_reliability.py", "test_sim_vehicle.py",
     "test_wheel.py", "test_drivers.py", "test_sim_camera.py", "test_monitor.py",
 )
-SPREAD = {"test_missions.py", "test_monitor_area.py", "test_scenario.py"}
+# test_drone_faults.py: wall-clock link faults (205 s in all), its C++ tests sharing one build.
+SPREAD = {"test_missions.py", "test_monitor_area.py", "test_scenario.py", "test_drone_faults.py"}
 # Files whose tests run once per back end, each back end building its own components once
 # (the conformance suite: one CMake project of all the twins for `cpp`, another for `cpp-asan`):
 # a group per back end, so that the two C++ builds, the longest chain, run side by side.

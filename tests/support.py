@@ -21,6 +21,8 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Collection, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from itertools import count
 from pathlib import Path
 from typing import Any
@@ -629,3 +631,101 @@ class Live:
 
     def __setattr__(self, name: str, value: Any) -> None:
         setattr(self._driver, name, value)
+
+
+# -- drone flights: the component and `hfsmc sim` (tests/test_missions.py, test_lockstep.py) ----
+HFSMC = [sys.executable, "-m", "hfsmc"]
+FOLLOW = ROOT / "examples/follow_colors"
+FOLLOW_CPP = ROOT / "examples/follow_colors_cpp"
+
+
+@dataclass
+class Flight:
+    folder: Path
+    component: subprocess.Popen[bytes]
+    sim: subprocess.Popen[bytes]
+    started: float  # monotonic time the simulator was started
+    component_started: float
+
+    @property
+    def trace(self) -> list[dict[str, object]]:
+        path = self.folder / "trace.jsonl"
+        lines = path.read_text().splitlines() if path.exists() else []
+        return [json.loads(line) for line in lines if line.endswith("}")]
+
+    def truth(self) -> dict[str, object]:
+        data: dict[str, object] = json.loads((self.folder / "truth.json").read_text())
+        return data
+
+    def wait_for(self, ev: str, key: str, value: str, timeout: float,
+                 **also: str) -> dict[str, object]:
+        """The first trace record with ev, key == value (and the other keys given)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for rec in self.trace:
+                if rec.get("ev") == ev and rec.get(key) == value and \
+                        all(rec.get(k) == v for k, v in also.items()):
+                    return rec
+            if self.component.poll() is not None:
+                break
+            time.sleep(0.2)
+        raise AssertionError(f"no {ev} {key}={value} within {timeout} s: "
+                             f"{(self.folder / 'component.log').read_text()[-2000:]}")
+
+    def stop_sim(self) -> None:
+        if self.sim.poll() is None:
+            self.sim.send_signal(signal.SIGINT)
+            self.sim.wait(timeout=20)
+
+
+@contextmanager
+def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors.yaml",
+           world: Path = FOLLOW / "world.yaml",
+           command: list[str] | None = None,
+           component_args: tuple[str, ...] = (), lockstep: bool = False) -> Iterator[Flight]:
+    """Start the simulator and the component on free ports: `command` (a built component's
+    command line), or else the Python component of `model`, built here. ``lockstep``: the
+    simulator is the component's clock (`--lockstep PORT`, `--clock sim:PORT`)."""
+    folder = tmp_path / "flight"
+    if command is None:
+        r = subprocess.run([*HFSMC, "build", str(model), "-o", str(folder / "component")],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        command = [sys.executable, str(folder / "component" / f"{model.stem}.py")]
+    folder.mkdir(parents=True, exist_ok=True)
+    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
+    clock: tuple[str, ...] = ()
+    if lockstep:
+        port = free_port(socket.SOCK_STREAM)
+        sim_args = ("--lockstep", str(port), *sim_args)
+        clock = ("--clock", f"sim:{port}")
+    config = {"parameters": {"report": str(folder / "report.json")},
+              "interfaces": {"drone": {"type": "mavlink", "url": f"udpin:127.0.0.1:{udp}"},
+                             "camera": {"type": "camera",
+                                        "url": f"http://127.0.0.1:{http}/bottom.mjpg"}}}
+    (folder / "config.yaml").write_text(json.dumps(config))
+    sim_log = (folder / "sim.log").open("wb")
+    comp_log = (folder / "component.log").open("wb")
+    sim = subprocess.Popen([*HFSMC, "sim", "--world", str(world), "--mavlink",
+                            f"udpout:127.0.0.1:{udp}", "--camera-port", str(http),
+                            "--truth", str(folder / "truth.json"), *sim_args],
+                           stdout=sim_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    started = time.monotonic()
+    component = subprocess.Popen(
+        [*command, "--config", str(folder / "config.yaml"), "--trace", str(folder / "trace.jsonl"),
+         "--until", "240s", *clock, *component_args],
+        stdout=comp_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    f = Flight(folder, component, sim, started, time.monotonic())
+    try:
+        yield f
+    finally:
+        for p in (component, sim):
+            if p.poll() is None:
+                p.kill()
+            p.wait(timeout=20)
+        sim_log.close()
+        comp_log.close()
+
+
+def fired_into(trace: list[dict[str, object]]) -> list[str]:
+    return [str(r["to"]) for r in trace if r["ev"] == "fire"]

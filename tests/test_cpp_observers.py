@@ -192,7 +192,7 @@ def test_raw_client_gets_the_protocol_of_the_python_monitor(build: tuple[Path, d
     r.release()
     rest = c.until_bye()
     r.finish()
-    assert hello == {"type": "hello", "protocol": 1, "minor": 1, "structure": STRUCTURE,
+    assert hello == {"type": "hello", "protocol": 1, "minor": 2, "structure": STRUCTURE,
                      "feeds": {"vehicle": [], "camera": []}}
     assert snapshot is not None and snapshot["type"] == "snapshot"
     assert rest[-1] == {"type": "bye", "reason": "error"}
@@ -472,7 +472,7 @@ def test_feeds_go_to_every_client_and_frames_only_to_those_that_subscribe(
         for msgs in (got, other):
             for m in msgs:
                 MONITOR_VALIDATOR.validate(m)
-            assert msgs[0] == {"type": "hello", "protocol": 1, "minor": 1, "structure": STRUCTURE,
+            assert msgs[0] == {"type": "hello", "protocol": 1, "minor": 2, "structure": STRUCTURE,
                                "feeds": {"vehicle": ["drone"], "camera": ["camera"]}}
         # About 4 a second (a subscription sends at once): 1.2 s for one, 2.4 s for the other.
         assert 3 <= [m["type"] for m in got].count("vehicle") <= 8, got

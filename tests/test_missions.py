@@ -10,66 +10,18 @@ import json
 import math
 import re
 import signal
-import socket
 import subprocess
-import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT
 from tests.cppbuild import need_toolchain
-from tests.support import free_port
+from tests.support import FOLLOW_CPP, HFSMC, fired_into, flight
 
-HFSMC = [sys.executable, "-m", "hfsmc"]
-FOLLOW = ROOT / "examples/follow_colors"
-FOLLOW_CPP = ROOT / "examples/follow_colors_cpp"
 CPP_BUILD_TIMEOUT = 900  # s: CMake and g++ on a loaded 2-core machine take 1-2 min, at times far more
 # The tests flown by both components; the first C++ one also waits for the compiler.
 LANGUAGES = ["python", pytest.param("cpp", marks=pytest.mark.timeout(CPP_BUILD_TIMEOUT + 300))]
-
-
-@dataclass
-class Flight:
-    folder: Path
-    component: subprocess.Popen[bytes]
-    sim: subprocess.Popen[bytes]
-    started: float  # monotonic time the simulator was started
-    component_started: float
-
-    @property
-    def trace(self) -> list[dict[str, object]]:
-        path = self.folder / "trace.jsonl"
-        lines = path.read_text().splitlines() if path.exists() else []
-        return [json.loads(line) for line in lines if line.endswith("}")]
-
-    def truth(self) -> dict[str, object]:
-        data: dict[str, object] = json.loads((self.folder / "truth.json").read_text())
-        return data
-
-    def wait_for(self, ev: str, key: str, value: str, timeout: float,
-                 **also: str) -> dict[str, object]:
-        """The first trace record with ev, key == value (and the other keys given)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            for rec in self.trace:
-                if rec.get("ev") == ev and rec.get(key) == value and \
-                        all(rec.get(k) == v for k, v in also.items()):
-                    return rec
-            if self.component.poll() is not None:
-                break
-            time.sleep(0.2)
-        raise AssertionError(f"no {ev} {key}={value} within {timeout} s: "
-                             f"{(self.folder / 'component.log').read_text()[-2000:]}")
-
-    def stop_sim(self) -> None:
-        if self.sim.poll() is None:
-            self.sim.send_signal(signal.SIGINT)
-            self.sim.wait(timeout=20)
 
 
 @pytest.fixture(scope="session")
@@ -91,53 +43,6 @@ def mission(request: pytest.FixtureRequest) -> list[str] | None:
         return None
     command: list[str] = request.getfixturevalue("cpp_follow_colors")
     return command
-
-
-@contextmanager
-def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors.yaml",
-           world: Path = FOLLOW / "world.yaml",
-           command: list[str] | None = None,
-           component_args: tuple[str, ...] = ()) -> Iterator[Flight]:
-    """Start the simulator and the component on free ports: `command` (a built component's
-    command line), or else the Python component of `model`, built here."""
-    folder = tmp_path / "flight"
-    if command is None:
-        r = subprocess.run([*HFSMC, "build", str(model), "-o", str(folder / "component")],
-                           capture_output=True, text=True, timeout=120)
-        assert r.returncode == 0, r.stderr
-        command = [sys.executable, str(folder / "component" / f"{model.stem}.py")]
-    folder.mkdir(parents=True, exist_ok=True)
-    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
-    config = {"parameters": {"report": str(folder / "report.json")},
-              "interfaces": {"drone": {"type": "mavlink", "url": f"udpin:127.0.0.1:{udp}"},
-                             "camera": {"type": "camera",
-                                        "url": f"http://127.0.0.1:{http}/bottom.mjpg"}}}
-    (folder / "config.yaml").write_text(json.dumps(config))
-    sim_log = (folder / "sim.log").open("wb")
-    comp_log = (folder / "component.log").open("wb")
-    sim = subprocess.Popen([*HFSMC, "sim", "--world", str(world), "--mavlink",
-                            f"udpout:127.0.0.1:{udp}", "--camera-port", str(http),
-                            "--truth", str(folder / "truth.json"), *sim_args],
-                           stdout=sim_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-    started = time.monotonic()
-    component = subprocess.Popen(
-        [*command, "--config", str(folder / "config.yaml"), "--trace", str(folder / "trace.jsonl"),
-         "--until", "240s", *component_args],
-        stdout=comp_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-    f = Flight(folder, component, sim, started, time.monotonic())
-    try:
-        yield f
-    finally:
-        for p in (component, sim):
-            if p.poll() is None:
-                p.kill()
-            p.wait(timeout=20)
-        sim_log.close()
-        comp_log.close()
-
-
-def fired_into(trace: list[dict[str, object]]) -> list[str]:
-    return [str(r["to"]) for r in trace if r["ev"] == "fire"]
 
 
 def mission_seconds(trace: list[dict[str, object]]) -> float:
@@ -184,19 +89,31 @@ def test_follow_colors_flies_the_four_stages_and_lands_over_red(
         assert summary is not None, log[-2000:]
         ticks, overruns = int(summary[1]), int(summary[2])
         assert ticks > 2000 and overruns < 0.05 * (ticks + overruns), summary[0]
+    # The same flight in lockstep (docs/worlds.md#simulated-time) reaches the same stages and
+    # lands within 0.2 m of the real-time one: lockstep is faithful (this real-time flight,
+    # kept for its overruns, is the comparison's other half).
+    with flight(tmp_path / "lockstep", command=mission, lockstep=True) as g:
+        status = g.component.wait(timeout=240)
+        g.sim.wait(timeout=30)  # it stops with its component
+        assert status == 0, (g.folder / "component.log").read_text()[-3000:]
+        lockstep = json.loads((g.folder / "report.json").read_text())
+    assert lockstep["stages"] == report["stages"] == ["green", "blue", "green", "red"]
+    a, b = lockstep["landing"], report["landing"]
+    assert math.dist((a["north"], a["east"]), (b["north"], b["east"])) < 0.2, (a, b)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("mission", LANGUAGES, indirect=True)
 def test_sigint_mid_flight_lands_and_disarms(tmp_path: Path, mission: list[str] | None) -> None:
-    with flight(tmp_path, command=mission) as f:
+    # In lockstep at 5 times real time: the signal comes about 2 s of flight after Track
+    # (at whatever step it lands: the one thing of the flight that is not reproducible).
+    with flight(tmp_path, "--speedup", "5", command=mission, lockstep=True) as f:
         f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=60)
-        time.sleep(2)
+        time.sleep(0.4)
         f.component.send_signal(signal.SIGINT)
         status = f.component.wait(timeout=90)
-        time.sleep(1.5)  # one more truth write
+        f.sim.wait(timeout=30)  # it stops with its component, the truth written
         truth = f.truth()
-        f.stop_sim()
         assert status == 130, (f.folder / "component.log").read_text()[-3000:]
         events = [(r["ev"], r.get("to") or r.get("state")) for r in f.trace]
         assert ("interrupt", "Land") in events and ("enter", "Land") in events
@@ -212,8 +129,10 @@ def test_a_link_lost_at_the_landing_lands_once_it_is_back(tmp_path: Path,
     """The link drops in the mission (SIGUSR1 to the simulator: both ways), then Ctrl+C sends
     the component to Land: its land command goes nowhere. examples/lib/land sends it again,
     saying why, until the link is back: the vehicle lands and disarms, nothing is left armed.
-    (Sent once, the landing never came: `WARNING: ARMED in GUIDED` at the stop.)"""
-    with flight(tmp_path, command=mission) as f:
+    (Sent once, the landing never came: `WARNING: ARMED in GUIDED` at the stop.)
+    In lockstep at 5 times real time: the signals act at whatever step they come, the link's
+    watch and the land command's resends run on simulated time."""
+    with flight(tmp_path, "--speedup", "5", command=mission, lockstep=True) as f:
         f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=60)
         f.sim.send_signal(signal.SIGUSR1)  # the link drops
         f.wait_for("enter", "state", "LinkLost", timeout=15)
@@ -221,9 +140,8 @@ def test_a_link_lost_at_the_landing_lands_once_it_is_back(tmp_path: Path,
         again = f.wait_for("log", "state", "Land/Landing", timeout=20)
         f.sim.send_signal(signal.SIGUSR1)  # the link comes back
         status = f.component.wait(timeout=90)
-        time.sleep(1.5)  # one more truth write
+        f.sim.wait(timeout=30)  # it stops with its component, the truth written
         truth = f.truth()
-        f.stop_sim()
         log = (f.folder / "component.log").read_text()
         assert status == 130, log[-3000:]
     assert again["msg"] == "still armed in GUIDED (land: timeout, link lost): sending land again"
@@ -238,16 +156,17 @@ def test_a_link_lost_at_the_landing_lands_once_it_is_back(tmp_path: Path,
 @pytest.mark.slow
 def test_link_loss_fires_the_failsafe_and_the_mission_resumes(tmp_path: Path) -> None:
     drop_at = 64.0  # while following blue (the 2nd stage): history must bring it back
-    with flight(tmp_path, "--drop-link-after", str(drop_at), "--drop-link-for", "5") as f:
-        lost = f.wait_for("fire", "to", "LinkLost", timeout=100)
-        back = f.wait_for("fire", "to", "Mission", timeout=30, **{"from": "LinkLost"})
+    # In lockstep (the drop in simulated time: the same instant every run).
+    with flight(tmp_path, "--drop-link-after", str(drop_at), "--drop-link-for", "5",
+                lockstep=True) as f:
         status = f.component.wait(timeout=240)
-        time.sleep(1.5)  # one more truth write
+        f.sim.wait(timeout=30)  # it stops with its component, the truth written
         truth = f.truth()
-        f.stop_sim()
         assert status == 0, (f.folder / "component.log").read_text()[-3000:]
-    # The drop in the component's time: the simulator started a little earlier.
-    drop_ms = (drop_at - (f.component_started - f.started)) * 1000
+        lost = f.wait_for("fire", "to", "LinkLost", timeout=1)
+        back = f.wait_for("fire", "to", "Mission", timeout=1, **{"from": "LinkLost"})
+    # The drop in the component's time: in lockstep both clocks start together.
+    drop_ms = drop_at * 1000
     assert isinstance(lost["t"], int) and isinstance(back["t"], int)
     assert 0 < lost["t"] - drop_ms <= 2500 + 500  # heartbeats stop; 2 s without one
     assert back["t"] > lost["t"]
@@ -266,11 +185,10 @@ def test_link_loss_fires_the_failsafe_and_the_mission_resumes(tmp_path: Path) ->
 @pytest.mark.slow
 def test_time_limit_lands_and_exits_124(tmp_path: Path) -> None:
     """--time-limit stops through on_interrupt: the drone lands, and nothing is left armed."""
-    with flight(tmp_path, component_args=("--time-limit", "20s")) as f:
+    with flight(tmp_path, component_args=("--time-limit", "20s"), lockstep=True) as f:
         status = f.component.wait(timeout=90)
-        time.sleep(1.5)  # one more truth write
+        f.sim.wait(timeout=30)  # it stops with its component, the truth written
         truth = f.truth()
-        f.stop_sim()
         log = (f.folder / "component.log").read_text()
         assert status == 124, log[-3000:]
     interrupt = [r for r in f.trace if r["ev"] == "interrupt"]
@@ -279,7 +197,7 @@ def test_time_limit_lands_and_exits_124(tmp_path: Path) -> None:
     assert [r["state"] for r in f.trace if r["ev"] == "enter"][-4:] == [
         "Land", "Land/Landing", "Land/Landed", "Done"]
     assert truth["armed"] is False and truth["landed"] is True and truth["mode"] == "LAND"
-    assert "still ARMED" not in log and "stopped (time_limit)" in log
+    assert "still ARMED" not in log  # (the stop's summary line is the real clock's only)
 
 
 @pytest.mark.slow

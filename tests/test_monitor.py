@@ -142,7 +142,7 @@ def test_hello_then_snapshot_then_everything_in_order(server: Any, clients: Any)
     srv = server()
     srv.start(STRUCTURE)
     a = clients(srv.port)
-    assert a.message() == {"type": "hello", "protocol": 1, "minor": 1, "structure": STRUCTURE,
+    assert a.message() == {"type": "hello", "protocol": 1, "minor": 2, "structure": STRUCTURE,
                            "feeds": {"vehicle": [], "camera": []}}
     snap = a.message()
     assert snap is not None and snap["type"] == "snapshot" and snap["active"] == []
@@ -393,12 +393,17 @@ def test_the_client_keeps_what_it_understands() -> None:
         line({"type": "record", "record": {"t": 0, "ev": "enter"}}),  # not a record: ignored
         line({"type": "record", "record": RECORDS[0]}),
         line({"type": "sample", "t": 5, "variables": {"led": "True"}, "overruns": 1}),
+        line({"type": "sample", "t": 6, "variables": {}, "overruns": 1, "sim_rate": 24.8}),
+        line({"type": "sample", "t": 7, "variables": {}, "overruns": 1, "sim_rate": "fast"}),
+        line({"type": "sample", "t": 8, "variables": {}, "overruns": 1, "sim_rate": -2}),
         line({"type": "news", "text": "later versions may add types"}),
         line({"type": "bye", "reason": "final"}),
         line({"type": "record", "record": RECORDS[1]}),  # after bye: not read
     ])
     assert got == [("structure", STRUCTURE), ("snapshot", snapshot), ("record", RECORDS[0]),
-                   ("sample", (5, {"led": "True"}, 1)), ("end", "component stopped (final)")]
+                   ("sample", (5, {"led": "True"}, 1, None)), ("sample", (6, {}, 1, 24.8)),
+                   ("sample", (7, {}, 1, None)), ("sample", (8, {}, 1, None)),
+                   ("end", "component stopped (final)")]
 
 
 def test_the_client_refuses_another_protocol() -> None:

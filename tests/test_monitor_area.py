@@ -1,14 +1,14 @@
 """The paper's monitor-an-area mission flown end to end: the component and `hfsmc sim`
 as real processes on 127.0.0.1 (docs/worlds.md, examples/), its report checked against the simulator's
 ground truth. It flies in Python and in C++ (examples/monitor_area_cpp, the same mission
-in the same world), the C++ component compiled once per session."""
+in the same world), the C++ component compiled once per session, in lockstep with the
+simulator (docs/worlds.md#simulated-time): a few seconds instead of two minutes each."""
 
 from __future__ import annotations
 
 import json
 import math
 import subprocess
-import time
 from pathlib import Path
 
 import pytest
@@ -16,15 +16,8 @@ from ruamel.yaml import YAML
 
 from tests.conftest import ROOT
 from tests.cppbuild import need_toolchain
-from tests.test_missions import (
-    CPP_BUILD_TIMEOUT,
-    HFSMC,
-    LANGUAGES,
-    Flight,
-    fired_into,
-    flight,
-    mission_seconds,
-)
+from tests.support import HFSMC, fired_into, flight
+from tests.test_missions import CPP_BUILD_TIMEOUT, LANGUAGES, mission_seconds
 
 MONITOR = ROOT / "examples/monitor_area"
 MODEL = MONITOR / "monitor_area.yaml"
@@ -44,45 +37,22 @@ def flight_altitude() -> float:
     return float(model["parameters"]["altitude"]["default"])
 
 
-def top_state(trace: list[dict[str, object]]) -> str:
-    """The top-level state active at the end of the trace ("" before the first)."""
-    for rec in reversed(trace):
-        if rec["ev"] == "enter" and "/" not in str(rec["state"]):
-            return str(rec["state"])
-    return ""
-
-
-def fly_and_sample(f: Flight, timeout: float) -> list[float]:
-    """Wait for the component to end; every 0.5 s meanwhile, from the end of the take-off
-    to the start of the landing (the top-level states Flight, LinkLost), the
-    true altitude from the simulator's truth file. That file is rewritten every second,
-    so it may be up to a second older than the trace: samples start 1.5 s after the
-    take-off ended (so none is from the take-off), and one read before the trace shows
-    the landing is from before the landing."""
-    altitudes: list[float] = []
-    flying_since: float | None = None
-    deadline = time.monotonic() + timeout
-    while f.component.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.5)
-        try:
-            truth = f.truth()
-            state = top_state(f.trace)
-        except (OSError, ValueError):  # a file being replaced: the next sample
-            continue
-        if state not in FLYING:
-            if flying_since is not None:
-                break  # landing: the component's end is waited for by the caller
-            continue
-        if flying_since is None:
-            flying_since = time.monotonic()
-        if time.monotonic() - flying_since >= 1.5 and isinstance(truth["altitude"], float | int):
-            altitudes.append(float(truth["altitude"]))
-    return altitudes
+def flying_altitudes(trace: list[dict[str, object]], truth_log: Path) -> list[float]:
+    """The true altitudes the simulator logged (`--truth-log`: every 0.5 s of simulated time)
+    from 1.5 s after the take-off ended (the top-level state Flight entered: none is from the
+    take-off) to the start of the landing (the first top-level state after Flight and LinkLost).
+    In lockstep the component's time is the simulator's: the trace's instants pick the lines."""
+    tops = [(int(str(r["t"])) / 1000, str(r["state"])) for r in trace
+            if r["ev"] == "enter" and "/" not in str(r["state"])]
+    flying = next(t for t, state in tops if state in FLYING)
+    landing = next(t for t, state in tops if t > flying and state not in FLYING)
+    lines = [json.loads(line) for line in truth_log.read_text().splitlines()]
+    return [float(x["altitude"]) for x in lines if flying + 1.5 <= x["time"] < landing]
 
 
 def held_while_correcting(trace: list[dict[str, object]]) -> int:
     """How many corrections the mission held for: the Altitude region's Correcting answered by
-    the Mission region's Hold at its next tick (50 ms later, or a later one if the real clock
+    the Mission region's Hold at its next tick (50 ms later, or a later one if a real clock
     skipped some), and Stages resumed at the tick after Altitude's Ok."""
     fired = [(int(str(r["t"])), str(r["to"])) for r in trace if r["ev"] == "fire"]
     held = 0
@@ -123,16 +93,19 @@ def monitor(request: pytest.FixtureRequest) -> list[str] | None:
 @pytest.mark.parametrize("monitor", LANGUAGES, indirect=True)
 def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path,
                                                        monitor: list[str] | None) -> None:
-    with flight(tmp_path, model=MODEL, world=MONITOR / "world.yaml", command=monitor,
-                component_args=CORRECTING_BAND) as f:
-        altitudes = fly_and_sample(f, timeout=200)
-        status = f.component.wait(timeout=60)
-        time.sleep(1.5)  # one more truth write after the disarm
+    # In lockstep: the simulator's time is the component's, and it stops with the component.
+    truth_log = tmp_path / "truth.jsonl"
+    with flight(tmp_path, "--truth-log", str(truth_log), model=MODEL,
+                world=MONITOR / "world.yaml", command=monitor, component_args=CORRECTING_BAND,
+                lockstep=True) as f:
+        status = f.component.wait(timeout=240)
+        f.sim.wait(timeout=30)  # the truth written at its exit, after the disarm
         truth = f.truth()
-        f.stop_sim()
         log = (f.folder / "component.log").read_text()
         assert status == 0, log[-3000:]
+        assert f.sim.returncode == 0, (f.folder / "sim.log").read_text()[-3000:]
         trace = f.trace
+    altitudes = flying_altitudes(trace, truth_log)
     assert trace[-1] == {"t": trace[-1]["t"], "ev": "stop", "reason": "final"}
     stages = [t.removeprefix(STAGES) for t in fired_into(trace)
               if t.startswith(STAGES) and t.count("/") == STAGES.count("/")]

@@ -2,8 +2,9 @@
 
 The cheap recordings are made by the Python component of a small model in `--playback` of a
 hand-written script, with `--record` (deterministic, about a second); one real simulated
-follow_colors flight (slow) is replayed with the same model, a changed threshold and the
-C++ twin.  Broken files (cut, corrupted, not MCAP) are read at the unit level."""
+follow_colors flight (slow, in lockstep with the simulator) is replayed with the same model,
+a changed threshold and the C++ twin, whose own flight (in real time) replays with the Python
+model.  Broken files (cut, corrupted, not MCAP) are read at the unit level."""
 
 from __future__ import annotations
 
@@ -250,14 +251,15 @@ TIME_LIMIT_S = 20
 @pytest.fixture(scope="module")
 def flown(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """follow_colors flown by its Python component in the simulator up to its time limit and
-    landed, recorded: the folder holding flight.mcap."""
-    from tests.test_missions import flight
+    landed, recorded: the folder holding flight.mcap. In lockstep (docs/worlds.md#simulated-time):
+    a recording made on the simulator's clock replays like any other."""
+    from tests.support import flight
 
     d = tmp_path_factory.mktemp("flown")
     with flight(d, component_args=("--record", str(d / "flight.mcap"),
-                                   "--time-limit", f"{TIME_LIMIT_S}s")) as f:
+                                   "--time-limit", f"{TIME_LIMIT_S}s"), lockstep=True) as f:
         status = f.component.wait(timeout=TIME_LIMIT_S + 90)
-        f.stop_sim()
+        f.sim.wait(timeout=30)  # it stops with its component
         assert status == 124, (f.folder / "component.log").read_text()[-3000:]
     return d
 
@@ -308,11 +310,12 @@ def test_a_changed_threshold_diverges_at_its_instant(flown: Path) -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(1500)
 def test_flights_replay_across_languages(flown: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The Python flight replays with the C++ twin; the twin, built by that replay, flies and
-    records the same flight, which replays with the Python model (no other C++ build)."""
+    """The Python flight (in lockstep) replays with the C++ twin; the twin, built by that
+    replay, flies and records the same flight in real time on purpose (a recording made on the
+    real clock replays too), which replays with the Python model (no other C++ build)."""
     from hfsmc.component import cache_folder
     from tests.cppbuild import need_toolchain
-    from tests.test_missions import flight
+    from tests.support import flight
 
     need_toolchain()
     twin = ROOT / "examples" / "follow_colors_cpp" / "follow_colors_cpp.yaml"

@@ -445,6 +445,31 @@ def test_truth_file(tmp_path: Path) -> None:
     assert math.dist((obj["north"], obj["east"]), red) < 1e-3
 
 
+def test_truth_log_has_a_line_every_half_second_and_at_exit(tmp_path: Path) -> None:
+    """--truth-log: the truth as a JSON line every 0.5 s of simulated time and at the exit
+    (1.7 s: 0.5, 1.0, 1.5 and 1.7), each the truth file's content at that step."""
+    log, truth = tmp_path / "truth.jsonl", tmp_path / "truth.json"
+    port = free_port(socket.SOCK_DGRAM)
+    proc = subprocess.run(
+        [sys.executable, "-c", RUN, "--no-camera", "--mavlink", f"udpout:127.0.0.1:{port}",
+         "--boot-time", "0.5", "--duration", "1.7", "--truth", str(truth), "--truth-log",
+         str(log)], cwd=ROOT, capture_output=True, text=True, timeout=20)
+    assert proc.returncode == 0, proc.stderr
+    lines = [json.loads(line) for line in log.read_text().splitlines()]
+    assert [x["time"] for x in lines] == [0.5, 1.0, 1.5, 1.7]
+    assert [x["ready"] for x in lines] == [False, True, True, True]
+    assert lines[-1] == json.loads(truth.read_text())
+
+
+def test_a_truth_log_that_cannot_be_written_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    proc = subprocess.run([sys.executable, "-c", RUN, "--no-camera", "--duration", "1",
+                           "--truth-log", str(tmp_path / "no" / "such" / "t.jsonl")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=20)
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == [
+        f"hfsmc: error: --truth-log {tmp_path}/no/such/t.jsonl: No such file or directory"]
+
+
 @pytest.mark.parametrize("content", ["vehicle: {max_speed: fast}\n", "bogus: 1\n", None])
 def test_bad_world_exits_2_with_one_line(tmp_path: Path, content: str | None) -> None:
     world = tmp_path / "bad.yaml"

@@ -280,6 +280,18 @@ def test_screen_shows_active_states_with_time_in_state() -> None:
     assert "0.500  Blinking/Lit -> Blinking/Dark" in text
 
 
+def test_on_the_simulators_clock_the_time_says_it_is_simulated_and_its_rate() -> None:
+    """--clock sim: samples carry the rate (schemas/monitor.md, minor 2); the time row says
+    the time is simulated and how fast it runs; a later sample without a rate keeps it."""
+    v = fed(upto(500))
+    v.apply_sample(1250, {"led": "False"}, 0)
+    assert "simulated" not in screen(v) and v.sim_rate is None
+    v.apply_sample(1300, {"led": "False"}, 0, 24.83)
+    assert re.search(r"time\s+1\.300 s simulated, 24\.8× real time", screen(v)), screen(v)
+    v.apply_sample(1400, {"led": "False"}, 0)
+    assert v.sim_rate == 24.83
+
+
 def test_active_states_are_green() -> None:
     text = screen(fed(upto(500)), color=True)
     assert re.search(GREEN + "● Dark", text), text

@@ -507,7 +507,7 @@ def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_tha
         for msgs in (got, other):
             for m in msgs:
                 MONITOR_VALIDATOR.validate(m)
-            assert msgs[0]["minor"] == 1 and msgs[0]["feeds"] == {"vehicle": ["drone"],
+            assert msgs[0]["minor"] == 2 and msgs[0]["feeds"] == {"vehicle": ["drone"],
                                                                   "camera": ["camera"]}
         vehicles = [m for m in got if m["type"] == "vehicle"]
         assert 3 <= len(vehicles) <= 6, len(vehicles)  # about 4 a second
@@ -725,6 +725,9 @@ const fill = (p) => {
 };
 return {
   status: document.body.dataset.status,
+  rate: document.getElementById('hv-rate').hidden ? null : document.getElementById('hv-rate').textContent,
+  simRate: document.body.dataset.simRate === undefined ? null : Number(document.body.dataset.simRate),
+  clock: document.getElementById('hv-clock').textContent,
   banner: document.getElementById('hv-banner').hidden ? '' : document.getElementById('hv-banner').textContent,
   svg: [...document.querySelectorAll('#hv-diagram g.hv-active')].map((g) => g.id),
   tree: [...document.querySelectorAll('#hv-tree li.hv-active')].map((li) => li.dataset.path),
@@ -869,6 +872,9 @@ def test_the_page_draws_the_running_component(blinker: Path, logged: Callable[..
     shown = wait_page(first, lambda s: green_leaf(s) is not None)
     leaf = green_leaf(shown)
     assert shown["fills"]["Paused"] == WHITE and shown["fills"]["Done"] != GREEN
+    # On the real clock the time is the wall clock's: no rate is shown.
+    assert shown["rate"] is None and shown["simRate"] is None, shown
+    assert re.fullmatch(r"t \d+\.\d{3} s", shown["clock"]), shown
     # The component takes its next transition (every 500 ms): the green moves.
     wait_page(first, lambda s: green_leaf(s) not in (None, leaf), timeout=5)
     screenshot(first, "web-blinker", tmp_path)
@@ -1208,6 +1214,9 @@ const img = document.querySelector('#hv-cameras figure img');
 const filled = (g) => [...g.querySelectorAll('ellipse, polygon')].find((s) => s.getAttribute('fill') !== 'none');
 return {
   status: document.body.dataset.status,
+  rate: document.getElementById('hv-rate').hidden ? null : document.getElementById('hv-rate').textContent,
+  simRate: document.body.dataset.simRate === undefined ? null : Number(document.body.dataset.simRate),
+  clock: document.getElementById('hv-clock').textContent,
   panels: [!document.getElementById('hv-vehicles').hidden, !document.getElementById('hv-cameras').hidden],
   altitude: alt && alt.dataset.value ? Number(alt.dataset.value) : null,
   shown: alt ? alt.textContent : null, mode: cell('mode'), armed: cell('armed'),
@@ -1232,9 +1241,13 @@ def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
                                         "url": f"http://127.0.0.1:{http}/bottom.mjpg"}}}
     (tmp_path / "config.yaml").write_text(json.dumps(config))
     truth = tmp_path / "truth.json"
+    # In lockstep at twice real time (docs/worlds.md#simulated-time): the page says its time is
+    # simulated and how fast it runs.
+    lockstep = free_port()
     logged([sys.executable, "-m", "hfsmc", "sim", "--world",
                str(ROOT / "examples" / "follow_colors" / "world.yaml"), "--mavlink",
-               f"udpout:127.0.0.1:{udp}", "--camera-port", str(http), "--truth", str(truth)], "sim")
+               f"udpout:127.0.0.1:{udp}", "--camera-port", str(http), "--truth", str(truth),
+               "--lockstep", str(lockstep), "--speedup", "2"], "sim")
     bad = subprocess.run([str(follow_colors_cpp), "--trace-variables"], capture_output=True,
                          text=True, timeout=30, stdin=subprocess.DEVNULL)
     assert (bad.returncode, bad.stderr) == (
@@ -1242,7 +1255,7 @@ def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
     trace = tmp_path / "trace.jsonl"
     comp = logged([str(follow_colors_cpp), "--config", str(tmp_path / "config.yaml"),
                       "--monitor", "0", "--until", "90s", "--trace", str(trace),
-                      "--trace-variables"], "component")
+                      "--trace-variables", "--clock", f"sim:{lockstep}"], "component")
     port = int(comp.wait_for(r"monitor: listening on 127\.0\.0\.1:(\d+)").group(1))
     web = logged([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{port}",
                      "--model", str(FOLLOW_CPP)], "web")
@@ -1267,6 +1280,10 @@ def test_the_page_follows_a_cpp_component_in_flight_with_its_vehicle_and_camera(
         time.sleep(0.1)
     assert s["panels"] == [True, True] and s["mode"] == "GUIDED" and s["armed"] == "ARMED", s
     assert re.fullmatch(r"\d+\.\d\d m", s["shown"] or ""), s  # readable: centimetres
+    # The simulator's time, and its rate: never above the speedup but for the measuring.
+    assert s["simRate"] is not None and 0 < s["simRate"] <= 2.5, s
+    assert s["rate"] == f"simulated, {s['simRate']:.1f}× real time", s
+    assert re.fullmatch(r"t \d+\.\d{3} s", s["clock"]), s
     # The green moved with the component's transitions (the page opened before the mission).
     assert len(greens) >= 2 and greens[-1].startswith("Mission/"), greens
     # The panel shows the simulator's altitude (its truth, written every second).

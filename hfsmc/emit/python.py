@@ -25,7 +25,7 @@ from hfsmc.ir import Code, DictValue, Model, Value
 from hfsmc.pycheck import import_statement
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_viewstate.py", "hfsmc_view.py", "hfsmc_monitor.py",
-                 "hfsmc_record.py", "hfsmc_playback.py")
+                 "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py")
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py",), "camera": ("hfsmc_camera.py",)}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body

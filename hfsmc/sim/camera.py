@@ -341,21 +341,39 @@ class CameraFeed:
         self._stop = threading.Event()
         self._frame: Image | None = None
         self._pose_failed = False
+        self.count = 0  # frames rendered (their numbers: 1, 2, ...)
+        self.frame_us = 0  # the simulated time the latest one was rendered for (lockstep)
+        self._stamped = False  # frames carry their number and time (lockstep)
 
-    def start(self) -> str:
+    def start(self, thread: bool = True) -> str:
         """Serve (the first frame is ready before this returns); the stream's URL. OSError
-        when the port is taken."""
+        when the port is taken. Without ``thread`` nothing renders on its own: the simulator
+        in lockstep calls ``shoot_at`` (and ``start_thread`` if it goes on in real time)."""
         if self._server is not None:
             return self.url
         self._renderer = Renderer(self.world)
         server = MjpegServer(self._host, self._port)
         server.start()
         self._server = server
+        self._stamped = not thread
         self._shoot()
+        if thread:
+            self.start_thread()
+        return self.url
+
+    def start_thread(self) -> None:
+        """Render at the camera's rate in real time, in a thread of its own."""
+        self._stamped = False
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="hfsmc-camera", daemon=True)
         self._thread.start()
-        return self.url
+
+    def shoot_at(self, t_us: int) -> None:
+        """Render the pose now as the frame of simulated time ``t_us`` (lockstep): its part
+        says its number and time (X-Frame, X-Time-Us)."""
+        self.frame_us = t_us
+        if self._server is not None and not self._server.paused:
+            self._shoot()
 
     @property
     def url(self) -> str:
@@ -369,6 +387,11 @@ class CameraFeed:
         if self._server is None:
             raise RuntimeError("the camera is not started")
         return self._server.port
+
+    @property
+    def stamped(self) -> bool:
+        """Frames carry their number and simulated time (the simulator in lockstep)."""
+        return self._stamped
 
     @property
     def paused(self) -> bool:
@@ -413,7 +436,10 @@ class CameraFeed:
         ok, jpeg = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, self._quality])
         if ok:
             self._frame = frame
-            self._server.publish(jpeg.tobytes())
+            self.count += 1
+            headers = {"X-Frame": str(self.count), "X-Time-Us": str(self.frame_us)} \
+                if self._stamped else None
+            self._server.publish(jpeg.tobytes(), headers)
 
     def _run(self) -> None:
         period = 1.0 / max(self.world.camera.fps, 0.1)

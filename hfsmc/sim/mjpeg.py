@@ -7,6 +7,11 @@ published frame, each with its ``Content-Type: image/jpeg`` and
 latest frame alone. Every client has its own thread; one that stops reading or
 goes away holds up no one else.
 
+A frame published with headers carries them in its part (the simulator in lockstep
+sends ``X-Frame: K`` and ``X-Time-Us: T``, the frame's number and the simulated
+time it was rendered for: schemas/lockstep.md); MJPEG readers skip headers they
+do not know.
+
 A paused server looks like a camera that has dropped: streams are cut (the
 reader sees the end of its stream) and new requests get ``503`` until it
 resumes.
@@ -48,27 +53,29 @@ class _Frames:
     def __init__(self) -> None:
         self.cond = threading.Condition()
         self.jpeg: bytes | None = None
+        self.head = b""  # the extra header lines of the latest frame's part
         self.seq = 0
         self.paused = False
         self.closed = False
         self.sockets: set[socket.socket] = set()
 
-    def publish(self, jpeg: bytes) -> None:
+    def publish(self, jpeg: bytes, head: bytes = b"") -> None:
         with self.cond:
             self.jpeg = jpeg
+            self.head = head
             self.seq += 1
             self.cond.notify_all()
 
-    def next_after(self, seq: int, timeout: float) -> tuple[int, bytes] | None:
-        """The first frame newer than ``seq``; None when the stream is to end. (seq, b"") when
-        none came within ``timeout``."""
+    def next_after(self, seq: int, timeout: float) -> tuple[int, bytes, bytes] | None:
+        """The first frame newer than ``seq`` with its part's extra header lines; None when
+        the stream is to end. (seq, b"", b"") when none came within ``timeout``."""
         with self.cond:
             self.cond.wait_for(lambda: self.seq != seq or self.paused or self.closed, timeout)
             if self.paused or self.closed:
                 return None
             if self.seq == seq or self.jpeg is None:
-                return (seq, b"")
-            return (self.seq, self.jpeg)
+                return (seq, b"", b"")
+            return (self.seq, self.jpeg, self.head)
 
     def cut(self) -> None:
         """End every connection now, even one stuck writing to a client that does not read."""
@@ -182,11 +189,11 @@ class _Handler(BaseHTTPRequestHandler):
                 got = frames.next_after(seq, CLIENT_TIMEOUT)
                 if got is None:
                     return
-                seq, jpeg = got
+                seq, jpeg, extra = got
                 if jpeg:
                     head = (f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\n"
-                            f"Content-Length: {len(jpeg)}\r\n\r\n").encode("ascii")
-                    self.wfile.write(head + jpeg + b"\r\n")
+                            f"Content-Length: {len(jpeg)}\r\n").encode("ascii")
+                    self.wfile.write(head + extra + b"\r\n" + jpeg + b"\r\n")
         except OSError:
             return  # the client went away, or the stream was cut
 
@@ -224,9 +231,11 @@ class MjpegServer:
     def url(self, path: str = STREAM_PATH) -> str:
         return f"http://{self.host}:{self.port}{path}"
 
-    def publish(self, jpeg: bytes) -> None:
-        """The newest frame: streams send it next, snapshots return it."""
-        self._frames.publish(jpeg)
+    def publish(self, jpeg: bytes, headers: dict[str, str] | None = None) -> None:
+        """The newest frame: streams send it next (with ``headers`` in its part), snapshots
+        return it."""
+        head = "".join(f"{k}: {v}\r\n" for k, v in (headers or {}).items()).encode("ascii")
+        self._frames.publish(jpeg, head)
 
     @property
     def paused(self) -> bool:

@@ -31,9 +31,10 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from types import FrameType
-from typing import Any
+from typing import IO, Any
 
 from hfsmc.fsutil import write_atomic
+from hfsmc.sim import lockstep
 from hfsmc.sim.autopilot import Autopilot
 from hfsmc.sim.telemetry import latlon
 from hfsmc.sim.vehicle import Body
@@ -43,6 +44,7 @@ DEFAULT_MAVLINK = "udpout:127.0.0.1:14550"
 MAX_DATAGRAMS = 500  # per step: a flood must not starve the physics
 PEER_QUIET_S = 5.0  # udpin: a peer silent this long (while the link is up) may be replaced
 STRANGERS_SAID = 16  # addresses whose ignored datagrams are said; later ones are only counted
+TRUTH_LOG_S = 0.5  # s of simulated time between two lines of --truth-log
 
 
 def parse_url(url: str) -> tuple[str, str, int]:
@@ -78,6 +80,8 @@ class Link:
         except OSError:
             self.sock.close()
             raise
+        self.sent = 0  # datagrams sent (the lockstep's count, docs/worlds.md)
+        self.received = 0  # the peer's datagrams read, kept or dropped (a link down drops them)
 
     @property
     def up(self) -> bool:
@@ -99,6 +103,7 @@ class Link:
         if self.up and self.peer is not None:
             with contextlib.suppress(OSError):  # nobody listening yet, a full buffer: lost
                 self.sock.sendto(data, self.peer)
+                self.sent += 1
 
     def receive(self) -> list[bytes]:
         out: list[bytes] = []
@@ -109,7 +114,10 @@ class Link:
                 break
             except OSError:
                 continue  # an ICMP error reported on the socket: try the next datagram
-            if self.up and self._from_peer(addr):
+            mine = self._from_peer(addr) if self.up else addr == self.peer
+            if mine:
+                self.received += 1
+            if self.up and mine:
                 out.append(data)
         return out
 
@@ -144,10 +152,12 @@ class Simulator:
     def __init__(self, world: World, link: Link, *, boot_time: float = 3.0,
                  truth: str | None = None, drop_after: float | None = None,
                  drop_for: float = 5.0, params: dict[str, float] | None = None,
-                 world_clock: str = "armed") -> None:
+                 world_clock: str = "armed", truth_log: IO[str] | None = None) -> None:
         self.world = world
         self.link = link
         self.truth_path = truth
+        self.truth_log = truth_log
+        self._logged_step = -1
         self.drop = None if drop_after is None else (drop_after, drop_after + drop_for)
         self.body = Body(world.vehicle, world.seed)
         link.log = self.log
@@ -170,26 +180,32 @@ class Simulator:
     def run(self, duration: float | None = None) -> None:
         """Fly until stopped (a signal) or until ``duration`` simulated seconds."""
         dt = self.body.dt
-        per_second = round(1.0 / dt)
-        start = time.monotonic()
+        start = time.monotonic() - self.body.t  # real time goes on from where lockstep left
         while not self.stopping:
             self._faults()
             for data in self.link.receive():
                 self.ap.receive(data)
-            self.ap.step()
-            b = self.body
-            if self.clock.update(b.t, b.armed, b.altitude):
-                self.log(f"the world's clock starts (vehicle {self.clock.start})")
-            self.pose = (self.clock.time(b.t), b.north, b.east, b.down, b.yaw)
-            if self.truth_path and self.body.steps % per_second == 0:
-                self.write_truth()
-            if duration is not None and self.body.t >= duration - 1e-9:
+            if self.advance(duration):
                 break
             late = time.monotonic() - (start + self.body.steps * dt)
             if late < 0:
                 time.sleep(-late)
             elif late > 0.5:  # stalled (suspended, overloaded): go on from now, no burst
                 start += late
+
+    def advance(self, duration: float | None = None) -> bool:
+        """One physics step and what follows it (the world's clock, the pose, the truth each
+        second, its log each half second); True when ``duration`` is reached."""
+        self.ap.step()
+        b = self.body
+        if self.clock.update(b.t, b.armed, b.altitude):
+            self.log(f"the world's clock starts (vehicle {self.clock.start})")
+        self.pose = (self.clock.time(b.t), b.north, b.east, b.down, b.yaw)
+        if self.truth_path and b.steps % round(1.0 / b.dt) == 0:
+            self.write_truth()
+        if self.truth_log is not None and b.steps % round(TRUTH_LOG_S / b.dt) == 0:
+            self.log_truth()
+        return duration is not None and b.t >= duration - 1e-9
 
     def _faults(self) -> None:
         forced = self._link_toggles % 2 == 1
@@ -271,7 +287,22 @@ class Simulator:
                          "north": _r(o.position(world_t)[0], 3),
                          "east": _r(o.position(world_t)[1], 3)}
                         for o in w.objects],
+            **({"camera": {"frame": self.camera.count, "time": _r(self.camera.frame_us / 1e6, 3)}}
+               if self.camera is not None and self.camera.stamped else {}),
         }
+
+    def log_truth(self) -> None:
+        """One line of the truth log (`--truth-log`), once per step."""
+        if self.truth_log is None or self._logged_step == self.body.steps:
+            return
+        self._logged_step = self.body.steps
+        try:
+            self.truth_log.write(json.dumps(self.truth(), separators=(",", ":")) + "\n")
+            self.truth_log.flush()
+        except OSError as e:
+            if not self._truth_failed:
+                self._truth_failed = True
+                self.log(f"cannot write the truth log: {e}")
 
     def write_truth(self) -> None:
         if not self.truth_path:
@@ -311,6 +342,17 @@ def _param(text: str) -> tuple[str, float]:
     return name.strip().upper(), number
 
 
+def _speedup(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive rate (10: ten times real time), "
+                                         f"not {text!r}")
+    return v
+
+
 def _port(text: str) -> int:
     v = int(text)
     if not 0 <= v <= 65535:
@@ -336,6 +378,9 @@ def parser() -> argparse.ArgumentParser:
                         "WPNAV_ACCEL_Z, MOT_SPOOL_TIME, TKOFF_SLEW_TIME... (docs/worlds.md)")
     p.add_argument("--truth", metavar="FILE",
                    help="write the ground truth (JSON) every second and at exit")
+    p.add_argument("--truth-log", metavar="FILE",
+                   help=f"append the ground truth as one JSON line every {TRUTH_LOG_S} "
+                        "simulated seconds and at exit (a flight's whole track)")
     p.add_argument("--duration", type=_seconds, metavar="S",
                    help="exit after S simulated seconds (default: until SIGINT/SIGTERM)")
     p.add_argument("--drop-link-after", type=_seconds, metavar="S",
@@ -349,6 +394,16 @@ def parser() -> argparse.ArgumentParser:
                    help="only render the camera for another vehicle (with --follow)")
     p.add_argument("--follow", metavar="URL",
                    help="MAVLink URL of the vehicle whose camera to render")
+    p.add_argument("--lockstep", metavar="[HOST:]PORT",
+                   help="be the time master of one component started with --clock sim:PORT: "
+                        "wait for it on this TCP port (loopback unless a host is named), then "
+                        "step only when it is done (as fast as both go; docs/worlds.md)")
+    p.add_argument("--speedup", type=_speedup, metavar="N",
+                   help="with --lockstep: hold simulated time to N times real time "
+                        "(a person watching; default: as fast as it goes)")
+    p.add_argument("--component-gone", choices=("stop", "realtime"), default="stop",
+                   help="with --lockstep, when the component ends or dies: stop (the default) "
+                        "or go on in real time")
     p.add_argument("--world-clock", choices=WORLD_CLOCKS, metavar="WHEN",
                    help="when the world's objects start moving: armed (when the vehicle first "
                         "arms, the default: a component may take a minute to build and start), "
@@ -387,6 +442,11 @@ def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
     if args.drop_link_for is not None and args.drop_link_after is None:
         return _fail("--drop-link-for needs --drop-link-after")
+    if args.speedup is not None and args.lockstep is None:
+        return _fail("--speedup needs --lockstep (in real time the simulator runs at 1x)")
+    if args.lockstep is not None and args.camera_only:
+        return _fail("--lockstep and --camera-only: the camera follows another simulator's "
+                     "time, not its own")
     if bool(args.camera_only) != bool(args.follow):
         return _fail("--camera-only and --follow URL go together")
     try:
@@ -410,31 +470,56 @@ def main(argv: list[str]) -> int:
         link = Link(args.mavlink)
     except (ValueError, OSError) as e:
         return _fail(str(e))
+    server = None
+    if args.lockstep is not None:
+        try:
+            server = lockstep.Server(args.lockstep)
+        except (ValueError, OSError) as e:
+            link.close()
+            return _fail(f"--lockstep {args.lockstep}: {e}")
+    try:
+        truth_log = None if args.truth_log is None else open(args.truth_log, "w")  # noqa: SIM115
+    except OSError as e:
+        link.close()
+        if server is not None:
+            server.close()
+        return _fail(f"--truth-log {args.truth_log}: {e.strerror or e}")
     sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
                     drop_after=args.drop_link_after,
                     drop_for=5.0 if args.drop_link_for is None else args.drop_link_for,
-                    params=params, world_clock=args.world_clock or "armed")
+                    params=params, world_clock=args.world_clock or "armed", truth_log=truth_log)
     try:
         with sim.signals():
-            where = _start_camera(sim, args)
+            where = _start_camera(sim, args, thread=server is None)
             if where is None:
                 return 2
-            print(f"sim: {link.describe()}, {where}", file=sys.stderr, flush=True)
+            more = f", {server.describe()}" if server is not None else ""
+            print(f"sim: {link.describe()}, {where}{more}", file=sys.stderr, flush=True)
             try:
-                sim.run(args.duration)
+                if server is None or lockstep.fly(sim, server, args.duration,
+                                                  args.speedup or math.inf,
+                                                  args.component_gone):
+                    if sim.camera is not None and server is not None:
+                        sim.camera.start_thread()
+                    sim.run(args.duration)
             finally:
                 sim.write_truth()
+                sim.log_truth()
                 if link.ignored:
                     sim.log(f"ignored {link.ignored} MAVLink datagrams from other addresses "
                             "than the peer")
     finally:
         if sim.camera is not None:
             sim.camera.stop()
+        if server is not None:
+            server.close()
+        if truth_log is not None:
+            truth_log.close()
         link.close()
     return 0
 
 
-def _start_camera(sim: Simulator, args: argparse.Namespace) -> str | None:
+def _start_camera(sim: Simulator, args: argparse.Namespace, thread: bool = True) -> str | None:
     """Start the camera; what to print about it, or None after an error."""
     if args.no_camera:
         return "no camera (--no-camera)"
@@ -444,7 +529,7 @@ def _start_camera(sim: Simulator, args: argparse.Namespace) -> str | None:
     feed = camera.CameraFeed(sim.world, pose=lambda: sim.pose, host="127.0.0.1",
                              port=args.camera_port)
     try:
-        url = feed.start()
+        url = feed.start(thread=thread)
     except OSError as e:
         _fail(f"camera: cannot serve on 127.0.0.1:{args.camera_port}: {e}")
         return None

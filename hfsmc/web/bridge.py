@@ -205,14 +205,15 @@ class Bridge:
         v = self.view
         self._told_active = dict(v.active)
         self._told_values = _readable(v.values)
-        self._told = {"overruns": v.overruns, "interrupt": v.interrupt, "stop": self._stop()}
+        self._told = {"overruns": v.overruns, "interrupt": v.interrupt, "stop": self._stop(),
+                      "sim_rate": v.sim_rate}
         self._told_t = v.t_ms
         return {"type": "state", "status": self.status, "note": self.note, "t": v.t_ms,
                 "started": v.started,
                 "active": [{"state": p, "since": s} for p, s in v.active.items()],
                 "variables": dict(self._told_values), "overruns": v.overruns,
                 "transitions": list(v.transitions), "logs": list(v.logs),
-                "interrupt": v.interrupt, "stop": self._stop()}
+                "interrupt": v.interrupt, "stop": self._stop(), "sim_rate": v.sim_rate}
 
     def _stop(self) -> dict[str, Any] | None:
         v = self.view
@@ -259,7 +260,8 @@ class Bridge:
         if values != self._told_values:
             delta["variables"] = values
             self._told_values = values
-        for key, now in (("overruns", v.overruns), ("interrupt", v.interrupt), ("stop", self._stop())):
+        for key, now in (("overruns", v.overruns), ("interrupt", v.interrupt), ("stop", self._stop()),
+                         ("sim_rate", v.sim_rate)):
             if self._told.get(key) != now:
                 delta[key] = now
                 self._told[key] = now

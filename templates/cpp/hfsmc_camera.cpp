@@ -1,9 +1,13 @@
 // hfsmc_camera.cpp: the `camera` interface of C++ components (hfsmc/camera.hpp declares
 // it and says how it works), compiled once into the library hfsmc_camera. Copied
 // unchanged into every component folder that uses it.
+#include <netdb.h>
+#include <poll.h>
 #include <pthread.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -92,6 +96,8 @@ struct Camera::Grabber {
   bool stop = false;
   bool finished = false;
   bool down = false;  // said on stderr that the stream is down (grabber only)
+  bool stamped = false;  // lockstep: the simulator's MJPEG read here, with X-Frame, X-Time-Us
+  long long latest_us = 0;  // lockstep: the simulated time the latest frame was rendered for
 
   bool stopping() {
     std::lock_guard<std::mutex> lock(mutex);
@@ -106,9 +112,14 @@ struct Camera::Grabber {
   void run() {
     double pause_s = kBackoffMinS;
     while (!stopping()) {
-      std::unique_ptr<cv::VideoCapture> cap = open();
-      bool got = cap && grab(*cap);
-      if (cap) cap->release();
+      bool got;
+      if (stamped) {
+        got = read_stamped();
+      } else {
+        std::unique_ptr<cv::VideoCapture> cap = open();
+        got = cap && grab(*cap);
+        if (cap) cap->release();
+      }
       if (stopping()) return;
       if (got) pause_s = kBackoffMinS;
       if (!down) {
@@ -210,6 +221,126 @@ struct Camera::Grabber {
     return got;
   }
 
+  // -- lockstep: the simulator's MJPEG parts and their stamps ------------------------
+  struct Http {  // one connection, read a line or a number of bytes at a time, bounded
+    int fd = -1;
+    std::string buf;
+    Grabber* g = nullptr;
+    ~Http() {
+      if (fd >= 0) ::close(fd);
+    }
+    bool fill() {
+      pollfd p{fd, POLLIN, 0};
+      for (int waited = 0; waited < kReadTimeoutMs; waited += 100) {
+        if (g->stopping()) return false;
+        if (::poll(&p, 1, 100) > 0) {
+          char chunk[65536];
+          const ssize_t n = ::recv(fd, chunk, sizeof chunk, 0);
+          if (n <= 0) return false;
+          buf.append(chunk, static_cast<std::size_t>(n));
+          return true;
+        }
+      }
+      return false;
+    }
+    bool line(std::string& out) {
+      std::size_t nl;
+      while ((nl = buf.find('\n')) == std::string::npos)
+        if (buf.size() > 8192 || !fill()) return false;
+      out = buf.substr(0, nl);
+      if (!out.empty() && out.back() == '\r') out.pop_back();
+      buf.erase(0, nl + 1);
+      return true;
+    }
+    bool bytes(std::size_t n, std::string& out) {
+      while (buf.size() < n)
+        if (!fill()) return false;
+      out = buf.substr(0, n);
+      buf.erase(0, n);
+      return true;
+    }
+  };
+
+  /// One connection's frames until it ends; whether any came.
+  bool read_stamped() {
+    const std::string rest = url.substr(7);  // after http://
+    const std::size_t slash = rest.find('/');
+    const std::string where = rest.substr(0, slash);
+    const std::string path = slash == std::string::npos ? "/" : rest.substr(slash);
+    const std::size_t colon = where.rfind(':');
+    const std::string host = where.substr(0, colon);
+    const std::string port = colon == std::string::npos ? "80" : where.substr(colon + 1);
+    addrinfo hints{};
+    hints.ai_family = AF_INET;
+    hints.ai_socktype = SOCK_STREAM;
+    addrinfo* found = nullptr;
+    if (::getaddrinfo(host.c_str(), port.c_str(), &hints, &found) != 0 || !found) return false;
+    Http h;
+    h.g = this;
+    h.fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    const bool connected = h.fd >= 0 && ::connect(h.fd, found->ai_addr, found->ai_addrlen) == 0;
+    ::freeaddrinfo(found);
+    if (!connected) return false;
+    const std::string request = "GET " + path + " HTTP/1.0\r\nHost: " + where + "\r\n\r\n";
+    if (::send(h.fd, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size()))
+      return false;
+    std::string text;
+    if (!h.line(text) || text.find(" 200") == std::string::npos) return false;
+    while (h.line(text) && !text.empty()) {
+    }
+    bool got = false;
+    while (!stopping()) {
+      long long length = -1, number = 0, t_us = 0;
+      do {
+        if (!h.line(text)) return got;
+      } while (text.empty() || text.rfind("--", 0) == 0);
+      do {
+        const std::size_t c = text.find(':');
+        if (c == std::string::npos) continue;
+        std::string key = text.substr(0, c);
+        for (char& ch : key) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+        const long long value = std::atoll(text.c_str() + c + 1);
+        if (key == "content-length") length = value;
+        else if (key == "x-frame") number = value;
+        else if (key == "x-time-us") t_us = value;
+      } while (h.line(text) && !text.empty());
+      if (length < 0) return got;  // not the simulator's stream
+      std::string data;
+      if (!h.bytes(static_cast<std::size_t>(length), data)) return got;
+      if (number <= 0) continue;  // a frame without its stamp: the next will do
+      cv::Mat jpeg = cv::Mat(1, static_cast<int>(data.size()), CV_8UC1,
+                             const_cast<char*>(data.data())).clone();
+      cv::Mat img;
+      try {
+        img = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+      } catch (const cv::Exception&) {
+      }
+      if (img.empty()) continue;  // a damaged frame: the next will do
+      if (!size.empty() && img.size() != size) {
+        cv::Mat small;
+        cv::resize(img, small, size, 0, 0, cv::INTER_AREA);
+        img = small;
+        jpeg = cv::Mat();  // resized: recorded as PNG
+      }
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        latest_jpeg = jpeg;
+        latest = img;
+        latest_us = t_us;
+        count = static_cast<long>(number);
+        wake.notify_all();
+      }
+      if (!got) {
+        got = true;
+        if (down && !stopping()) {
+          down = false;
+          say("stream back at " + url);
+        }
+      }
+    }
+    return got;
+  }
+
   void say(const std::string& text) const {
     std::string line = name + ": " + text + "\n";
     std::fwrite(line.data(), 1, line.size(), stderr);  // one write: lines never interleave
@@ -245,6 +376,15 @@ Camera::Camera(const std::string& name, const std::string& url,
     register_source(this);
     return;
   }
+  if (simclock::Client* sim = simclock::current()) {  // lockstep: stamped frames
+    if (g_->url.rfind("http://", 0) != 0) {
+      g_->say("--clock sim needs the simulator's MJPEG stream (http://...), not " + g_->url);
+      std::exit(1);
+    }
+    sim_ = sim;
+    g_->stamped = true;
+    sim->add(this);
+  }
   std::shared_ptr<Grabber> g = g_;
   thread_ = quiet_thread([g] {
     g->run();
@@ -257,6 +397,7 @@ Camera::Camera(const std::string& name, const std::string& url,
 }
 
 Camera::~Camera() {
+  if (sim_ != nullptr && simclock::current() == sim_) sim_->remove(this);
   unregister_source(this);
   unregister_feed(this);
   close();
@@ -285,6 +426,14 @@ std::string Camera::source_config() const {
 
 void Camera::take_snapshot(long long t_us) {
   snapshot_t_ = t_us;
+  if (sim_ != nullptr) {  // lockstep: the frame the simulator named at this instant
+    snap_frame_ = held_;
+    snap_jpeg_ = held_jpeg_;
+    snap_count_ = held_count_;
+    snap_age_ = held_count_ == 0 ? std::numeric_limits<double>::infinity()
+                                 : static_cast<double>(sim_->now_us() - held_us_) / 1e6;
+    return;
+  }
   if (inputs_ == nullptr) {
     std::lock_guard<std::mutex> lock(g_->mutex);
     snap_frame_ = g_->latest;
@@ -325,6 +474,26 @@ void Camera::take_snapshot(long long t_us) {
 
 std::string Camera::snapshot_fields() const {
   return "\"count\":" + std::to_string(snap_count_) + ",\"age\":" + json_number(snap_age_);
+}
+
+/// Lockstep, before the instant at t_us: wait until the frame numbered step.frame has
+/// come (0: the camera is down, nothing to wait for); why not, or "".
+std::string Camera::lockstep_sync(long long, const simclock::Step& step) {
+  if (step.frame <= 0) return "";
+  std::unique_lock<std::mutex> lock(g_->mutex);
+  const bool ok = g_->wake.wait_for(lock, std::chrono::duration<double>(kFrameWaitS),
+                                    [&] { return g_->count >= step.frame; });
+  if (!ok) {
+    char wait[32];
+    std::snprintf(wait, sizeof wait, "%g", kFrameWaitS);
+    return g_->name + ": the simulator's frame " + std::to_string(step.frame) + " did not come in " +
+           wait + " s from " + g_->url;
+  }
+  held_ = g_->latest;
+  held_jpeg_ = g_->latest_jpeg;
+  held_count_ = g_->count;
+  held_us_ = g_->latest_us;
+  return "";
 }
 
 /// Stop the grabber (also done by the destructor); waits 1 s at most.

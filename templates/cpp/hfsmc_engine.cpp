@@ -6,6 +6,7 @@
 #include <poll.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <map>
@@ -155,8 +156,15 @@ int EngineCore::run(bool real, long long until_us, long long time_limit_us) {
     chain_.assign(1, 0);
     deadline_[0] = 0;
     has_sources_ = !sources().empty();
-    lockstep_ = one_period_ && !real_ && pb_ == nullptr;
+    sim_ = simclock::current();
+    lockstep_ = one_period_ && !real_ && pb_ == nullptr && sim_ == nullptr;
     owner = root_;
+    if (sim_ && !sim_wait(0)) {  // nothing can run without the simulator
+        stopping_ = true;
+        status_ = 1;
+        finish("error");
+        return status_;
+    }
     world();
     enter_state(tb_.automata[0].initial);
     trace_values();
@@ -191,7 +199,7 @@ void EngineCore::emit(Record& r) {
 // that only the real clock, --playback, --record, live views or --trace-variables ask
 // for, skipped as a whole without them.
 void EngineCore::instants() {
-    const bool hooks = real_ || pb_ != nullptr || rec_ != nullptr || !observers_.empty() ||
+    const bool hooks = real_ || pb_ != nullptr || rec_ != nullptr || !observers_.empty() || sim_ ||
                        (trace_variables_ && trace_);
     if (lockstep_) {
         cut_ = tb_.n_automata;  // none yet
@@ -210,6 +218,7 @@ void EngineCore::instants() {
             return;
         }
         if (real_ && !wait(due)) return;
+        if (sim_ && !sim_wait(due)) return;
         set_time(due);
         // The first instant shares the start's snapshot (0 s); no interface, no snapshot.
         if (has_sources_ && t != snap_t_) world();
@@ -267,6 +276,7 @@ void EngineCore::end_lockstep() {
 // The earliest limit comes before the next deadline: act on it at its time.
 void EngineCore::at_limit() {
     if (real_ && !wait(limit_us_)) return;
+    if (sim_ && !sim_wait(limit_us_)) return;
     set_time(limit_us_);
     if (limit_why_ == "time_limit") {  // stopped as by a signal, at the boundary
         time_limit_us_ = -1;
@@ -312,6 +322,27 @@ bool EngineCore::wait(long long t_us) {
             return false;
         }
     }
+}
+
+// --clock sim: step the simulator to t_us (the drivers' own work at least every
+// kMaxStepUs on the way); false when a signal came first or the simulator is gone (then an
+// error stop is asked for, acted on at once: nothing can land a vehicle without it).
+bool EngineCore::sim_wait(long long t_us) {
+    while (sim_->reached() < t_us) {
+        if (signals::pending != 0) return false;
+        if (trace_) trace_->flush();
+        try {
+            sim_->advance(sim_->reached() < 0 ? t_us
+                                              : std::min(t_us, sim_->reached() + simclock::kMaxStepUs));
+        } catch (const simclock::Gone& e) {
+            std::fprintf(stderr, "%s: %s; the component stops\n", tb_.name, e.what());
+            std::fflush(stderr);
+            sim_gone_ = true;
+            request("error");
+            return false;
+        }
+    }
+    return true;
 }
 
 void EngineCore::skip_missed(std::size_t a) {
@@ -385,7 +416,7 @@ bool EngineCore::boundary() {
     const std::string sig_reason = sig == SIGINT ? "sigint" : sig == SIGTERM ? "sigterm" : "";
     // Several requests at one boundary: an error first, then the root's final
     // state, then a signal, then shutdown() or the time limit.
-    if (reason == "error" && !interrupting_.empty()) {
+    if (reason == "error" && (!interrupting_.empty() || sim_gone_)) {
         stop("error");
     } else if (reason == "final") {
         stop(interrupting_.empty() ? "final" : interrupting_);
@@ -479,6 +510,7 @@ void EngineCore::finish(const std::string& reason) {
     signals::trace = nullptr;
     if (trace_) trace_->close();
     if (rec_) rec_->close();
+    if (sim_) sim_->close(reason);
     signals::status = status_;
     signals::finished = 1;
     for (auto& o : observers_) {
@@ -517,7 +549,18 @@ void EngineCore::sample() {
     std::vector<std::string> now = values();
     for (auto& v : now)
         if (v.size() > 80) v = v.substr(0, 77) + "...";
-    for (auto& o : observers_) o->sample(t / 1000, now, overruns_);
+    double rate = -1;
+    if (sim_) {  // simulated seconds per real second over about the last second
+        rate_window_.emplace_back(clock, t);
+        while (rate_window_.size() > 2 && clock - rate_window_[1].first >= 1000000000LL)
+            rate_window_.pop_front();
+        const auto& a = rate_window_.front();
+        const auto& b = rate_window_.back();
+        rate = b.first > a.first ? std::round(100.0 * (b.second - a.second) * 1000.0 /
+                                              static_cast<double>(b.first - a.first)) / 100.0
+                                 : 0.0;
+    }
+    for (auto& o : observers_) o->sample(t / 1000, now, overruns_, rate);
 }
 
 Structure EngineCore::structure() const {

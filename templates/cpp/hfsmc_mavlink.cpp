@@ -55,7 +55,7 @@ struct Mavlink::Wire {  // under link_
 
 Mavlink::Mavlink(const std::string& name, const std::string& url,
                  const std::map<std::string, std::string>& options)
-    : name_(name), url_(url.empty() ? kDefaultUrl : url), options_(options), start_(Clock::now()),
+    : name_(name), url_(url.empty() ? kDefaultUrl : url), options_(options), sim_(simclock::current()), start_(now()),
       wire_(std::make_unique<Wire>()) {
   rate_ = option(options, "rate", kFastRateHz);
   ack_timeout_ = option(options, "ack_timeout", kAckTimeoutS);
@@ -83,12 +83,43 @@ Mavlink::Mavlink(const std::string& name, const std::string& url,
     say("cannot open " + url_ + ": " + why);
     std::exit(1);
   }
-  reader_ = quiet_thread([this] { run(); });
+  if (simclock::Client* sim = simclock::current()) {  // lockstep: no reader thread
+    sim_ = sim;
+    sim->add(this);
+  } else {
+    reader_ = quiet_thread([this] { run(); });
+  }
   register_feed(this);
   register_source(this);
 }
 
+Mavlink::Clock::time_point Mavlink::now() const {
+  if (sim_ == nullptr) return Clock::now();
+  return Clock::time_point(std::chrono::duration_cast<Clock::duration>(
+      std::chrono::microseconds(sim_->now_us())));
+}
+
+/// Lockstep, before the instant at t_us: read until the simulator's `sent` datagrams
+/// have come, then do the reader's timed work; why not, or "".
+std::string Mavlink::lockstep_sync(long long, const simclock::Step& step) {
+  const auto end = Clock::now() + duration(kDatagramWaitS);
+  for (;;) {
+    drain();
+    if (received_ >= step.sent) break;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - Clock::now()).count();
+    if (left <= 0)
+      return name_ + ": " + std::to_string(step.sent - received_) +
+             " of the simulator's datagrams did not come in " + fmt(kDatagramWaitS) + " s (is " + url_ +
+             " the simulator's link?)";
+    pollfd pfd{fd_, POLLIN, 0};
+    ::poll(&pfd, 1, static_cast<int>(std::min<long long>(left, kPollMs)));
+  }
+  timed(now());
+  return "";
+}
+
 Mavlink::~Mavlink() {
+  if (sim_ != nullptr && simclock::current() == sim_) sim_->remove(this);
   unregister_source(this);
   unregister_feed(this);
   close();
@@ -272,7 +303,7 @@ Mavlink::Snap Mavlink::live_snapshot() const {
   int fix;
   {
     std::lock_guard<std::mutex> lock(state_);
-    n.heartbeat_age = s_.heartbeat_seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
+    n.heartbeat_age = s_.heartbeat_seen ? seconds(now() - s_.heartbeat_at) : kInf;
     n.armed = s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
     n.mode = s_.heartbeat_seen ? mode_name(s_.type, s_.custom_mode) : std::string();
     n.position = s_.position;
@@ -356,7 +387,7 @@ bool Mavlink::command(const std::string& name, const std::string& label, uint16_
     std::lock_guard<std::mutex> lock(link_);
     if (known) {
       send_command(system, component, p, 0);
-      Clock::time_point now = Clock::now();
+      Clock::time_point now = this->now();
       p.deadline = now + duration(ack_timeout_);
       p.resend_at = now + duration(ack_timeout_ / 2);
       pending_.push_back(p);
@@ -382,7 +413,7 @@ bool Mavlink::target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Ei
   uint8_t system, component;
   if (inputs_ != nullptr || !target(&system, &component)) return true;
   auto boot_ms = static_cast<uint32_t>(
-      std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - start_).count());
+      std::chrono::duration_cast<std::chrono::milliseconds>(now() - start_).count());
   std::lock_guard<std::mutex> lock(link_);
   mavlink_message_t msg;
   mavlink_msg_set_position_target_local_ned_pack_status(
@@ -399,8 +430,9 @@ void Mavlink::send(const mavlink_message_t& msg) {  // under link_
   uint8_t buf[MAVLINK_MAX_PACKET_LEN];
   uint16_t len = mavlink_msg_to_send_buffer(buf, &msg);
   // A full buffer or an unreachable peer loses the datagram, as UDP does.
-  (void)::sendto(fd_, buf, len, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&wire_->peer),
-                 sizeof wire_->peer);
+  if (::sendto(fd_, buf, len, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&wire_->peer),
+               sizeof wire_->peer) >= 0)
+    ++sent_;
 }
 
 void Mavlink::request_rates() {
@@ -425,23 +457,27 @@ void Mavlink::request_rates() {
 
 // -- the reader thread -------------------------------------------------------------
 void Mavlink::run() {
-  Clock::time_point next_heartbeat{};
   while (!stop_.load()) {
     pollfd pfd{fd_, POLLIN, 0};
     int n = ::poll(&pfd, 1, kPollMs);
     if (n > 0 && (pfd.revents & POLLIN)) drain();
-    Clock::time_point now = Clock::now();
-    if (now >= next_heartbeat) {
-      next_heartbeat = now + duration(kGcsHeartbeatS);
-      std::lock_guard<std::mutex> lock(link_);
-      mavlink_message_t msg;
-      mavlink_msg_heartbeat_pack_status(sysid_, kGcsComponent, &wire_->tx_status, &msg, MAV_TYPE_GCS,
-                                        MAV_AUTOPILOT_INVALID, 0, 0, 0);
-      send(msg);
-    }
-    expire(now);
-    watch_link();
+    timed(Clock::now());
   }
+}
+
+/// The reader's timed work: our heartbeat, resends and deadlines, the link's watch.
+void Mavlink::timed(Clock::time_point now) {
+  if (!heartbeat_sent_ || now >= next_heartbeat_) {
+    heartbeat_sent_ = true;
+    next_heartbeat_ = now + duration(kGcsHeartbeatS);
+    std::lock_guard<std::mutex> lock(link_);
+    mavlink_message_t msg;
+    mavlink_msg_heartbeat_pack_status(sysid_, kGcsComponent, &wire_->tx_status, &msg, MAV_TYPE_GCS,
+                                      MAV_AUTOPILOT_INVALID, 0, 0, 0);
+    send(msg);
+  }
+  expire(now);
+  watch_link();
 }
 
 /// Handle every datagram waiting (at most 1000, so a flood cannot starve the
@@ -457,6 +493,7 @@ void Mavlink::drain() {
     if (n < 0 && errno == EINTR) continue;
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
     if (n < 0) continue;  // an ICMP error reported on the socket: try the next datagram
+    ++received_;
     got.clear();
     {
       std::lock_guard<std::mutex> lock(link_);
@@ -481,7 +518,7 @@ void Mavlink::drain() {
 /// A copy of one of the last kDuplicateWindow frames of that source (same seq,
 /// message and checksum): a network duplicate, however late. Reader thread only.
 bool Mavlink::duplicate(const mavlink_message_t& msg) {
-  const Clock::time_point now = Clock::now();
+  const Clock::time_point now = this->now();
   Recent& r = recent_[static_cast<uint16_t>(msg.sysid << 8 | msg.compid)];
   if (!r.any || seconds(now - r.at) > kSilenceS) r = Recent{};  // first word, or a reboot
   r.any = true;
@@ -564,7 +601,7 @@ void Mavlink::on_heartbeat(const mavlink_message_t& msg) {
     s_.base_mode = hb.base_mode;
     s_.custom_mode = hb.custom_mode;
     s_.heartbeat_seen = true;
-    s_.heartbeat_at = Clock::now();
+    s_.heartbeat_at = now();
     now_mode = mode_name(s_.type, s_.custom_mode);
   }
   if (first) {
@@ -593,7 +630,7 @@ void Mavlink::on_ack(const mavlink_message_t& msg) {
                            [&](const Pending& p) { return p.command == ack.command; });
     if (it == pending_.end()) return;
     if (ack.result == MAV_RESULT_IN_PROGRESS) {  // wait for the final word, no resend
-      it->deadline = Clock::now() + duration(ack_timeout_);
+      it->deadline = now() + duration(ack_timeout_);
       it->resend = false;
       return;
     }
@@ -639,7 +676,7 @@ void Mavlink::watch_link() {  // the reader thread: the state at hand, not the a
   {
     std::lock_guard<std::mutex> lock(state_);
     seen = s_.heartbeat_seen;
-    age = seen ? seconds(Clock::now() - s_.heartbeat_at) : kInf;
+    age = seen ? seconds(now() - s_.heartbeat_at) : kInf;
   }
   if (!lost_ && seen && !(age < kLinkTimeoutS)) {
     lost_ = true;

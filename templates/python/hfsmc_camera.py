@@ -17,6 +17,11 @@ again when frames are back. An MJPEG stream is read as the JPEG of each frame
 and decoded here (``cv2.imdecode``): a recording keeps that JPEG as it came, so
 a replay computes on the same pixels (docs/recording.md).
 
+With ``--clock sim`` (lockstep with ``hfsmc sim``) the grabber reads the MJPEG stream
+itself (HTTP, no FFmpeg buffering), with each part's ``X-Frame`` and ``X-Time-Us``
+headers: before each instant the automaton's thread waits until it holds the frame the
+simulator names; ``count()`` is that frame's number and ``age()`` its simulated age.
+
 Options: ``size: WxH`` resizes every frame (``320x240``).
 """
 
@@ -30,10 +35,13 @@ import re
 import sys
 import threading
 import time
+import urllib.parse
 from collections.abc import Callable, Iterator
+from http.client import HTTPConnection, HTTPException
 from typing import Any
 
 import cv2
+import numpy as np
 
 DEFAULT_URL = "0"  # the first video device
 BACKOFF_MIN_S = 0.2
@@ -41,15 +49,17 @@ BACKOFF_MAX_S = 2.0
 STALE_S = 1.0  # ok() is false when the latest frame is older than that
 OPEN_TIMEOUT_MS = 3000  # a network stream that does not answer: give up and retry
 READ_TIMEOUT_MS = 2000  # a network stream that stops sending: drop it and reconnect
+FRAME_WAIT_S = 10.0  # lockstep: the frame the simulator names is that late at most
 _SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 _quiet_lock = threading.Lock()  # OpenCV's log level is global: grabbers share the lowering
 _quiet_depth = 0
 _quiet_saved = 0
 
 
-def connect(name: str, url: str | None, options: dict[str, str]) -> Camera:
-    """Start grabbing frames from ``url``; returns at once."""
-    return Camera(name, url or DEFAULT_URL, options)
+def connect(name: str, url: str | None, options: dict[str, str], sim: Any = None) -> Camera:
+    """Start grabbing frames from ``url``; returns at once. ``sim``: the simulator's clock
+    (hfsmc_simclock.SimClock), which the camera then follows."""
+    return Camera(name, url or DEFAULT_URL, options, sim)
 
 
 NO_FRAME: dict[str, Any] = {"count": 0, "age": math.inf}  # the snapshot before any frame
@@ -109,7 +119,7 @@ class CameraQueries:
 class Camera(CameraQueries):
     """The latest frame of a video stream (BGR numpy arrays)."""
 
-    def __init__(self, name: str, url: str, options: dict[str, str]) -> None:
+    def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
         # FFmpeg's own messages (connection refused, ...) at every retry would
         # drown ours; it reads this when first used, so before any capture opens.
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
@@ -135,20 +145,46 @@ class Camera(CameraQueries):
         self.on_frame: Callable[[int, Any, Any], None] | None = None
         self._down = False  # said on stderr that the stream is down
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"camera {name}", daemon=True)
+        self._sim = sim
+        self._arrived = threading.Condition()  # lockstep: a frame has come
+        self._held: tuple[Any, float, int, Any] | None = None  # lockstep: the frame synced
+        if sim is not None and not url.startswith("http://"):
+            self._say(f"--clock sim needs the simulator's MJPEG stream (http://...), not {url}")
+            raise SystemExit(1)
+        run = self._run if sim is None else self._run_stamped
+        self._thread = threading.Thread(target=run, name=f"camera {name}", daemon=True)
         self._thread.start()
         atexit.register(self.close)
+
+    def lockstep_sent(self) -> int:
+        return 0
+
+    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
+        """Lockstep, before the instant at ``t_us``: wait until the frame numbered
+        ``step["frame"]`` has come (0: the camera is down, nothing to wait for)."""
+        want = int(step["frame"])
+        if want <= 0:
+            return None
+        with self._arrived:
+            ok = self._arrived.wait_for(
+                lambda: self._latest is not None and self._latest[2] >= want, FRAME_WAIT_S)
+            if not ok:
+                return (f"{self.name}: the simulator's frame {want} did not come in "
+                        f"{FRAME_WAIT_S:g} s from {self.url}")
+            self._held = self._latest
+        return None
 
     def __repr__(self) -> str:
         return f"<camera {self.name} {self.url}>"
 
     def snapshot(self) -> dict[str, Any]:
         """Read the stream once for the instant that begins; queries return this."""
-        latest = self._latest
+        latest = self._latest if self._sim is None else self._held
         if latest is None:
             return self._snap
         self._frame, self._jpeg = latest[0], latest[3]
-        self._snap = {"count": latest[2], "age": time.monotonic() - latest[1]}
+        now = time.monotonic() if self._sim is None else self._sim.now()
+        self._snap = {"count": latest[2], "age": now - latest[1]}
         return self._snap
 
     def close(self) -> None:
@@ -237,6 +273,74 @@ class Camera(CameraQueries):
                     self._say(f"stream back at {self.url}")
             if step:
                 self._stop.wait(step)
+        return got
+
+    # -- the grabber of stamped frames (lockstep) -------------------------------
+    def _run_stamped(self) -> None:
+        """Read the simulator's MJPEG parts and their stamps, reconnecting as _run does."""
+        pause = BACKOFF_MIN_S
+        while not self._stop.is_set():
+            got = False
+            with contextlib.suppress(OSError, HTTPException, ValueError):
+                got = self._read_stamped()
+            if self._stop.is_set():
+                return
+            if got:
+                pause = BACKOFF_MIN_S
+            if not self._down:
+                self._down = True
+                self._say(f"stream {'lost' if got or self._count else 'not available'} "
+                          f"at {self.url}: reconnecting")
+            self._stop.wait(pause)
+            pause = min(pause * 2, BACKOFF_MAX_S)
+
+    def _read_stamped(self) -> bool:
+        """One connection's frames until it ends; whether any came."""
+        u = urllib.parse.urlsplit(self.url)
+        conn = HTTPConnection(u.hostname or "127.0.0.1", u.port or 80,
+                              timeout=READ_TIMEOUT_MS / 1000)
+        got = False
+        try:
+            conn.request("GET", u.path or "/")
+            resp = conn.getresponse()
+            if resp.status != 200:
+                return False
+            while not self._stop.is_set():
+                headers: dict[str, str] = {}
+                line = resp.readline()
+                while line.strip() == b"" or line.startswith(b"--"):
+                    if not line:
+                        return got
+                    line = resp.readline()
+                while line.strip():
+                    key, _, value = line.decode("latin-1").partition(":")
+                    headers[key.strip().lower()] = value.strip()
+                    line = resp.readline()
+                    if not line:
+                        return got
+                length = int(headers.get("content-length", "-1"))
+                if length < 0:
+                    return got  # not the simulator's stream
+                data = resp.read(length)
+                number, t_us = int(headers.get("x-frame", 0)), int(headers.get("x-time-us", 0))
+                jpeg: Any = np.frombuffer(data, dtype=np.uint8)
+                img = self._cv2.imdecode(jpeg, self._cv2.IMREAD_COLOR) if number > 0 else None
+                if img is None:
+                    continue  # a damaged frame, or one without its stamp: the next will do
+                if self._size is not None and (img.shape[1], img.shape[0]) != self._size:
+                    img = self._cv2.resize(img, self._size, interpolation=self._cv2.INTER_AREA)
+                    jpeg = None  # the automaton sees other pixels than the JPEG's
+                self._count = number
+                with self._arrived:
+                    self._latest = (img, t_us / 1e6, number, jpeg)
+                    self._arrived.notify_all()
+                if not got:
+                    got = True
+                    if self._down and not self._stop.is_set():
+                        self._down = False
+                        self._say(f"stream back at {self.url}")
+        finally:
+            conn.close()
         return got
 
     def _say(self, text: str) -> None:

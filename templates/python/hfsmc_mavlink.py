@@ -16,6 +16,11 @@ the state at hand, commands send one datagram on a non-blocking socket and
 return. One lock orders the pymavlink calls of the two threads (the parser
 can swap its protocol object when MAVLink 2 shows up); it is held for a
 send or for the parsing of datagrams already received, never while waiting.
+
+With ``--clock sim`` (lockstep with ``hfsmc sim``) there is no reader thread: before
+each instant the automaton's thread reads the datagrams the simulator says it has sent
+and does the reader's timed work (heartbeat, resends, link watch) at simulated time,
+so that what is sent and received depends on nothing else.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ GCS_HEARTBEAT_S = 1.0  # our own heartbeat, so the vehicle sees a ground station
 POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
 FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
 SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
+DATAGRAM_WAIT_S = 10.0  # lockstep: the simulator's datagrams, counted, are that late at most
 DUPLICATE_WINDOW = 255  # frames remembered per source: a copy of one of them is dropped
 SILENCE_S = 0.5  # a source silent that long (a reboot) is remembered afresh
 
@@ -75,9 +81,10 @@ RESULTS = {0: "accepted", 1: "temporarily_rejected", 2: "denied", 3: "unsupporte
 IN_PROGRESS = 5
 
 
-def connect(name: str, url: str | None, options: dict[str, str]) -> Vehicle:
-    """Open the link to a vehicle and start its reader; returns at once."""
-    return Vehicle(name, url or DEFAULT_URL, options)
+def connect(name: str, url: str | None, options: dict[str, str], sim: Any = None) -> Vehicle:
+    """Open the link to a vehicle and start its reader; returns at once. ``sim``: the
+    simulator's clock (hfsmc_simclock.SimClock), which the vehicle then follows."""
+    return Vehicle(name, url or DEFAULT_URL, options, sim)
 
 
 @dataclass(slots=True)
@@ -258,9 +265,10 @@ def modes(vehicle_type: int) -> dict[int, str]:
 class Vehicle(VehicleQueries):
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
-    def __init__(self, name: str, url: str, options: dict[str, str]) -> None:
+    def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
         self.name = name
         self.url = url
+        self._sim = sim
         self._snap = NEVER_HEARD
         self.on_command = None
         self._rate = _option(name, options, "rate", FAST_RATE_HZ)
@@ -278,7 +286,7 @@ class Vehicle(VehicleQueries):
             _close_half_open(e)
             self._say(f"cannot open {url}: {e}")
             raise SystemExit(1) from None
-        self._start = time.monotonic()
+        self._start = self._now()
         self._lock = threading.Lock()  # pymavlink calls and the pending commands
         self._pending: list[_Pending] = []
         self._acks: dict[str, str] = {}
@@ -299,8 +307,61 @@ class Vehicle(VehicleQueries):
         self._recent_at: dict[tuple[int, int], float] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"mavlink {name}", daemon=True)
-        self._thread.start()
+        self._sent = 0  # lockstep: datagrams sent and received so far
+        self._received = 0
+        self._next_heartbeat = 0.0
+        if sim is None:
+            self._thread.start()
+        else:
+            self._count_datagrams()
         atexit.register(self.close)
+
+    def _now(self) -> float:
+        """Seconds: the simulated time in lockstep, else the monotonic clock."""
+        return float(self._sim.now()) if self._sim is not None else time.monotonic()
+
+    def _count_datagrams(self) -> None:
+        """Lockstep: count what goes through pymavlink's UDP socket, both ways."""
+        conn = self._conn
+        if not isinstance(conn, mavutil.mavudp):
+            self._say(f"--clock sim needs a UDP link (udpin: or udpout:), not {self.url}")
+            raise SystemExit(1)
+        recv, write = conn.recv, conn.write
+
+        def counted_recv(n: Any = None) -> Any:
+            data = recv(n)
+            if data:
+                self._received += 1
+            return data
+
+        def counted_write(buf: Any) -> None:
+            write(buf)
+            self._sent += len(conn.clients) if conn.udp_server else 1
+
+        conn.recv, conn.write = counted_recv, counted_write
+
+    def lockstep_sent(self) -> int:
+        """Lockstep: the datagrams sent so far."""
+        return self._sent
+
+    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
+        """Lockstep, before the instant at ``t_us``: read until the simulator's ``sent``
+        datagrams have come, then do the reader's timed work; why not, or None."""
+        want = int(step["sent"])
+        end = time.monotonic() + DATAGRAM_WAIT_S
+        fd = self._conn.fd
+        while True:
+            self._drain()
+            if self._received >= want:
+                break
+            left = end - time.monotonic()
+            if left <= 0:
+                return (f"{self.name}: {want - self._received} of the simulator's datagrams did "
+                        f"not come in {DATAGRAM_WAIT_S:g} s (is {self.url} the simulator's link?)")
+            with contextlib.suppress(InterruptedError):
+                select.select([fd], [], [], min(left, POLL_S))
+        self._timed(self._now())
+        return None
 
     def __repr__(self) -> str:
         return f"<mavlink {self.name} {self.url}>"
@@ -308,7 +369,7 @@ class Vehicle(VehicleQueries):
     def snapshot(self) -> dict[str, Any]:
         """Read the vehicle once for the instant that begins; queries return this."""
         at = self._heartbeat_at
-        age = math.inf if at is None else time.monotonic() - at
+        age = math.inf if at is None else self._now() - at
         flags, hb = self._ekf_flags, self._heartbeat
         armed = bool(hb[2] & MODE_FLAG_SAFETY_ARMED)
         if armed:
@@ -332,7 +393,7 @@ class Vehicle(VehicleQueries):
         if self._stop.is_set():
             return
         self._stop.set()
-        if self._thread is not threading.current_thread():
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(timeout=1.0)
         with self._lock:
             self._conn.close()
@@ -345,7 +406,7 @@ class Vehicle(VehicleQueries):
         with self._lock:
             if target is not None:
                 self._conn.mav.command_long_send(target[0], target[1], command, 0, *p)
-                now = time.monotonic()
+                now = self._now()
                 self._pending.append(_Pending(name, label, command, p, now + self._ack_timeout,
                                               now + self._ack_timeout / 2, quiet))
             if not quiet:
@@ -358,7 +419,7 @@ class Vehicle(VehicleQueries):
         target = self._target
         if target is None:
             return  # a target is a stream, repeated each tick: nothing to say about one
-        boot_ms = int((time.monotonic() - self._start) * 1000) & 0xFFFFFFFF
+        boot_ms = int((self._now() - self._start) * 1000) & 0xFFFFFFFF
         with self._lock:
             self._conn.mav.set_position_target_local_ned_send(
                 boot_ms, target[0], target[1], frame, mask,
@@ -379,7 +440,6 @@ class Vehicle(VehicleQueries):
 
     # -- the reader thread -------------------------------------------------------
     def _run(self) -> None:
-        next_heartbeat = 0.0
         while not self._stop.is_set():
             fd = self._conn.fd
             if fd is None:  # a link select cannot watch: poll it
@@ -392,14 +452,17 @@ class Vehicle(VehicleQueries):
                     return
                 if readable:
                     self._drain()
-            now = time.monotonic()
-            if now >= next_heartbeat:
-                next_heartbeat = now + GCS_HEARTBEAT_S
-                with self._lock:
-                    self._conn.mav.heartbeat_send(_MAV.MAV_TYPE_GCS,
-                                                  _MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-            self._expire(now)
-            self._watch_link()
+            self._timed(time.monotonic())
+
+    def _timed(self, now: float) -> None:
+        """The reader's timed work: our heartbeat, resends and deadlines, the link's watch."""
+        if now >= self._next_heartbeat:
+            self._next_heartbeat = now + GCS_HEARTBEAT_S
+            with self._lock:
+                self._conn.mav.heartbeat_send(_MAV.MAV_TYPE_GCS,
+                                              _MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        self._expire(now)
+        self._watch_link()
 
     def _drain(self) -> None:
         """Handle every datagram waiting; a bad one is dropped, never raised."""
@@ -446,7 +509,7 @@ class Vehicle(VehicleQueries):
         """A copy of one of the last DUPLICATE_WINDOW frames of that source (same
         seq, same bytes): a network duplicate, however late. A new frame can only
         be byte for byte an old one 256 frames later (seq is 8 bits)."""
-        now = time.monotonic()
+        now = self._now()
         if now - self._recent_at.get(source, -math.inf) > SILENCE_S:
             self._recent[source] = (collections.deque(), collections.Counter())
         self._recent_at[source] = now
@@ -471,7 +534,7 @@ class Vehicle(VehicleQueries):
         self._target = source
         self._heartbeat = (int(msg.type), int(msg.autopilot), int(msg.base_mode),
                            int(msg.custom_mode))
-        self._heartbeat_at = time.monotonic()
+        self._heartbeat_at = self._now()
         if first:
             mode = modes(self._heartbeat[0]).get(self._heartbeat[3], f"MODE{self._heartbeat[3]}")
             self._say(f"vehicle {source[0]}/{source[1]} on {self.url}, mode {mode}")
@@ -488,7 +551,7 @@ class Vehicle(VehicleQueries):
             if p is None:
                 return
             if msg.result == IN_PROGRESS:  # keep waiting for the final word, without resending
-                p.deadline = time.monotonic() + self._ack_timeout
+                p.deadline = self._now() + self._ack_timeout
                 p.resend_at = None
                 return
             self._pending.remove(p)
@@ -518,7 +581,7 @@ class Vehicle(VehicleQueries):
 
     def _watch_link(self) -> None:
         at = self._heartbeat_at
-        if not self._lost and at is not None and time.monotonic() - at >= LINK_TIMEOUT_S:
+        if not self._lost and at is not None and self._now() - at >= LINK_TIMEOUT_S:
             self._lost = True
             self._gps_fix = 0  # whatever answers next says afresh whether it is ready
             self._ekf_flags = 0

@@ -43,7 +43,7 @@ else:  # copied beside the generated component, where the modules are top level
     import hfsmc_view as _view  # type: ignore[import-not-found, no-redef]
 
 PROTOCOL = 1
-MINOR = 1  # additions old viewers ignore: feeds in hello, vehicle and frame messages
+MINOR = 2  # additions old viewers ignore: 1 feeds in hello, vehicle and frame messages; 2 sim_rate
 MAX_CLIENTS = 16  # more connections at once are told "busy" and closed
 # One address (127.0.0.1 too) may hold at most this share of the slots: a viewer elsewhere
 # always finds one.
@@ -95,8 +95,10 @@ def message(kind: str, payload: Any) -> dict[str, Any] | None:
     if kind == "record":
         return {"type": "record", "record": payload}
     if kind == "sample":
-        t_ms, values, overruns = payload
-        return {"type": "sample", "t": t_ms, "variables": values, "overruns": overruns}
+        t_ms, values, overruns, *more = payload  # more: the rate, on the simulator's clock
+        rate = more[0] if more else None
+        msg = {"type": "sample", "t": t_ms, "variables": values, "overruns": overruns}
+        return msg if rate is None else {**msg, "sim_rate": rate}
     return None
 
 
@@ -222,8 +224,9 @@ class MonitorServer:
         self._q.put(("record", rec))
         self._wake()
 
-    def sample(self, t_ms: int, values: dict[str, str], overruns: int) -> None:
-        self._q.put(("sample", (t_ms, values, overruns)))
+    def sample(self, t_ms: int, values: dict[str, str], overruns: int,
+               rate: float | None = None) -> None:
+        self._q.put(("sample", (t_ms, values, overruns, rate)))
         self._wake()
 
     def close(self) -> None:
@@ -515,8 +518,12 @@ def item(msg: object) -> _view.Item | None:
         return ("record", rec) if _view.check_record(rec) is None else None
     if kind == "sample":
         t, values, overruns = msg.get("t"), msg.get("variables"), msg.get("overruns")
+        rate = msg.get("sim_rate")
+        if not isinstance(rate, int | float) or isinstance(rate, bool) or not math.isfinite(rate) \
+                or rate < 0:
+            rate = None  # absent (not on the simulator's clock) or not a rate: not shown
         if isinstance(t, int) and isinstance(values, dict) and isinstance(overruns, int):
-            return "sample", (t, values, overruns)
+            return "sample", (t, values, overruns, rate)
         return None
     if kind == "busy":
         return "error", f"the component's monitor is busy: {msg.get('reason')}"

@@ -33,6 +33,7 @@ _DURATION = re.compile(r"^\s*([0-9]+(?:\.[0-9]+)?)\s*(ms|s|m)?\s*$")
 _US = {"ms": 1000, "s": 1_000_000, "m": 60_000_000}
 _COMMENT_LINE = re.compile(r"^[ \t]*#.*$", re.M)
 _SAMPLE_EVERY_S = 0.1
+_RATE_OVER_S = 1.0  # --clock sim: the rate the views show is over the last second
 
 
 class UsageError(Exception):
@@ -83,7 +84,8 @@ _INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": 
             "serial": "pyserial"}
 
 
-def make_interface(name: str, kind: str, url: str | None, options: dict[str, str]) -> object:
+def make_interface(name: str, kind: str, url: str | None, options: dict[str, str],
+                   sim: Any = None) -> object:
     """The driver object of an interface, by type.
 
     A driver whose library is missing (pymavlink, OpenCV) stops the component at
@@ -94,7 +96,11 @@ def make_interface(name: str, kind: str, url: str | None, options: dict[str, str
         try:
             module = __import__(modules[kind])
             factory: Callable[..., object] = module.connect
-            return factory(name, url, options)
+            if sim is None:
+                return factory(name, url, options)
+            driver = factory(name, url, options, sim)
+            sim.drivers.append(driver)
+            return driver
         except ImportError as e:  # the driver's library, or one its URL needs (pyserial)
             missing = getattr(e, "name", None) or "?"
             top = missing.partition(".")[0]
@@ -168,6 +174,8 @@ class Engine:
         self.next_signal: tuple[int, int, str] | None = None  # playback: (ticks, t, reason)
         self.watched = False  # something to do after each tick: the real clock, a playback
         self.real = False
+        self.sim: Any = None  # --clock sim: hfsmc_simclock.SimClock
+        self.sim_gone = False
         self.clock_start = time.monotonic_ns()
         self.wakeup: socket.socket | None = None
 
@@ -334,6 +342,7 @@ class Engine:
         self.time_limit_us = time_limit_us  # --time-limit: a stop through on_interrupt
         self.timeout_at: int | None = None
         self.next_sample = 0.0
+        self.rate_window: list[tuple[float, int]] = []  # --clock sim: (monotonic s, t us)
         self.clock_start = time.monotonic_ns()
         self.recording = self.trace is not None or bool(self.observers) or self.recorder is not None
         self.watched = self.real or self.playback is not None
@@ -342,6 +351,10 @@ class Engine:
         self.chain = [0]
         self.deadline[0] = 0
         self.owner = self.root
+        if self.sim is not None and not self.sim_wait(0):
+            self.stopping = True
+            self.finish("error")
+            return 1
         self.fresh()
         self.ENTER[self.m["initial"][0]]()
         if self.trace_variables:
@@ -358,6 +371,7 @@ class Engine:
         the active chain, then ticks every sub-automaton due then, parents first."""
         chain, deadline, period = self.chain, self.deadline, self.period_us
         tick, cur, real, watched = self.TICK, self.cur, self.real, self.watched
+        sim = self.sim
         inputs, recorder = self.inputs, self.recorder
         while True:
             if self.next_signal is not None:
@@ -367,6 +381,8 @@ class Engine:
             t = deadline[chain[0]] if len(chain) == 1 else min([deadline[a] for a in chain])
             limit = self.limit_us
             if limit is not None and t > limit:
+                if sim is not None and not self.sim_wait(limit):
+                    return
                 if not real or self.wait(limit):
                     self.t = limit
                     if inputs:
@@ -379,6 +395,8 @@ class Engine:
                         self.stop(self.limit_why)
                 return
             if real and not self.wait(t):
+                return
+            if sim is not None and not self.sim_wait(t):
                 return
             self.t = t
             if inputs:
@@ -484,6 +502,28 @@ class Engine:
                 self.t = max(self.t, (time.monotonic_ns() - self.clock_start) // 1000)
                 return False
 
+    def sim_wait(self, t_us: int) -> bool:
+        """--clock sim: step the simulator to ``t_us`` (the drivers' own work at least every
+        MAX_STEP_US on the way); False when a signal came first or the simulator is gone
+        (then an error stop is asked for, acted on at once: nothing can land a vehicle
+        without the simulator)."""
+        import hfsmc_simclock  # type: ignore[import-not-found]  # beside the component
+        sim = self.sim
+        while sim.t_us < t_us:
+            if self.signal_reason is not None:
+                return False
+            if self.trace is not None:
+                self.trace.flush()
+            try:
+                sim.advance(t_us if sim.t_us < 0 else min(t_us, sim.t_us + hfsmc_simclock.MAX_STEP_US))
+            except hfsmc_simclock.SimGone as e:
+                sys.stderr.write(f"{self.name}: {e}; the component stops\n")
+                sys.stderr.flush()
+                self.sim_gone = True
+                self.request = "error"
+                return False
+        return True
+
     def skip_missed(self, a: int) -> None:
         now = (time.monotonic_ns() - self.clock_start) // 1000
         nxt, p = self.deadline[a], self.period_us[a]
@@ -502,7 +542,7 @@ class Engine:
             self.fresh()  # a stop or an interrupt at a time no instant ran at
         # Several requests at one boundary: an error first, then the root's final
         # state, then a signal, then shutdown() or the time limit.
-        if reason == "error" and self.interrupting is not None:
+        if reason == "error" and (self.interrupting is not None or self.sim_gone):
             self.stop("error")
         elif reason == "final":
             self.stop(self.interrupting or "final")
@@ -588,6 +628,8 @@ class Engine:
             self.recorder.close()
         if self.playback is not None:
             self.playback.close()
+        if self.sim is not None:
+            self.sim.close(reason)
         self.finished = True  # from now on a signal only ends the process, with self.status
         for o in self.observers:
             try:
@@ -617,8 +659,19 @@ class Engine:
         self.next_sample = clock + _SAMPLE_EVERY_S
         ns = self.m["namespace"]
         values = {v: _short(ns.get(v)) for v in self.m["variables"]}
+        rate = self.sim_rate(clock) if self.sim is not None else None
         for o in self.observers:
-            o.sample(self.t // 1000, values, self.overruns)
+            o.sample(self.t // 1000, values, self.overruns, rate)
+
+    def sim_rate(self, clock: float) -> float:
+        """--clock sim: simulated seconds per real second over about the last second (the
+        views show it beside the simulated time; 0 until a second sample)."""
+        window = self.rate_window
+        window.append((clock, self.t))
+        while len(window) > 2 and clock - window[1][0] >= _RATE_OVER_S:
+            window.pop(0)
+        (c0, t0), (c1, t1) = window[0], window[-1]
+        return round((t1 - t0) / 1e6 / (c1 - c0), 2) if c1 > c0 else 0.0
 
     # --- signals ---------------------------------------------------------------------------
     def install_signals(self) -> None:
@@ -841,7 +894,10 @@ def _arguments(name: str, argv: Sequence[str], m: dict[str, Any] | None = None
     p.add_argument("--trace", metavar="FILE", help="write the trace (JSON lines); - for stdout")
     p.add_argument("--trace-variables", action="store_true",
                    help="add to the trace a `variables` record whenever a variable changes")
-    p.add_argument("--clock", choices=["real", "virtual"], default="real")
+    p.add_argument("--clock", default="real", metavar="real|virtual|sim[:[HOST:]PORT]",
+                   help="real (the default), virtual (as fast as it goes, no I/O waits) or "
+                        "sim: the simulated time of `hfsmc sim --lockstep PORT` (port 14560 "
+                        "unless named; docs/component.md#clocks)")
     p.add_argument("--until", metavar="DURATION", help="stop after that much time (e.g. 10s)")
     p.add_argument("--time-limit", metavar="DURATION",
                    help="after that much time, stop as on SIGINT: through on_interrupt "
@@ -1040,7 +1096,7 @@ def _configure(engine: Engine, args: argparse.Namespace, here: str) -> None:
         engine.wiring[name] = {"type": kind, "url": where, "options": {**options, **extra}}
         fake = engine.playback.fake(name, kind) if engine.playback is not None else None
         ns[name] = fake if fake is not None else make_interface(name, kind, where,
-                                                                {**options, **extra})
+                                                                {**options, **extra}, engine.sim)
         if callable(getattr(type(ns[name]), "snapshot", None)):  # not Unavailable's __getattr__
             engine.inputs.append((name, kind, ns[name]))
     bind_instances(engine)
@@ -1091,6 +1147,17 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
                       else engine.m.get("time_limit_us"))  # the model's, unless the flag says
         priority = _realtime_priority(args.realtime) if args.realtime is not None else 0
         _check_focus(engine, args.focus)
+        if args.clock not in ("real", "virtual") and args.playback is None:
+            import hfsmc_simclock  # beside the component
+            try:
+                engine.sim = hfsmc_simclock.SimClock(args.clock)
+            except ValueError as e:
+                raise UsageError(str(e)) from None
+            if args.realtime is not None:
+                raise UsageError("--realtime and --clock sim: the simulator's time is not "
+                                 "the wall clock's")
+        elif args.clock not in ("real", "virtual"):
+            args.clock = "virtual"
         if args.playback is not None:
             import hfsmc_playback  # type: ignore[import-not-found]  # beside the component
             try:
@@ -1115,6 +1182,13 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
                 raise UsageError(f"--trace {args.trace}: {e.strerror}") from None
             engine.trace_variables = args.trace_variables
         _observers(engine, args)
+        if engine.sim is not None:
+            import hfsmc_simclock
+            try:
+                engine.sim.connect(engine.name, lambda text: sys.stderr.write(
+                    f"{engine.name}: {text}\n"))
+            except hfsmc_simclock.SimGone as e:
+                raise StartError(f"--clock {args.clock}: {e}") from None
     except UsageError as e:
         sys.stderr.write(f"{engine.name}: {e}\n")
         return 2

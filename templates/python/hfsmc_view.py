@@ -247,7 +247,11 @@ def _panel(view: ViewState, autofocus: bool, free: int = 1 << 30, keys: str | No
     facts = Table.grid(padding=(0, 2))
     facts.add_column(style="bold")
     facts.add_column()
-    facts.add_row("time", f"{view.t_ms / 1000:.3f} s")
+    time_row = Text(f"{view.t_ms / 1000:.3f} s")
+    if view.sim_rate is not None:  # --clock sim: the simulator's time, and how fast it runs
+        time_row.append(" simulated, ")
+        time_row.append(f"{view.sim_rate:.1f}× real time", style="bold cyan")
+    facts.add_row("time", time_row)
     facts.add_row("status", _status(view))
     if view.interrupt is not None:
         i = view.interrupt
@@ -566,8 +570,9 @@ class Display:
     def record(self, rec: dict[str, Any]) -> None:
         self._q.put(("record", rec))
 
-    def sample(self, t_ms: int, values: dict[str, str], overruns: int) -> None:
-        self._q.put(("sample", (t_ms, values, overruns)))
+    def sample(self, t_ms: int, values: dict[str, str], overruns: int,
+               rate: float | None = None) -> None:
+        self._q.put(("sample", (t_ms, values, overruns, rate)))
 
     def close(self) -> None:
         atexit.unregister(self.close)

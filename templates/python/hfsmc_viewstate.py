@@ -162,6 +162,7 @@ class ViewState:
         self.logs: deque[dict[str, Any]] = deque(maxlen=RECENT)
         self.t_ms = 0
         self.overruns = 0
+        self.sim_rate: float | None = None  # --clock sim: simulated s per real s; else None
         self.started = False
         self.interrupt: dict[str, Any] | None = None
         self.stop_reason: str | None = None
@@ -281,11 +282,15 @@ class ViewState:
             self.stopped_in = dict(reversed(self._exited.items()))
             self.stopped_in.update(self.active)
 
-    def apply_sample(self, t_ms: int, values: dict[str, str], overruns: int) -> None:
-        """Take the variables and overrun count sampled at ``t_ms``."""
+    def apply_sample(self, t_ms: int, values: dict[str, str], overruns: int,
+                     rate: float | None = None) -> None:
+        """Take the variables and overrun count sampled at ``t_ms`` (and, on the
+        simulator's clock, its rate: simulated seconds per real second)."""
         self.t_ms = max(self.t_ms, int(t_ms))
         self.values = {str(k): str(v) for k, v in values.items()}
         self.overruns = int(overruns)
+        if rate is not None:
+            self.sim_rate = float(rate)
 
     def advance(self, t_ms: int) -> None:
         """Move the clock on (replay between records); a stopped component's stays."""

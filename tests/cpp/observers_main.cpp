@@ -171,7 +171,7 @@ void sample(long long t, const std::vector<std::string>& values, long long overr
         }
         calls << "},\"overruns\":" << overruns << "}}\n";
     }
-    for (auto& o : observers) o->sample(t, values, overruns);
+    for (auto& o : observers) o->sample(t, values, overruns, -1);
     std::this_thread::sleep_for(std::chrono::milliseconds(pause_ms));
     step();
 }

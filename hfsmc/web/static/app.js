@@ -18,6 +18,7 @@
     logs: [],
     t: 0,
     tAt: performance.now(),  // when t was received: the clock runs on from it
+    rate: null,  // --clock sim: simulated seconds per real second; null on other clocks
     status: "connecting",
     stopped: false,
     whole: null,           // the diagram's own viewBox [x, y, w, h]
@@ -75,7 +76,8 @@
   }
   function now() {
     if (view.status !== "connected" || view.stopped) return view.t;
-    return view.t + (performance.now() - view.tAt);
+    // On the simulator's clock (--clock sim) time runs at its rate, not at the wall clock's.
+    return view.t + (performance.now() - view.tAt) * (view.rate === null ? 1 : view.rate);
   }
   function setTime(t) { view.t = t; view.tAt = performance.now(); }
 
@@ -417,6 +419,17 @@
     banner.textContent = note || "";
   }
 
+  // --clock sim: the time shown is the simulator's, and how fast it runs (null: the real
+  // or virtual clock, nothing shown).
+  function showRate(rate) {
+    view.rate = typeof rate === "number" && isFinite(rate) ? rate : null;
+    const r = $("hv-rate");
+    r.hidden = view.rate === null;
+    r.textContent = view.rate === null ? "" : "simulated, " + view.rate.toFixed(1) + "× real time";
+    if (view.rate === null) delete document.body.dataset.simRate;
+    else document.body.dataset.simRate = String(view.rate);
+  }
+
   function showOverruns(n) {
     const o = $("hv-overruns");
     if (o.textContent === "overruns " + n) return;
@@ -506,6 +519,7 @@
     view.stopped = !!msg.stop;
     showStatus(msg.status, msg.note);
     showOverruns(msg.overruns || 0);
+    showRate(msg.sim_rate);
     showActive(true);
     showVariablesAll({});
     showTransitions();
@@ -563,6 +577,7 @@
       dirty.variables = true;
     }
     if ("overruns" in msg) showOverruns(msg.overruns);
+    if ("sim_rate" in msg) showRate(msg.sim_rate);
     if ("stop" in msg) view.stopped = !!msg.stop;
     if (moved) { dirty.active = true; dirty.focus = true; }
     later();

@@ -45,11 +45,12 @@
 #include "observer.hpp"
 #include "playback.hpp"
 #include "record.hpp"
+#include "simclock.hpp"
 #include "thread.hpp"
 
 namespace hfsmc {
 
-class Camera : public Feed, public Source {
+class Camera : public Feed, public Source, public simclock::Synced {
  public:
   static constexpr const char* kDefaultUrl = "0";  // the first video device
   static constexpr double kBackoffMinS = 0.2;
@@ -58,6 +59,7 @@ class Camera : public Feed, public Source {
   static constexpr int kOpenTimeoutMs = 3000;      // a network stream that does not answer
   static constexpr int kReadTimeoutMs = 2000;      // a network stream that stops sending
   static constexpr double kCloseWaitS = 1.0;       // the destructor waits that long at most
+  static constexpr double kFrameWaitS = 10.0;      // lockstep: the simulator's frame is that late at most
   static constexpr int kFrameWidth = 320;          // frames sent to viewers: at most that wide
   static constexpr int kFrameQuality = 70;         // their JPEG quality
 
@@ -90,6 +92,10 @@ class Camera : public Feed, public Source {
   std::string source_config() const override;
   void take_snapshot(long long t_us) override;
   std::string snapshot_fields() const override;
+
+  // -- simclock::Synced: lockstep with `hfsmc sim` (--clock sim) --------------------------
+  long long lockstep_sent() const override { return 0; }
+  std::string lockstep_sync(long long t_us, const simclock::Step& step) override;
 
   /// Stop the grabber (also done by the destructor); waits 1 s at most.
   void close();
@@ -129,6 +135,10 @@ class Camera : public Feed, public Source {
   static bool exists(const std::string& path);
 
   std::shared_ptr<Grabber> g_;
+  simclock::Client* sim_ = nullptr;  // --clock sim: the frames the simulator names
+  cv::Mat held_, held_jpeg_;  // lockstep: the frame synced for the coming instant
+  long held_count_ = 0;
+  long long held_us_ = 0;
   std::map<std::string, std::string> options_;
   cv::Mat snap_frame_;  // the snapshot: the automaton's thread only
   cv::Mat snap_jpeg_;

@@ -57,19 +57,21 @@
 #include "observer.hpp"
 #include "playback.hpp"
 #include "record.hpp"
+#include "simclock.hpp"
 #include "thread.hpp"
 
 struct __mavlink_message;  // mavlink_message_t of mavgen's headers (src/hfsmc_mavlink.cpp)
 
 namespace hfsmc {
 
-class Mavlink : public Feed, public Source {
+class Mavlink : public Feed, public Source, public simclock::Synced {
  public:
   static constexpr const char* kDefaultUrl = "udpin:127.0.0.1:14550";
   static constexpr double kLinkTimeoutS = 2.0;   // no heartbeat for that long: link lost
   static constexpr double kAckTimeoutS = 3.0;    // no COMMAND_ACK by then: failed (resent halfway)
   static constexpr double kGcsHeartbeatS = 1.0;  // our own heartbeat, so the vehicle sees a GCS
   static constexpr int kPollMs = 50;             // longest wait of the reader
+  static constexpr double kDatagramWaitS = 10.0;  // lockstep: the simulator's datagrams are that late at most
   static constexpr double kFastRateHz = 20.0;    // position, velocity, attitude (option `rate`)
   static constexpr double kSlowRateHz = 2.0;     // battery, GPS, EKF status
   static constexpr size_t kDuplicateWindow = 255;  // frames remembered per source
@@ -131,6 +133,10 @@ class Mavlink : public Feed, public Source {
   std::string source_config() const override;
   void take_snapshot(long long t_us) override;
   std::string snapshot_fields() const override;
+
+  // -- simclock::Synced: lockstep with `hfsmc sim` (--clock sim) --------------------------
+  long long lockstep_sent() const override { return sent_; }
+  std::string lockstep_sync(long long t_us, const simclock::Step& step) override;
 
   // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
   /// Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode).
@@ -294,6 +300,12 @@ class Mavlink : public Feed, public Source {
   const std::string name_;
   const std::string url_;
   const std::map<std::string, std::string> options_;
+  simclock::Client* sim_ = nullptr;  // --clock sim: no reader thread, simulated time
+  long long sent_ = 0, received_ = 0;  // datagrams, for the lockstep
+  Clock::time_point next_heartbeat_{};
+  bool heartbeat_sent_ = false;
+  Clock::time_point now() const;  // the simulated time in lockstep, else the steady clock
+  void timed(Clock::time_point now);
   const Clock::time_point start_;
   Snap snap_;  // the automaton's thread only
   playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake

@@ -91,7 +91,7 @@ inline std::string format_monitor_address(const std::string& host, int port) {
 class MonitorServer : public Observer {
 public:
     static constexpr int PROTOCOL = 1;
-    static constexpr int MINOR = 1;  // feeds in hello, vehicle and frame messages
+    static constexpr int MINOR = 2;  // 1: feeds in hello, vehicle and frame messages; 2: sim_rate
     static constexpr int FEED_EVERY_MS = 250;  // vehicle records and frames: at most 4 a second
     static constexpr std::size_t FRAME_BACKLOG = 1 << 18;  // more unsent bytes: no new frame
     static constexpr std::size_t REQUEST_LIMIT = 1024;  // a longer request line is ignored
@@ -169,8 +169,9 @@ public:
         if (thread_.joinable()) push(Item{Item::RECORD, record, 0, {}, 0});
     }
 
-    void sample(long long t_ms, const std::vector<std::string>& values, long long overruns) override {
-        if (thread_.joinable()) push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns});
+    void sample(long long t_ms, const std::vector<std::string>& values, long long overruns,
+                double sim_rate) override {
+        if (thread_.joinable()) push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns, sim_rate});
     }
 
     void close() override {
@@ -195,6 +196,7 @@ private:
         long long t;
         std::vector<std::string> values;
         long long overruns;
+        double rate = -1;  // a sample's sim_rate (negative: not on the simulator's clock)
     };
     struct Client {
         int fd;
@@ -321,11 +323,12 @@ private:
                 view_.apply_record(item.rec);
                 if (!clients_.empty()) chunk += "{\"type\":\"record\",\"record\":" + item.rec.json + "}\n";
             } else {
-                view_.apply_sample(item.t, item.values, item.overruns);
+                view_.apply_sample(item.t, item.values, item.overruns, item.rate);
                 if (!clients_.empty()) {
                     chunk += "{\"type\":\"sample\",\"t\":" + std::to_string(item.t) +
                              ",\"variables\":" + ViewState::values_json(view_.values.items) +
-                             ",\"overruns\":" + std::to_string(item.overruns) + "}\n";
+                             ",\"overruns\":" + std::to_string(item.overruns) +
+                             (item.rate >= 0 ? ",\"sim_rate\":" + rate_text(item.rate) : "") + "}\n";
                 }
             }
         }

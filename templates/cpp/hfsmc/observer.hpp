@@ -54,9 +54,11 @@ public:
     virtual void start(const Structure& structure) = 0;
     virtual void record(const Record& record) = 0;
     // About every 100 ms of real time: variables' repr() texts (the order of
-    // Structure::variables, each cut to 80 characters) and the overrun count.
+    // Structure::variables, each cut to 80 characters) and the overrun count; with
+    // --clock sim, sim_rate: simulated seconds per real second over about the last second
+    // (negative on the other clocks).
     virtual void sample(long long t_ms, const std::vector<std::string>& values,
-                        long long overruns) = 0;
+                        long long overruns, double sim_rate) = 0;
     // After the `stop` record: say goodbye, flush, join threads.
     virtual void close() = 0;
 };

@@ -29,6 +29,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <deque>
 #include <exception>
 #include <limits>
 #include <map>
@@ -43,6 +44,7 @@
 #include "hfsmc/observer.hpp"
 #include "hfsmc/playback.hpp"
 #include "hfsmc/record.hpp"
+#include "hfsmc/simclock.hpp"
 
 namespace hfsmc {
 
@@ -433,6 +435,7 @@ private:
     long long real_us() const { return (signals::monotonic_ns() - start_ns_) / 1000; }
     void set_limit();
     bool wait(long long t_us);
+    bool sim_wait(long long t_us);
     void skip_missed(std::size_t a);
     std::string automaton_path(std::size_t a) const;
     void playback_skip(std::size_t a);
@@ -451,6 +454,8 @@ private:
     int root_;
     std::map<std::string_view, int> by_path_;  // for active("A/B"): the paths live in the tables
     bool real_ = false;
+    simclock::Client* sim_ = nullptr;  // --clock sim
+    bool sim_gone_ = false;
     bool stopping_ = false;
     bool stop_failed_ = false;
     const char* request_ = nullptr;  // shutdown / error / final / time_limit, acted on at the boundary
@@ -459,6 +464,7 @@ private:
     std::string limit_why_ = "until";
     long long overruns_ = 0;
     long long start_ns_ = 0, next_sample_ns_ = 0;
+    std::deque<std::pair<long long, long long>> rate_window_;  // --clock sim: (monotonic ns, t us)
     int status_ = 0;
     std::unique_ptr<Trace> trace_;
     bool trace_variables_ = false;
@@ -637,6 +643,7 @@ struct Startup {
     std::unique_ptr<Config> config;
     std::unique_ptr<playback::Inputs> inputs;  // both outlive the automaton's interfaces
     std::unique_ptr<Recorder> rec;
+    std::unique_ptr<simclock::Client> sim;  // --clock sim: made before the interfaces
     long long until = -1, time_limit = -1;
     bool help = false;  // --help was printed: exit 0
 
@@ -650,6 +657,8 @@ struct Startup {
     void begin(const Tables& tb, int argc, char** argv);
     // --record FILE: the recording starts, with the parameters' values (throws UsageError).
     void record(const Tables& tb, std::vector<std::pair<std::string, std::string>> parameters);
+    // --clock sim: reach the simulator, once the interfaces are made (throws).
+    void connect(const Tables& tb);
     // In a handler of the exception that stopped the start: said on stderr, the exit status.
     int failed(const Tables& tb) const;
     // --realtime, then the engine's signal handlers: just before the first instant.
@@ -670,6 +679,7 @@ int main(const Tables& tb, int argc, char** argv) {
         m->_hfsm.set_trace_variables(s.options.trace_variables);
         for (auto& observer : open_observers(s.options)) m->_hfsm.add_observer(std::move(observer));
         if (!s.options.record.empty()) s.record(tb, m->_hfsm_parameters_json());
+        s.connect(tb);
     } catch (...) {  // a usage error, or an interface or a variable's initializer failed
         return s.failed(tb);
     }

@@ -275,7 +275,9 @@ private:
         auto heading = [&](const char* text) { out.emplace_back(width), out.back().add(text, "1"); };
         out.emplace_back(width);
         out.back().add(clean(v_.name.empty() ? "hfsmc" : v_.name), "1;4");
-        fact("time").add(seconds(v_.t_ms, 1) + " s");
+        Line& when = fact("time").add(seconds(v_.t_ms, 1) + " s");
+        if (v_.sim_rate >= 0)  // --clock sim: the simulator's time, and how fast it runs
+            when.add(" simulated, ").add(rate_text(v_.sim_rate, 1) + "\u00d7 real time", "1;36");
         Line& status = fact("status");
         if (v_.stop_reason) status.add("stopped (" + clean(*v_.stop_reason) + ")", "1;33");
         else if (v_.interrupt) status.add("interrupt (" + clean(v_.interrupt->reason) + ") -> " + clean(v_.interrupt->to), "1;31");
@@ -357,8 +359,9 @@ public:
         if (thread_.joinable()) w_->push(Item{Item::RECORD, record, 0, {}, 0});
     }
 
-    void sample(long long t_ms, const std::vector<std::string>& values, long long overruns) override {
-        if (thread_.joinable()) w_->push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns});
+    void sample(long long t_ms, const std::vector<std::string>& values, long long overruns,
+                double sim_rate) override {
+        if (thread_.joinable()) w_->push(Item{Item::SAMPLE, Record{}, t_ms, values, overruns, sim_rate});
     }
 
     // Shows the last of it and puts the terminal back; returns within about a second.
@@ -384,6 +387,7 @@ private:
         long long t;
         std::vector<std::string> values;
         long long overruns;
+        double rate = -1;  // a sample's sim_rate (negative: not on the simulator's clock)
     };
 
     struct Worker {
@@ -535,7 +539,7 @@ private:
                         text += l + "\n";
                     }
                     if (rec) view.apply_record(item.rec);
-                    else view.apply_sample(item.t, item.values, item.overruns);
+                    else view.apply_sample(item.t, item.values, item.overruns, item.rate);
                 }
                 if (!text.empty()) {  // a closed pipe must not stop the component
                     std::fwrite(text.data(), 1, text.size(), out);
@@ -581,7 +585,7 @@ private:
                 for (Item& item : take()) {
                     if (item.kind == Item::END) end = true;
                     else if (item.kind == Item::RECORD) view.apply_record(item.rec);
-                    else view.apply_sample(item.t, item.values, item.overruns);
+                    else view.apply_sample(item.t, item.values, item.overruns, item.rate);
                     dirty = true;
                 }
                 if (end) read_captured();

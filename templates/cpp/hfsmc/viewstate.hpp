@@ -23,6 +23,14 @@
 
 namespace hfsmc {
 
+// A sample's sim_rate (simulated seconds per real second, --clock sim) with `digits`
+// decimals: 2 on the wire (as the Python component rounds it), 1 on the screen.
+inline std::string rate_text(double rate, int digits = 2) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.*f", digits, rate);
+    return buf;
+}
+
 // `text` safe to print on a terminal: control characters as "?" (UTF-8 never
 // uses bytes below 0x80 inside a multibyte character, so bytes will do).
 inline std::string clean(std::string text) {
@@ -161,6 +169,7 @@ public:
     std::deque<Log> logs;
     long long t_ms = 0;
     long long overruns = 0;
+    double sim_rate = -1;  // --clock sim: simulated s per real s; negative on other clocks
     bool started = false;
     std::optional<Interrupt> interrupt;
     std::optional<std::string> stop_reason;
@@ -284,8 +293,10 @@ public:
         }
     }
 
-    void apply_sample(long long t, const std::vector<std::string>& vals, long long overrun_count) {
+    void apply_sample(long long t, const std::vector<std::string>& vals, long long overrun_count,
+                      double rate = -1) {
         t_ms = std::max(t_ms, t);
+        if (rate >= 0) sim_rate = rate;
         values.items.clear();
         for (std::size_t i = 0; i < vals.size() && i < variable_names.size(); ++i) {
             values.items.emplace_back(variable_names[i], vals[i]);
