@@ -24,7 +24,7 @@ SOURCES: dict[str, tuple[str, str, str]] = {
     "camera": ("hfsmc_camera.py", "CameraQueries", "Camera"),
 }
 # The live class's methods that belong to the runtime, not to snippets.
-_RUNTIME_ONLY = frozenset({"snapshot"})
+RUNTIME_ONLY = frozenset({"snapshot", "lockstep_sent", "lockstep_sync"})
 # Plain attributes every driver has (C++: the methods name() and url()).
 ATTRIBUTES = ("name", "url")
 # C++ names that differ from the Python ones (`goto` is a C++ keyword).
@@ -78,7 +78,7 @@ def driver(kind: str) -> Driver | None:
     text = files("hfsmc.templates").joinpath("python").joinpath(file).read_text("utf-8")
     classes = {n.name: n for n in ast.parse(text).body if isinstance(n, ast.ClassDef)}
     methods: dict[str, Method] = {}
-    for cls, skip in ((classes[queries], frozenset[str]()), (classes[live], _RUNTIME_ONLY)):
+    for cls, skip in ((classes[queries], frozenset[str]()), (classes[live], RUNTIME_ONLY)):
         for node in cls.body:
             if (isinstance(node, ast.FunctionDef) and not node.name.startswith("_")
                     and node.name not in skip and node.name not in methods):

@@ -182,7 +182,7 @@ def test_component_flags_errors_exit_2(tmp_path: Path) -> None:
                            (["--param", "blinks=many"], "is a int|is an int"),
                            (["--until", "soon"], "not a duration"),
                            (["--config", str(tmp_path / "none.yaml")], "cannot read"),
-                           (["--clock", "sundial"], "invalid choice")):
+                           (["--clock", "sundial"], "expected real, virtual or sim")):
         r = run_component(main, *args)
         assert r.returncode == 2, (args, r.stderr)
         assert "Traceback" not in r.stderr
