@@ -18,9 +18,10 @@ from pathlib import Path
 
 import pytest
 
+from tests import test_missions
 from tests.conftest import ROOT
 from tests.cppbuild import need_toolchain
-from tests.support import FOLLOW, FOLLOW_CPP, HFSMC, Client, Tmux, flight, free_port, wait_for_line
+from tests.support import FOLLOW, HFSMC, Client, Tmux, flight, free_port, wait_for_line
 from tests.test_missions import CPP_BUILD_TIMEOUT
 
 SHORT = "40s"  # a take-off and the start of the first stage
@@ -91,15 +92,7 @@ def test_ten_lockstep_runs_on_a_loaded_machine_are_byte_identical(tmp_path: Path
         assert other == runs[0]
 
 
-@pytest.fixture(scope="module")
-def cpp_follow_colors(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
-    need_toolchain()
-    out = tmp_path_factory.mktemp("follow_colors_cpp") / "component"
-    r = subprocess.run([*HFSMC, "build", "-t", "cpp", str(FOLLOW_CPP / "follow_colors_cpp.yaml"),
-                        "-o", str(out), "--compile"],
-                       capture_output=True, text=True, timeout=CPP_BUILD_TIMEOUT)
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    return [str(out / "build" / "follow_colors_cpp")]
+cpp_follow_colors = test_missions.cpp_follow_colors  # the fixture: follow_colors_cpp compiled
 
 
 @pytest.mark.slow
