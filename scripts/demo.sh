@@ -73,6 +73,6 @@ if status == 124:
 print(f"   files: {out}/trace.jsonl (trace), {out}/report.json, {out}/truth.json (simulator's truth)")
 print(f"   replay it in the browser: hfsmc view --web 8080 --replay {out}/trace.jsonl "
       "--model examples/follow_colors/follow_colors.yaml")
-print("   draw it: hfsmc diagram examples/follow_colors/follow_colors.yaml -o follow_colors.svg")
+print("   draw it: hfsmc diagram examples/follow_colors/follow_colors.yaml -o build/follow_colors.svg")
 sys.exit(0 if ok else 1)
 PY
