@@ -207,14 +207,19 @@ class Camera(CameraQueries):
                 return
             if self._raw is False and not got:  # not MJPEG after all: decoded frames, at once
                 continue
-            if got:
-                pause = BACKOFF_MIN_S
-            if not self._down:
-                self._down = True
-                self._say(f"stream {'lost' if got or self._count else 'not available'} "
-                          f"at {self.url}: reconnecting")
-            self._stop.wait(pause)
-            pause = min(pause * 2, BACKOFF_MAX_S)
+            pause = self._reconnect_after(got, pause)
+
+    def _reconnect_after(self, got: bool, pause: float) -> float:
+        """The stream ended (``got``: after frames came): say so once, wait before trying
+        again, doubling the wait while nothing comes; the next wait."""
+        if got:
+            pause = BACKOFF_MIN_S
+        if not self._down:
+            self._down = True
+            self._say(f"stream {'lost' if got or self._count else 'not available'} "
+                      f"at {self.url}: reconnecting")
+        self._stop.wait(pause)
+        return min(pause * 2, BACKOFF_MAX_S)
 
     def _open(self) -> Any:
         cv2 = self._cv2
@@ -285,14 +290,7 @@ class Camera(CameraQueries):
                 got = self._read_stamped()
             if self._stop.is_set():
                 return
-            if got:
-                pause = BACKOFF_MIN_S
-            if not self._down:
-                self._down = True
-                self._say(f"stream {'lost' if got or self._count else 'not available'} "
-                          f"at {self.url}: reconnecting")
-            self._stop.wait(pause)
-            pause = min(pause * 2, BACKOFF_MAX_S)
+            pause = self._reconnect_after(got, pause)
 
     def _read_stamped(self) -> bool:
         """One connection's frames until it ends; whether any came."""
