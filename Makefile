@@ -11,8 +11,10 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # labels measure the same on every machine, docs/diagrams.md); tmux: the live-view tests; chromium: the web view's tests;
 # the rest: C++ components (CMake, g++, Eigen, OpenCV, yaml-cpp for NAME.yaml; Ninja and
 # ccache, which the generated CMake projects use when present, for shorter builds);
-# libboost-dev: bench/cpp.py's Boost.MSM and Boost.Statechart peers (headers only).
-DEB_PACKAGES := graphviz fonts-liberation tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev libboost-dev ninja-build ccache chromium chromium-driver
+# libboost-dev: bench/cpp.py's Boost.MSM and Boost.Statechart peers (headers only);
+# cyclonedds-dev and cyclonedds-tools (idlc): the C++ components' ROS 2 interface (docs/ros2.md);
+# libfastrtps-dev: Fast DDS, the other vendor the ROS 2 tests talk to.
+DEB_PACKAGES := graphviz fonts-liberation tmux cmake g++ make pkg-config libeigen3-dev libopencv-dev libyaml-cpp-dev libboost-dev ninja-build ccache chromium chromium-driver cyclonedds-dev cyclonedds-tools libfastrtps-dev
 EXAMPLES := $(foreach d,$(wildcard examples/*/),$(wildcard $(d)$(notdir $(d:/=)).yaml))
 PYTEST_ARGS ?=
 # `make test` runs the tests on parallel workers (pytest-xdist): the suite mostly waits on
@@ -39,7 +41,7 @@ deps:
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[dev,lsp]'
+	$(BIN)/python -m pip install -q -e '.[dev,lsp,ros2]'
 	touch $@
 
 setup: deps $(STAMP)
