@@ -199,6 +199,13 @@ def message_set(distro: str, uses: Iterable[tuple[str, Span]],
     return MessageSet(distro, tuple(store.describe(n) for n in _closure(store, roots)))
 
 
+def rosbags_store(distro: str, msg_files: Iterable[MsgFile] = ()) -> Any:
+    """rosbags' type store of the distro with the model's own types registered (to read
+    and write CDR and rosbags as rosbags does). Raises CheckError as message_set does."""
+    diags = Diagnostics()
+    return _store_with(distro, tuple(msg_files), diags).rosbags
+
+
 # ---------------------------------------------------------------------------
 # the store: a distro and a model's own types
 
@@ -216,6 +223,8 @@ class _Store:
 
     def describe(self, name: str) -> Message:
         consts, fields = self.rosbags.fielddefs[name]
+        if not fields:  # ROS 2 gives an empty message one byte (rosbags' stores do so too)
+            fields = [("structure_needs_at_least_one_member", _UINT8)]
         return Message(
             name=name,
             fields=tuple(Field(f, _field_type(desc), self.defaults.get((name, f)))
@@ -225,6 +234,9 @@ class _Store:
             origin=self.origins.get(name, self.distro),
             ros2msg=self.rosbags.generate_msgdef(name, ros_version=2)[0],
         )
+
+
+_UINT8 = (1, ("uint8", 0))  # rosbags' description of a uint8 field (Nodetype.BASE)
 
 
 def _store_with(distro: str, msg_files: tuple[MsgFile, ...], diags: Diagnostics) -> _Store:
