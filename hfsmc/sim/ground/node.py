@@ -1,0 +1,167 @@
+"""The ground robots on ROS 2: each robot a node in its namespace, and ``/clock``.
+
+Each robot subscribes ``cmd_vel`` (geometry_msgs/Twist) and publishes ``odom``
+(nav_msgs/Odometry, frames ``odom`` -> ``base_footprint``), ``scan`` (sensor_msgs/LaserScan,
+sensor-data QoS, frame ``base_scan``) and ``events/bumper``
+(kobuki_ros_interfaces/BumperEvent), as a TurtleBot 2 on ROS 2 does; several robots'
+frames carry their namespace (``tb2/odom``). A node ``hfsmc_sim`` publishes the simulated
+time on ``/clock`` (rosgraph_msgs/Clock) at every step, as Gazebo does for nodes that use
+``use_sim_time``.
+
+The nodes are the components' own runtime (``hfsmc_ros2``) over message classes generated
+for this run into a temporary folder, so that the simulator speaks exactly what
+components speak.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from hfsmc.ros2.definitions import MsgFile, message_set
+from hfsmc.ros2.python_messages import python_message_files
+from hfsmc.sim.ground.sim import Bumper, GroundSim, Odometry, Reading, Scan
+
+SHIPPED = Path(__file__).resolve().parent.parent.parent / "ros2" / "msg"
+BUMPER_MSG = SHIPPED / "kobuki_ros_interfaces" / "msg" / "BumperEvent.msg"
+TYPES = {
+    "cmd_vel": "geometry_msgs/msg/Twist",
+    "odom": "nav_msgs/msg/Odometry",
+    "scan": "sensor_msgs/msg/LaserScan",
+    "bumper": "kobuki_ros_interfaces/msg/BumperEvent",
+    "clock": "rosgraph_msgs/msg/Clock",
+}
+
+
+class Messages:
+    """The message classes of this run, generated into a folder removed at close()."""
+
+    def __init__(self, distro: str) -> None:
+        from hfsmc.frontend.source import Span
+
+        ms = message_set(distro, [(t, Span("<sim>", 1, 1)) for t in TYPES.values()],
+                         [MsgFile(BUMPER_MSG, str(BUMPER_MSG.name))])
+        self.folder = Path(tempfile.mkdtemp(prefix="hfsmc-sim-msgs-"))
+        for rel, text in python_message_files(ms).items():
+            path = self.folder / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+        sys.path.insert(0, str(self.folder))
+        importlib.invalidate_caches()
+        self.ros2 = importlib.import_module("hfsmc.templates.python.hfsmc_ros2")
+        wire = importlib.import_module("hfsmc.templates.python.hfsmc_ros2_wire")
+        self.cls = {k: wire.message_class(t) for k, t in TYPES.items()}
+
+    def close(self) -> None:
+        if str(self.folder) in sys.path:
+            sys.path.remove(str(self.folder))
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+class GroundNodes:
+    """One node per robot and the clock's node, publishing what the simulation reads."""
+
+    def __init__(self, sim: GroundSim, domain: int, distro: str) -> None:
+        self.sim = sim
+        self.msgs = Messages(distro)
+        self.nodes: dict[str, Any] = {}
+        self._seen: dict[str, int] = {}
+        self.received = 0  # cmd_vel samples taken in all (lockstep counts them)
+        try:
+            for r in sim.robots:
+                self.nodes[r.name] = self.msgs.ros2.Ros2Node(f"sim {r.name}", {
+                    "node": "diffdrive", "namespace": r.namespace, "domain": domain,
+                    "distro": distro,
+                    "subscribe": {"cmd_vel": {"topic": "cmd_vel", "type": TYPES["cmd_vel"]}},
+                    "publish": {
+                        "odom": {"topic": "odom", "type": TYPES["odom"]},
+                        "scan": {"topic": "scan", "type": TYPES["scan"], "qos": "sensor_data"},
+                        "bumper": {"topic": "events/bumper", "type": TYPES["bumper"]},
+                    }})
+                self._seen[r.name] = 0
+            self.clock = self.msgs.ros2.Ros2Node("sim clock", {
+                "node": "hfsmc_sim", "namespace": "/", "domain": domain, "distro": distro,
+                "publish": {"clock": {"topic": "/clock", "type": TYPES["clock"]}}})
+        except BaseException:
+            self.close()
+            raise
+
+    def topics(self) -> dict[str, str]:
+        """Resolved topic name -> type, of every robot (for the start line and the docs)."""
+        out = {}
+        for node in self.nodes.values():
+            for table in (node._subs, node._pubs):
+                for s in table.values():
+                    out[s["topic"]] = s["class"]._TYPE
+        return out
+
+    def commands(self) -> int:
+        """Apply every robot's latest cmd_vel that came since the last call; how many came."""
+        came = 0
+        for r in self.sim.robots:
+            node = self.nodes[r.name]
+            node.snapshot()
+            n = node.count("cmd_vel")
+            if n != self._seen[r.name]:
+                came += n - self._seen[r.name]
+                self._seen[r.name] = n
+                msg = node.cmd_vel
+                r.command(float(msg.linear.x), float(msg.angular.z), self.sim.t)
+        self.received += came
+        return came
+
+    def publish(self, readings: list[Reading]) -> None:
+        for reading in readings:
+            node = self.nodes[reading.robot]
+            if isinstance(reading, Odometry):
+                node.publish("odom", self._odometry(reading))
+            elif isinstance(reading, Scan):
+                node.publish("scan", self._scan(reading))
+            elif isinstance(reading, Bumper):
+                c = self.msgs.cls["bumper"]
+                node.publish("bumper", c(bumper=reading.bumper,
+                                         state=c.PRESSED if reading.pressed else c.RELEASED))
+        self.clock.publish("clock", self.msgs.cls["clock"](clock=self._stamp(self.sim.t)))
+
+    def _stamp(self, t: float) -> Any:
+        clock = self.msgs.cls["clock"]()
+        ns = round(t * 1e9)
+        stamp = type(clock.clock)(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+        return stamp
+
+    def _frame(self, robot: str, frame: str) -> str:
+        ns = self.sim.robot(robot).namespace.strip("/")
+        return f"{ns}/{frame}" if ns else frame
+
+    def _header(self, robot: str, t: float, frame: str) -> Any:
+        header_cls = type(self.msgs.cls["scan"]().header)
+        return header_cls(stamp=self._stamp(t), frame_id=self._frame(robot, frame))
+
+    def _odometry(self, o: Odometry) -> Any:
+        msg = self.msgs.cls["odom"](header=self._header(o.robot, o.t, "odom"),
+                                    child_frame_id=self._frame(o.robot, "base_footprint"))
+        pose = msg.pose.pose
+        pose.position.x, pose.position.y = o.pose.x, o.pose.y
+        pose.orientation.z, pose.orientation.w = math.sin(o.pose.yaw / 2), math.cos(o.pose.yaw / 2)
+        msg.twist.twist.linear.x, msg.twist.twist.angular.z = o.v, o.w
+        return msg
+
+    def _scan(self, s: Scan) -> Any:
+        n = len(s.ranges)
+        return self.msgs.cls["scan"](
+            header=self._header(s.robot, s.t, "base_scan"), angle_min=s.angle_min,
+            angle_max=s.angle_min + (n - 1) * s.angle_increment,
+            angle_increment=s.angle_increment, time_increment=0.0, scan_time=s.scan_time,
+            range_min=s.range_min, range_max=s.range_max, ranges=list(s.ranges),
+            intensities=[])
+
+    def close(self) -> None:
+        for node in [*self.nodes.values(), getattr(self, "clock", None)]:
+            if node is not None:
+                node.close()
+        self.msgs.close()
