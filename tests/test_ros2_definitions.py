@@ -129,6 +129,8 @@ def test_own_msg_files(tmp_path: Path, distro: str) -> None:
     ("float64[2] a [1.0]\n", 1, "the default has 1 values for an array of 2"),
     ("wstring w\n", 1, "`wstring` is not supported yet"),
     ("uint8 one_=1\n", 1, "not a ROS 2 .msg line"),
+    ("int32 ok\nint32 from\n", 2, "field `from` is a keyword of Python or C++"),
+    ("int32 ok\nfloat64 delete\n", 2, "field `delete` is a keyword of Python or C++"),
 ])
 def test_bad_msg_file_at_its_line(tmp_path: Path, text: str, line: int, what: str) -> None:
     f = _msg(tmp_path, text)
@@ -147,3 +149,14 @@ def test_bad_msg_file_names(tmp_path: Path) -> None:
     text = [x.message for x in err.value.diagnostics]
     assert any("is a standard message of jazzy" in t for t in text)
     assert any("`detection` is not CamelCase" in t for t in text)
+
+
+def test_recursive_messages_refused(tmp_path: Path) -> None:
+    a = _msg(tmp_path, "B b\n", name="A")
+    b = _msg(tmp_path, "int32 x\nA[] back\n", name="B")
+    with pytest.raises(CheckError, match="message types contain each other: "
+                       "my_msgs/msg/A -> my_msgs/msg/B -> my_msgs/msg/A"):
+        message_set("jazzy", [("my_msgs/msg/A", AT)], [a, b])
+    self_ref = _msg(tmp_path, "Node[] children\n", name="Node")
+    with pytest.raises(CheckError, match="contain each other"):
+        message_set("jazzy", [("my_msgs/msg/Node", AT)], [self_ref])

@@ -17,13 +17,14 @@ Pose, Point, Quaternion, TwistWithCovariance, Twist and Vector3, dependencies fi
 from __future__ import annotations
 
 import functools
+import keyword
 import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from hfsmc.errors import CheckError, Diagnostics, Span, did_you_mean
+from hfsmc.errors import CheckError, Diagnostic, Diagnostics, Span, did_you_mean
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -60,6 +61,16 @@ STANDARD_DEFAULTS: dict[str, dict[tuple[str, str], Scalar]] = {
     },
 }
 
+# Field names the generated Python or C++ could not carry (ROS 2 packages avoid them too).
+_RESERVED = frozenset(keyword.kwlist) | frozenset("""
+    alignas alignof and and_eq asm auto bitand bitor bool break case catch char char8_t
+    char16_t char32_t class compl concept const consteval constexpr constinit const_cast
+    continue co_await co_return co_yield decltype default delete do double dynamic_cast
+    else enum explicit export extern false float for friend goto if inline int long mutable
+    namespace new noexcept not not_eq nullptr operator or or_eq private protected public
+    register reinterpret_cast requires return short signed sizeof static static_assert
+    static_cast struct switch template this thread_local throw true try typedef typeid
+    typename union unsigned using virtual void volatile wchar_t while xor xor_eq""".split())
 _PACKAGE = re.compile(r"^[a-z](?:[a-z0-9]|_(?!_))*(?<!_)$")
 _MESSAGE = re.compile(r"^[A-Z][A-Za-z0-9]*$")
 _FIELD = re.compile(r"^[a-z](?:[a-z0-9]|_(?!_))*(?<!_)$")
@@ -272,20 +283,24 @@ def _store_with(distro: str, msg_files: tuple[MsgFile, ...], diags: Diagnostics)
 def _closure(store: _Store, roots: list[str]) -> list[str]:
     """The roots and every type they contain, each after the types it contains."""
     order: list[str] = []
-    seen: set[str] = set()
+    done: set[str] = set()
 
-    def visit(name: str) -> None:
-        if name in seen:
+    def visit(name: str, path: tuple[str, ...]) -> None:
+        if name in done:
             return
-        seen.add(name)
+        if name in path:  # ROS 2 has no recursive types (rosidl refuses them too)
+            cycle = " -> ".join((*path[path.index(name):], name))
+            raise CheckError([Diagnostic("E311", f"message types contain each other: {cycle}",
+                                         Span(store.origins.get(name, name), 1, 1))])
         for _, desc in store.rosbags.fielddefs[name][1]:
             ft = _field_type(desc)
             if ft.kind == "nested":
-                visit(ft.name)
+                visit(ft.name, (*path, name))
+        done.add(name)
         order.append(name)
 
     for root in sorted(set(roots)):
-        visit(root)
+        visit(root, ())
     return order
 
 
@@ -379,6 +394,9 @@ def _read_field(item: Any, no: int, span: Span, diags: Diagnostics,
 
     if not _FIELD.match(item.name):
         diags.error("E311", f"field `{item.name}` is not lower_case (ROS 2 field names)", span)
+    elif item.name in _RESERVED:
+        diags.error("E311", f"field `{item.name}` is a keyword of Python or C++: the generated "
+                    "messages could not have it", span)
     ref = item.typ.ref
     if not isinstance(ref, BaseType):
         if ref.name.rsplit("/", 1)[-1] == "wstring":

@@ -31,8 +31,6 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import hfsmc_ros2_cdr as cdr
-import hfsmc_ros2_wire as wire
 from cyclonedds.core import (
     DDSException,
     GuardCondition,
@@ -47,6 +45,13 @@ from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
+
+if __package__:
+    from . import hfsmc_ros2_cdr as cdr
+    from . import hfsmc_ros2_wire as wire
+else:  # copied beside the generated component, where the modules are top level
+    import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
 
 DISTROS = ("humble", "jazzy")
 DISCOVERY_TOPIC = "ros_discovery_info"
@@ -209,9 +214,9 @@ class Ros2Node(Ros2Queries):
     def _open_dds(self) -> None:
         self._dp = DomainParticipant(self.domain, qos=wire.dds_qos(("reliable", "volatile", 1),
                                                                    b"enclave=/;"))
-        topics: dict[str, Topic] = {}
+        topics: dict[str, Topic[Any]] = {}
 
-        def topic(s: dict[str, Any]) -> Topic:
+        def topic(s: dict[str, Any]) -> Topic[Any]:
             if s["topic"] not in topics:
                 topics[s["topic"]] = Topic(self._dp, "rt" + s["topic"], wire.dds_type(s["class"]))
             return topics[s["topic"]]
@@ -310,7 +315,7 @@ class Ros2Node(Ros2Queries):
                 self._say(f"DDS: {_one_line(exc)}")
                 time.sleep(WAKE_S)
 
-    def _take(self, name: str, reader: DataReader) -> None:
+    def _take(self, name: str, reader: DataReader[Any]) -> None:
         samples = reader.take(TAKE_MAX)
         if not samples:
             return
@@ -335,10 +340,12 @@ class Ros2Node(Ros2Queries):
                 s.msg, s.cdr, s.arrived, s.count = msg, bytes(data), now, s.count + 1
 
     def _matched(self) -> None:
-        pubs = {n: r.get_subscription_matched_status().current_count
-                for n, r in self._readers.items()}
-        subs = {n: w.get_publication_matched_status().current_count
-                for n, w in self._writers.items()}
+        readers: dict[str, Any] = self._readers  # the binding's status calls are untyped
+        writers: dict[str, Any] = self._writers
+        pubs = {n: int(r.get_subscription_matched_status().current_count)
+                for n, r in readers.items()}
+        subs = {n: int(w.get_publication_matched_status().current_count)
+                for n, w in writers.items()}
         with self._lock:
             for n, c in pubs.items():
                 self._pending[n].publishers = c

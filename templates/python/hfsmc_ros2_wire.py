@@ -24,9 +24,10 @@ from typing import Any
 
 from cyclonedds.core import Policy, Qos
 from cyclonedds.idl import make_idl_struct
-from cyclonedds.idl import types as T
+from cyclonedds.idl import types as _types
 from cyclonedds.util import duration
 
+T: Any = _types  # sequence[...], array[...], bounded_str[...]: indexable at run time
 DOMAIN_MAX = 232  # the largest id for which DDS's port mapping works (as ROS 2 documents)
 PROFILES = {
     "default": ("reliable", "volatile", 10),
