@@ -365,6 +365,9 @@ def parser() -> argparse.ArgumentParser:
         prog="hfsmc sim",
         description="A simulated ArduPilot Copter (MAVLink over UDP) with a downward camera "
                     "(MJPEG over HTTP) over a world.")
+    p.add_argument("--robot", choices=("diffdrive",),
+                   help="a ground robot instead of the drone: `hfsmc sim --robot diffdrive "
+                        "--help` (docs/worlds.md, Ground robots)")
     p.add_argument("--world", metavar="FILE", help="world file (YAML); default: an empty world")
     p.add_argument("--seed", type=int, metavar="N", help="override the world's seed (noise, textures)")
     p.add_argument("--mavlink", metavar="URL", default=DEFAULT_MAVLINK,
@@ -439,6 +442,10 @@ def _run_follow() -> Any:
 
 def main(argv: list[str]) -> int:
     """`hfsmc sim [ARGS...]`: 0 when stopped cleanly, 2 on a usage or world error."""
+    if any(a == "--robot" or a.startswith("--robot=") for a in argv):
+        from hfsmc.sim.ground.run import main as ground
+
+        return ground(argv)
     args = parser().parse_args(argv)
     if args.drop_link_for is not None and args.drop_link_after is None:
         return _fail("--drop-link-for needs --drop-link-after")

@@ -8,9 +8,9 @@ frames carry their namespace (``tb2/odom``). A node ``hfsmc_sim`` publishes the 
 time on ``/clock`` (rosgraph_msgs/Clock) at every step, as Gazebo does for nodes that use
 ``use_sim_time``.
 
-The nodes are the components' own runtime (``hfsmc_ros2``) over message classes generated
-for this run into a temporary folder, so that the simulator speaks exactly what
-components speak.
+The nodes are the components' own runtime (``hfsmc_ros2``), copied with message classes
+generated for this run into a temporary folder as into a component's, so that the
+simulator speaks exactly what components speak.
 """
 
 from __future__ import annotations
@@ -20,15 +20,19 @@ import math
 import shutil
 import sys
 import tempfile
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
+from hfsmc.errors import Span
 from hfsmc.ros2.definitions import MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
 from hfsmc.sim.ground.sim import Bumper, GroundSim, Odometry, Reading, Scan
 
 SHIPPED = Path(__file__).resolve().parent.parent.parent / "ros2" / "msg"
 BUMPER_MSG = SHIPPED / "kobuki_ros_interfaces" / "msg" / "BumperEvent.msg"
+RUNTIME = ("hfsmc_ros2.py", "hfsmc_ros2_wire.py")  # a component's, beside the messages
+DISCOVERY = "rmw_dds_common/msg/ParticipantEntitiesInfo"  # every node announces itself
 TYPES = {
     "cmd_vel": "geometry_msgs/msg/Twist",
     "odom": "nav_msgs/msg/Odometry",
@@ -38,23 +42,29 @@ TYPES = {
 }
 
 
+class NodeError(Exception):
+    """The robots cannot join ROS 2 (a bad domain id, no usable network): one line."""
+
+
 class Messages:
     """The message classes of this run, generated into a folder removed at close()."""
 
     def __init__(self, distro: str) -> None:
-        from hfsmc.frontend.source import Span
-
-        ms = message_set(distro, [(t, Span("<sim>", 1, 1)) for t in TYPES.values()],
+        uses = [*TYPES.values(), DISCOVERY]
+        ms = message_set(distro, [(t, Span("<sim>", 1, 1)) for t in uses],
                          [MsgFile(BUMPER_MSG, str(BUMPER_MSG.name))])
         self.folder = Path(tempfile.mkdtemp(prefix="hfsmc-sim-msgs-"))
-        for rel, text in python_message_files(ms).items():
+        runtime = files("hfsmc.templates").joinpath("python")
+        made = {**python_message_files(ms),
+                **{f: runtime.joinpath(f).read_text("utf-8") for f in RUNTIME}}
+        for rel, text in made.items():
             path = self.folder / rel
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(text, encoding="utf-8")
         sys.path.insert(0, str(self.folder))
         importlib.invalidate_caches()
-        self.ros2 = importlib.import_module("hfsmc.templates.python.hfsmc_ros2")
-        wire = importlib.import_module("hfsmc.templates.python.hfsmc_ros2_wire")
+        self.ros2 = importlib.import_module("hfsmc_ros2")
+        wire = importlib.import_module("hfsmc_ros2_wire")
         self.cls = {k: wire.message_class(t) for k, t in TYPES.items()}
 
     def close(self) -> None:
@@ -66,16 +76,22 @@ class Messages:
 class GroundNodes:
     """One node per robot and the clock's node, publishing what the simulation reads."""
 
-    def __init__(self, sim: GroundSim, domain: int, distro: str) -> None:
+    def __init__(self, sim: GroundSim, domain: str | int | None, distro: str) -> None:
         self.sim = sim
         self.msgs = Messages(distro)
+        wire = importlib.import_module("hfsmc_ros2_wire")
+        try:
+            self.domain = wire.domain_id(domain)
+        except wire.Ros2Error as e:
+            self.msgs.close()
+            raise NodeError(f"--domain: {e}") from None
         self.nodes: dict[str, Any] = {}
         self._seen: dict[str, int] = {}
         self.received = 0  # cmd_vel samples taken in all (lockstep counts them)
         try:
             for r in sim.robots:
                 self.nodes[r.name] = self.msgs.ros2.Ros2Node(f"sim {r.name}", {
-                    "node": "diffdrive", "namespace": r.namespace, "domain": domain,
+                    "node": "diffdrive", "namespace": r.namespace, "domain": self.domain,
                     "distro": distro,
                     "subscribe": {"cmd_vel": {"topic": "cmd_vel", "type": TYPES["cmd_vel"]}},
                     "publish": {
@@ -85,7 +101,7 @@ class GroundNodes:
                     }})
                 self._seen[r.name] = 0
             self.clock = self.msgs.ros2.Ros2Node("sim clock", {
-                "node": "hfsmc_sim", "namespace": "/", "domain": domain, "distro": distro,
+                "node": "hfsmc_sim", "namespace": "/", "domain": self.domain, "distro": distro,
                 "publish": {"clock": {"topic": "/clock", "type": TYPES["clock"]}}})
         except BaseException:
             self.close()
