@@ -17,6 +17,7 @@ from hfsmc.edit.text import EditError, TextEdit, apply_edits
 from hfsmc.edit.xml_ops import XmlOps
 from hfsmc.edit.yaml_ops import YamlOps
 from hfsmc.pipeline import compile_file
+from tests.support import library_and_users
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
@@ -313,3 +314,31 @@ def test_merge_keeps_everything_and_unshares_an_alias_that_differs() -> None:
     assert merged.count("*follow") == 2 and "steer(seen, 2)" in merged
     a, b = text.splitlines(), merged.splitlines()
     assert a[:a.index("        states: *follow")] == b[:a.index("        states: *follow")]
+
+
+def test_a_library_state_renamed_is_renamed_in_the_models_that_use_it(tmp_path: Path) -> None:
+    from hfsmc.edit.library import model_files, rename_in_users
+
+    lib, user, xml = library_and_users(tmp_path)
+    before = {p: p.read_text() for p in (user, xml)}
+    found = rename_in_users(lib, "Airborne", "InAir", model_files(tmp_path))
+    assert sorted(found.edits) == sorted([str(user), str(xml)]) and found.message() is None
+    for p in (user, xml):
+        new = apply_edits(before[p], found.edits[str(p)])
+        changed = [(a, b) for a, b in zip(before[p].splitlines(), new.splitlines(), strict=True) if a != b]
+        assert len(changed) == 1 and changed[0][1] == changed[0][0].replace("/Airborne", "/InAir")
+    lib_new = apply_edits(lib.read_text(), YamlOps(lib.read_text()).rename("Airborne", "InAir"))
+    lib.write_text(lib_new)
+    for p in (user, xml):
+        p.write_text(apply_edits(before[p], found.edits[str(p)]))
+        assert not [d for d in compile_file(str(p)).diagnostics if d.severity == "error"], p
+    # a model that cannot be written is named with the position, not changed
+    lib.write_text(lib_new.replace("InAir", "Airborne"))
+    for p in (user, xml):
+        p.write_text(before[p])
+    xml.chmod(0o444)
+    found = rename_in_users(lib, "Airborne", "InAir", model_files(tmp_path))
+    assert list(found.edits) == [str(user)]
+    line = before[xml].splitlines().index(next(x for x in before[xml].splitlines() if "Up/Airborne" in x)) + 1
+    assert found.message() is not None and f"{xml}:{line}:" in found.message()
+    assert xml.read_text() == before[xml]

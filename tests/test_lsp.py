@@ -18,6 +18,7 @@ from pytest_lsp import ClientServerConfig, LanguageClient, client_capabilities
 from hfsmc.edit.text import TextEdit, apply_edits
 from hfsmc.lsp.analysis import is_model
 from hfsmc.lsp.positions import Lines
+from tests.support import library_and_users
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
@@ -419,4 +420,29 @@ async def test_xml_completion_hover_and_a_fix(client: LanguageClient, tmp_path: 
     assert any(d.code == "E002" for d in diags)
     syms = await client.text_document_document_symbol_async(types.DocumentSymbolParams(doc))
     assert syms is not None and [s.name for s in syms if isinstance(s, types.DocumentSymbol)][-1] == "Night"
+    closed(client, uri)
+
+
+async def test_a_library_state_renamed_through_the_server_renames_its_users(
+        client: LanguageClient, tmp_path: Path) -> None:
+    """The library lies outside the workspace: the models beside its folder are searched."""
+    lib, user, xml = library_and_users(tmp_path)
+    xml.chmod(0o444)
+    text = lib.read_text()
+    uri = await opened(client, lib)
+    client.messages.clear()
+    edit = await client.text_document_rename_async(types.RenameParams(
+        types.TextDocumentIdentifier(uri), position(text, "  Airborne:", delta=3), "InAir"))
+    assert edit is not None and edit.changes is not None
+    assert set(edit.changes) == {uri, user.resolve().as_uri()}
+    utext = user.read_text()
+    ulines = Lines(utext)
+    new = apply_edits(utext, [TextEdit(ulines.offset(e.range.start), ulines.offset(e.range.end), e.new_text)
+                              for e in edit.changes[user.resolve().as_uri()]])
+    assert 'active("TakeOff/InAir")' in new and new.replace("InAir", "Airborne") == utext
+    for _ in range(100):
+        if client.messages:
+            break
+        await asyncio.sleep(0.05)
+    assert any("read-only" in m.message and f"{xml}:" in m.message for m in client.messages)
     closed(client, uri)

@@ -14,6 +14,7 @@ from typing import Any
 from lsprotocol import types
 
 from hfsmc.drivers import driver
+from hfsmc.edit.library import model_files, rename_in_users
 from hfsmc.edit.references import Index, Names, Ref
 from hfsmc.edit.text import EditError, apply_edits
 from hfsmc.edit.xml_ops import XmlOps
@@ -90,8 +91,11 @@ def references(a: Analysis, offset: int, declaration: bool) -> list[types.Locati
             for r in a.index.references(ref.kind, ref.target) if declaration or not r.definition]
 
 
-def rename(a: Analysis, offset: int, new: str) -> types.WorkspaceEdit:
-    """The edits of a rename of the name under ``offset`` (raises EditError)."""
+def rename(a: Analysis, offset: int, new: str, root: str | None = None
+           ) -> tuple[types.WorkspaceEdit, str | None]:
+    """The edits of a rename of the name under ``offset`` (raises EditError), and what
+    could not be renamed (read-only models that use this one).  A state renamed in a
+    library is renamed in the `active()` paths of the models under ``root`` that use it."""
     if a.index is None or not a.parsed:
         raise EditError("the document does not parse: fix it before renaming")
     ref = a.index.at(offset)
@@ -99,16 +103,31 @@ def rename(a: Analysis, offset: int, new: str) -> types.WorkspaceEdit:
         raise EditError("no state, region, parameter, variable or interface here")
     ops: YamlOps | XmlOps = XmlOps(a.text, a.index) if isinstance(a.index, XmlNames) else \
         YamlOps(a.text, a.index if isinstance(a.index, Index) else None)
+    users = None
     if ref.kind in ("state", "region"):
         if ref.target not in a.index.elements:
             raise EditError(f"`{ref.target}` is not defined in this file (a used file's states "
                             "are read-only here: rename it in that file)")
         edits = ops.rename(ref.target, new)
+        users = rename_in_users(Path(a.path), ref.target, new, model_files(_scope(a.path, root)))
     else:
         edits = ops.rename_declaration(ref.kind, ref.target, new)
     apply_edits(a.text, edits)  # refuses overlapping edits before the client sees them
-    return types.WorkspaceEdit(changes={uri_of(a.path): [
-        types.TextEdit(a.lines.range(e.start, e.end), e.new) for e in edits]})
+    changes = {uri_of(a.path): [types.TextEdit(a.lines.range(e.start, e.end), e.new) for e in edits]}
+    for f, more in (users.edits.items() if users is not None else ()):
+        lines = Lines(users.texts[f])
+        changes[uri_of(f)] = [types.TextEdit(lines.range(e.start, e.end), e.new) for e in more]
+    return types.WorkspaceEdit(changes=changes), users.message() if users is not None else None
+
+
+def _scope(path: str, root: str | None) -> Path:
+    """Where the models that may use ``path`` are looked for: the workspace, or, for a file
+    outside it (or no workspace), the folder above the file's (a library in lib/ beside the
+    folders of the models that use it)."""
+    p = Path(path).resolve()
+    if root is not None and p.is_relative_to(Path(root).resolve()):
+        return Path(root)
+    return p.parent.parent
 
 
 # ----- symbols
