@@ -216,7 +216,7 @@ def test_xml_has_every_operation_of_yaml() -> None:
 
 
 @pytest.mark.parametrize("ops", [YamlOps, XmlOps])
-def test_refusals_are_one_line_on_both_formats(ops: type) -> None:
+def test_refusals_are_one_line_on_both_formats(ops: type[YamlOps] | type[XmlOps]) -> None:
     o = ops((MODEL if ops is YamlOps else XML).read_text())
     state = "Done" if ops is YamlOps else "Night"
     sibling = "Land" if ops is YamlOps else "Red"
@@ -340,5 +340,5 @@ def test_a_library_state_renamed_is_renamed_in_the_models_that_use_it(tmp_path: 
     found = rename_in_users(lib, "Airborne", "InAir", model_files(tmp_path))
     assert list(found.edits) == [str(user)]
     line = before[xml].splitlines().index(next(x for x in before[xml].splitlines() if "Up/Airborne" in x)) + 1
-    assert found.message() is not None and f"{xml}:{line}:" in found.message()
+    assert f"{xml}:{line}:" in str(found.message())
     assert xml.read_text() == before[xml]

@@ -13,10 +13,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hfsmc.edit.references import Names, Ref
+import yaml
+
+from hfsmc.edit.references import Index, Names, Ref
 from hfsmc.edit.text import EditError, TextEdit
 from hfsmc.edit.xml_tree import XmlNames
 from hfsmc.frontend import is_xml
+from hfsmc.frontend.yaml_ranges import YamlTree
 
 MAX_FILES = 5000  # a workspace scan stops there
 _SKIP = {".git", ".venv", "venv", "node_modules", "build", "__pycache__", ".tox", ".mypy_cache"}
@@ -52,13 +55,11 @@ def model_files(root: Path) -> Iterator[Path]:
                 yield Path(folder) / f
 
 
-def _names(text: str) -> Names | None:
-    from hfsmc.frontend.yaml_ranges import YamlTree
-    from hfsmc.edit.references import Index
-
+def names_of(text: str) -> Names | None:
+    """The names of a model's text, YAML or XML (None when it does not parse)."""
     try:
         return XmlNames(text) if is_xml(text) else Index(YamlTree(text))
-    except Exception:  # a file that does not parse has no references to rename
+    except (yaml.YAMLError, EditError):
         return None
 
 
@@ -89,7 +90,7 @@ def rename_in_users(library: Path, state: str, new: str, candidates: Iterator[Pa
             continue
         if lib.name not in text:
             continue
-        index = _names(text)
+        index = names_of(text)
         if index is None:
             continue
         refs = list(_refs(index, path, lib, state))

@@ -467,8 +467,8 @@ class XmlOps:
         st = states[0]
         name = st.attr("name") or ""
         new = _free(prefix, name, self.index.elements)
-        s, e, _ = st.attrs["name"]
-        body = text[:s] + new + text[e:]
+        ns, ne, _ = st.attrs["name"]
+        body = text[:ns] + new + text[ne:]
         holder = self._state_el(parent)
         if holder.tag == "state" and not holder.kids("automaton"):
             if holder.kids("region"):

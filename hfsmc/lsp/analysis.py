@@ -8,12 +8,10 @@ import re
 import threading
 from dataclasses import dataclass, field
 
-import yaml
 from lsprotocol import types
 
+from hfsmc.edit.library import names_of
 from hfsmc.edit.references import Index, Names
-from hfsmc.edit.text import EditError
-from hfsmc.edit.xml_tree import XmlNames
 from hfsmc.errors import Diagnostic
 from hfsmc.frontend import is_xml
 from hfsmc.frontend.yaml_ranges import YamlTree
@@ -49,14 +47,6 @@ class Source:
             if self._index is None:
                 self._index = names_of(self.text)
             return self._index
-
-
-def names_of(text: str) -> Names | None:
-    """The names of a model's text, YAML or XML (None when it does not parse)."""
-    try:
-        return XmlNames(text) if is_xml(text) else Index(YamlTree(text))
-    except (yaml.YAMLError, EditError):
-        return None
 
 
 @dataclass

@@ -14,15 +14,16 @@ from typing import Any
 from lsprotocol import types
 
 from hfsmc.drivers import driver
-from hfsmc.edit.library import model_files, rename_in_users
+from hfsmc.edit.library import model_files, names_of, rename_in_users
 from hfsmc.edit.references import Index, Names, Ref
 from hfsmc.edit.text import EditError, apply_edits
 from hfsmc.edit.xml_ops import XmlOps
 from hfsmc.edit.xml_tree import XmlNames
 from hfsmc.edit.yaml_ops import YamlOps
 from hfsmc.errors import CODES
+from hfsmc.frontend.yaml_ranges import YamlTree
 from hfsmc.lsp import xml_features
-from hfsmc.lsp.analysis import Analysis, names_of
+from hfsmc.lsp.analysis import Analysis
 from hfsmc.lsp.positions import Lines
 from hfsmc.resources import schema_file
 
@@ -114,10 +115,12 @@ def rename(a: Analysis, offset: int, new: str, root: str | None = None
         edits = ops.rename_declaration(ref.kind, ref.target, new)
     apply_edits(a.text, edits)  # refuses overlapping edits before the client sees them
     changes = {uri_of(a.path): [types.TextEdit(a.lines.range(e.start, e.end), e.new) for e in edits]}
-    for f, more in (users.edits.items() if users is not None else ()):
+    if users is None:
+        return types.WorkspaceEdit(changes=changes), None
+    for f, more in users.edits.items():
         lines = Lines(users.texts[f])
         changes[uri_of(f)] = [types.TextEdit(lines.range(e.start, e.end), e.new) for e in more]
-    return types.WorkspaceEdit(changes=changes), users.message() if users is not None else None
+    return types.WorkspaceEdit(changes=changes), users.message()
 
 
 def _scope(path: str, root: str | None) -> Path:
@@ -274,9 +277,9 @@ def hover(a: Analysis, offset: int, diagnostics: list[types.Diagnostic]) -> type
             return types.Hover(types.MarkupContent(types.MarkupKind.Markdown,
                                                    f"**{code}**: {CODES.get(code, '')}\n\n{d.message}"))
     if isinstance(a.index, XmlNames):
-        doc = xml_features.hover(a.text, offset)
-        if doc is not None:
-            word, s, e = doc
+        found = xml_features.hover(a.text, offset)
+        if found is not None:
+            word, s, e = found
             return types.Hover(types.MarkupContent(types.MarkupKind.Markdown, word),
                                range=a.lines.range(s, e))
     for path, node in a.tree.walk() if a.tree is not None else ():
