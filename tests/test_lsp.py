@@ -425,9 +425,12 @@ async def test_xml_completion_hover_and_a_fix(client: LanguageClient, tmp_path: 
 
 async def test_a_library_state_renamed_through_the_server_renames_its_users(
         client: LanguageClient, tmp_path: Path) -> None:
-    """The library lies outside the workspace: the models beside its folder are searched."""
+    """The models that use the library are searched in the workspace folder that holds it."""
     lib, user, xml = library_and_users(tmp_path)
     xml.chmod(0o444)
+    client.workspace_did_change_workspace_folders(types.DidChangeWorkspaceFoldersParams(
+        types.WorkspaceFoldersChangeEvent(added=[types.WorkspaceFolder(tmp_path.as_uri(), "t")],
+                                          removed=[])))
     text = lib.read_text()
     uri = await opened(client, lib)
     client.messages.clear()
@@ -446,3 +449,5 @@ async def test_a_library_state_renamed_through_the_server_renames_its_users(
         await asyncio.sleep(0.05)
     assert any("read-only" in m.message and f"{xml}:" in m.message for m in client.messages)
     closed(client, uri)
+    client.workspace_did_change_workspace_folders(types.DidChangeWorkspaceFoldersParams(
+        types.WorkspaceFoldersChangeEvent(added=[], removed=[types.WorkspaceFolder(tmp_path.as_uri(), "t")])))

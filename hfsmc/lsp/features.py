@@ -92,11 +92,12 @@ def references(a: Analysis, offset: int, declaration: bool) -> list[types.Locati
             for r in a.index.references(ref.kind, ref.target) if declaration or not r.definition]
 
 
-def rename(a: Analysis, offset: int, new: str, root: str | None = None
+def rename(a: Analysis, offset: int, new: str, roots: Sequence[str] = ()
            ) -> tuple[types.WorkspaceEdit, str | None]:
     """The edits of a rename of the name under ``offset`` (raises EditError), and what
     could not be renamed (read-only models that use this one).  A state renamed in a
-    library is renamed in the `active()` paths of the models under ``root`` that use it."""
+    library is renamed in the `active()` paths of the models that use it, in those of the
+    folders ``roots`` (the workspace's) that hold the library."""
     if a.index is None or not a.parsed:
         raise EditError("the document does not parse: fix it before renaming")
     ref = a.index.at(offset)
@@ -110,7 +111,7 @@ def rename(a: Analysis, offset: int, new: str, root: str | None = None
             raise EditError(f"`{ref.target}` is not defined in this file (a used file's states "
                             "are read-only here: rename it in that file)")
         edits = ops.rename(ref.target, new)
-        users = rename_in_users(Path(a.path), ref.target, new, model_files(_scope(a.path, root)))
+        users = rename_in_users(Path(a.path), ref.target, new, _models_beside(a.path, roots))
     else:
         edits = ops.rename_declaration(ref.kind, ref.target, new)
     apply_edits(a.text, edits)  # refuses overlapping edits before the client sees them
@@ -123,14 +124,15 @@ def rename(a: Analysis, offset: int, new: str, root: str | None = None
     return types.WorkspaceEdit(changes=changes), users.message()
 
 
-def _scope(path: str, root: str | None) -> Path:
-    """Where the models that may use ``path`` are looked for: the workspace, or, for a file
-    outside it (or no workspace), the folder above the file's (a library in lib/ beside the
-    folders of the models that use it)."""
+def _models_beside(path: str, roots: Sequence[str]) -> list[Path]:
+    """The model files of the workspace folders that hold ``path`` (none for a file
+    outside the workspace)."""
     p = Path(path).resolve()
-    if root is not None and p.is_relative_to(Path(root).resolve()):
-        return Path(root)
-    return p.parent.parent
+    out: dict[Path, None] = {}
+    for r in roots:
+        if p.is_relative_to(Path(r).resolve()):
+            out.update(dict.fromkeys(model_files(Path(r))))
+    return list(out)
 
 
 # ----- symbols

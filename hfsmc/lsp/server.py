@@ -180,7 +180,10 @@ def rename(ls: HfsmcServer, params: types.RenameParams) -> types.WorkspaceEdit |
         a = analyse(a.path, ls.text(params.text_document.uri), a)
         off = a.lines.offset(params.position)
     try:
-        edit, left = features.rename(a, off, params.new_name, ls.workspace.root_path)
+        roots = [path_of(f.uri) for f in ls.workspace.folders.values()]
+        if ls.workspace.root_path and ls.workspace.root_path not in roots:
+            roots.append(ls.workspace.root_path)
+        edit, left = features.rename(a, off, params.new_name, roots)
     except EditError as e:
         raise JsonRpcInvalidParams(str(e)) from None
     if left is not None:
