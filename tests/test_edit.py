@@ -342,3 +342,14 @@ def test_a_library_state_renamed_is_renamed_in_the_models_that_use_it(tmp_path: 
     line = before[xml].splitlines().index(next(x for x in before[xml].splitlines() if "Up/Airborne" in x)) + 1
     assert f"{xml}:{line}:" in str(found.message())
     assert xml.read_text() == before[xml]
+
+
+def test_xml_declaration_fields_are_attributes_escaped_in_the_files_quote() -> None:
+    from hfsmc.errors import Diagnostics
+    from hfsmc.frontend import load
+
+    for text in (XML.read_text(), XML.read_text().replace('"', "'")):
+        value = 'say "hi" <now> & \'then\''
+        new = apply_edits(text, XmlOps(text).set_field(("parameters", "cycles", "description"), value))
+        assert load(str(XML), Diagnostics(), new).data["parameters"]["cycles"]["description"] == value
+        assert len(new.splitlines()) == len(text.splitlines())

@@ -302,7 +302,9 @@ class XmlOps:
                     return self._set_attr(opt, "value", value)
                 return self._insert(el, None, f"{self._child_pad(el)}<option"
                                     f"{self.style.attr('name', path[3])}{self.style.attr('value', value)}/>")
-            return self._set_on(el, str(path[2]), value)
+            if len(path) != 3 or isinstance(value, (dict, list)):
+                raise EditError(f"{'/'.join(map(str, path))}: not a field of this XML model")
+            return self._set_attr(el, str(path[2]), value)  # every field of one is an attribute
         if head == "imports" and len(path) == 2 and isinstance(path[1], int):
             imps = self.root.kids("import")
             if not 0 <= path[1] < len(imps):
