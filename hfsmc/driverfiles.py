@@ -15,7 +15,13 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
-from hfsmc.drivers import DeclarationError, Driver, disagreement, read_cpp_driver, read_python_driver
+from hfsmc.drivers import (
+    DeclarationError,
+    Driver,
+    disagreement,
+    read_cpp_driver,
+    read_python_driver,
+)
 from hfsmc.errors import Diagnostics, HfsmcError, Span
 from hfsmc.frontend import read_text
 from hfsmc.ir import DriverFile

@@ -11,8 +11,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Literal, TypeAlias
 
-from hfsmc.errors import Span
 from hfsmc.drivers import Driver
+from hfsmc.errors import Span
 
 Language = Literal["python", "cpp"]
 ValueType = Literal["bool", "int", "float", "str", "list", "dict"]

@@ -25,7 +25,7 @@ import inspect
 import sys
 import threading
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 F = TypeVar("F", bound=Callable[..., Any])
 _TRUE = {"true", "yes", "on", "1"}
@@ -98,8 +98,8 @@ class Driver:
     """What every user driver is (docs/drivers.md, "Python")."""
 
     KIND = ""
-    SNAPSHOT: dict[str, Any] = {}
-    OPTIONS: dict[str, Any] = {}
+    SNAPSHOT: ClassVar[dict[str, Any]] = {}
+    OPTIONS: ClassVar[dict[str, Any]] = {}
     ATTRIBUTES_FROM: tuple[str, ...] = ()
     DEFAULT_URL: str | None = None
 

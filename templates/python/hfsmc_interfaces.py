@@ -109,13 +109,15 @@ def make_fake(engine: Any, name: str, kind: str, url: str | None,
     own = engine.m.get("drivers", {}).get(kind)
     try:
         if own is None:
-            return engine.playback.fake(name, kind)
+            made: object | None = engine.playback.fake(name, kind)
+            return made
         cls = getattr(_import(name, kind, own[0]), own[1])
         try:
             fake = cls.fake(name, url, options, engine.playback)
         except Exception as e:  # an option the driver refuses
             raise StartError(f"interface `{name}` ({kind}): {type(e).__name__}: {e}") from None
-        return engine.playback.adopt(name, fake)
+        adopted: object = engine.playback.adopt(name, fake)
+        return adopted
     except hfsmc_playback.PlaybackError as e:
         raise UsageError(f"--playback: {e}") from None
 

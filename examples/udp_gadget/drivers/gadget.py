@@ -8,10 +8,11 @@ latest in its listening thread, and hands it to the automaton once per instant.
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 import time
-from typing import Any
+from typing import Any, ClassVar
 
 from hfsmc_driver import Driver, command, query
 
@@ -21,8 +22,9 @@ class Gadget(Driver):
 
     KIND = "gadget"
     DEFAULT_URL = "udp:127.0.0.1:9870"
-    SNAPSHOT = {"distance": float("inf"), "age": float("inf"), "count": 0, "led": False}
-    OPTIONS = {"stale": 1.0}
+    SNAPSHOT: ClassVar[dict[str, Any]] = {"distance": float("inf"), "age": float("inf"),
+                                          "count": 0, "led": False}
+    OPTIONS: ClassVar[dict[str, Any]] = {"stale": 1.0}
 
     def open(self) -> None:
         scheme, _, rest = str(self.url).partition(":")
@@ -73,10 +75,8 @@ class Gadget(Driver):
                 said = "readings"
 
     def _send(self, data: bytes) -> None:
-        try:
+        with contextlib.suppress(OSError):  # no device yet: the next HELLO tries again
             self._sock.sendto(data, self._device)
-        except OSError:
-            pass  # the device is not there yet: the next HELLO tries again
 
     def read(self) -> dict[str, Any]:
         with self._lock:
