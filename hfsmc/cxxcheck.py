@@ -93,17 +93,23 @@ def check_cpp(model: Model) -> CxxCheck:
         return CxxCheck(list(e.diagnostics))
     source = sources.unit()
     toolchain = _toolchain(compiler)
-    headers = _runtime_headers(source)
+    own = {inc: i.cpp.text for i in model.interfaces if i.cpp is not None
+           for path, inc in cpp.user_headers(model).items() if path == i.cpp.path}
+    headers = tuple(h for h in _runtime_headers(source) if h not in own)  # a user's driver
     pch_key = _digest(toolchain, *headers, _mavlink_stamp(headers), _runtime_digest())
-    key = _digest(pch_key, source)
+    key = _digest(pch_key, source, *sorted(own.items()))
     root = cache_dir()
     output = _cached(root / "out" / key)
     if output is None:
         def compile_in(pch: Path) -> tuple[int, str]:
             folder = _header_set(pch, pch_key, headers, compiler)
-            return _run([compiler, *toolchain.flags, "-fsyntax-only",
-                         "-I", str(folder / "include"), "-include", str(folder / "pch.hpp"),
-                         "-x", "c++", "-"], source)
+            with tempfile.TemporaryDirectory(prefix="hfsmc-drivers-") as drivers:
+                for inc, text in own.items():  # a user's driver headers, beside the set's
+                    (Path(drivers) / inc).parent.mkdir(parents=True, exist_ok=True)
+                    (Path(drivers) / inc).write_text(text, "utf-8")
+                return _run([compiler, *toolchain.flags, "-fsyntax-only",
+                             "-I", str(folder / "include"), "-I", drivers,
+                             "-include", str(folder / "pch.hpp"), "-x", "c++", "-"], source)
 
         try:
             code, text = compile_in(root / "pch")

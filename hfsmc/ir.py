@@ -11,6 +11,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Literal, TypeAlias
 
+from hfsmc.drivers import Driver
 from hfsmc.errors import Span
 
 Language = Literal["python", "cpp"]
@@ -182,12 +183,32 @@ class Import:
 
 
 @dataclass(frozen=True, slots=True)
+class DriverFile:
+    """A user's driver file (``type: driver``; docs/drivers.md), read at compile time."""
+
+    written: str  # as the model writes it, relative to the model's folder
+    path: str  # the model's folder joined with it
+    text: str
+    span: Span = field(compare=False)  # the key's position in the model
+
+
+@dataclass(frozen=True, slots=True)
 class Interface:
     name: str
-    type: str  # mavlink | camera | ros_topic | ice
+    type: str  # mavlink | camera | ros_topic | ice | driver
     url: str | None
     options: tuple[tuple[str, str], ...]
     span: Span = field(compare=False)
+    python: DriverFile | None = None  # type driver: the Python driver
+    cpp: DriverFile | None = None  # type driver: the C++ driver's header
+    # type driver: what the driver of the model's language declares (None: not read)
+    declaration: Driver | None = field(default=None, compare=False)
+
+    @property
+    def kind(self) -> str:
+        """The interface's type as components and recordings name it: a user driver's
+        KIND (``gadget``), else ``type``."""
+        return self.declaration.type if self.declaration is not None else self.type
 
 
 @dataclass(frozen=True, slots=True)

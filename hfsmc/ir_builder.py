@@ -13,6 +13,7 @@ import re
 from collections.abc import Callable
 from typing import Any
 
+from hfsmc.driverfiles import driver_files
 from hfsmc.durations import has_unit, parse_us
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend.source import YAML11_BOOLS, Document, PathKey
@@ -144,8 +145,17 @@ class _IrBuilder:
         out = []
         for name, spec in (self.data.get("interfaces") or {}).items():
             opts = tuple(sorted((str(k), str(v)) for k, v in (spec.get("options") or {}).items()))
-            out.append(Interface(name, spec["type"], spec.get("url"), opts,
-                                 self.doc.key_span(("interfaces", name))))
+            span = self.doc.key_span(("interfaces", name))
+            if spec["type"] != "driver":
+                out.append(Interface(name, spec["type"], spec.get("url"), opts, span))
+                continue
+            spans = {k: self.doc.span(("interfaces", name, k)) for k in ("type", "python", "cpp")
+                     if k in spec}
+            spans.update({f"options.{k}": self.doc.key_span(("interfaces", name, "options", k))
+                          for k in spec.get("options") or {}})
+            py, cpp, decl = driver_files(self.doc.file, spec, self.data.get("language", "python"),
+                                         spans, getattr(self.uses, "texts", None), self.diags)
+            out.append(Interface(name, "driver", spec.get("url"), opts, span, py, cpp, decl))
         return tuple(out)
 
     def parameters(self) -> tuple[Parameter, ...]:

@@ -24,6 +24,11 @@ def model_sources(model: Model) -> tuple[tuple[str, str], ...]:
         if inst is not None and os.path.realpath(inst.file) not in seen:
             seen.add(os.path.realpath(inst.file))
             out.append((inst.file, inst.model.source))
+    for i in model.interfaces:  # a user's drivers are code the model runs (docs/drivers.md)
+        for f in (i.python, i.cpp):
+            if f is not None and os.path.realpath(f.path) not in seen:
+                seen.add(os.path.realpath(f.path))
+                out.append((f.path, f.text))
     return tuple((os.path.relpath(f, home).replace(os.sep, "/"), text) for f, text in out)
 
 

@@ -31,7 +31,7 @@ from typing import Any
 from pyflakes import messages as pyflakes_messages
 from pyflakes.checker import Checker
 
-from hfsmc.drivers import CPP_NAMES, Driver, Method, driver
+from hfsmc.drivers import CPP_NAMES, Driver, Method, driver, option_names
 from hfsmc.errors import Diagnostics, Span, did_you_mean
 from hfsmc.ir import HELPERS, Code, Model
 
@@ -172,6 +172,7 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
     builtin_names = set(dir(builtins))
     names = known | builtin_names
     drivers = _drivers(model)
+    listed = _listed(model)
     uses = (re.compile(r"\b(?:" + "|".join(map(re.escape, drivers)) + r")\s*\.") if drivers
             else None)
     for sn in snippets(model):
@@ -205,7 +206,7 @@ def check_python_snippets(model: Model, diags: Diagnostics, prefilter: bool = Tr
         if helpers:
             _check_helper_calls(model, sn, tree, diags)
         if calls:
-            _check_interface_uses(sn, tree, drivers, diags)
+            _check_interface_uses(sn, tree, drivers, diags, listed)
     _check_undefined(model.file, parsed, variables, params, known, diags)
 
 
@@ -450,14 +451,21 @@ def _drivers(model: Model) -> dict[str, Driver]:
     """The model's interfaces that have a driver, by name."""
     out = {}
     for i in model.interfaces:
-        d = driver(i.type)
+        d = i.declaration if i.type == "driver" else driver(i.type)
         if d is not None:
             out[i.name] = d
     return out
 
 
+def _listed(model: Model) -> dict[str, dict[str, tuple[str, ...]]]:
+    """Per interface, the names each of its options lists (a driver's `names`)."""
+    return {i.name: {k: option_names(v) for k, v in i.options} for i in model.interfaces}
+
+
 def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver],
-                          diags: Diagnostics) -> None:
+                          diags: Diagnostics,
+                          listed_names: dict[str, dict[str, tuple[str, ...]]] | None = None
+                          ) -> None:
     """E148 for ``drone.fly_to`` (no such method or attribute), E149 for a call of a
     method with arguments its parameters do not take. A snippet that binds an
     interface's name itself (a parameter, an assignment) is not checked for that name."""
@@ -478,6 +486,9 @@ def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver]
         iface, d = node.value.id, drivers[node.value.id]
         where = _attr_where(sn, rows, node)
         method = d.methods.get(node.attr)
+        listed = (listed_names or {}).get(iface, {})
+        if method is None and any(node.attr in listed.get(o, ()) for o in d.attributes_from):
+            continue  # an attribute per listed name (a subscription's latest message)
         if method is None and node.attr not in d.names:
             _unknown_member(sn, iface, d, node.attr, where, diags)
         elif method is None and id(node) in called:  # name, url: called as C++ has them
@@ -486,6 +497,7 @@ def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver]
                         where)
         elif method is not None and id(node) in called:
             _check_arguments(sn, iface, method, called[id(node)], where, diags)
+            _check_names(sn, iface, method, called[id(node)], listed, diags)
 
 
 def _unknown_member(sn: Snippet, iface: str, d: Driver, attr: str, where: Span,
@@ -525,6 +537,28 @@ def _check_arguments(sn: Snippet, iface: str, m: Method, call: ast.Call, where: 
              f"{count} argument{'s' if count > 1 else ''} ({', '.join(m.params)})")
     diags.error("E149", f"`{iface}.{m.name}` takes {takes}: {problem}", where,
                 f"{m.signature()}: {m.doc.replace('``', '`')}")
+
+
+def _check_names(sn: Snippet, iface: str, m: Method, call: ast.Call,
+                 listed: dict[str, tuple[str, ...]], diags: Diagnostics) -> None:
+    """E148 for a literal argument that must name an entry of an option and does not
+    (``robot.age("scn")`` when the subscriptions are scan and odom)."""
+    for param, option in m.names:
+        k = m.params.index(param)
+        arg = (call.args[k] if k < len(call.args) and not isinstance(call.args[k], ast.Starred)
+               else next((kw.value for kw in call.keywords if kw.arg == param), None))
+        if not (isinstance(arg, ast.Constant) and isinstance(arg.value, str)):
+            continue  # computed: the driver says so when called
+        names = listed.get(option, ())
+        if arg.value not in names:
+            line = arg.lineno
+            rows = sn.code.text.split("\n")
+            row = rows[line - 1] if 0 < line <= len(rows) else ""
+            col = len(row.encode("utf-8")[:arg.col_offset].decode("utf-8", "replace")) + 1
+            diags.error("E148", f"`{iface}.{m.name}`: `{arg.value}` is not one of the "
+                        f"interface's `{option}` ({', '.join(names) or 'none declared'})",
+                        sn.code.position(line, col), did_you_mean(arg.value, names) or
+                        f"declare it in the interface's option `{option}`")
 
 
 def _attr_where(sn: Snippet, rows: list[str], node: ast.Attribute) -> Span:

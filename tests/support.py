@@ -729,3 +729,25 @@ def flight(tmp_path: Path, *sim_args: str, model: Path = FOLLOW / "follow_colors
 
 def fired_into(trace: list[dict[str, object]]) -> list[str]:
     return [str(r["to"]) for r in trace if r["ev"] == "fire"]
+
+
+# -- the edit engine -----------------------------------------------------------------------
+def library_and_users(tmp_path: Path) -> tuple[Path, Path, Path]:
+    """lib/takeoff.yaml and two models that use it, one YAML and one XML."""
+    (tmp_path / "lib").mkdir()
+    lib = tmp_path / "lib" / "takeoff.yaml"
+    lib.write_text((ROOT / "examples" / "lib" / "takeoff.yaml").read_text())
+    (tmp_path / "lib" / "land.yaml").write_text((ROOT / "examples" / "lib" / "land.yaml").read_text())
+    (tmp_path / "app").mkdir()
+    user = tmp_path / "app" / "m.yaml"
+    user.write_text((ROOT / "examples" / "follow_colors" / "follow_colors.yaml").read_text())
+    xml = tmp_path / "app" / "m.xml"
+    xml.write_text((ROOT / "examples" / "traffic_light" / "traffic_light.xml").read_text().replace(
+        '  <parameter name="cycles"',
+        '  <interface name="drone" type="mavlink" url="udpin:127.0.0.1:14550"/>\n  <parameter name="cycles"'
+    ).replace(
+        '<state name="Night" final="true"/>',
+        '<state name="Up" use="../lib/takeoff.yaml">\n'
+        '      <transition to="Night"><when>active("Up/Airborne") or active(&quot;Up/Climb&quot;)</when>'
+        '</transition>\n    </state>\n    <state name="Night" final="true"/>'))
+    return lib, user, xml

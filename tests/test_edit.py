@@ -17,6 +17,7 @@ from hfsmc.edit.text import EditError, TextEdit, apply_edits
 from hfsmc.edit.xml_ops import XmlOps
 from hfsmc.edit.yaml_ops import YamlOps
 from hfsmc.pipeline import compile_file
+from tests.support import library_and_users
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
@@ -159,17 +160,103 @@ def test_strings_are_quoted_when_plain_would_change_them() -> None:
         assert f"description: {written}\n" in apply_edits(text, o.set_state_field("", "description", value))
 
 
+XML = ROOT / "examples" / "traffic_light" / "traffic_light.xml"
+XmlOp = Callable[[XmlOps], list[TextEdit]]
+# The same operations on the XML model (tests/golden/edit/xml/); those marked `invalid`
+# make a model that is diagnosed (SPEC 8.1: made all the same).
+XML_OPS: dict[str, XmlOp] = {
+    "rename_state": lambda o: o.rename("Amber", "Yellow"),
+    "rename_variable": lambda o: o.rename_declaration("variable", "count", "laps"),
+    "rename_parameter": lambda o: o.rename_declaration("parameter", "cycles", "rounds"),
+    "add_state": lambda o: o.add_state("", "Hover", {"entry": "log('hover')",
+                                                      "transitions": [{"to": "Night", "after": "5s"}]}),
+    "add_first_child": lambda o: o.add_state("Red", "Walk", {"final": True}),
+    "delete_state": lambda o: o.delete_state("Night"),
+    "move_state": lambda o: o.move_state("Night", 0),
+    "add_transition": lambda o: o.add_transition("Amber", {"to": "Night", "when": "count > 9"}),
+    "delete_transition": lambda o: o.delete_transition("Red", 0),
+    "move_transition": lambda o: o.move_transition("Red", 1, 0),
+    "set_snippet_block": lambda o: o.set_state_field("Amber", "entry", "log('a')\nlog('b < c')\n"),
+    "set_snippet_line": lambda o: o.set_state_field("Night", "entry", 'log("night")'),
+    "set_transition_field": lambda o: o.set_field(("states", "Red", "transitions", 1, "after"), "7s"),
+    "clear_snippet": lambda o: o.set_state_field("Green", "during", None),
+    "set_period": lambda o: o.set_state_field("", "period", "20ms"),
+    "set_parameter_default": lambda o: o.set_field(("parameters", "cycles", "default"), 6),
+    "add_parameter": lambda o: o.add_declaration("parameter", "speed", {"type": "float", "default": 1.0}),
+    "remove_variable": lambda o: o.remove_declaration("variable", "button"),
+    "add_interface": lambda o: o.add_declaration("interface", "gimbal", {"type": "mavlink",
+                                                                          "url": "udpin:127.0.0.1:14560"}),
+    "add_import": lambda o: o.add_import("math"),
+    "wrap_states": lambda o: o.wrap_states("", ["Amber", "Red"], "Stopping"),
+    "paste_state": lambda o: o.paste_state("", o.copy_state("Amber"))[0],
+    "paste_yaml_state": lambda o: o.paste_state("", YamlOps(MODEL.read_text()).copy_state("LinkLost"))[0],
+}
+XML_INVALID = {"delete_state", "wrap_states", "paste_yaml_state"}  # Night named; no drone here
+
+
+def xml_golden_diff(name: str) -> str:
+    text = XML.read_text()
+    new = apply_edits(text, XML_OPS[name](XmlOps(text)))
+    return "".join(difflib.unified_diff(text.splitlines(True), new.splitlines(True),
+                                        "traffic_light.xml", f"traffic_light.xml ({name})", n=1))
+
+
+@pytest.mark.parametrize("name", sorted(XML_OPS))
+def test_xml_golden_edit(name: str) -> None:
+    assert xml_golden_diff(name) == (GOLDEN / "xml" / f"{name}.diff").read_text()
+    text = XML.read_text()
+    new = apply_edits(text, XML_OPS[name](XmlOps(text)))
+    errors = [d for d in compile_file(str(XML), new).diagnostics if d.severity == "error"]
+    assert bool(errors) == (name in XML_INVALID), [d.message for d in errors]
+
+
+def test_xml_has_every_operation_of_yaml() -> None:
+    public = {n for n in dir(YamlOps) if not n.startswith("_") and callable(getattr(YamlOps, n))}
+    assert public - {"automaton"} <= set(dir(XmlOps))
+
+
+@pytest.mark.parametrize("ops", [YamlOps, XmlOps])
+def test_refusals_are_one_line_on_both_formats(ops: type[YamlOps] | type[XmlOps]) -> None:
+    o = ops((MODEL if ops is YamlOps else XML).read_text())
+    state = "Done" if ops is YamlOps else "Night"
+    sibling = "Land" if ops is YamlOps else "Red"
+    for call, message in (
+            (lambda: o.rename(state, "1x"), "not a valid state name"),
+            (lambda: o.rename(state, sibling), f"`{sibling}` already exists"),
+            (lambda: o.delete_state("Nowhere"), "no state or region `Nowhere`"),
+            (lambda: o.remove_import("nothing_like_it"), "no import `nothing_like_it`"),
+            (lambda: o.rename_declaration("variable", "nope", "x"), "no variable `nope`"),
+            (lambda: o.paste_state("", "- not a state"), "not one state")):
+        with pytest.raises(EditError, match=message) as e:
+            call()
+        assert "\n" not in str(e.value)
+
+
+def test_xml_snippets_keep_their_style() -> None:
+    """Code with `<` goes in CDATA where the file already uses CDATA, escaped otherwise;
+    a snippet whose whitespace the XML form would change is written verbatim."""
+    text = XML.read_text().replace("<when>button</when>", "<when><![CDATA[button and 1 < 2]]></when>")
+    new = apply_edits(text, XmlOps(text).set_state_field("Amber", "exit", "log(1 < 2)"))
+    assert "<exit><![CDATA[log(1 < 2)]]></exit>" in new
+    new = apply_edits(text, XmlOps(text).set_state_field("Amber", "exit", "  x = 1\n  y = 2"))
+    assert '<exit verbatim="true">  x = 1\n  y = 2</exit>' in new
+    from hfsmc.errors import Diagnostics
+    from hfsmc.frontend import load
+
+    data = load(str(XML), Diagnostics(), new).data
+    assert data["states"]["Amber"]["exit"] == "  x = 1\n  y = 2"
+
+
 def regenerate() -> None:
-    GOLDEN.mkdir(parents=True, exist_ok=True)
+    (GOLDEN / "xml").mkdir(parents=True, exist_ok=True)
     for name in OPS:
         (GOLDEN / f"{name}.diff").write_text(diff_of(name))
+    for name in XML_OPS:
+        (GOLDEN / "xml" / f"{name}.diff").write_text(xml_golden_diff(name))
 
 
 if __name__ == "__main__" and "--regen" in sys.argv:
     regenerate()
-
-
-XML = ROOT / "examples" / "traffic_light" / "traffic_light.xml"
 
 
 def xml_diff(edit: Callable[[XmlOps], list[TextEdit]]) -> str:
@@ -227,3 +314,42 @@ def test_merge_keeps_everything_and_unshares_an_alias_that_differs() -> None:
     assert merged.count("*follow") == 2 and "steer(seen, 2)" in merged
     a, b = text.splitlines(), merged.splitlines()
     assert a[:a.index("        states: *follow")] == b[:a.index("        states: *follow")]
+
+
+def test_a_library_state_renamed_is_renamed_in_the_models_that_use_it(tmp_path: Path) -> None:
+    from hfsmc.edit.library import model_files, rename_in_users
+
+    lib, user, xml = library_and_users(tmp_path)
+    before = {p: p.read_text() for p in (user, xml)}
+    found = rename_in_users(lib, "Airborne", "InAir", model_files(tmp_path))
+    assert sorted(found.edits) == sorted([str(user), str(xml)]) and found.message() is None
+    for p in (user, xml):
+        new = apply_edits(before[p], found.edits[str(p)])
+        changed = [(a, b) for a, b in zip(before[p].splitlines(), new.splitlines(), strict=True) if a != b]
+        assert len(changed) == 1 and changed[0][1] == changed[0][0].replace("/Airborne", "/InAir")
+    lib_new = apply_edits(lib.read_text(), YamlOps(lib.read_text()).rename("Airborne", "InAir"))
+    lib.write_text(lib_new)
+    for p in (user, xml):
+        p.write_text(apply_edits(before[p], found.edits[str(p)]))
+        assert not [d for d in compile_file(str(p)).diagnostics if d.severity == "error"], p
+    # a model that cannot be written is named with the position, not changed
+    lib.write_text(lib_new.replace("InAir", "Airborne"))
+    for p in (user, xml):
+        p.write_text(before[p])
+    xml.chmod(0o444)
+    found = rename_in_users(lib, "Airborne", "InAir", model_files(tmp_path))
+    assert list(found.edits) == [str(user)]
+    line = before[xml].splitlines().index(next(x for x in before[xml].splitlines() if "Up/Airborne" in x)) + 1
+    assert f"{xml}:{line}:" in str(found.message())
+    assert xml.read_text() == before[xml]
+
+
+def test_xml_declaration_fields_are_attributes_escaped_in_the_files_quote() -> None:
+    from hfsmc.errors import Diagnostics
+    from hfsmc.frontend import load
+
+    for text in (XML.read_text(), XML.read_text().replace('"', "'")):
+        value = 'say "hi" <now> & \'then\''
+        new = apply_edits(text, XmlOps(text).set_field(("parameters", "cycles", "description"), value))
+        assert load(str(XML), Diagnostics(), new).data["parameters"]["cycles"]["description"] == value
+        assert len(new.splitlines()) == len(text.splitlines())

@@ -18,6 +18,7 @@ from pytest_lsp import ClientServerConfig, LanguageClient, client_capabilities
 from hfsmc.edit.text import TextEdit, apply_edits
 from hfsmc.lsp.analysis import is_model
 from hfsmc.lsp.positions import Lines
+from tests.support import library_and_users
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "examples" / "follow_colors" / "follow_colors.yaml"
@@ -328,3 +329,125 @@ async def test_a_file_changed_on_disk_under_unsaved_edits_is_a_conflict(
     assert any("changed on disk under unsaved edits" in m.message for m in client.messages)
     assert p.read_text().endswith("# theirs\n")  # the server never writes the file
     closed(client, uri)
+
+
+XML = ROOT / "examples" / "traffic_light" / "traffic_light.xml"
+
+
+async def test_xml_definition_references_rename_symbols(client: LanguageClient) -> None:
+    text = XML.read_text()
+    uri = await opened(client, XML)
+    doc = types.TextDocumentIdentifier(uri)
+    lines = Lines(text)
+    amber = lines.position(text.index('name="Amber"') + 6)
+    for needle in ('to="Amber"', 'initial="Green"'):
+        loc = await client.text_document_definition_async(types.DefinitionParams(
+            doc, position(text, needle, delta=len(needle) - 2)))
+        assert isinstance(loc, types.Location)
+        if "Amber" in needle:
+            assert loc.range.start == amber
+        else:
+            assert loc.range.start == lines.position(text.index('name="Green"') + 6)
+    loc = await client.text_document_definition_async(types.DefinitionParams(
+        doc, position(text, "count >= cycles", delta=11)))
+    assert isinstance(loc, types.Location)
+    assert loc.range.start == lines.position(text.index('name="cycles"') + 6)
+    refs = await client.text_document_references_async(types.ReferenceParams(
+        text_document=doc, position=position(text, 'name="count"', delta=7),
+        context=types.ReferenceContext(include_declaration=True)))
+    assert refs is not None and len(refs) == 4  # the declaration, `count = count + 1`, the when
+    edit = await client.text_document_rename_async(types.RenameParams(
+        doc, position(text, 'name="Green"', delta=7), "Go"))
+    assert edit is not None and edit.changes is not None
+    new = apply_edits(text, [TextEdit(lines.offset(e.range.start), lines.offset(e.range.end),
+                                      e.new_text) for e in edit.changes[uri]])
+    assert new.count('"Go"') == 3 and '"Green"' not in new
+    assert [x for x in new.splitlines() if x not in text.splitlines()] == [
+        x.replace('"Green"', '"Go"') for x in text.splitlines() if '"Green"' in x]
+    syms = await client.text_document_document_symbol_async(types.DocumentSymbolParams(doc))
+    assert syms is not None
+    assert [s.name for s in syms if isinstance(s, types.DocumentSymbol)] == ["Green", "Amber", "Red",
+                                                                             "Night"]
+    closed(client, uri)
+
+
+async def test_xml_completion_hover_and_a_fix(client: LanguageClient, tmp_path: Path) -> None:
+    text = XML.read_text()
+    p = tmp_path / "light.xml"
+    p.write_text(text)
+    uri = await opened(client, p)
+    doc = types.TextDocumentIdentifier(uri)
+
+    async def labels(text2: str, needle: str, version: int) -> set[str]:
+        await changed(client, uri, version, text2)
+        r = await client.text_document_completion_async(types.CompletionParams(
+            doc, position(text2, needle, delta=len(needle))))
+        assert isinstance(r, types.CompletionList)
+        return {i.label for i in r.items}
+
+    t = text.replace('<transition to="Green" after="5s"/>', '<transition to="N" after="5s"/>')
+    assert {"Night", "Green", "Amber", "Red"} <= await labels(t, '<transition to="', 2)
+    t = text.replace('<transition to="Green" after="5s"/>', '<transition to="Green" ')
+    assert await labels(t, '<transition to="Green" ', 3) == {"after", "name"}
+    t = text.replace('<state name="Night" final="true"/>', '<state name="Night" final="true"><')
+    assert {"entry", "transition", "automaton", "with"} <= await labels(t, 'final="true"><', 4)
+    t = text.replace("<when>button</when>", '<when>active("Am</when>')
+    assert "Amber" in await labels(t, 'active("Am', 5)
+    t = text.replace("<when>button</when>", "<when>cou</when>")
+    assert {"count", "cycles", "elapsed"} <= await labels(t, "<when>cou", 6)
+    h = await client.text_document_hover_async(types.HoverParams(doc, position(text, 'period="100ms"')))
+    assert h is not None and isinstance(h.contents, types.MarkupContent)
+    assert "period" in h.contents.value and "Cycle" in h.contents.value
+    # a misspelt target: the diagnostic, its hover, its quick fix applied
+    bad = text.replace('<transition to="Green" after="5s"/>', '<transition to="Gren" after="5s"/>')
+    diags = await changed(client, uri, 7, bad)
+    target = [d for d in diags if d.data and d.data.get("replace") == "Green"]
+    assert target, diags
+    h = await client.text_document_hover_async(types.HoverParams(doc, target[0].range.start))
+    assert h is not None and isinstance(h.contents, types.MarkupContent)
+    assert str(target[0].code) in h.contents.value
+    actions = await client.text_document_code_action_async(types.CodeActionParams(
+        doc, target[0].range, types.CodeActionContext(target)))
+    assert actions and isinstance(actions[0], types.CodeAction) and actions[0].edit is not None
+    assert actions[0].edit.changes is not None
+    lines = Lines(bad)
+    fixed = apply_edits(bad, [TextEdit(lines.offset(e.range.start), lines.offset(e.range.end), e.new_text)
+                              for e in actions[0].edit.changes[uri]])
+    assert fixed == text
+    # mid-typing: a broken tag keeps the last good symbols
+    diags = await changed(client, uri, 8, text.replace('<state name="Night" final="true"/>',
+                                                       '<state name="Night" final="true"'))
+    assert any(d.code == "E002" for d in diags)
+    syms = await client.text_document_document_symbol_async(types.DocumentSymbolParams(doc))
+    assert syms is not None and [s.name for s in syms if isinstance(s, types.DocumentSymbol)][-1] == "Night"
+    closed(client, uri)
+
+
+async def test_a_library_state_renamed_through_the_server_renames_its_users(
+        client: LanguageClient, tmp_path: Path) -> None:
+    """The models that use the library are searched in the workspace folder that holds it."""
+    lib, user, xml = library_and_users(tmp_path)
+    xml.chmod(0o444)
+    client.workspace_did_change_workspace_folders(types.DidChangeWorkspaceFoldersParams(
+        types.WorkspaceFoldersChangeEvent(added=[types.WorkspaceFolder(tmp_path.as_uri(), "t")],
+                                          removed=[])))
+    text = lib.read_text()
+    uri = await opened(client, lib)
+    client.messages.clear()
+    edit = await client.text_document_rename_async(types.RenameParams(
+        types.TextDocumentIdentifier(uri), position(text, "  Airborne:", delta=3), "InAir"))
+    assert edit is not None and edit.changes is not None
+    assert set(edit.changes) == {uri, user.resolve().as_uri()}
+    utext = user.read_text()
+    ulines = Lines(utext)
+    new = apply_edits(utext, [TextEdit(ulines.offset(e.range.start), ulines.offset(e.range.end), e.new_text)
+                              for e in edit.changes[user.resolve().as_uri()]])
+    assert 'active("TakeOff/InAir")' in new and new.replace("InAir", "Airborne") == utext
+    for _ in range(100):
+        if client.messages:
+            break
+        await asyncio.sleep(0.05)
+    assert any("read-only" in m.message and f"{xml}:" in m.message for m in client.messages)
+    closed(client, uri)
+    client.workspace_did_change_workspace_folders(types.DidChangeWorkspaceFoldersParams(
+        types.WorkspaceFoldersChangeEvent(added=[], removed=[types.WorkspaceFolder(tmp_path.as_uri(), "t")])))

@@ -25,7 +25,7 @@ STATE_SNIPPETS = ("entry", "during", "exit")
 TRANSITION_SNIPPETS = ("when", "do")
 ROOT_SNIPPETS = ("functions", "on_shutdown")
 
-_ACTIVE = re.compile(r"""\bactive\(\s*(\\?["'])([A-Za-z0-9_/]*)\1\s*\)""")
+ACTIVE = re.compile(r"""\bactive\(\s*(\\?["'])([A-Za-z0-9_/]*)\1\s*\)""")
 _TOKEN = re.compile(r"""(?P<pre>[rRbBuUfF]{0,2})(?P<q>"(?:\\.|[^"\\\n])*"|'(?:\\.|[^'\\\n])*')"""
                     r"""|(?P<c>#[^\n]*|//[^\n]*)|(?P<id>[A-Za-z_][A-Za-z0-9_]*)""")
 _FIELD = re.compile(r"\{([^{}]*)\}")
@@ -57,7 +57,48 @@ class Element:
     use: str | None = None  # a state whose sub-automaton comes from another file
 
 
-class Index:
+class Names:
+    """Definitions and references of one model text, YAML's or XML's: the questions the
+    language server and the renames ask."""
+
+    refs: list[Ref]
+    elements: dict[str, Element]
+    names: dict[str, str]  # parameter/variable/interface name -> kind
+    types: dict[str, str]  # interface name -> its type (`mavlink`, ...)
+
+    def at(self, offset: int) -> Ref | None:
+        """The name under ``offset`` (its end included, as a cursor after a word)."""
+        best = None
+        for r in self.refs:
+            if r.start <= offset <= r.end and (best is None or r.end - r.start < best.end - best.start):
+                best = r
+        return best
+
+    def definition(self, kind: str, target: str) -> Ref | None:
+        kinds = ("state", "region") if kind in ("state", "region") else (kind,)
+        return next((r for r in self.refs if r.definition and r.kind in kinds and r.target == target),
+                    None)
+
+    def references(self, kind: str, target: str) -> Iterator[Ref]:
+        kinds = ("state", "region") if kind in ("state", "region") else (kind,)
+        seen: set[tuple[int, int]] = set()
+        for r in self.refs:
+            if r.kind in kinds and r.target == target and (r.start, r.end) not in seen:
+                seen.add((r.start, r.end))
+                yield r
+
+    def snippet_names(self, text: str, start: int, end: int, dpath: PathKey) -> None:
+        """The parameters, variables and interfaces named in snippet text ``text[start:end]``."""
+        if not self.names:
+            return
+        for s, name in identifiers(text[start:end]):
+            kind = self.names.get(name)
+            if kind is not None and not (s > 0 and text[start + s - 1] == "&"):  # XML's &lt;
+                self.refs.append(Ref(kind, name, start + s, start + s + len(name), False, "snippet",
+                                     dpath))
+
+
+class Index(Names):
     """The definitions and references of one YAML text."""
 
     def __init__(self, tree: YamlTree) -> None:
@@ -73,7 +114,8 @@ class Index:
         self.tree = tree
         self.refs: list[Ref] = []
         self.elements: dict[str, Element] = {}
-        self.names: dict[str, str] = {}  # parameter/variable/interface name -> kind
+        self.names = {}
+        self.types = {}
         root = tree.root
         if root is None or root.kind != "map":
             return
@@ -81,8 +123,11 @@ class Index:
                               ("interfaces", "interface")):
             sec = root.get(section)
             if sec is not None and sec.kind == "map":
-                for k in sec.keys:
+                for k, v in zip(sec.keys, sec.items, strict=True):
                     self.names.setdefault(k.value, kind)
+                    t = v.get("type") if kind == "interface" else None
+                    if t is not None and t.kind == "scalar":
+                        self.types[k.value] = t.value
                     self.refs.append(Ref(kind, k.value, k.start, k.end, True, "key", (section, k.value)))
         self._automaton(root, "", (), is_root=True)
         oi = root.get("on_interrupt")
@@ -159,7 +204,7 @@ class Index:
             return
         text = self.tree.text
         raw = text[node.start:node.end]
-        for m in _ACTIVE.finditer(raw):
+        for m in ACTIVE.finditer(raw):
             pos = node.start + m.start(2)
             walked = ""
             for seg in m.group(2).split("/"):
@@ -167,36 +212,7 @@ class Index:
                     walked = f"{walked}/{seg}" if walked else seg
                     self.refs.append(Ref("state", walked, pos, pos + len(seg), False, "active", dpath))
                 pos += len(seg) + 1
-        if not self.names:
-            return
-        for start, name in _identifiers(raw):
-            kind = self.names.get(name)
-            if kind is not None:
-                s = node.start + start
-                self.refs.append(Ref(kind, name, s, s + len(name), False, "snippet", dpath))
-
-    # ----- questions
-
-    def at(self, offset: int) -> Ref | None:
-        """The name under ``offset`` (its end included, as a cursor after a word)."""
-        best = None
-        for r in self.refs:
-            if r.start <= offset <= r.end and (best is None or r.end - r.start < best.end - best.start):
-                best = r
-        return best
-
-    def definition(self, kind: str, target: str) -> Ref | None:
-        kinds = ("state", "region") if kind in ("state", "region") else (kind,)
-        return next((r for r in self.refs if r.definition and r.kind in kinds and r.target == target),
-                    None)
-
-    def references(self, kind: str, target: str) -> Iterator[Ref]:
-        kinds = ("state", "region") if kind in ("state", "region") else (kind,)
-        seen: set[tuple[int, int]] = set()
-        for r in self.refs:
-            if r.kind in kinds and r.target == target and (r.start, r.end) not in seen:
-                seen.add((r.start, r.end))
-                yield r
+        self.snippet_names(text, node.start, node.end, dpath)
 
 
 def _name_range(text: str, node: Node) -> tuple[int, int]:
@@ -206,7 +222,7 @@ def _name_range(text: str, node: Node) -> tuple[int, int]:
     return node.start, node.end
 
 
-def _identifiers(raw: str) -> Iterator[tuple[int, str]]:
+def identifiers(raw: str) -> Iterator[tuple[int, str]]:
     """(offset, name) of every identifier of snippet text, strings and comments skipped,
     attribute names (`x.name`) too."""
     for m in _TOKEN.finditer(raw):
@@ -218,5 +234,5 @@ def _identifiers(raw: str) -> Iterator[tuple[int, str]]:
         elif m.group("q") and "f" in m.group("pre").lower():
             base = m.start("q")
             for f in _FIELD.finditer(m.group("q")):
-                for s, name in _identifiers(f.group(1)):
+                for s, name in identifiers(f.group(1)):
                     yield base + f.start(1) + s, name

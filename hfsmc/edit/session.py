@@ -4,13 +4,15 @@ and redo as exact texts, and the file on disk watched for other writers (SPEC 8.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hfsmc.edit.references import Index
+from hfsmc.edit.references import Index, Names
 from hfsmc.edit.text import EditError, TextEdit, apply_edits
+from hfsmc.edit.xml_tree import XmlNames
 from hfsmc.edit.yaml_ops import YamlOps
 from hfsmc.errors import Diagnostic
 from hfsmc.frontend import is_xml
@@ -88,15 +90,16 @@ class EditSession:
         """The diagnostics of this file keyed by the innermost state or region they are
         in (`""`: the root; other files by their name)."""
         out: dict[str, list[Diagnostic]] = {}
+        index: Names | None
         try:
-            tree = YamlTree(self.text) if not is_xml(self.text) else None
+            index = XmlNames(self.text) if is_xml(self.text) else Index(YamlTree(self.text))
         except Exception:
-            tree = None
-        index = Index(tree) if tree is not None else None
+            index = None
+        starts = [0, *(m.end() for m in re.finditer(r"\r\n|\r|\n", self.text))]
         for d in self.diagnostics:
             key = d.span.file if os.path.normpath(d.span.file) != os.path.normpath(self.path) else ""
-            if not key and index is not None and tree is not None:
-                off = tree.offset(d.span.line - 1, d.span.col - 1)
+            if not key and index is not None:
+                off = starts[min(d.span.line, len(starts)) - 1] + d.span.col - 1
                 best = None
                 for el in index.elements.values():
                     s = el.key.start

@@ -34,7 +34,8 @@ RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
-INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",)}
+INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",),
+                   "driver": ("driver.hpp",)}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera): src/, beside the runtime's.
 INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",)}
 # What each driver's library links against, besides hfsmc_runtime.
@@ -299,8 +300,10 @@ class CppWalk(Walk[CppSnippet]):
         interfaces = []
         for i in m.interfaces:
             options = ", ".join(f"{{{cpp_string(k)}, {cpp_string(val)}}}" for k, val in i.options)
+            cls = (i.declaration.cls if i.declaration is not None
+                   else INTERFACE_CLASSES.get(i.type, "hfsmc::Unavailable"))
             interfaces.append(InterfaceView(
-                i.name, INTERFACE_CLASSES.get(i.type, "hfsmc::Unavailable"),
+                i.name, cls,
                 cpp_string(i.url or ""), "{" + options + "}", _line(self.file, i.span.line)))
         return tuple(params), tuple(variables), tuple(interfaces)
 
@@ -347,9 +350,9 @@ class CppWalk(Walk[CppSnippet]):
             includes=tuple(IncludeView(_include(i.text), _line(i.span.file, i.span.line))
                            for i in imports),
             driver_headers=tuple(f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds)
-                                 if k in INTERFACE_FILES),
+                                 if k in INTERFACE_FILES) + tuple(user_headers(m).values()),
             driver_libraries=tuple(DriverLibraryView(f"hfsmc_{k}", _DRIVER_LINKS[k])
-                                   for k in sorted(kinds) if k in INTERFACE_FILES),
+                                   for k in sorted(kinds) if k in INTERFACE_SOURCES),
             parameters=params,
             parameter_help=tuple(
                 ParameterHelpView(cpp_string(p.name), cpp_string(p.type),
@@ -484,6 +487,21 @@ def component_sources(model: Model) -> ComponentSources:
     return _render_sources(_environment(), component_view(model))
 
 
+def user_headers(model: Model) -> dict[str, str]:
+    """A user's C++ driver headers, by path: where the component includes them from
+    (``drivers/NAME.hpp`` under include/); two headers of one name are refused."""
+    out: dict[str, str] = {}
+    for i in model.interfaces:
+        if i.cpp is None or i.declaration is None or i.cpp.path in out:
+            continue
+        base = i.cpp.written.replace("\\", "/").rsplit("/", 1)[-1]
+        if f"drivers/{base}" in out.values():
+            fail(EmitError, "E188", f"two driver headers are both `{base}`: rename one",
+                 i.cpp.span)
+        out[i.cpp.path] = f"drivers/{base}"
+    return out
+
+
 def component_files(model: Model) -> dict[str, bytes]:
     """Every file of the C++ component folder, by relative path."""
     if model.language != "cpp":
@@ -502,6 +520,9 @@ def component_files(model: Model) -> dict[str, bytes]:
                              (i.type for i in model.interfaces), into="include/hfsmc/"))
     out.update(runtime_files(folder, RUNTIME_SOURCES, INTERFACE_SOURCES,
                              (i.type for i in model.interfaces), into="src/"))
+    for i in model.interfaces:  # a user's driver headers (docs/drivers.md)
+        if i.cpp is not None and i.declaration is not None:
+            out[f"include/{user_headers(model)[i.cpp.path]}"] = i.cpp.text.encode("utf-8")
     if any(i.type == "mavlink" for i in model.interfaces):
         from hfsmc.emit.mavgen import MavgenError, mavlink_headers
 

@@ -31,6 +31,8 @@ def model_to_data(model: Model) -> dict[str, Any]:
     if model.interfaces:
         d["interfaces"] = {
             i.name: {"type": i.type, **({"url": i.url} if i.url is not None else {}),
+                     **({"python": i.python.written} if i.python is not None else {}),
+                     **({"cpp": i.cpp.written} if i.cpp is not None else {}),
                      **({"options": dict(i.options)} if i.options else {})}
             for i in model.interfaces
         }
@@ -133,7 +135,7 @@ def component_config(model: Model) -> str:
     """The body of a component's NAME.yaml: parameters and interfaces, JSON-syntax YAML."""
     data = {
         "parameters": {p.name: thaw(p.default) for p in model.parameters},
-        "interfaces": {i.name: {"type": i.type, "url": i.url, **({"options": dict(i.options)}
+        "interfaces": {i.name: {"type": i.kind, "url": i.url, **({"options": dict(i.options)}
                                                                  if i.options else {})}
                        for i in model.interfaces},
     }

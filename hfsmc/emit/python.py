@@ -21,12 +21,13 @@ from hfsmc.emit.data import component_config
 from hfsmc.emit.templating import environment, runtime_files, template_folder
 from hfsmc.emit.walk import InstanceView, MachineView, Snippet, Walk
 from hfsmc.errors import EmitError, Span, fail
-from hfsmc.ir import Code, DictValue, Model, Value
+from hfsmc.ir import Code, DictValue, Interface, Model, Value
 from hfsmc.pycheck import import_statement
 
-RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_viewstate.py", "hfsmc_view.py", "hfsmc_monitor.py",
+RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py", "hfsmc_monitor.py",
                  "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py")
-INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py",), "camera": ("hfsmc_camera.py",)}
+INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py",), "camera": ("hfsmc_camera.py",),
+                   "driver": ("hfsmc_driver.py",)}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
 _TRY_MARK = re.compile(r"^\s*try:  # s(\d+)$")
@@ -166,6 +167,7 @@ class PythonComponentView:
     descriptions_literal: str  # a dict literal of the parameters' descriptions ("" if none)
     variables: tuple[VariableView, ...]
     interfaces: tuple[InterfaceView, ...]
+    drivers_literal: str  # {kind: (module, class)} of the model's own drivers
     machine: MachineView[PythonSnippet]
     interrupt_timeout_us: int | None
     time_limit_us: int | None  # the model's time_limit (--time-limit overrides it)
@@ -216,8 +218,10 @@ class PythonWalk(Walk[PythonSnippet]):
                              for p in m.parameters),
             descriptions_literal=repr(descriptions) if descriptions else "",
             variables=tuple(VariableView(v.name, _py_literal(v.init)) for v in m.variables),
-            interfaces=tuple(InterfaceView(i.name, i.type, i.url, repr(dict(i.options)))
+            interfaces=tuple(InterfaceView(i.name, i.kind, i.url, repr(dict(i.options)))
                              for i in m.interfaces),
+            drivers_literal=repr({i.kind: (driver_module(m, i), i.declaration.cls)
+                                  for i in m.interfaces if i.declaration is not None}),
             machine=machine,
             interrupt_timeout_us=m.interrupt_timeout_us,
             time_limit_us=m.time_limit_us,
@@ -298,6 +302,34 @@ def _line_table(text: str, snippets: tuple[PythonSnippet, ...]) -> str:
     return "_hfsm_SNIPPETS = (\n" + "\n".join(rows) + "\n)"
 
 
+def driver_module(model: Model, i: Interface) -> str:
+    """The module name of a user's Python driver in the component folder: its file's
+    name, which must be a module name that no file of the component takes."""
+    assert i.python is not None
+    stem = i.python.written.replace("\\", "/").rsplit("/", 1)[-1][:-3]
+    if (not stem.isidentifier() or stem.startswith("hfsmc_") or stem == model.name
+            or stem.startswith("_hfsm")):
+        fail(EmitError, "E188", f"driver `{i.python.written}`: the file's name becomes a module "
+             "of the component: a Python name that does not start with `hfsmc_` and is not "
+             "the model's name", i.python.span)
+    return stem
+
+
+def _driver_files(model: Model) -> dict[str, bytes]:
+    out: dict[str, bytes] = {}
+    by_module: dict[str, str] = {}
+    for i in model.interfaces:
+        if i.python is None or i.declaration is None:
+            continue
+        module = driver_module(model, i)
+        seen = by_module.setdefault(module, i.python.path)
+        if seen != i.python.path:
+            fail(EmitError, "E188", f"two drivers are both module `{module}` in the component "
+                 f"({seen} and {i.python.path}): rename one", i.python.span)
+        out[f"{module}.py"] = i.python.text.encode("utf-8")
+    return out
+
+
 def component_files(model: Model) -> dict[str, bytes]:
     """Every file of the component folder, by relative path."""
     if model.language != "python":
@@ -320,4 +352,5 @@ def component_files(model: Model) -> dict[str, bytes]:
         out[f"{uview.module}.py"] = text.encode("utf-8")
     out.update(runtime_files(template_folder("python"), RUNTIME_FILES, INTERFACE_FILES,
                              (i.type for i in model.interfaces)))
+    out.update(_driver_files(model))
     return out

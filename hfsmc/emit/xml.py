@@ -43,7 +43,9 @@ def to_xml(model: Model, comments: Sequence[tuple[int, str]] = ()) -> str:
     for imp in model.imports:
         w.text(1, "import", imp.text, imp.span)
     for i in model.interfaces:
-        attrs = [("name", i.name), ("type", i.type), ("url", i.url)]
+        attrs = [("name", i.name), ("type", i.type), ("url", i.url),
+                 ("python", i.python.written if i.python else None),
+                 ("cpp", i.cpp.written if i.cpp else None)]
         if not i.options:
             w.empty(1, "interface", attrs, i.span)
             continue

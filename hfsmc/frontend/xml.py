@@ -372,7 +372,7 @@ class _Converter:
         if found is None:
             return
         item, path = found
-        for name in ("type", "url", "default", "init", "description"):
+        for name in ("type", "url", "python", "cpp", "default", "init", "description"):
             self.attr(el, path, item, name)
         for option in el.iterchildren("option"):
             self.first_key(option, (*path, "options"))

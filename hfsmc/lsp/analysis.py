@@ -8,10 +8,10 @@ import re
 import threading
 from dataclasses import dataclass, field
 
-import yaml
 from lsprotocol import types
 
-from hfsmc.edit.references import Index
+from hfsmc.edit.library import names_of
+from hfsmc.edit.references import Index, Names
 from hfsmc.errors import Diagnostic
 from hfsmc.frontend import is_xml
 from hfsmc.frontend.yaml_ranges import YamlTree
@@ -39,16 +39,13 @@ class Source:
     of later texts that do not parse)."""
 
     text: str
-    _index: Index | None = None
+    _index: Names | None = None
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
-    def index(self) -> Index | None:
+    def index(self) -> Names | None:
         with self._lock:
             if self._index is None:
-                try:
-                    self._index = Index(YamlTree(self.text))
-                except yaml.YAMLError:
-                    return None
+                self._index = names_of(self.text)
             return self._index
 
 
@@ -67,13 +64,18 @@ class Analysis:
         return self.source is not None and self.source.text == self.text
 
     @property
-    def index(self) -> Index | None:
+    def index(self) -> Names | None:
         return self.source.index() if self.source is not None else None
 
     @property
     def tree(self) -> YamlTree | None:
+        """The YAML tree (None for XML)."""
         index = self.index
-        return index.tree if index is not None else None
+        return index.tree if isinstance(index, Index) else None
+
+    @property
+    def xml(self) -> bool:
+        return is_xml(self.text)
 
     def for_text(self, text: str) -> Analysis:
         """This analysis read against newer ``text`` (completion reads the line as typed,
@@ -85,12 +87,11 @@ def analyse(path: str, text: str, last: Analysis | None, cxx: bool = False) -> A
     """Check ``text`` (as ``hfsmc check`` does; g++ on C++ snippets only with ``cxx``)."""
     a = Analysis(path, text, Lines(text))
     a.diagnostics = compile_file(path, text, cxx=cxx).diagnostics
-    if not is_xml(text):
-        broken = any(d.code in SYNTAX and d.span.file == path for d in a.diagnostics)
-        if not broken:
-            a.source = Source(text)
-        elif last is not None:
-            a.source = last.source
+    broken = any(d.code in SYNTAX and d.span.file == path for d in a.diagnostics)
+    if not broken:
+        a.source = Source(text)
+    elif last is not None:
+        a.source = last.source
     return a
 
 

@@ -14,11 +14,15 @@ from typing import Any
 from lsprotocol import types
 
 from hfsmc.drivers import driver
-from hfsmc.edit.references import Index, Ref
+from hfsmc.edit.library import model_files, names_of, rename_in_users
+from hfsmc.edit.references import Index, Names, Ref
 from hfsmc.edit.text import EditError, apply_edits
+from hfsmc.edit.xml_ops import XmlOps
+from hfsmc.edit.xml_tree import XmlNames
 from hfsmc.edit.yaml_ops import YamlOps
 from hfsmc.errors import CODES
 from hfsmc.frontend.yaml_ranges import YamlTree
+from hfsmc.lsp import xml_features
 from hfsmc.lsp.analysis import Analysis
 from hfsmc.lsp.positions import Lines
 from hfsmc.resources import schema_file
@@ -26,8 +30,8 @@ from hfsmc.resources import schema_file
 HELPERS = {"log": "log(msg): write a log line", "elapsed": "elapsed(): seconds since the state was entered",
            "now": "now(): seconds since the component started", "done": "done(): the sub-automaton is in a final state",
            "active": 'active("A/B"): that state is active now', "shutdown": "shutdown(): ask for a graceful stop"}
-_STATE_VALUE = re.compile(r"(?:^|[{,\s])(?:to|initial|on_interrupt)\s*:\s*[\"']?(\w*)$")
-_ACTIVE_OPEN = re.compile(r"""active\(\s*\\?["']([\w/]*)$""")
+_STATE_VALUE = re.compile(r"(?:^|[{,\s])(?:to|initial|on_interrupt)\s*(?::\s*[\"']?|=\s*[\"'])(\w*)$")
+_ACTIVE_OPEN = re.compile(r"""active\(\s*(?:\\?["']|&quot;|&apos;)([\w/]*)$""")
 _ATTRIBUTE = re.compile(r"\b([A-Za-z_]\w*)\.(\w*)$")
 _DOLLAR = re.compile(r"\$(\w*)$")
 _KEY_START = re.compile(r"^(\s*)(?:-\s+)?([A-Za-z_]\w*)?$")
@@ -56,7 +60,7 @@ def definition(a: Analysis, offset: int) -> types.Location | None:
     return None
 
 
-def _in_used_file(a: Analysis, index: Index, target: str) -> types.Location | None:
+def _in_used_file(a: Analysis, index: Names, target: str) -> types.Location | None:
     """A state path that goes into a `use`d file: its definition there."""
     parts = target.split("/")
     for i in range(len(parts) - 1, 0, -1):
@@ -65,8 +69,10 @@ def _in_used_file(a: Analysis, index: Index, target: str) -> types.Location | No
             used = Path(a.path).parent / el.use
             try:
                 text = used.read_text("utf-8")
-                other = Index(YamlTree(text))
-            except (OSError, ValueError, Exception):
+            except (OSError, ValueError):
+                return None
+            other = names_of(text)
+            if other is None:
                 return None
             d = other.definition("state", "/".join(parts[i:]))
             if d is None:
@@ -86,24 +92,47 @@ def references(a: Analysis, offset: int, declaration: bool) -> list[types.Locati
             for r in a.index.references(ref.kind, ref.target) if declaration or not r.definition]
 
 
-def rename(a: Analysis, offset: int, new: str) -> types.WorkspaceEdit:
-    """The edits of a rename of the name under ``offset`` (raises EditError)."""
+def rename(a: Analysis, offset: int, new: str, roots: Sequence[str] = ()
+           ) -> tuple[types.WorkspaceEdit, str | None]:
+    """The edits of a rename of the name under ``offset`` (raises EditError), and what
+    could not be renamed (read-only models that use this one).  A state renamed in a
+    library is renamed in the `active()` paths of the models that use it, in those of the
+    folders ``roots`` (the workspace's) that hold the library."""
     if a.index is None or not a.parsed:
         raise EditError("the document does not parse: fix it before renaming")
     ref = a.index.at(offset)
     if ref is None or ref.kind == "file":
         raise EditError("no state, region, parameter, variable or interface here")
-    ops = YamlOps(a.text, a.index)
+    ops: YamlOps | XmlOps = XmlOps(a.text, a.index) if isinstance(a.index, XmlNames) else \
+        YamlOps(a.text, a.index if isinstance(a.index, Index) else None)
+    users = None
     if ref.kind in ("state", "region"):
         if ref.target not in a.index.elements:
             raise EditError(f"`{ref.target}` is not defined in this file (a used file's states "
                             "are read-only here: rename it in that file)")
         edits = ops.rename(ref.target, new)
+        users = rename_in_users(Path(a.path), ref.target, new, _models_beside(a.path, roots))
     else:
         edits = ops.rename_declaration(ref.kind, ref.target, new)
     apply_edits(a.text, edits)  # refuses overlapping edits before the client sees them
-    return types.WorkspaceEdit(changes={uri_of(a.path): [
-        types.TextEdit(a.lines.range(e.start, e.end), e.new) for e in edits]})
+    changes = {uri_of(a.path): [types.TextEdit(a.lines.range(e.start, e.end), e.new) for e in edits]}
+    if users is None:
+        return types.WorkspaceEdit(changes=changes), None
+    for f, more in users.edits.items():
+        lines = Lines(users.texts[f])
+        changes[uri_of(f)] = [types.TextEdit(lines.range(e.start, e.end), e.new) for e in more]
+    return types.WorkspaceEdit(changes=changes), users.message()
+
+
+def _models_beside(path: str, roots: Sequence[str]) -> list[Path]:
+    """The model files of the workspace folders that hold ``path`` (none for a file
+    outside the workspace)."""
+    p = Path(path).resolve()
+    out: dict[Path, None] = {}
+    for r in roots:
+        if p.is_relative_to(Path(r).resolve()):
+            out.update(dict.fromkeys(model_files(Path(r))))
+    return list(out)
 
 
 # ----- symbols
@@ -198,14 +227,18 @@ def completion(a: Analysis, offset: int) -> list[types.CompletionItem]:
         return [types.CompletionItem(n, kind=types.CompletionItemKind.Constant)
                 for n, k in sorted(index.names.items()) if k == "parameter"]
     m = _ATTRIBUTE.search(before)
-    if m and index.names.get(m.group(1)) == "interface" and a.tree is not None:
-        spec = a.tree.find(("interfaces", m.group(1), "type"))
-        drv = driver(spec.value) if spec is not None else None
+    if m and index.names.get(m.group(1)) == "interface":
+        kind = index.types.get(m.group(1))
+        drv = driver(kind) if kind is not None else None
         if drv is not None:
             return [types.CompletionItem(x.name, kind=types.CompletionItemKind.Method,
                                          detail=x.signature(), documentation=x.doc)
                     for x in drv.methods.values()]
         return items
+    if isinstance(index, XmlNames):
+        markup = xml_features.completion(a.text, offset)
+        if markup is not None:
+            return markup
     m = _KEY_START.match(before)
     if m and a.tree is not None:
         path = _mapping_at(a.tree, offset, len(m.group(1)))
@@ -245,9 +278,13 @@ def hover(a: Analysis, offset: int, diagnostics: list[types.Diagnostic]) -> type
             code = str(d.code)
             return types.Hover(types.MarkupContent(types.MarkupKind.Markdown,
                                                    f"**{code}**: {CODES.get(code, '')}\n\n{d.message}"))
-    if a.tree is None:
-        return None
-    for path, node in a.tree.walk():
+    if isinstance(a.index, XmlNames):
+        found = xml_features.hover(a.text, offset)
+        if found is not None:
+            word, s, e = found
+            return types.Hover(types.MarkupContent(types.MarkupKind.Markdown, word),
+                               range=a.lines.range(s, e))
+    for path, node in a.tree.walk() if a.tree is not None else ():
         if node.kind != "map":
             continue
         for k in node.keys:

@@ -180,9 +180,15 @@ def rename(ls: HfsmcServer, params: types.RenameParams) -> types.WorkspaceEdit |
         a = analyse(a.path, ls.text(params.text_document.uri), a)
         off = a.lines.offset(params.position)
     try:
-        return features.rename(a, off, params.new_name)
+        roots = [path_of(f.uri) for f in ls.workspace.folders.values()]
+        if ls.workspace.root_path and ls.workspace.root_path not in roots:
+            roots.append(ls.workspace.root_path)
+        edit, left = features.rename(a, off, params.new_name, roots)
     except EditError as e:
         raise JsonRpcInvalidParams(str(e)) from None
+    if left is not None:
+        ls.window_show_message(types.ShowMessageParams(types.MessageType.Warning, f"hfsmc: {left}"))
+    return edit
 
 
 @server.feature(types.TEXT_DOCUMENT_COMPLETION,

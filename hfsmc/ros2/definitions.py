@@ -62,7 +62,7 @@ STANDARD_DEFAULTS: dict[str, dict[tuple[str, str], Scalar]] = {
 }
 
 # Field names the generated Python or C++ could not carry (ROS 2 packages avoid them too).
-_RESERVED = frozenset(keyword.kwlist) | frozenset("""
+_CPP_KEYWORDS = """
     alignas alignof and and_eq asm auto bitand bitor bool break case catch char char8_t
     char16_t char32_t class compl concept const consteval constexpr constinit const_cast
     continue co_await co_return co_yield decltype default delete do double dynamic_cast
@@ -70,7 +70,8 @@ _RESERVED = frozenset(keyword.kwlist) | frozenset("""
     namespace new noexcept not not_eq nullptr operator or or_eq private protected public
     register reinterpret_cast requires return short signed sizeof static static_assert
     static_cast struct switch template this thread_local throw true try typedef typeid
-    typename union unsigned using virtual void volatile wchar_t while xor xor_eq""".split())
+    typename union unsigned using virtual void volatile wchar_t while xor xor_eq"""
+_RESERVED = frozenset(keyword.kwlist) | frozenset(_CPP_KEYWORDS.split())
 _PACKAGE = re.compile(r"^[a-z](?:[a-z0-9]|_(?!_))*(?<!_)$")
 _MESSAGE = re.compile(r"^[A-Z][A-Za-z0-9]*$")
 _FIELD = re.compile(r"^[a-z](?:[a-z0-9]|_(?!_))*(?<!_)$")

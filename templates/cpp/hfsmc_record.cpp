@@ -52,10 +52,21 @@ void Recorder::start(const Run& run) {
         const std::uint16_t cam = schema("hfsmc.camera.Snapshot", schemas::camera);
         const std::uint16_t img = schema("foxglove.CompressedImage", schemas::image);
         const std::uint16_t cmd = schema("hfsmc.Command", schemas::command);
+        std::map<std::string, std::uint16_t> own;  // user drivers' schemas, by kind
         for (const Source* s : sources()) {
             Channels& c = channels_[s];
-            const bool is_camera = std::string(s->source_type()) == "camera";
-            c.snapshot = w_->add_channel("/hfsmc/interface/" + s->source_name(), "json", is_camera ? cam : mav);
+            const std::string type = s->source_type();
+            const bool is_camera = type == "camera";
+            std::uint16_t snap = is_camera ? cam : mav;
+            if (type != "camera" && type != "mavlink") {
+                auto found = own.find(type);
+                if (found == own.end()) {
+                    const std::string text = s->snapshot_schema();
+                    found = own.emplace(type, schema(("hfsmc." + type + ".Snapshot").c_str(), text.c_str())).first;
+                }
+                snap = found->second;
+            }
+            c.snapshot = w_->add_channel("/hfsmc/interface/" + s->source_name(), "json", snap);
             if (is_camera) c.frame = w_->add_channel("/hfsmc/frame/" + s->source_name(), "json", img);
             c.command = w_->add_channel("/hfsmc/command/" + s->source_name(), "json", cmd);
         }

@@ -85,7 +85,11 @@ class Playback:
         self.signals: list[tuple[int, int, str]] = []  # (ticks, t, reason)
         self.fakes: dict[str, Any] = {}
         self.place: dict[str, int] = {}
-        path = os.path.join(folder, "inputs.jsonl")
+        # the entries as written, and the first that a built-in driver's fields refuse
+        self.raw: dict[str, list[tuple[int, dict[str, Any], frozenset[str]]]] = {}
+        self.bad: dict[str, str] = {}
+        path = self.path = os.path.join(folder, "inputs.jsonl")
+        self.line = 0
         try:
             with open(path, encoding="utf-8") as f:
                 lines = f.read().splitlines()
@@ -95,6 +99,7 @@ class Playback:
             raise PlaybackError(f"{path}: not UTF-8 text") from None
         last = -1
         for n, line in enumerate(lines, 1):
+            self.line = n
             if not line.strip():
                 continue
             try:
@@ -128,9 +133,14 @@ class Playback:
             missing = entry.get("unrecorded", [])
             if not isinstance(missing, list) or not all(isinstance(m, str) for m in missing):
                 raise ValueError("`unrecorded` must be a list of field names")
-            self.snapshots.setdefault(str(entry["interface"]), []).append(
-                (t, {k: v if k == "frame" else _normal(k, v) for k, v in values.items()},
-                 frozenset(missing)))
+            name = str(entry["interface"])
+            self.raw.setdefault(name, []).append((t, values, frozenset(missing)))
+            try:  # the built-in drivers' fields; a user driver's fake converts its own
+                self.snapshots.setdefault(name, []).append(
+                    (t, {k: v if k == "frame" else _normal(k, v) for k, v in values.items()},
+                     frozenset(missing)))
+            except ValueError as e:
+                self.bad.setdefault(name, f"{self.path}:{self.line}: {e}")
         elif kind == "skip":
             self.skips[(t, str(entry["automaton"]))] = (int(entry["deadline"]), int(entry["missed"]))
         elif kind == "signal":
@@ -143,6 +153,8 @@ class Playback:
     def fake(self, name: str, kind: str) -> Any:
         """The fake of interface ``name`` (None for a kind that has none)."""
         fake: Any
+        if name in self.bad and kind in ("mavlink", "camera"):
+            raise PlaybackError(self.bad[name])
         if kind == "mavlink":
             import hfsmc_mavlink  # type: ignore[import-not-found]  # beside the component
             fake = fake_vehicle(name, hfsmc_mavlink, self)
@@ -151,6 +163,21 @@ class Playback:
             fake = fake_camera(name, hfsmc_camera, self.folder, self)
         else:
             return None
+        self.fakes[name] = fake
+        self.place[name] = 0
+        return fake
+
+    def adopt(self, name: str, fake: Any) -> Any:
+        """A user driver's fake (hfsmc_driver.Driver.fake), fed like the built-in ones from
+        the entries as written (its ``apply`` converts and checks them)."""
+        self.snapshots[name] = self.raw.get(name, [])
+        fields = getattr(type(fake), "SNAPSHOT", {})
+        for t, values, _ in self.snapshots[name]:  # a field it lacks: said at start
+            odd = [k for k in values if k not in fields]
+            if odd:
+                raise PlaybackError(f"{self.path}: t={t}: the {getattr(fake, 'KIND', '')} "
+                                    f"interface `{name}` has no snapshot field `{odd[0]}` "
+                                    f"(fields: {', '.join(fields)})")
         self.fakes[name] = fake
         self.place[name] = 0
         return fake

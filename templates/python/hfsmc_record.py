@@ -122,6 +122,10 @@ class Recorder:
         self._io(lambda: self.w.add_message(self._channel(topic, schema), at,
                                             _json(message).encode(), at))
 
+    def declare(self, kind: str, schema: dict[str, Any]) -> None:
+        """The snapshot schema of a user's driver (hfsmc_driver.Driver.snapshot_schema)."""
+        _SCHEMAS.setdefault(f"hfsmc.{kind}.Snapshot", schema)
+
     def snapshot(self, t_us: int, name: str, kind: str, values: dict[str, Any]) -> None:
         self._write(f"/hfsmc/interface/{name}", f"hfsmc.{kind}.Snapshot", t_us,
                     {"t": t_us, **plain(values)})

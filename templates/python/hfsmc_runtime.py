@@ -23,7 +23,10 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from typing import IO, Any, NoReturn
+from typing import IO, Any
+
+import hfsmc_interfaces  # type: ignore[import-not-found]  # beside the component
+from hfsmc_interfaces import StartError, UsageError  # the interfaces' errors are the runtime's
 
 PROTOCOL = 1
 EXIT_STATUS = {"final": 0, "until": 0, "shutdown": 0, "sigint": 130, "sigterm": 143,
@@ -36,10 +39,6 @@ _SAMPLE_EVERY_S = 0.1
 _RATE_OVER_S = 1.0  # --clock sim: the rate the views show is over the last second
 
 
-class UsageError(Exception):
-    """A bad flag or configuration: exit status 2."""
-
-
 def parse_duration_us(text: str) -> int:
     """``250ms``, ``2s``, ``1.5s``, ``2m``, or a bare integer of milliseconds."""
     m = _DURATION.match(text)
@@ -48,70 +47,6 @@ def parse_duration_us(text: str) -> int:
     whole, _, frac = m.group(1).partition(".")
     unit = _US[m.group(2) or "ms"]
     return int(whole) * unit + (int(frac) * unit // 10 ** len(frac) if frac else 0)
-
-
-class Unavailable:
-    """An interface this component cannot drive: fails when used, not at start."""
-
-    def __init__(self, name: str, why: str) -> None:
-        object.__setattr__(self, "_why", f"interface `{name}`: {why}")
-
-    def __getattr__(self, attr: str) -> NoReturn:
-        raise RuntimeError(object.__getattribute__(self, "_why"))
-
-    def __setattr__(self, attr: str, value: object) -> NoReturn:
-        raise RuntimeError(object.__getattribute__(self, "_why"))
-
-    def __call__(self, *args: object, **kwargs: object) -> NoReturn:
-        raise RuntimeError(object.__getattribute__(self, "_why"))
-
-    def __bool__(self) -> NoReturn:
-        raise RuntimeError(object.__getattribute__(self, "_why"))
-
-    def __iter__(self) -> NoReturn:
-        raise RuntimeError(object.__getattribute__(self, "_why"))
-
-    def __repr__(self) -> str:
-        return f"<{object.__getattribute__(self, '_why')}>"
-
-
-class StartError(Exception):
-    """The component cannot start (a library an interface needs is missing): exit status 1."""
-
-
-# What to install for a module a driver imports (pip names; Debian: python3-opencv etc.).
-_INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": "numpy",
-            "serial": "pyserial"}
-
-
-def make_interface(name: str, kind: str, url: str | None, options: dict[str, str],
-                   sim: Any = None) -> object:
-    """The driver object of an interface, by type.
-
-    A driver whose library is missing (pymavlink, OpenCV) stops the component at
-    start with what to install, rather than at the first call of a snippet.
-    """
-    modules = {"mavlink": "hfsmc_mavlink", "camera": "hfsmc_camera"}
-    if kind in modules:
-        try:
-            module = __import__(modules[kind])
-            factory: Callable[..., object] = module.connect
-            if sim is None:
-                return factory(name, url, options)
-            driver = factory(name, url, options, sim)
-            sim.drivers.append(driver)
-            return driver
-        except ImportError as e:  # the driver's library, or one its URL needs (pyserial)
-            missing = getattr(e, "name", None) or "?"
-            top = missing.partition(".")[0]
-            how = f"pip install {_INSTALL[top]}" if top in _INSTALL else f"install `{top}`"
-            raise StartError(f"interface `{name}` ({kind}) needs the Python module `{missing}`, "
-                             f"which is not installed: {how}") from None
-        except Exception as e:  # a URL the driver's library refuses (a port out of range)
-            raise StartError(f"interface `{name}` ({kind}): cannot open `{url}`: "
-                             f"{type(e).__name__}: {e}") from None
-    return Unavailable(name, f"interfaces of type `{kind}` are kept from a legacy model "
-                             "but hfsmc components cannot drive them")
 
 
 class Trace:
@@ -1087,18 +1022,7 @@ def _configure(engine: Engine, args: argparse.Namespace, here: str) -> None:
     for name, given in wired.items():
         _mapping(given, f"{path}: interface `{name}`")
         _mapping((given or {}).get("options"), f"{path}: the options of interface `{name}`")
-    for name, kind, url, options in m["interfaces"]:
-        given = wired.get(name) or {}
-        extra = given.get("options") or {}
-        where = given.get("url", url)
-        kind = str(given.get("type", kind))
-        where = None if where is None else str(where)
-        engine.wiring[name] = {"type": kind, "url": where, "options": {**options, **extra}}
-        fake = engine.playback.fake(name, kind) if engine.playback is not None else None
-        ns[name] = fake if fake is not None else make_interface(name, kind, where,
-                                                                {**options, **extra}, engine.sim)
-        if callable(getattr(type(ns[name]), "snapshot", None)):  # not Unavailable's __getattr__
-            engine.inputs.append((name, kind, ns[name]))
+    hfsmc_interfaces.wire(engine, wired)
     bind_instances(engine)
 
 
@@ -1121,21 +1045,7 @@ def _record(engine: Engine, args: argparse.Namespace, until: int | None,
         raise UsageError(f"--record {args.record}: {e.strerror}") from None
     engine.recorder = rec
     for name, _kind, iface in engine.inputs:
-        _hook(engine, name, iface)
-
-
-def _hook(engine: Engine, name: str, iface: Any) -> None:
-    """Tell the recording and the playback what the snippets do with an interface."""
-    rec, pb = engine.recorder, engine.playback
-    if rec is not None and hasattr(iface, "on_frame"):
-        iface.on_frame = lambda count, image, jpeg: rec.frame(engine.t, name, count, image, jpeg)
-    if hasattr(iface, "on_command"):
-        def told(call: str, args: list[Any]) -> None:
-            if rec is not None:
-                rec.command(engine.t, name, call, args)
-            if pb is not None:
-                pb.command(engine.t, name, call, args)
-        iface.on_command = told
+        hfsmc_interfaces.hook(engine, name, iface)
 
 
 def main(engine: Engine, argv: Sequence[str], here: str) -> int:
@@ -1172,7 +1082,7 @@ def main(engine: Engine, argv: Sequence[str], here: str) -> int:
             _record(engine, args, until, time_limit)
         elif engine.playback is not None:
             for name, _kind, iface in engine.inputs:
-                _hook(engine, name, iface)
+                hfsmc_interfaces.hook(engine, name, iface)
         if args.trace_variables and not args.trace:
             raise UsageError("--trace-variables needs --trace FILE")
         if args.trace:

@@ -64,6 +64,8 @@ public:
     virtual void take_snapshot(long long t_us) = 0;
     // The snapshot's fields as JSON members, after `"t":..,` in its message.
     virtual std::string snapshot_fields() const = 0;
+    // A user driver's JSON Schema of its snapshot (hfsmc/driver.hpp); "" for the built-in ones.
+    virtual std::string snapshot_schema() const { return std::string(); }
 
 protected:
     // A command a snippet gave: to the recording, and with --playback to DIR/commands.jsonl.

@@ -1,0 +1,211 @@
+// hfsmc/driver.hpp: the base of a user's C++ driver (`type: driver`, docs/drivers.md).
+// Copied into a C++ component whose model names a driver of its own.
+//
+// The C++ twin of templates/python/hfsmc_driver.py. A driver derives from
+// hfsmc::Driver<Snap>, where Snap is a plain struct of the snapshot's fields with their
+// "nothing yet" values and a static `fields(Snap&)` that names them (in the order of the
+// declaration block); the base class then takes the snapshot of each instant (live:
+// read(); with --playback: the script's entries), records it (channel
+// /hfsmc/interface/NAME, schema hfsmc.KIND.Snapshot, the same JSON as the Python
+// driver's), tells every command to the recording or the playback, and keeps the
+// options (the declared defaults under the model's and NAME.yaml's values).
+//
+// A query reads snap("query"); a command starts with `if (!command("name", args_json))
+// return;` (a fake sends nothing). The driver's own thread: start_thread(); its
+// destructor calls stop() first (the thread must end before the members it uses go).
+#pragma once
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <limits>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "hfsmc/json.hpp"
+#include "hfsmc/playback.hpp"
+#include "hfsmc/record.hpp"
+#include "hfsmc/thread.hpp"
+
+namespace hfsmc {
+
+// One snapshot field: its name and where it lives in a Snap.
+struct Field {
+    const char* name;
+    std::variant<double*, long long*, bool*, std::string*> ref;
+};
+
+template <class Snap>
+class Driver : public Source {
+public:
+    using Options = std::map<std::string, std::string>;
+
+    // `kind`: the declaration's kind; `declared`: each option and its default, as text.
+    Driver(const char* kind, std::string name, std::string url, const Options& options,
+           const Options& declared)
+        : kind_(kind), name_(std::move(name)), url_(std::move(url)), options_(declared) {
+        for (const auto& kv : options) {
+            if (declared.count(kv.first) == 0) {
+                std::string known;
+                for (const auto& d : declared) known += (known.empty() ? "" : ", ") + d.first;
+                say("cannot start: no option `" + kv.first + "` (options: " +
+                    (known.empty() ? "none" : known) + ")");
+                std::exit(1);
+            }
+            options_[kv.first] = kv.second;
+        }
+        if (playback::Inputs* inputs = playback::current()) {  // a fake fed from the inputs
+            inputs_ = inputs;
+            Snap scratch;  // every entry checked now: a bad value is said before the run
+            for (const playback::Entry& e : inputs->entries(name_)) apply(scratch, e);
+        }
+        register_source(this);
+    }
+    ~Driver() override {
+        unregister_source(this);
+        stop();
+    }
+    Driver(const Driver&) = delete;
+    Driver& operator=(const Driver&) = delete;
+
+    const std::string& name() const { return name_; }
+    const std::string& url() const { return url_; }
+
+    // -- Source: the snapshot of each instant -------------------------------------------
+    const std::string& source_name() const override { return name_; }
+    const char* source_type() const override { return kind_; }
+    std::string source_config() const override {
+        std::string options;
+        for (const auto& kv : options_)
+            options += (options.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
+        return "{\"type\":" + json_string(kind_) + ",\"url\":" + json_string(url_) + ",\"options\":{" +
+               options + "}}";
+    }
+    void take_snapshot(long long t_us) override {
+        snapshot_t_ = t_us;
+        if (inputs_ == nullptr) {
+            Snap latest = snap_;
+            read(latest);
+            snap_ = latest;
+            return;
+        }
+        const std::vector<playback::Entry>& entries = inputs_->entries(name_);
+        for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
+        snap_ = fed_;
+        evidence_.at(inputs_, name_, t_us, next_ > 0 ? &entries[next_ - 1] : nullptr, -1);
+    }
+    std::string snapshot_fields() const override {
+        Snap s = snap_;
+        std::string out;
+        for (const Field& f : Snap::fields(s)) {
+            out += (out.empty() ? "\"" : ",\"") + std::string(f.name) + "\":";
+            if (auto d = std::get_if<double*>(&f.ref)) out += json_number(**d);
+            else if (auto i = std::get_if<long long*>(&f.ref)) out += std::to_string(**i);
+            else if (auto b = std::get_if<bool*>(&f.ref)) out += **b ? "true" : "false";
+            else out += json_string(*std::get<std::string*>(f.ref));
+        }
+        return out;
+    }
+    // The JSON Schema of the recorded snapshot: the text the Python driver's recording has.
+    std::string snapshot_schema() const override {
+        Snap s;
+        std::string props = "\"t\": {\"type\": \"integer\"}";
+        for (const Field& f : Snap::fields(s)) {
+            const char* type = std::holds_alternative<double*>(f.ref)      ? "[\"number\", \"string\"]"
+                               : std::holds_alternative<long long*>(f.ref) ? "\"integer\""
+                               : std::holds_alternative<bool*>(f.ref)      ? "\"boolean\""
+                                                                           : "[\"string\", \"null\"]";
+            props += ", \"" + std::string(f.name) + "\": {\"type\": " + type + "}";
+        }
+        return "{\"title\": \"What the automaton saw of a " + std::string(kind_) +
+               " during one instant\", \"type\": \"object\", \"properties\": {" + props + "}}";
+    }
+
+protected:
+    // Live only: overwrite in `latest` what the device said since (called from the
+    // automaton's thread once per instant: guard what the driver's thread shares).
+    virtual void read(Snap& latest) = 0;
+
+    bool live() const { return inputs_ == nullptr; }
+    // The instant's snapshot, for query `query` (a playback notes what it cannot answer).
+    const Snap& snap(const char* query) const {
+        evidence_.asked(query, query);
+        return snap_;
+    }
+    // A command: told to the recording (or the playback); false when it must not be sent.
+    bool command(const char* call, const std::string& args_json) {
+        sent(call, args_json);
+        return live();
+    }
+    // One line on stderr, `NAME: text`.
+    void say(const std::string& text) const { std::fprintf(stderr, "%s: %s\n", name_.c_str(), text.c_str()); }
+    void start_thread(std::function<void()> fn) { threads_.push_back(quiet_thread(std::move(fn))); }
+    bool stopping() const { return stop_.load(); }
+    // End the driver's threads; the derived destructor calls it first.
+    void stop() {
+        stop_ = true;
+        for (std::thread& t : threads_)
+            if (t.joinable()) t.join();
+        threads_.clear();
+    }
+    const std::string& option(const std::string& key) const { return options_.at(key); }
+    double option_number(const std::string& key) const { return std::stod(option(key)); }
+    // The names an option lists ("scan, odom", "[scan, odom]").
+    std::vector<std::string> option_names(const std::string& key) const {
+        std::vector<std::string> out;
+        std::string word;
+        for (char c : option(key) + " ") {
+            if (c == ' ' || c == ',' || c == '[' || c == ']' || c == '\'' || c == '"') {
+                if (!word.empty()) out.push_back(word);
+                word.clear();
+            } else {
+                word += c;
+            }
+        }
+        return out;
+    }
+    // A name argument that must be one the option lists: std::invalid_argument otherwise.
+    void check_name(const char* method, const std::string& key, const std::string& given) const {
+        std::string listed;
+        for (const std::string& n : option_names(key)) {
+            if (n == given) return;
+            listed += (listed.empty() ? "" : ", ") + n;
+        }
+        throw std::invalid_argument(name_ + "." + method + ": `" + given + "` is not one of " + key + ": " +
+                                    (listed.empty() ? "none" : listed));
+    }
+
+private:
+    void apply(Snap& s, const playback::Entry& e) const {
+        std::vector<Field> fields = Snap::fields(s);
+        for (const auto& m : e.values.members) {
+            const Field* f = nullptr;
+            for (const Field& x : fields)
+                if (m.first == x.name) f = &x;
+            if (f == nullptr) inputs_->bad(e.line, "the " + std::string(kind_) + " interface `" + name_ +
+                                                       "` has no snapshot field `" + m.first + "`");
+            if (auto d = std::get_if<double*>(&f->ref)) **d = inputs_->number(m.second, f->name, e.line);
+            else if (auto i = std::get_if<long long*>(&f->ref)) **i = inputs_->whole(m.second, f->name, e.line);
+            else if (auto b = std::get_if<bool*>(&f->ref)) **b = inputs_->boolean(m.second, f->name, e.line);
+            else *std::get<std::string*>(f->ref) = inputs_->text(m.second, f->name, e.line);
+        }
+    }
+
+    const char* kind_;
+    std::string name_, url_;
+    Options options_;
+    Snap snap_{}, fed_{};
+    playback::Inputs* inputs_ = nullptr;
+    std::size_t next_ = 0;
+    playback::Evidence evidence_;
+    std::atomic<bool> stop_{false};
+    std::vector<std::thread> threads_;
+};
+
+}  // namespace hfsmc

@@ -1,0 +1,255 @@
+"""The base of a user's Python driver (``type: driver``; docs/drivers.md).
+
+Copied beside a generated Python component whose model names a driver of its own. A
+driver derives from :class:`Driver`, declares its ``KIND``, its ``SNAPSHOT`` (each field
+with its "nothing yet" value), its ``OPTIONS`` (each with its default) as literals, and
+marks what snippets call: ``@query`` methods read the instant's snapshot
+(``self.value(field)``), ``@command`` methods send. hfsmc reads that declaration
+without importing the file (hfsmc/drivers.py); the runtime then uses one class for the
+live driver and for its fake:
+
+- live: ``connect`` makes it and calls ``open()`` (its socket, its thread:
+  ``start_thread``); when an instant begins the runtime calls ``snapshot()``, which
+  asks ``read()`` for the latest state (called from the automaton's thread: the driver
+  guards what its own thread shares with it) and keeps it until the next instant;
+- recorded: the snapshot of every instant goes to the recording (channel
+  ``/hfsmc/interface/NAME``, schema ``hfsmc.KIND.Snapshot``), every command too;
+- fake (``hfsmc replay``, ``hfsmc test``): made by ``fake`` without ``open()``; its
+  snapshot comes from the script, and a command is recorded but its body never runs.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import sys
+import threading
+from collections.abc import Callable
+from typing import Any, ClassVar, TypeVar
+
+F = TypeVar("F", bound=Callable[..., Any])
+_TRUE = {"true", "yes", "on", "1"}
+_FALSE = {"false", "no", "off", "0"}
+
+
+def query(fn: F | None = None, *, names: dict[str, str] | None = None) -> Any:
+    """Mark a method as a query of the instant's snapshot. ``names={"param": "option"}``:
+    that argument must be one of the names the option lists (``check`` finds a literal
+    that is not; a computed one fails when called)."""
+    def mark(f: F) -> F:
+        @functools.wraps(f)
+        def method(self: Driver, *args: Any, **kwargs: Any) -> Any:
+            self._named(f, names, args, kwargs)
+            self._asked(f.__name__)
+            return f(self, *args, **kwargs)
+        method.hfsmc_kind = "query"  # type: ignore[attr-defined]
+        return method  # type: ignore[return-value]
+    return mark(fn) if fn is not None else mark
+
+
+def command(fn: F | None = None, *, names: dict[str, str] | None = None) -> Any:
+    """Mark a method as a command: told to the recording (or the playback) with its
+    arguments, then run, live only (a fake sends nothing)."""
+    def mark(f: F) -> F:
+        sig = inspect.signature(f)
+
+        @functools.wraps(f)
+        def method(self: Driver, *args: Any, **kwargs: Any) -> Any:
+            self._named(f, names, args, kwargs)
+            bound = sig.bind(self, *args, **kwargs)
+            bound.apply_defaults()
+            if self.on_command is not None:
+                self.on_command(f.__name__, list(bound.args[1:]))
+            return f(self, *args, **kwargs) if self.live else None
+        method.hfsmc_kind = "command"  # type: ignore[attr-defined]
+        return method  # type: ignore[return-value]
+    return mark(fn) if fn is not None else mark
+
+
+def _option(kind: str, key: str, default: Any, value: Any) -> Any:
+    """An option's value as its default's type (the model and NAME.yaml give text)."""
+    if isinstance(default, bool):
+        text = str(value).strip().lower()
+        if text in _TRUE or text in _FALSE:
+            return text in _TRUE
+        raise ValueError(f"option `{key}` is true or false, not `{value}`")
+    if isinstance(default, (int, float)):
+        try:
+            number = float(value) if isinstance(default, float) else int(str(value), 0)
+        except ValueError:
+            raise ValueError(f"option `{key}` is a number, not `{value}`") from None
+        return number
+    if isinstance(default, tuple):
+        return tuple(n for n in str(value).replace(",", " ").strip("[]()").split()
+                     if n) if isinstance(value, str) else tuple(value)
+    return str(value)
+
+
+def _field(default: Any, value: Any) -> Any:
+    """A snapshot field from a script (JSON) as the live driver gives it."""
+    if isinstance(default, float) and isinstance(value, (str, int)) and not isinstance(value, bool):
+        return float(value)  # "inf", "nan", "-inf" too
+    if isinstance(default, tuple) and isinstance(value, list):
+        return tuple(_field(default[0] if default else None, v) for v in value)
+    return value
+
+
+class Driver:
+    """What every user driver is (docs/drivers.md, "Python")."""
+
+    KIND = ""
+    SNAPSHOT: ClassVar[dict[str, Any]] = {}
+    OPTIONS: ClassVar[dict[str, Any]] = {}
+    ATTRIBUTES_FROM: tuple[str, ...] = ()
+    DEFAULT_URL: str | None = None
+
+    def __init__(self, name: str, url: str | None, options: dict[str, Any],
+                 playback: Any = None) -> None:
+        self.name = name
+        self.url = url if url is not None else self.DEFAULT_URL
+        unknown = [k for k in options if k not in self.OPTIONS]
+        if unknown:
+            raise ValueError(f"no option `{unknown[0]}` (options: "
+                             f"{', '.join(self.OPTIONS) or 'none'})")
+        self.options = {k: _option(self.KIND, k, d, options.get(k, d))
+                        for k, d in self.OPTIONS.items()}
+        self.on_command: Callable[[str, list[Any]], None] | None = None
+        self.playback = playback
+        self.live = playback is None
+        self.lacks: Any = None  # a fake: what the script lacks at this instant
+        self.quiet = False
+        self._snap: dict[str, Any] = dict(self.SNAPSHOT)
+        self._scripted: dict[str, Any] = dict(self.SNAPSHOT)
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    # -- made by the runtime ----------------------------------------------------------
+    @classmethod
+    def connect(cls, name: str, url: str | None, options: dict[str, Any],
+                sim: Any = None) -> Driver:
+        """The live driver: made, then opened (its socket, its thread)."""
+        driver = cls(name, url, options)
+        driver.open()
+        return driver
+
+    @classmethod
+    def fake(cls, name: str, url: str | None, options: dict[str, Any], playback: Any) -> Driver:
+        """The driver fed from a script: never opened, it sends nothing."""
+        return cls(name, url, options, playback)
+
+    @classmethod
+    def snapshot_schema(cls) -> dict[str, Any]:
+        """The JSON Schema of the recorded snapshot, from SNAPSHOT's defaults."""
+        def kind(v: Any) -> Any:
+            if isinstance(v, bool):
+                return {"type": "boolean"}
+            if isinstance(v, int):
+                return {"type": "integer"}
+            if isinstance(v, float):
+                return {"type": ["number", "string"]}
+            if isinstance(v, (tuple, list)):
+                return {"type": "array"}
+            return {"type": ["string", "null"]} if v is None or isinstance(v, str) else {}
+        return {"title": f"What the automaton saw of a {cls.KIND} during one instant",
+                "type": "object",
+                "properties": {"t": {"type": "integer"},
+                               **{k: kind(v) for k, v in cls.SNAPSHOT.items()}}}
+
+    # -- what a driver writes ---------------------------------------------------------
+    def open(self) -> None:
+        """Live only: connect to the device; start the thread that listens to it."""
+
+    def read(self) -> dict[str, Any]:
+        """Live only: the latest state, some or all of SNAPSHOT's fields (called from the
+        automaton's thread once per instant: guard what the driver's thread shares)."""
+        return {}
+
+    def close(self) -> None:
+        """Stop the driver's threads (each is waited for 1 s at most)."""
+        self._stop.set()
+        for t in self._threads:
+            t.join(timeout=1.0)
+
+    def warning_at_stop(self) -> str | None:
+        """Something the device is left doing when the component stops, or None."""
+        return None
+
+    def attribute(self, name: str) -> Any:
+        """``iface.NAME`` for a NAME listed by an option of ATTRIBUTES_FROM."""
+        raise AttributeError(name)
+
+    # -- helpers for the driver -------------------------------------------------------
+    def value(self, field: str) -> Any:
+        """A field of the instant's snapshot."""
+        return self._snap[field]
+
+    def say(self, text: str) -> None:
+        """One line on stderr, `NAME: text` (as the built-in drivers say theirs)."""
+        sys.stderr.write(f"{self.name}: {text}\n")
+
+    def start_thread(self, fn: Callable[[], None], what: str = "reader") -> None:
+        """Run ``fn`` in a daemon thread until ``close`` (``self.stopping()`` tells it)."""
+        t = threading.Thread(target=fn, name=f"{self.name}-{what}", daemon=True)
+        self._threads.append(t)
+        t.start()
+
+    def stopping(self) -> bool:
+        return self._stop.is_set()
+
+    def names(self, option: str) -> tuple[str, ...]:
+        """The names an option lists."""
+        value = self.options.get(option, ())
+        return tuple(value) if isinstance(value, (tuple, list)) else tuple(
+            n for n in str(value).replace(",", " ").split() if n)
+
+    # -- the runtime's side -----------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        if self.live:
+            got = self.read()
+            odd = [k for k in got if k not in self.SNAPSHOT]
+            if odd:
+                raise KeyError(f"{self.KIND} driver: read() gave `{odd[0]}`, which SNAPSHOT "
+                               "does not declare")
+            self._snap = {**self._snap, **got}
+        else:
+            self._snap = dict(self._scripted)
+        return self._snap
+
+    def apply(self, values: dict[str, Any]) -> None:
+        """A fake: the script's entry over the fields (unknown fields are an error)."""
+        for k, v in values.items():
+            if k not in self.SNAPSHOT:
+                raise ValueError(f"the {self.KIND} interface has no snapshot field `{k}` "
+                                 f"(fields: {', '.join(self.SNAPSHOT)})")
+            self._scripted[k] = _field(self.SNAPSHOT[k], v)
+
+    def _asked(self, query: str) -> None:
+        lacks = self.lacks
+        if lacks is None or self.quiet or self.playback is None:
+            return
+        self.playback.asked(self.name, query, lacks if isinstance(lacks, str) else "field", None)
+
+    def _named(self, fn: Callable[..., Any], names: dict[str, str] | None,
+               args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+        if not names:
+            return
+        bound = inspect.signature(fn).bind(self, *args, **kwargs).arguments
+        for param, option in names.items():
+            given = bound.get(param)
+            if given is not None and given not in self.names(option):
+                raise ValueError(f"{self.name}.{fn.__name__}: `{given}` is not one of "
+                                 f"{option}: {', '.join(self.names(option)) or 'none'}")
+
+    def __getattr__(self, attr: str) -> Any:
+        """Only for a name the class does not have: say which interface lacks it."""
+        options = self.__dict__.get("options") or {}
+        for option in type(self).ATTRIBUTES_FROM:
+            if attr in self.names(option) and options:
+                return self.attribute(attr)
+        name = self.__dict__.get("name", "?")
+        raise AttributeError(f"the {type(self).KIND} interface `{name}` has no method or "
+                             f"attribute `{attr}` (docs/drivers.md)", name=attr, obj=self)
+
+    def __repr__(self) -> str:
+        return f"<{self.KIND} {self.name}{'' if self.live else ' (playback)'}>"
+

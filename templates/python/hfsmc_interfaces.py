@@ -1,0 +1,159 @@
+# hfsmc_interfaces.py: how a Python component makes its interfaces (docs/drivers.md).
+# Copied unchanged into every component folder; standard library only.
+"""The one seam between the runtime and the drivers.
+
+Every interface type is a driver module: the built-in ones (``hfsmc_mavlink``,
+``hfsmc_camera``) and a model's own (``type: driver``: a module holding one class
+deriving from ``hfsmc_driver.Driver``, named in the component's ``drivers`` table). The
+runtime asks this module for each interface: the live driver (``connect``), or with
+``--playback`` its fake fed from the script, hooked to the recording and the playback
+(its commands, a camera's frames). A driver's snapshot is taken by the engine when an
+instant begins (``snapshot()``), and recorded with the driver's schema.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NoReturn
+
+# The built-in drivers: interface type -> module (beside the component).
+BUILTIN = {"mavlink": "hfsmc_mavlink", "camera": "hfsmc_camera"}
+# What to install for a module a driver imports (pip names; Debian: python3-opencv etc.).
+_INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": "numpy",
+            "serial": "pyserial"}
+
+
+class UsageError(Exception):
+    """A bad flag or configuration: exit status 2."""
+
+
+class StartError(Exception):
+    """The component cannot start (a library an interface needs is missing): exit status 1."""
+
+
+class Unavailable:
+    """An interface this component cannot drive: fails when used, not at start."""
+
+    def __init__(self, name: str, why: str) -> None:
+        object.__setattr__(self, "_why", f"interface `{name}`: {why}")
+
+    def __getattr__(self, attr: str) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
+    def __setattr__(self, attr: str, value: object) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
+    def __call__(self, *args: object, **kwargs: object) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
+    def __bool__(self) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
+    def __iter__(self) -> NoReturn:
+        raise RuntimeError(object.__getattribute__(self, "_why"))
+
+    def __repr__(self) -> str:
+        return f"<unavailable: {object.__getattribute__(self, '_why')}>"
+
+
+def _import(name: str, kind: str, module: str) -> Any:
+    try:
+        return __import__(module)
+    except ImportError as e:  # the driver's library, or one its URL needs (pyserial)
+        missing = getattr(e, "name", None) or "?"
+        top = missing.partition(".")[0]
+        how = f"pip install {_INSTALL[top]}" if top in _INSTALL else f"install `{top}`"
+        raise StartError(f"interface `{name}` ({kind}) needs the Python module `{missing}`, "
+                         f"which is not installed: {how}") from None
+
+
+def make_interface(name: str, kind: str, url: str | None, options: dict[str, str],
+                   sim: Any = None, drivers: dict[str, tuple[str, str]] | None = None) -> object:
+    """The driver object of an interface, by type.
+
+    A driver whose library is missing (pymavlink, OpenCV) stops the component at
+    start with what to install, rather than at the first call of a snippet.
+    """
+    own = (drivers or {}).get(kind)
+    if kind not in BUILTIN and own is None:
+        return Unavailable(name, f"interfaces of type `{kind}` are kept from a legacy model "
+                                 "but hfsmc components cannot drive them")
+    module = _import(name, kind, BUILTIN[kind] if own is None else own[0])
+    try:
+        factory: Callable[..., object] = (module.connect if own is None
+                                          else getattr(module, own[1]).connect)
+        if sim is None:
+            return factory(name, url, options)
+        if own is not None:  # a user's driver does not follow the simulator's clock
+            return factory(name, url, options)
+        driver = factory(name, url, options, sim)
+        sim.drivers.append(driver)
+        return driver
+    except ImportError as e:  # a library the driver imports late (a URL's: pyserial)
+        missing = getattr(e, "name", None) or "?"
+        top = missing.partition(".")[0]
+        how = f"pip install {_INSTALL[top]}" if top in _INSTALL else f"install `{top}`"
+        raise StartError(f"interface `{name}` ({kind}) needs the Python module `{missing}`, "
+                         f"which is not installed: {how}") from None
+    except Exception as e:  # a URL the driver's library refuses (a port out of range)
+        raise StartError(f"interface `{name}` ({kind}): cannot open `{url}`: "
+                         f"{type(e).__name__}: {e}") from None
+
+
+def make_fake(engine: Any, name: str, kind: str, url: str | None,
+              options: dict[str, str]) -> object | None:
+    """With --playback: the interface's fake fed from the script (None: a type that has
+    none, which stays Unavailable)."""
+    import hfsmc_playback  # type: ignore[import-not-found]  # beside the component
+
+    own = engine.m.get("drivers", {}).get(kind)
+    try:
+        if own is None:
+            made: object | None = engine.playback.fake(name, kind)
+            return made
+        cls = getattr(_import(name, kind, own[0]), own[1])
+        try:
+            fake = cls.fake(name, url, options, engine.playback)
+        except Exception as e:  # an option the driver refuses
+            raise StartError(f"interface `{name}` ({kind}): {type(e).__name__}: {e}") from None
+        adopted: object = engine.playback.adopt(name, fake)
+        return adopted
+    except hfsmc_playback.PlaybackError as e:
+        raise UsageError(f"--playback: {e}") from None
+
+
+def wire(engine: Any, wired: dict[str, Any]) -> None:
+    """Make every interface of the model, as the configuration file wires it."""
+    m = engine.m
+    ns = m["namespace"]
+    for name, kind, url, options in m["interfaces"]:
+        given = wired.get(name) or {}
+        extra = given.get("options") or {}
+        where = given.get("url", url)
+        kind = str(given.get("type", kind))
+        where = None if where is None else str(where)
+        engine.wiring[name] = {"type": kind, "url": where, "options": {**options, **extra}}
+        if engine.playback is not None:
+            fake = make_fake(engine, name, kind, where, {**options, **extra})
+        else:
+            fake = None
+        ns[name] = fake if fake is not None else make_interface(
+            name, kind, where, {**options, **extra}, engine.sim, m.get("drivers"))
+        if callable(getattr(type(ns[name]), "snapshot", None)):  # not Unavailable's __getattr__
+            engine.inputs.append((name, kind, ns[name]))
+
+
+def hook(engine: Any, name: str, iface: Any) -> None:
+    """Tell the recording and the playback what the snippets do with an interface."""
+    rec, pb = engine.recorder, engine.playback
+    if rec is not None and hasattr(iface, "on_frame"):
+        iface.on_frame = lambda count, image, jpeg: rec.frame(engine.t, name, count, image, jpeg)
+    if rec is not None and callable(getattr(type(iface), "snapshot_schema", None)):
+        rec.declare(getattr(type(iface), "KIND", ""), iface.snapshot_schema())
+    if hasattr(iface, "on_command"):
+        def told(call: str, args: list[Any]) -> None:
+            if rec is not None:
+                rec.command(engine.t, name, call, args)
+            if pb is not None:
+                pb.command(engine.t, name, call, args)
+        iface.on_command = told
