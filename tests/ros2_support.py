@@ -3,9 +3,14 @@ hypothesis strategies that draw a message as ours and as rosbags' (tests/test_ro
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import importlib
+import os
 import sys
+import tempfile
 from array import array
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +22,30 @@ from hfsmc.ros2.definitions import FieldType, MessageSet, MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
 
 AT = Span("test.yaml", 1, 1)
+DOMAINS = range(20, 233)  # ROS_DOMAIN_ID values the tests use (0, ROS 2's default, never)
+
+
+@contextlib.contextmanager
+def ros2_domain() -> Iterator[int]:
+    """A ROS 2 domain id that no other test holds meanwhile, on this machine, whatever
+    process runs it (pytest-xdist workers, another checkout's run): a lock file per id."""
+    folder = os.path.join(tempfile.gettempdir(), "hfsmc-ros2-domains")
+    os.makedirs(folder, exist_ok=True)
+    start = os.getpid() % len(DOMAINS)
+    for i in range(len(DOMAINS)):
+        dom = DOMAINS[(start + i) % len(DOMAINS)]
+        fd = os.open(os.path.join(folder, f"{dom}.lock"), os.O_CREAT | os.O_RDWR, 0o600)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue
+        try:
+            yield dom
+        finally:
+            os.close(fd)  # releases the lock
+        return
+    raise RuntimeError("every ROS 2 test domain is taken")
 # One .msg with every field kind (tests/test_ros2_cdr.py), nested in a second one.
 ALL_KINDS = """\
 uint8 MODE_A=1

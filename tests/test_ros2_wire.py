@@ -17,7 +17,7 @@ from typing import Any
 import pytest
 
 from hfsmc.ros2.definitions import DISTROS, typestore
-from tests.ros2_support import build
+from tests.ros2_support import build, ros2_domain
 from tests.support import ROOT
 
 RUNTIME = ROOT / "templates" / "python"
@@ -25,11 +25,6 @@ HERE = Path(__file__).resolve().parent / "ros2"
 SECONDS = 4.0  # how long each peer runs
 TYPES = ["sensor_msgs/msg/LaserScan", "geometry_msgs/msg/Twist",
          "rmw_dds_common/msg/ParticipantEntitiesInfo"]
-
-
-def domain(offset: int) -> int:
-    """A domain id for this test run alone (0..232; 0, ROS 2's default, never)."""
-    return 20 + (os.getpid() * 13 + offset) % 200
 
 
 @pytest.fixture(scope="module", params=DISTROS)
@@ -92,10 +87,11 @@ class Peers:
 
 
 @pytest.fixture
-def peers(folder: tuple[str, Path], request: pytest.FixtureRequest) -> Any:
-    made = Peers(folder[0], folder[1], domain(hash(request.node.name) % 97))
-    yield made
-    made.close()
+def peers(folder: tuple[str, Path]) -> Any:
+    with ros2_domain() as dom:
+        made = Peers(folder[0], folder[1], dom)
+        yield made
+        made.close()
 
 
 def test_two_processes_exchange_messages(peers: Peers) -> None:
