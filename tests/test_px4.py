@@ -8,6 +8,7 @@ the simulator to see its link as a ground station does.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import socket
@@ -26,7 +27,7 @@ from hfsmc.sim import px4
 from hfsmc.sim.autopilot import parse_datagram
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
-from tests.support import free_port
+from tests.support import flight, free_port
 
 ROOT = Path(__file__).resolve().parent.parent
 RUN = "import sys; from hfsmc.sim.run import main; sys.exit(main(sys.argv[1:]))"
@@ -269,3 +270,25 @@ def test_a_mode_px4_lacks_is_denied(main: int, sub: int) -> None:
     bench.run(0.1)
     assert bench.acks(M.MAV_CMD_DO_SET_MODE) == [ACCEPTED, M.MAV_RESULT_DENIED]
     assert bench.ap.mode == px4.HOLD
+
+
+@pytest.mark.slow
+def test_follow_colors_flies_unchanged_on_px4_in_lockstep(tmp_path: Path) -> None:
+    """The ArduPilot mission, not a line changed, against the PX4 simulator (Python)."""
+    with flight(tmp_path, "--autopilot", "px4", "--source-port", "0", lockstep=True) as f:
+        status = f.component.wait(timeout=900)  # PX4's 366 messages/s, on a shared machine
+        f.sim.wait(timeout=30)
+        log = (f.folder / "component.log").read_text()
+        assert status == 0, log[-3000:]
+    report = json.loads((f.folder / "report.json").read_text())
+    assert report["stages"] == ["green", "blue", "green", "red"], log[-3000:]
+    truth = f.truth()
+    assert truth["armed"] is False and truth["landed"] is True
+    red = next(o for o in truth["objects"] if o["name"] == "red")  # type: ignore[attr-defined]
+    landing = truth["landing"]
+    assert isinstance(landing, dict)
+    assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
+    assert "drone: PX4 vehicle 1/1" in log
+    assert "drone: PX4: setpoints streaming: switching to OFFBOARD" in log
+    assert "drone: set_mode GUIDED (OFFBOARD) accepted" in log
+    assert "drone: PX4: GUIDED on the ground is Hold" in log

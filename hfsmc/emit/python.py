@@ -26,7 +26,7 @@ from hfsmc.pycheck import import_statement
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_viewstate.py", "hfsmc_view.py", "hfsmc_monitor.py",
                  "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py")
-INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py",), "camera": ("hfsmc_camera.py",)}
+INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_px4.py"), "camera": ("hfsmc_camera.py",)}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
 _TRY_MARK = re.compile(r"^\s*try:  # s(\d+)$")
