@@ -11,9 +11,11 @@ import dataclasses
 import json
 import math
 import os
+import signal
 import socket
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -27,7 +29,7 @@ from hfsmc.sim import px4
 from hfsmc.sim.autopilot import parse_datagram
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
-from tests.support import flight, free_port
+from tests.support import flight, free_port, wait_until
 
 ROOT = Path(__file__).resolve().parent.parent
 RUN = "import sys; from hfsmc.sim.run import main; sys.exit(main(sys.argv[1:]))"
@@ -292,3 +294,58 @@ def test_follow_colors_flies_unchanged_on_px4_in_lockstep(tmp_path: Path) -> Non
     assert "drone: PX4: setpoints streaming: switching to OFFBOARD" in log
     assert "drone: set_mode GUIDED (OFFBOARD) accepted" in log
     assert "drone: PX4: GUIDED on the ground is Hold" in log
+
+
+@pytest.fixture
+def px4_vehicle(tmp_path: Path) -> Any:
+    """The Python driver (from templates/python) on a PX4 simulator in real time."""
+    sys.path.insert(0, str(ROOT / "templates" / "python"))
+    import hfsmc_mavlink  # type: ignore[import-not-found]
+    port = free_port(socket.SOCK_DGRAM)
+    log = (tmp_path / "sim.log").open("wb")
+    sim = subprocess.Popen([sys.executable, "-c", RUN, "--autopilot", "px4", "--no-camera",
+                            "--source-port", "0", "--boot-time", "1",
+                            "--mavlink", f"udpout:127.0.0.1:{port}"],
+                           cwd=ROOT, stderr=log)
+    vehicle = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
+    try:
+        yield vehicle, sim
+    finally:
+        vehicle.close()
+        sim.terminate()
+        sim.wait(timeout=20)
+        log.close()
+        sys.path.remove(str(ROOT / "templates" / "python"))
+
+
+def _until(vehicle: Any, cond: Callable[[dict[str, Any]], bool], timeout: float) -> bool:
+    return wait_until(lambda: cond(vehicle.snapshot()), timeout, 0.05)
+
+
+def test_driver_keeps_the_stream_up_and_never_fights_the_failsafe(
+        px4_vehicle: Any, capfd: pytest.CaptureFixture[str]) -> None:
+    """A target set once flies in OFFBOARD (the driver streams it); when the link drops, PX4's
+    failsafe takes the vehicle to POSCTL, and the driver, once the link is back, leaves it
+    there and says so."""
+    vehicle, sim = px4_vehicle
+    assert _until(vehicle, lambda s: s["ready"], 20)
+    vehicle.set_mode("GUIDED")
+    vehicle.arm()
+    vehicle.takeoff(3.0)
+    assert _until(vehicle, lambda s: s["mode"] == "HOLD" and s["altitude"] > 2.8, 30)
+    vehicle.set_velocity(1.0, 0.0, 0.0, 0.0)  # once
+    assert _until(vehicle, lambda s: s["mode"] == "GUIDED" and s["velocity"][0] > 0.8, 10)
+    time.sleep(2.0)  # far longer than PX4's COM_OF_LOSS_T: the driver's thread streams
+    assert _until(vehicle, lambda s: s["mode"] == "GUIDED", 1)
+    sim.send_signal(signal.SIGUSR1)  # the link drops: no setpoint reaches PX4
+    time.sleep(3.0)
+    sim.send_signal(signal.SIGUSR1)
+    assert _until(vehicle, lambda s: s["heartbeat_age"] < 1.0 and s["mode"] == "POSCTL", 10)
+    time.sleep(2.0)
+    assert vehicle.snapshot()["mode"] == "POSCTL"  # not taken back
+    err = capfd.readouterr().err
+    assert "drone: PX4 left OFFBOARD for POSCTL (a failsafe or a pilot)" in err
+    with pytest.raises(ValueError, match="PX4 has no mode `BRAKE`"):
+        vehicle.set_mode("BRAKE")
+    vehicle.land()
+    assert _until(vehicle, lambda s: s["mode"] == "LAND", 5)
