@@ -36,6 +36,7 @@ from typing import IO, Any
 from hfsmc.fsutil import write_atomic
 from hfsmc.sim import lockstep
 from hfsmc.sim.autopilot import Autopilot
+from hfsmc.sim.px4 import SOURCE_PORT, Px4
 from hfsmc.sim.telemetry import latlon
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import WORLD_CLOCKS, World, WorldClock, WorldError, load_world
@@ -45,6 +46,8 @@ MAX_DATAGRAMS = 500  # per step: a flood must not starve the physics
 PEER_QUIET_S = 5.0  # udpin: a peer silent this long (while the link is up) may be replaced
 STRANGERS_SAID = 16  # addresses whose ignored datagrams are said; later ones are only counted
 TRUTH_LOG_S = 0.5  # s of simulated time between two lines of --truth-log
+AUTOPILOTS: dict[str, type[Autopilot]] = {"ardupilot": Autopilot, "px4": Px4}
+BOOT_TIMES = {"ardupilot": 3.0, "px4": 4.5}  # s: ArduPilot's short for tests; PX4's measured
 
 
 def parse_url(url: str) -> tuple[str, str, int]:
@@ -62,7 +65,8 @@ class Link:
     """The vehicle's UDP socket. Down, it sends nothing and drops what arrives. It takes
     datagrams from its peer only; ``ignored`` counts the others, ``log`` says whose."""
 
-    def __init__(self, url: str, log: Callable[[str], None] | None = None) -> None:
+    def __init__(self, url: str, log: Callable[[str], None] | None = None,
+                 source_port: int | None = None) -> None:
         self.kind, host, port = parse_url(url)
         self.log = log if log is not None else _stderr
         self.ignored = 0
@@ -77,6 +81,9 @@ class Link:
                 self.sock.bind((host, port))
             else:
                 self.peer = (socket.gethostbyname(host), port)
+                if source_port is not None:  # PX4 SITL sends from a known port (18570)
+                    self.sock.bind(("127.0.0.1" if self.peer[0].startswith("127.") else "",
+                                    source_port))
         except OSError:
             self.sock.close()
             raise
@@ -95,7 +102,9 @@ class Link:
 
     def describe(self) -> str:
         if self.kind == "udpout" and self.peer is not None:
-            return f"MAVLink to udp:{self.peer[0]}:{self.peer[1]}"
+            src = self.sock.getsockname()[1] if self.sock.getsockname()[1] else None
+            return f"MAVLink to udp:{self.peer[0]}:{self.peer[1]}" + (
+                f" from port {src}" if src else "")
         host, port = self.sock.getsockname()
         return f"MAVLink on udpin:{host}:{port} (obeys the first address that writes to it)"
 
@@ -152,7 +161,8 @@ class Simulator:
     def __init__(self, world: World, link: Link, *, boot_time: float = 3.0,
                  truth: str | None = None, drop_after: float | None = None,
                  drop_for: float = 5.0, params: dict[str, float] | None = None,
-                 world_clock: str = "armed", truth_log: IO[str] | None = None) -> None:
+                 world_clock: str = "armed", truth_log: IO[str] | None = None,
+                 autopilot: str = "ardupilot") -> None:
         self.world = world
         self.link = link
         self.truth_path = truth
@@ -161,7 +171,8 @@ class Simulator:
         self.drop = None if drop_after is None else (drop_after, drop_after + drop_for)
         self.body = Body(world.vehicle, world.seed)
         link.log = self.log
-        self.ap = Autopilot(world, self.body, link.send, boot_time=boot_time, log=self.log)
+        self.ap = AUTOPILOTS[autopilot](world, self.body, link.send, boot_time=boot_time,
+                                        log=self.log)
         self.ap.set_params(params or {})
         self.clock = WorldClock(world_clock)
         self.pose = self.body.pose
@@ -372,9 +383,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, metavar="N", help="override the world's seed (noise, textures)")
     p.add_argument("--mavlink", metavar="URL", default=DEFAULT_MAVLINK,
                    help=f"udpout:HOST:PORT or udpin:HOST:PORT (default {DEFAULT_MAVLINK})")
-    p.add_argument("--boot-time", type=_seconds, default=3.0, metavar="S",
-                   help="seconds before GPS fix and EKF position, when GUIDED and arming are "
-                        "accepted (default 3, short for tests; ArduPilot SITL takes ~40)")
+    p.add_argument("--autopilot", choices=sorted(AUTOPILOTS), default="ardupilot",
+                   help="answer as ArduPilot Copter (the default) or as PX4 v1.16 "
+                        "(docs/worlds.md)")
+    p.add_argument("--source-port", type=_port, metavar="N",
+                   help="with udpout, send from this UDP port (default: any for ardupilot, "
+                        f"{SOURCE_PORT} for px4 as PX4 SITL; 0: any)")
+    p.add_argument("--boot-time", type=_seconds, metavar="S",
+                   help="seconds before GPS fix and EKF position (ardupilot) or the pre-flight "
+                        "checks (px4), when arming is accepted (default 3 for ardupilot, short "
+                        "for tests, ArduPilot SITL takes ~40; 4.5 for px4, as measured)")
     p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="set an autopilot parameter at start, in ArduPilot's units (repeatable): "
                         "LAND_SPEED, LAND_SPEED_HIGH, LAND_ALT_LOW, WPNAV_SPEED_UP, "
@@ -469,14 +487,22 @@ def main(argv: list[str]) -> int:
         return int(follow(world, args.follow, args.camera_port,
                           world_clock=args.world_clock or "armed"))
     params = dict(args.param)
-    unknown = sorted(set(params) - set(Autopilot.default_params(world)))
+    known = AUTOPILOTS[args.autopilot].default_params(world)
+    unknown = sorted(set(params) - set(known))
     if unknown:
         return _fail(f"--param {unknown[0]}: no such parameter "
-                     f"(known: {', '.join(sorted(Autopilot.default_params(world)))})")
+                     f"({args.autopilot} knows: {', '.join(sorted(known))})")
+    source = args.source_port if args.source_port is not None else \
+        SOURCE_PORT if args.autopilot == "px4" else None
     try:
-        link = Link(args.mavlink)
-    except (ValueError, OSError) as e:
+        link = Link(args.mavlink, source_port=source or None)
+    except ValueError as e:
         return _fail(str(e))
+    except OSError as e:
+        port = f" from UDP port {source}" if source else ""
+        return _fail(f"--mavlink {args.mavlink}: cannot send{port}: {e.strerror or e}"
+                     + (" (another PX4 simulator? --source-port 0 sends from any port)"
+                        if source else ""))
     server = None
     if args.lockstep is not None:
         try:
@@ -491,7 +517,8 @@ def main(argv: list[str]) -> int:
         if server is not None:
             server.close()
         return _fail(f"--truth-log {args.truth_log}: {e.strerror or e}")
-    sim = Simulator(world, link, boot_time=args.boot_time, truth=args.truth,
+    boot = BOOT_TIMES[args.autopilot] if args.boot_time is None else args.boot_time
+    sim = Simulator(world, link, boot_time=boot, truth=args.truth, autopilot=args.autopilot,
                     drop_after=args.drop_link_after,
                     drop_for=5.0 if args.drop_link_for is None else args.drop_link_for,
                     params=params, world_clock=args.world_clock or "armed", truth_log=truth_log)

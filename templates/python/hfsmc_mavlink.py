@@ -40,6 +40,11 @@ from typing import Any
 
 from pymavlink import mavutil
 
+try:  # beside the component, or in the hfsmc package
+    from . import hfsmc_px4 as _px4
+except ImportError:
+    import hfsmc_px4 as _px4  # type: ignore[import-not-found, no-redef]
+
 _MAV: Any = mavutil.mavlink
 
 DEFAULT_URL = "udpin:127.0.0.1:14550"  # the vehicle sends there, as ArduPilot SITL does for a GCS
@@ -75,8 +80,10 @@ EKF_PRED_POS_HORIZ_ABS = 512
 GPS_FIX_3D = 3  # GPS_RAW_INT.fix_type
 MODE_FLAG_SAFETY_ARMED = 128  # HEARTBEAT.base_mode
 MODE_FLAG_CUSTOM_MODE_ENABLED = 1
+PREARM_CHECK = 0x10000000  # SYS_STATUS sensor bit PX4 sets healthy once it would arm
+SEVERITY_WARNING = 4  # STATUSTEXT severities up to this one are said on stderr
 
-RESULTS = {0: "accepted", 1: "temporarily_rejected", 2: "denied", 3: "unsupported",
+RESULTS = _px4.RESULTS = {0: "accepted", 1: "temporarily_rejected", 2: "denied", 3: "unsupported",
            4: "failed", 5: "in_progress", 6: "cancelled"}  # MAV_RESULT
 IN_PROGRESS = 5
 
@@ -104,7 +111,7 @@ NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
     "heartbeat_age": math.inf, "ready": False, "armed": False, "mode": "",
     "position": (math.nan, math.nan, math.nan), "altitude": math.nan,
     "velocity": (math.nan, math.nan, math.nan), "yaw": math.nan, "battery": -1,
-    "acks": {}, "vehicle": False, "type": 0}
+    "acks": {}, "vehicle": False, "type": 0, "autopilot": 0}
 
 
 class VehicleQueries:
@@ -175,6 +182,14 @@ class VehicleQueries:
     def set_mode(self, name: str) -> None:
         """Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode)."""
         wanted = name.strip().upper()
+        if self._snap.get("autopilot") == _px4.AUTOPILOT_PX4:  # PX4's names: hfsmc_px4.py
+            number = _px4.mode_number(name)
+            if number is None:
+                raise ValueError(f"{self.name}: PX4 has no mode `{name}` (modes: "
+                                 f"{', '.join(_px4.MODES)})")
+            self._issue("set_mode", [name], ack=True)
+            self._px4_mode(wanted, number)
+            return
         numbers = {v: k for k, v in modes(int(self._snap["type"])).items()}
         if wanted not in numbers:
             raise ValueError(f"{self.name}: unknown mode `{name}` (modes: {', '.join(numbers)})")
@@ -255,6 +270,9 @@ class VehicleQueries:
                       vel: tuple[float, float, float], yaw_rate: float) -> None:
         """Send a SET_POSITION_TARGET_LOCAL_NED (the live vehicle)."""
 
+    def _px4_mode(self, name: str, number: int) -> None:
+        """Ask PX4 for a mode (the live vehicle)."""
+
 
 def modes(vehicle_type: int) -> dict[int, str]:
     """Flight modes by number for a HEARTBEAT type (Copter's when unknown)."""
@@ -262,7 +280,7 @@ def modes(vehicle_type: int) -> dict[int, str]:
     return dict(table or mavutil.mode_mapping_acm)
 
 
-class Vehicle(VehicleQueries):
+class Vehicle(_px4.Px4Vehicle, VehicleQueries):
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
@@ -277,7 +295,12 @@ class Vehicle(VehicleQueries):
         if sysid > 255:
             self._say(f"option source_system: {sysid} is not 1..255, 255 used")
             sysid = 255
-        for key in sorted(set(options) - {"rate", "ack_timeout", "source_system"}):
+        self._autopilot = str(options.get("autopilot", "auto")).lower()
+        if self._autopilot not in ("auto", "ardupilot", "px4"):
+            self._say(f"option autopilot: `{self._autopilot}` is not auto, ardupilot or px4; "
+                      "auto used")
+            self._autopilot = "auto"
+        for key in sorted(set(options) - {"rate", "ack_timeout", "source_system", "autopilot"}):
             self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system)")
         try:
             self._conn: Any = mavutil.mavlink_connection(  # as a ground station: component 190
@@ -302,6 +325,12 @@ class Vehicle(VehicleQueries):
         self._battery = -1
         self._gps_fix = 0
         self._ekf_flags = 0
+        self._px4 = self._autopilot == "px4"  # else known from the first heartbeat
+        self._prearm = False  # PX4: SYS_STATUS says the pre-flight checks pass
+        self._home_amsl: float | None = None  # m: PX4's take-off wants its altitude AMSL
+        self._answered: dict[int, tuple[str, str, bool, float]] = {}  # late answers (PX4)
+        self._texts = _px4.Texts()
+        self._offboard = _px4.Offboard(self._send_target, self._switch_offboard, self._say)
         # Per source (system, component): its last frames (bytes), how many of each, when.
         self._recent: dict[tuple[int, int], tuple[collections.deque[bytes], collections.Counter[bytes]]] = {}
         self._recent_at: dict[tuple[int, int], float] = {}
@@ -372,7 +401,9 @@ class Vehicle(VehicleQueries):
         age = math.inf if at is None else self._now() - at
         flags, hb = self._ekf_flags, self._heartbeat
         armed = bool(hb[2] & MODE_FLAG_SAFETY_ARMED)
-        if armed:
+        if self._px4:
+            position = self._prearm
+        elif armed:
             position = bool(flags & EKF_POS_HORIZ_ABS) and not flags & EKF_CONST_POS_MODE
         else:
             position = bool(flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS))
@@ -382,11 +413,15 @@ class Vehicle(VehicleQueries):
             "heartbeat_age": age,
             "ready": age < LINK_TIMEOUT_S and self._gps_fix >= GPS_FIX_3D and position,
             "armed": armed,
-            "mode": "" if at is None else modes(hb[0]).get(hb[3], f"MODE{hb[3]}"),
+            "mode": "" if at is None else self._mode_name(hb),
             "position": pos, "altitude": -pos[2] if rel is None else rel,
             "velocity": self._velocity, "yaw": self._yaw, "battery": self._battery,
-            "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0]}
+            "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0],
+            "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1]}
         return self._snap
+
+    def _mode_name(self, hb: tuple[int, int, int, int]) -> str:
+        return _px4.mode_name(hb[3]) if self._px4 else modes(hb[0]).get(hb[3], f"MODE{hb[3]}")
 
     def close(self) -> None:
         """Stop the reader and close the socket (also run at exit)."""
@@ -403,6 +438,11 @@ class Vehicle(VehicleQueries):
                  quiet: bool = False) -> None:
         p = tuple(float(x) for x in params) + (0.0,) * (7 - len(params))
         target = self._target
+        if self._px4 and target is not None:
+            adjusted = self._px4_command(name, command, p)
+            if adjusted is None:
+                return
+            p = adjusted
         with self._lock:
             if target is not None:
                 self._conn.mav.command_long_send(target[0], target[1], command, 0, *p)
@@ -416,6 +456,14 @@ class Vehicle(VehicleQueries):
 
     def _target_local(self, frame: int, mask: int, pos: tuple[float, float, float],
                       vel: tuple[float, float, float], yaw_rate: float) -> None:
+        if self._px4 and frame == MAV_FRAME_BODY_OFFSET_NED:
+            frame = _px4.MAV_FRAME_BODY_NED  # PX4 turns velocities by the heading in this one
+        self._send_target(frame, mask, pos, vel, yaw_rate)
+        if self._px4 and self._target is not None:
+            self._offboard.target(self._now(), (frame, mask, pos, vel, yaw_rate))
+
+    def _send_target(self, frame: int, mask: int, pos: tuple[float, float, float],
+                     vel: tuple[float, float, float], yaw_rate: float) -> None:
         target = self._target
         if target is None:
             return  # a target is a stream, repeated each tick: nothing to say about one
@@ -432,7 +480,8 @@ class Vehicle(VehicleQueries):
         slow = 1e6 / SLOW_RATE_HZ
         for message, interval in (("LOCAL_POSITION_NED", fast), ("GLOBAL_POSITION_INT", fast),
                                   ("ATTITUDE", fast), ("SYS_STATUS", slow),
-                                  ("GPS_RAW_INT", slow), ("EKF_STATUS_REPORT", slow)):
+                                  ("GPS_RAW_INT", slow),
+                                  *(() if self._px4 else (("EKF_STATUS_REPORT", slow),))):
             self._command("set_message_interval", f"set_message_interval {message}",
                           _MAV.MAV_CMD_SET_MESSAGE_INTERVAL,
                           getattr(_MAV, f"MAVLINK_MSG_ID_{message}"), round(interval),
@@ -463,6 +512,9 @@ class Vehicle(VehicleQueries):
                                               _MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
         self._expire(now)
         self._watch_link()
+        if self._px4:
+            hb = self._heartbeat
+            self._offboard.tick(now, hb[3], bool(hb[2] & MODE_FLAG_SAFETY_ARMED))
 
     def _drain(self) -> None:
         """Handle every datagram waiting; a bad one is dropped, never raised."""
@@ -494,10 +546,19 @@ class Vehicle(VehicleQueries):
             self._velocity = (float(msg.vx), float(msg.vy), float(msg.vz))
         elif kind == "GLOBAL_POSITION_INT":
             self._relative_alt = msg.relative_alt / 1000.0
+            if msg.lat or msg.lon:
+                self._home_amsl = (msg.alt - msg.relative_alt) / 1000.0
         elif kind == "ATTITUDE":
             self._yaw = float(msg.yaw)
         elif kind == "SYS_STATUS":
             self._battery = int(msg.battery_remaining)
+            self._prearm = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
+        elif kind == "STATUSTEXT" and self._px4:
+            for severity, text in self._texts.add(self._now(), int(msg.severity), msg.text,
+                                                  int(getattr(msg, "id", 0)),
+                                                  int(getattr(msg, "chunk_seq", 0))):
+                if severity <= SEVERITY_WARNING:
+                    self._say(f"PX4: {text}")
         elif kind == "GPS_RAW_INT":
             self._gps_fix = int(msg.fix_type)
         elif kind == "EKF_STATUS_REPORT":
@@ -532,12 +593,15 @@ class Vehicle(VehicleQueries):
             return
         first = self._target is None
         self._target = source
+        if first and self._autopilot == "auto":
+            self._px4 = msg.autopilot == _px4.AUTOPILOT_PX4
         self._heartbeat = (int(msg.type), int(msg.autopilot), int(msg.base_mode),
                            int(msg.custom_mode))
         self._heartbeat_at = self._now()
         if first:
-            mode = modes(self._heartbeat[0]).get(self._heartbeat[3], f"MODE{self._heartbeat[3]}")
-            self._say(f"vehicle {source[0]}/{source[1]} on {self.url}, mode {mode}")
+            mode = self._mode_name(self._heartbeat)
+            kind = "PX4 " if self._px4 else ""
+            self._say(f"{kind}vehicle {source[0]}/{source[1]} on {self.url}, mode {mode}")
             self._request_rates()
         elif self._lost:
             self._lost = False
@@ -549,6 +613,7 @@ class Vehicle(VehicleQueries):
         with self._lock:
             p = next((p for p in self._pending if p.command == msg.command), None)
             if p is None:
+                self._late_ack(msg)
                 return
             if msg.result == IN_PROGRESS:  # keep waiting for the final word, without resending
                 p.deadline = self._now() + self._ack_timeout
@@ -556,6 +621,7 @@ class Vehicle(VehicleQueries):
                 return
             self._pending.remove(p)
             result = RESULTS.get(int(msg.result), f"result_{msg.result}")
+            self._answered[p.command] = (p.name, p.label, p.quiet, self._now() + self._ack_timeout)
             if not p.quiet:
                 self._acks[p.name] = result
         if p.quiet and result == "accepted":
