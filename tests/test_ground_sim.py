@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 from ruamel.yaml import YAML
 
 from hfsmc.sim.ground.base import CENTRE, LEFT
-from hfsmc.sim.ground.sim import STEP_S, Bumper, GroundSim, Odometry, Scan
+from hfsmc.sim.ground.sim import STEP_S, Bumper, GroundSim, Odometry, Reading, Scan
 from hfsmc.sim.ground.world import GroundWorld, parse_ground_world
 from hfsmc.sim.world import WorldError
 
@@ -22,8 +23,8 @@ def world(text: str) -> GroundWorld:
     return parse_ground_world(YAML(typ="rt").load(text), "w.yaml")
 
 
-def run(sim: GroundSim, seconds: float, v: float = 0.0, w: float = 0.0) -> list:
-    out = []
+def run(sim: GroundSim, seconds: float, v: float = 0.0, w: float = 0.0) -> list[Reading]:
+    out: list[Reading] = []
     for _ in range(round(seconds / STEP_S)):
         sim.robots[0].command(v, w, sim.t)
         out += sim.step()
@@ -59,8 +60,7 @@ def test_the_laser_measures_the_walls_around_and_nothing_beyond_its_range() -> N
     scan = sim.scan(0)
     assert scan.angle_increment == pytest.approx(2 * math.pi / 360)
     # angle_min is -pi: ray 0 looks behind, 180 ahead, 270 to the left (counter-clockwise)
-    assert (scan.ranges[0], scan.ranges[180], scan.ranges[270]) == (
-        pytest.approx(2.0), pytest.approx(4.0), pytest.approx(2.0))
+    assert [scan.ranges[0], scan.ranges[180], scan.ranges[270]] == pytest.approx([2.0, 4.0, 2.0])
     short = GroundSim(world(ROOM + "laser: {noise: 0, range_max: 3.5}\nrobots: [{x: 2, y: 2}]"))
     assert short.scan(0).ranges[180] == math.inf  # REP 117: no return
 
@@ -122,7 +122,7 @@ def test_two_robots_meet_and_do_not_pass_through_each_other() -> None:
 
 
 def test_same_seed_same_run_and_another_seed_another_noise() -> None:
-    def truth_and_scan(seed: int) -> tuple:
+    def truth_and_scan(seed: int) -> tuple[dict[str, Any], tuple[float, ...]]:
         sim = GroundSim(world(ROOM + f"seed: {seed}\nboxes: [{{x: 3, y: 2, yaw_deg: 30}}]\n"
                               "robots: [{x: 1, y: 1}]"))
         run(sim, 20.0, v=0.5, w=0.4)

@@ -42,11 +42,11 @@ def main() -> None:
         time.sleep(0.05)
     node.snapshot()
     odom, scan, clock = node.odom, node.scan, node.clock
-    q = odom.pose.pose.orientation if odom else None
     print(json.dumps({
         "odom": None if odom is None else {
             "x": odom.pose.pose.position.x, "y": odom.pose.pose.position.y,
-            "yaw": 2 * math.atan2(q.z, q.w), "frame": odom.header.frame_id,
+            "yaw": 2 * math.atan2(odom.pose.pose.orientation.z, odom.pose.pose.orientation.w),
+            "frame": odom.header.frame_id,
             "child": odom.child_frame_id, "v": odom.twist.twist.linear.x},
         "scan": None if scan is None else {
             "n": len(scan.ranges), "frame": scan.header.frame_id,
