@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from tests.ros2_support import ros2_domain
-from tests.support import ROOT
+from tests.support import ROOT, free_port
 
 PEER = ROOT / "tests" / "ros2" / "ground_peer.py"
 ROOM = "walls: [[[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]]\n"
@@ -104,3 +104,41 @@ def test_a_timed_run_ends_by_itself_with_its_truth(tmp_path: Path) -> None:
     assert proc.returncode == 0
     truth = json.loads((tmp_path / "truth.json").read_text())
     assert truth["time"] == 1.0 and truth["robots"]["robot"]["travelled"] == 0.0
+
+
+def out_failed(out: subprocess.CompletedProcess[str] | None) -> bool:
+    """Whether the peer did not finish well (then the simulator still waits: stop it)."""
+    return out is None or out.returncode != 0
+
+
+def lockstep_run(tmp: Path, world: str) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """A 6 s drive in lockstep: what the peer held each second, and the truth."""
+    port = free_port()
+    with ros2_domain() as dom:
+        proc = sim(tmp, world, dom, "--lockstep", str(port))
+        try:
+            out = subprocess.run([sys.executable, str(ROOT / "tests" / "ros2" /
+                                                      "ground_lockstep_peer.py"),
+                                  str(dom), str(port), "6", "0.4", "0.3"],
+                                 capture_output=True, text=True, timeout=120, cwd=ROOT)
+        finally:
+            if proc.poll() is None and out_failed(locals().get("out")):
+                proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=30)
+        assert out.returncode == 0, out.stderr
+    assert proc.returncode == 0, err
+    assert b"lockstep: component peer connected" in err
+    return ([json.loads(line) for line in out.stdout.splitlines()],
+            json.loads((tmp / "truth.json").read_text()))
+
+
+def test_lockstep_holds_every_sample_and_is_the_same_every_run(tmp_path: Path) -> None:
+    world = ROOM + "seed: 9\nrobots: [{name: tb, x: 1, y: 1}]\n"
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    first, truth_a = lockstep_run(tmp_path / "a", world)
+    second, truth_b = lockstep_run(tmp_path / "b", world)
+    assert first == second and truth_a == truth_b
+    assert [r["t"] for r in first] == [1_000_000 * i for i in range(1, 7)]
+    assert [r["odom"] for r in first] == [50 * i for i in range(1, 7)]  # none lost, none late
+    assert truth_a["robots"]["tb"]["travelled"] > 1.5

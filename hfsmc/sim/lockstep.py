@@ -123,6 +123,7 @@ class Server:
             self.sock.close()
             raise
         self.channel: Channel | None = None
+        self.hello: dict[str, Any] = {}  # the component's hello (its topics, with ROS 2)
 
     def describe(self) -> str:
         host, port = self.sock.getsockname()
@@ -149,6 +150,7 @@ class Server:
                 channel.close()
                 continue  # a stray client: wait for the component
             self.channel = channel
+            self.hello = hello
             return channel, str(hello.get("component", "?"))
         return None
 

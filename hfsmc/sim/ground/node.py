@@ -87,7 +87,9 @@ class GroundNodes:
             raise NodeError(f"--domain: {e}") from None
         self.nodes: dict[str, Any] = {}
         self._seen: dict[str, int] = {}
-        self.received = 0  # cmd_vel samples taken in all (lockstep counts them)
+        self._published: dict[str, int] = {}  # resolved topic -> samples written
+        self._base_in: dict[str, int] = {}  # lockstep counts from the component's hello
+        self._base_out: dict[str, int] = {}
         try:
             for r in sim.robots:
                 self.nodes[r.name] = self.msgs.ros2.Ros2Node(f"sim {r.name}", {
@@ -116,33 +118,81 @@ class GroundNodes:
                     out[s["topic"]] = s["class"]._TYPE
         return out
 
-    def commands(self) -> int:
-        """Apply every robot's latest cmd_vel that came since the last call; how many came."""
-        came = 0
+    def commands(self) -> None:
+        """Apply every robot's latest cmd_vel, if one came since the last call."""
         for r in self.sim.robots:
             node = self.nodes[r.name]
             node.snapshot()
             n = node.count("cmd_vel")
             if n != self._seen[r.name]:
-                came += n - self._seen[r.name]
                 self._seen[r.name] = n
                 msg = node.cmd_vel
                 r.command(float(msg.linear.x), float(msg.angular.z), self.sim.t)
-        self.received += came
-        return came
 
     def publish(self, readings: list[Reading]) -> None:
         for reading in readings:
             node = self.nodes[reading.robot]
             if isinstance(reading, Odometry):
-                node.publish("odom", self._odometry(reading))
+                self._send(node, "odom", self._odometry(reading))
             elif isinstance(reading, Scan):
-                node.publish("scan", self._scan(reading))
+                self._send(node, "scan", self._scan(reading))
             elif isinstance(reading, Bumper):
                 c = self.msgs.cls["bumper"]
-                node.publish("bumper", c(bumper=reading.bumper,
-                                         state=c.PRESSED if reading.pressed else c.RELEASED))
-        self.clock.publish("clock", self.msgs.cls["clock"](clock=self._stamp(self.sim.t)))
+                self._send(node, "bumper", c(bumper=reading.bumper,
+                                             state=c.PRESSED if reading.pressed else c.RELEASED))
+        self._send(self.clock, "clock", self.msgs.cls["clock"](clock=self._stamp(self.sim.t)))
+
+    def _send(self, node: Any, name: str, msg: Any) -> None:
+        node.publish(name, msg)
+        topic = node._pubs[name]["topic"]
+        self._published[topic] = self._published.get(topic, 0) + 1
+
+    # -- lockstep (hfsmc/sim/ground/lockstep.py) ----------------------------------------
+    def _endpoints(self, table: str) -> dict[str, list[tuple[Any, str]]]:
+        """Resolved topic -> (node, endpoint name) of the publications or subscriptions."""
+        out: dict[str, list[tuple[Any, str]]] = {}
+        for node in [*self.nodes.values(), self.clock]:
+            for name, s in getattr(node, table).items():
+                out.setdefault(s["topic"], []).append((node, name))
+        return out
+
+    def published_topics(self) -> list[str]:
+        return list(self._endpoints("_pubs"))
+
+    def subscribed_topics(self) -> list[str]:
+        return list(self._endpoints("_subs"))
+
+    def matched(self, their_subs: set[str], their_pubs: set[str]) -> bool:
+        """Whether each of our publications they subscribe has a subscriber, and each of
+        our subscriptions they publish has a publisher."""
+        for node in [*self.nodes.values(), self.clock]:
+            node.snapshot()
+        pubs, subs = self._endpoints("_pubs"), self._endpoints("_subs")
+        return all(node.subscribers(n) > 0 for t in their_subs & set(pubs)
+                   for node, n in pubs[t]) and \
+            all(node.publishers(n) > 0 for t in their_pubs & set(subs) for node, n in subs[t])
+
+    def _received(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for topic, ends in self._endpoints("_subs").items():
+            for node, name in ends:
+                node.snapshot()
+                out[topic] = out.get(topic, 0) + node.count(name)
+        return out
+
+    def count_from_now(self) -> None:
+        """Lockstep counts samples from now on (the component has just connected)."""
+        self._base_in = self._received()
+        self._base_out = dict(self._published)
+
+    def received_all(self, counts: dict[str, int]) -> bool:
+        """Whether the samples the component says it sent (since it connected) have come."""
+        got = self._received()
+        return all(got.get(t, 0) - self._base_in.get(t, 0) >= n for t, n in counts.items()
+                   if t in got)
+
+    def published_counts(self) -> dict[str, int]:
+        return {t: n - self._base_out.get(t, 0) for t, n in sorted(self._published.items())}
 
     def _stamp(self, t: float) -> Any:
         clock = self.msgs.cls["clock"]()

@@ -12,6 +12,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import math
 import signal
 import sys
 import time
@@ -20,6 +21,8 @@ from types import FrameType
 from typing import IO, Any
 
 from hfsmc.fsutil import write_atomic
+from hfsmc.sim import lockstep
+from hfsmc.sim.ground import lockstep as ground_lockstep
 from hfsmc.sim.ground.sim import STEP_S, GroundSim
 from hfsmc.sim.ground.world import load_ground_world
 from hfsmc.sim.world import WorldError
@@ -113,6 +116,16 @@ def _seconds(text: str) -> float:
     return v
 
 
+def _speedup(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive rate, not {text!r}")
+    return v
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="hfsmc sim --robot diffdrive",
@@ -133,6 +146,14 @@ def parser() -> argparse.ArgumentParser:
                         "seconds and at exit")
     p.add_argument("--duration", type=_seconds, metavar="S",
                    help="exit after S simulated seconds (default: until SIGINT/SIGTERM)")
+    p.add_argument("--lockstep", metavar="[HOST:]PORT",
+                   help="be the time master of one component started with --clock sim:PORT "
+                        "(loopback unless a host is named): step only when it is done")
+    p.add_argument("--speedup", type=_speedup, metavar="N",
+                   help="with --lockstep: hold simulated time to N times real time")
+    p.add_argument("--component-gone", choices=("stop", "realtime"), default="stop",
+                   help="with --lockstep, when the component ends or dies: stop (the default) "
+                        "or go on in real time")
     return p
 
 
@@ -144,6 +165,8 @@ def _fail(text: str) -> int:
 def main(argv: list[str]) -> int:
     """`hfsmc sim --robot diffdrive ...`: 0 when stopped cleanly, 2 on a usage error."""
     args = parser().parse_args(argv)
+    if args.speedup is not None and args.lockstep is None:
+        return _fail("--speedup needs --lockstep (in real time the simulator runs at 1x)")
     try:
         world = load_ground_world(args.world)
     except WorldError as e:
@@ -157,25 +180,40 @@ def main(argv: list[str]) -> int:
         nodes = GroundNodes(sim, args.domain, args.distro)
     except NodeError as e:
         return _fail(str(e))
+    server = None
+    if args.lockstep is not None:
+        try:
+            server = lockstep.Server(args.lockstep)
+        except (ValueError, OSError) as e:
+            nodes.close()
+            return _fail(f"--lockstep {args.lockstep}: {e}")
     try:
         truth_log = None if args.truth_log is None else open(args.truth_log, "w")  # noqa: SIM115
     except OSError as e:
         nodes.close()
+        if server is not None:
+            server.close()
         return _fail(f"--truth-log {args.truth_log}: {e.strerror or e}")
     run = GroundRun(sim, nodes, args.truth, truth_log)
     try:
         with run.signals():
             names = ", ".join(f"{r.name} in {r.namespace}" for r in sim.robots)
+            more = f", {server.describe()}" if server is not None else ""
             print(f"sim: {len(sim.robots)} diffdrive robot(s) ({names}), ROS 2 domain "
-                  f"{nodes.domain} ({args.distro}), world {world.name}", file=sys.stderr,
+                  f"{nodes.domain} ({args.distro}), world {world.name}{more}", file=sys.stderr,
                   flush=True)
             try:
-                run.run(args.duration)
+                if server is None or ground_lockstep.drive(
+                        run, server, args.duration, args.speedup or math.inf,
+                        args.component_gone):
+                    run.run(args.duration)
             finally:
                 run.write_truth()
                 run.log_truth()
     finally:
         nodes.close()
+        if server is not None:
+            server.close()
         if truth_log is not None:
             truth_log.close()
     return 0

@@ -77,6 +77,7 @@ class GroundSim:
 
     def __init__(self, world: GroundWorld) -> None:
         self.world = world
+        self.step_s = STEP_S
         self.walls = world_obstacles(world)
         self.robots = [DiffDrive(r, world.base) for r in world.robots]
         self.steps = 0
