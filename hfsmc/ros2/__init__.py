@@ -1,0 +1,1 @@
+"""The `ros2` interface: message definitions, generated message types, wire details."""
