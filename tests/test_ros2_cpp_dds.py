@@ -1,0 +1,241 @@
+"""The C++ ``ros2`` runtime on a real DDS network (loopback only, a test domain id):
+a component-side program (tests/ros2_cpp/component.cpp over templates/cpp/hfsmc_ros2*.cpp,
+built with CMake against Debian's Cyclone DDS 0.10) exchanges ROS 2 messages with a program
+on eProsima Fast DDS 2.9, is seen from the DDS built-in topics as a ROS 2 node would be
+(topic and type names, QoS, enclave, type hashes), and announces its node on
+``ros_discovery_info`` in the distro's layout, decoded here by rosbags."""
+
+from __future__ import annotations
+
+import os
+import random
+import re
+import shutil
+import subprocess
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rosbags.typesys import Stores, get_typestore
+
+from hfsmc.ros2.cpp_messages import cpp_message_files
+from tests.support import ROOT, wait_until
+
+HERE = Path(__file__).resolve().parent / "ros2_cpp"
+STORES = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY}
+TYPES = ["sensor_msgs/msg/LaserScan", "geometry_msgs/msg/Twist"]
+# Discovery by unicast on 127.0.0.1 only: other machines and interfaces never see the tests.
+LOOPBACK = ("<CycloneDDS><Domain Id=\"any\"><General><Interfaces>"
+            "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"
+            "<AllowMulticast>false</AllowMulticast></General>"
+            "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
+            "<MaxAutoParticipantIndex>19</MaxAutoParticipantIndex>"
+            "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>")
+
+
+def _build(out: Path, distro: str, fastdds: bool) -> Path:
+    store = get_typestore(STORES[distro])
+    for rel, text in cpp_message_files(store, TYPES, distro, model="test").items():
+        path = out / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    for name in ("component.cpp", "fastdds_peer.cpp", "CMakeLists.txt"):
+        shutil.copy(HERE / name, out / name)
+    build = out / "build"
+    subprocess.run(["cmake", "-S", str(out), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
+                    f"-DHFSMC={ROOT / 'templates' / 'cpp'}",
+                    f"-DWITH_FASTDDS={'ON' if fastdds else 'OFF'}"],
+                   check=True, capture_output=True, timeout=300)
+    subprocess.run(["cmake", "--build", str(build), "-j2"], check=True, capture_output=True,
+                   timeout=900)
+    return build
+
+
+@pytest.fixture(scope="module")
+def builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("ros2cpp")
+    return {d: _build(root / d, d, fastdds=d == "jazzy") for d in STORES}
+
+
+@pytest.fixture
+def domain(monkeypatch: pytest.MonkeyPatch) -> int:
+    """A domain id of this test alone, on loopback (for this process's DDS and its children)."""
+    monkeypatch.setenv("CYCLONEDDS_URI", LOOPBACK)
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    return random.Random(os.getpid() ^ time.monotonic_ns()).randint(100, 200)
+
+
+@pytest.fixture
+def started() -> Iterator[list[subprocess.Popen[str]]]:
+    procs: list[subprocess.Popen[str]] = []
+    yield procs
+    for p in procs:
+        if p.poll() is None:
+            p.kill()
+        p.communicate(timeout=10)
+
+
+def _start(procs: list[subprocess.Popen[str]], *args: object) -> subprocess.Popen[str]:
+    p = subprocess.Popen([str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True)
+    procs.append(p)
+    return p
+
+
+def test_fast_dds_scan_in_twist_out(builds: dict[str, Path], domain: int,
+                                    started: list[subprocess.Popen[str]]) -> None:
+    """Fast DDS publishes LaserScans (one malformed first): the component reads each in its
+    snapshot, drops and counts the malformed one, and answers with Twists Fast DDS reads."""
+    build = builds["jazzy"]
+    comp = _start(started, build / "component", "bump", "/", "jazzy", domain, 60, 5)
+    peer = _start(started, build / "fastdds_peer", domain, 60, 3)
+    peer_out, peer_err = peer.communicate(timeout=90)
+    comp_out, comp_err = comp.communicate(timeout=90)
+    assert peer.returncode == 0, (peer_out, peer_err, comp_out, comp_err)
+    assert comp.returncode == 0, comp_err
+    assert "started /scan /cmd_vel" in comp_out
+    scans = re.findall(r"scan count=(\d+) malformed=(\d+) publishers=(\d+) frame=(\S+) "
+                       r"sec=(\d+) n=(\d+) r0=(\S+) age_ok=1 bytes=(\d+)", comp_out)
+    assert scans, comp_out
+    for _, malformed, publishers, frame, sec, n, r0, _ in scans:
+        assert (frame, n, float(r0), publishers) == ("fastdds", "3", 0.5 + int(sec), "1")
+        assert malformed == "1"  # the first sample Fast DDS sent, dropped and counted
+    assert "dropped a malformed sensor_msgs/msg/LaserScan on /scan" in comp_err
+    secs = {int(s[4]) for s in scans}
+    twists = re.findall(r"twist x=(\S+) z=(\S+)", peer_out)
+    assert len(twists) >= 3
+    for x, z in twists:  # each answers a scan the component read
+        assert int(float(z)) in secs and float(x) == 0.5 + float(z)
+
+
+def test_start_errors_are_one_line(builds: dict[str, Path], domain: int) -> None:
+    """A domain id out of range or a topic name ROS 2 forbids: one line, exit 2."""
+    exe = builds["jazzy"] / "component"
+    bad = subprocess.run([str(exe), "bump", "/", "jazzy", "233", "1", "1"],
+                         capture_output=True, text=True, timeout=30)
+    assert (bad.returncode, bad.stderr) == (2, "error: domain id 233 out of range (0 to 232)\n")
+    bad = subprocess.run([str(exe), "bump", "/tb2//x", "jazzy", str(domain), "1", "1"],
+                         capture_output=True, text=True, timeout=30)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1
+    assert "namespace '/tb2//x'" in bad.stderr
+    bad = subprocess.run([str(exe), "2bump", "/", "jazzy", str(domain), "1", "1"],
+                         capture_output=True, text=True, timeout=30)
+    assert bad.returncode == 2 and "node name '2bump'" in bad.stderr
+
+
+def _discovery_types(distro: str) -> Any:
+    from dataclasses import dataclass
+
+    from cyclonedds.idl import IdlStruct
+    from cyclonedds.idl import types as t
+
+    size = 24 if distro == "humble" else 16
+
+    @dataclass
+    class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+        data: t.array[t.uint8, size]  # type: ignore[valid-type]
+
+    @dataclass
+    class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+        node_namespace: t.bounded_str[256]  # type: ignore[valid-type]
+        node_name: t.bounded_str[256]  # type: ignore[valid-type]
+        reader_gid_seq: t.sequence[Gid]  # type: ignore[valid-type]
+        writer_gid_seq: t.sequence[Gid]  # type: ignore[valid-type]
+
+    @dataclass
+    class ParticipantEntitiesInfo(
+            IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+        gid: Gid
+        node_entities_info_seq: t.sequence[NodeEntitiesInfo]  # type: ignore[valid-type]
+
+    return ParticipantEntitiesInfo
+
+
+@pytest.mark.parametrize("distro", sorted(STORES))
+def test_discovery_as_a_ros2_node(builds: dict[str, Path], domain: int, distro: str,
+                                  started: list[subprocess.Popen[str]]) -> None:
+    """From the built-in topics: the participant's `enclave=/;`, `rt/` topics with ROS 2 type
+    names and QoS, jazzy's type hashes (rosbags' RIHS01) and none on humble; from
+    ros_discovery_info (decoded by rosbags): the node /tb2/bump with its reader and writer."""
+    from cyclonedds import core, domain as dds_domain, qos as dds_qos, sub, topic
+    from cyclonedds.builtin import (
+        BuiltinTopicDcpsParticipant,
+        BuiltinTopicDcpsPublication,
+        BuiltinTopicDcpsSubscription,
+    )
+    from cyclonedds.internal import ddspy_read
+
+    store = get_typestore(STORES[distro])
+    comp = _start(started, builds[distro] / "component", "bump", "/tb2", distro, domain, 60, 1000)
+    dp = dds_domain.DomainParticipant(domain)
+    try:
+        readers = {name: sub.DataReader(dp, kind) for name, kind in (
+            ("participants", BuiltinTopicDcpsParticipant),
+            ("publications", BuiltinTopicDcpsPublication),
+            ("subscriptions", BuiltinTopicDcpsSubscription))}
+        seen: dict[str, list[Any]] = {name: [] for name in readers}
+
+        def poll() -> bool:
+            for name, r in readers.items():
+                seen[name] += r.take(N=100)
+            topics = {p.topic_name for p in seen["publications"] + seen["subscriptions"]}
+            return {"rt/tb2/cmd_vel", "rt/tb2/scan", "ros_discovery_info"} <= topics
+
+        assert wait_until(poll, 30), (seen, comp.poll())
+        ours = [p for p in seen["participants"]
+                if p.qos[dds_qos.Policy.Userdata] == dds_qos.Policy.Userdata(b"enclave=/;")]
+        assert len(ours) == 1
+        pubs = {p.topic_name: p for p in seen["publications"] if p.participant_key == ours[0].key}
+        subs = {p.topic_name: p for p in seen["subscriptions"] if p.participant_key == ours[0].key}
+        cmd, scan, info = pubs["rt/tb2/cmd_vel"], subs["rt/tb2/scan"], pubs["ros_discovery_info"]
+        assert cmd.type_name == "geometry_msgs::msg::dds_::Twist_"
+        assert scan.type_name == "sensor_msgs::msg::dds_::LaserScan_"
+        assert info.type_name == "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"
+        P = dds_qos.Policy
+        assert cmd.qos[P.Reliability].__class__ is P.Reliability.Reliable
+        assert cmd.qos[P.History] == P.History.KeepLast(10)
+        assert scan.qos[P.Reliability] == P.Reliability.BestEffort
+        assert scan.qos[P.History] == P.History.KeepLast(5)
+        assert info.qos[P.Durability] == P.Durability.TransientLocal
+        for endpoint, ros_type in ((cmd, TYPES[1]), (scan, TYPES[0])):
+            user = endpoint.qos[P.Userdata] if P.Userdata in endpoint.qos else None
+            if distro == "jazzy":
+                assert user == P.Userdata(f"typehash={store.hash_rihs01(ros_type)};".encode())
+            else:
+                assert user is None
+
+        kind = _discovery_types(distro)
+        tp = topic.Topic(dp, "ros_discovery_info", kind)
+        rq = dds_qos.Qos(P.Reliability.Reliable(0), P.Durability.TransientLocal,
+                         P.History.KeepLast(1), P.DataRepresentation(use_cdrv0_representation=True))
+        reader = sub.DataReader(dp, tp, qos=rq)
+        raw: list[bytes] = []
+
+        def got_info() -> bool:
+            for data, sample in (ddspy_read(reader._ref, core.SampleState.Any | core.ViewState.Any
+                                            | core.InstanceState.Any, 10) or []):
+                if sample.valid_data:
+                    raw.append(bytes(data))
+            return any(_node_of(store, r) for r in raw)
+
+        assert wait_until(got_info, 30), raw
+        msg = next(m for m in (_node_of(store, r) for r in raw) if m)
+        node = msg.node_entities_info_seq[0]
+        assert (node.node_namespace, node.node_name) == ("/tb2", "bump")
+        assert len(msg.gid.data) == (24 if distro == "humble" else 16)
+        assert bytes(msg.gid.data[:16]) == bytes(ours[0].key.bytes)
+        gids = {bytes(g.data[:16]) for g in node.writer_gid_seq}
+        assert gids == {bytes(cmd.key.bytes)}
+        assert {bytes(g.data[:16]) for g in node.reader_gid_seq} == {bytes(scan.key.bytes)}
+        if distro == "humble":
+            assert all(bytes(g.data[16:]) == bytes(8) for g in [msg.gid, *node.writer_gid_seq])
+    finally:
+        dp.__del__() if hasattr(dp, "__del__") else None
+
+
+def _node_of(store: Any, data: bytes) -> Any:
+    """The ParticipantEntitiesInfo in ``data`` (rosbags), if it names a node."""
+    msg = store.deserialize_cdr(data, "rmw_dds_common/msg/ParticipantEntitiesInfo")
+    return msg if msg.node_entities_info_seq else None
