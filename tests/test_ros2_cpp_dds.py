@@ -15,7 +15,7 @@ import subprocess
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+
 
 import pytest
 from rosbags.typesys import Stores, get_typestore
@@ -41,7 +41,7 @@ def _build(out: Path, distro: str, fastdds: bool) -> Path:
         path = out / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
-    for name in ("component.cpp", "fastdds_peer.cpp", "CMakeLists.txt"):
+    for name in ("component.cpp", "fastdds_peer.cpp", "probe.cpp", "CMakeLists.txt"):
         shutil.copy(HERE / name, out / name)
     build = out / "build"
     subprocess.run(["cmake", "-S", str(out), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
@@ -125,117 +125,45 @@ def test_start_errors_are_one_line(builds: dict[str, Path], domain: int) -> None
     assert bad.returncode == 2 and "node name '2bump'" in bad.stderr
 
 
-def _discovery_types(distro: str) -> Any:
-    from dataclasses import dataclass
-
-    from cyclonedds.idl import IdlStruct
-    from cyclonedds.idl import types as t
-
-    size = 24 if distro == "humble" else 16
-
-    @dataclass
-    class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
-        data: t.array[t.uint8, size]  # type: ignore[valid-type]
-
-    @dataclass
-    class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
-        node_namespace: t.bounded_str[256]  # type: ignore[valid-type]
-        node_name: t.bounded_str[256]  # type: ignore[valid-type]
-        reader_gid_seq: t.sequence[Gid]  # type: ignore[valid-type]
-        writer_gid_seq: t.sequence[Gid]  # type: ignore[valid-type]
-
-    @dataclass
-    class ParticipantEntitiesInfo(
-            IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
-        gid: Gid
-        node_entities_info_seq: t.sequence[NodeEntitiesInfo]  # type: ignore[valid-type]
-
-    return ParticipantEntitiesInfo
-
-
 @pytest.mark.parametrize("distro", sorted(STORES))
 def test_discovery_as_a_ros2_node(builds: dict[str, Path], domain: int, distro: str,
                                   started: list[subprocess.Popen[str]]) -> None:
-    """From the built-in topics: the participant's `enclave=/;`, `rt/` topics with ROS 2 type
-    names and QoS, jazzy's type hashes (rosbags' RIHS01) and none on humble; from
-    ros_discovery_info (decoded by rosbags): the node /tb2/bump with its reader and writer."""
-    from cyclonedds import core, domain as dds_domain, qos as dds_qos, sub, topic
-    from cyclonedds.builtin import (
-        BuiltinTopicDcpsParticipant,
-        BuiltinTopicDcpsPublication,
-        BuiltinTopicDcpsSubscription,
-    )
-    from cyclonedds.internal import ddspy_read
-
+    """From the built-in topics (a plain Cyclone participant, tests/ros2_cpp/probe.cpp): the
+    participant's `enclave=/;`, `rt/` topics with ROS 2 type names and QoS, jazzy's type
+    hashes (rosbags' RIHS01) and none on humble; from ros_discovery_info, decoded by rosbags:
+    the node /tb2/bump with its reader and writer, its Gid 24 bytes on humble, 16 on jazzy."""
     store = get_typestore(STORES[distro])
-    comp = _start(started, builds[distro] / "component", "bump", "/tb2", distro, domain, 60, 1000)
-    dp = dds_domain.DomainParticipant(domain)
-    try:
-        readers = {name: sub.DataReader(dp, kind) for name, kind in (
-            ("participants", BuiltinTopicDcpsParticipant),
-            ("publications", BuiltinTopicDcpsPublication),
-            ("subscriptions", BuiltinTopicDcpsSubscription))}
-        seen: dict[str, list[Any]] = {name: [] for name in readers}
+    _start(started, builds[distro] / "component", "bump", "/tb2", distro, domain, 30, 1000)
+    probe = _start(started, builds[distro] / "probe", domain, 6)
+    out, err = probe.communicate(timeout=60)
+    assert probe.returncode == 0, err
+    ours = re.findall(r"^participant (\w+) userdata=enclave=/;$", out, re.M)
+    assert len(ours) == 1, out
+    endpoints = {}
+    for kind, key, part, topic, type_name, rel, tl, depth, user in re.findall(
+            r"^(publication|subscription) (\w+) participant=(\w+) topic=(\S+) type=(\S+) "
+            r"reliable=(\d) transient=(\d) depth=(-?\d+) userdata=(\S+)$", out, re.M):
+        if part == ours[0]:
+            endpoints[topic] = (kind, key, type_name, rel + tl + depth, user)
+    cmd, scan = endpoints["rt/tb2/cmd_vel"], endpoints["rt/tb2/scan"]
+    info = endpoints["ros_discovery_info"]
+    assert (cmd[0], cmd[2], cmd[3]) == ("publication", "geometry_msgs::msg::dds_::Twist_", "1010")
+    assert (scan[0], scan[2], scan[3]) == ("subscription", "sensor_msgs::msg::dds_::LaserScan_", "005")
+    assert (info[0], info[2], info[3]) == ("publication", "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_",
+                          "111")
+    for endpoint, ros_type in ((cmd, TYPES[1]), (scan, TYPES[0]),
+                               (info, "rmw_dds_common/msg/ParticipantEntitiesInfo")):
+        hashed = f"typehash={store.hash_rihs01(ros_type)};"
+        assert endpoint[4] == (hashed if distro == "jazzy" else "-")
 
-        def poll() -> bool:
-            for name, r in readers.items():
-                seen[name] += r.take(N=100)
-            topics = {p.topic_name for p in seen["publications"] + seen["subscriptions"]}
-            return {"rt/tb2/cmd_vel", "rt/tb2/scan", "ros_discovery_info"} <= topics
-
-        assert wait_until(poll, 30), (seen, comp.poll())
-        ours = [p for p in seen["participants"]
-                if p.qos[dds_qos.Policy.Userdata] == dds_qos.Policy.Userdata(b"enclave=/;")]
-        assert len(ours) == 1
-        pubs = {p.topic_name: p for p in seen["publications"] if p.participant_key == ours[0].key}
-        subs = {p.topic_name: p for p in seen["subscriptions"] if p.participant_key == ours[0].key}
-        cmd, scan, info = pubs["rt/tb2/cmd_vel"], subs["rt/tb2/scan"], pubs["ros_discovery_info"]
-        assert cmd.type_name == "geometry_msgs::msg::dds_::Twist_"
-        assert scan.type_name == "sensor_msgs::msg::dds_::LaserScan_"
-        assert info.type_name == "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"
-        P = dds_qos.Policy
-        assert cmd.qos[P.Reliability].__class__ is P.Reliability.Reliable
-        assert cmd.qos[P.History] == P.History.KeepLast(10)
-        assert scan.qos[P.Reliability] == P.Reliability.BestEffort
-        assert scan.qos[P.History] == P.History.KeepLast(5)
-        assert info.qos[P.Durability] == P.Durability.TransientLocal
-        for endpoint, ros_type in ((cmd, TYPES[1]), (scan, TYPES[0])):
-            user = endpoint.qos[P.Userdata] if P.Userdata in endpoint.qos else None
-            if distro == "jazzy":
-                assert user == P.Userdata(f"typehash={store.hash_rihs01(ros_type)};".encode())
-            else:
-                assert user is None
-
-        kind = _discovery_types(distro)
-        tp = topic.Topic(dp, "ros_discovery_info", kind)
-        rq = dds_qos.Qos(P.Reliability.Reliable(0), P.Durability.TransientLocal,
-                         P.History.KeepLast(1), P.DataRepresentation(use_cdrv0_representation=True))
-        reader = sub.DataReader(dp, tp, qos=rq)
-        raw: list[bytes] = []
-
-        def got_info() -> bool:
-            for data, sample in (ddspy_read(reader._ref, core.SampleState.Any | core.ViewState.Any
-                                            | core.InstanceState.Any, 10) or []):
-                if sample.valid_data:
-                    raw.append(bytes(data))
-            return any(_node_of(store, r) for r in raw)
-
-        assert wait_until(got_info, 30), raw
-        msg = next(m for m in (_node_of(store, r) for r in raw) if m)
-        node = msg.node_entities_info_seq[0]
-        assert (node.node_namespace, node.node_name) == ("/tb2", "bump")
-        assert len(msg.gid.data) == (24 if distro == "humble" else 16)
-        assert bytes(msg.gid.data[:16]) == bytes(ours[0].key.bytes)
-        gids = {bytes(g.data[:16]) for g in node.writer_gid_seq}
-        assert gids == {bytes(cmd.key.bytes)}
-        assert {bytes(g.data[:16]) for g in node.reader_gid_seq} == {bytes(scan.key.bytes)}
-        if distro == "humble":
-            assert all(bytes(g.data[16:]) == bytes(8) for g in [msg.gid, *node.writer_gid_seq])
-    finally:
-        dp.__del__() if hasattr(dp, "__del__") else None
-
-
-def _node_of(store: Any, data: bytes) -> Any:
-    """The ParticipantEntitiesInfo in ``data`` (rosbags), if it names a node."""
-    msg = store.deserialize_cdr(data, "rmw_dds_common/msg/ParticipantEntitiesInfo")
-    return msg if msg.node_entities_info_seq else None
+    announced = [store.deserialize_cdr(bytes.fromhex(h),
+                                       "rmw_dds_common/msg/ParticipantEntitiesInfo")
+                 for h in re.findall(r"^discovery (\w+)$", out, re.M)]
+    msg = next(m for m in announced if bytes(m.gid.data[:16]).hex() == ours[0])
+    assert len(msg.gid.data) == (24 if distro == "humble" else 16)
+    node = msg.node_entities_info_seq[0]
+    assert (node.node_namespace, node.node_name) == ("/tb2", "bump")
+    assert [bytes(g.data[:16]).hex() for g in node.writer_gid_seq] == [cmd[1]]
+    assert [bytes(g.data[:16]).hex() for g in node.reader_gid_seq] == [scan[1]]
+    if distro == "humble":
+        assert all(bytes(g.data[16:]) == bytes(8) for g in [msg.gid, *node.writer_gid_seq])
