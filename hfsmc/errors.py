@@ -85,6 +85,9 @@ CODES: dict[str, str] = {
     "E197": "a scenario expects a state the model does not have",
     "E198": "a file a scenario names (image, trace) does not exist or cannot be read",
     "E199": "a scenario expects a command the interface does not have",
+    # ROS 2 messages (docs/ros2.md)
+    "E310": "unknown ROS 2 message type (not in the distro nor in the model's .msg files)",
+    "E311": "a .msg file that does not parse or names an unknown type",
     # snippets
     "E140": "syntax error in a Python snippet",
     "E141": "undefined name in a Python snippet",

@@ -1,1 +1,3 @@
-"""The `ros2` interface: message definitions, generated message types, wire details."""
+"""ROS 2 messages for the ``ros2`` interface (docs/ros2.md): their definitions
+(``definitions``) and the Python message packages generated from them
+(``python_messages``)."""

@@ -1,0 +1,357 @@
+"""The ``ros2`` interface of Python components (docs/ros2.md): the component is a ROS 2
+node, with no ROS 2 installed, over Eclipse Cyclone DDS (cyclonedds-python).
+
+Copied beside a component with a ``ros2`` interface, with ``hfsmc_ros2_wire.py``,
+``hfsmc_ros2_cdr.py`` and the generated message packages; imports nothing else of hfsmc.
+The runtime calls ``connect(name, settings)`` with the interface's settings (node,
+namespace, domain, distro, subscribe, publish: as in the model and NAME.yaml).
+
+A reader thread takes every sample as it comes, decodes it (a malformed one is dropped
+and counted, said once on stderr) and keeps the latest per subscription; ``snapshot()``
+freezes that once per instant, and snippets read the frozen state
+(:class:`Ros2Queries`): ``robot.scan``, ``robot.age("scan")``, ``robot.count("scan")``,
+``robot.publishers("scan")``, ``robot.subscribers("cmd_vel")``. ``robot.publish(name,
+msg)`` is a command: written at once.
+
+On the wire as ROS 2 (rmw_cyclonedds_cpp): participant USER_DATA ``enclave=/;``; topics
+``rt/<resolved name>`` of type ``pkg::msg::dds_::Name_``; plain CDR (XCDR1); with jazzy
+``typehash=RIHS01_...;`` in each endpoint's USER_DATA; the node and its endpoints
+announced on ``ros_discovery_info`` (rmw_dds_common/msg/ParticipantEntitiesInfo, whose
+Gid is 24 bytes in humble and 16 in jazzy, as generated).
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import math
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from cyclonedds.core import (
+    DDSException,
+    GuardCondition,
+    InstanceState,
+    ReadCondition,
+    SampleState,
+    ViewState,
+    WaitSet,
+)
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+if __package__:
+    from . import hfsmc_ros2_cdr as cdr
+    from . import hfsmc_ros2_wire as wire
+else:  # copied beside the generated component, where the modules are top level
+    import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
+
+DISTROS = ("humble", "jazzy")
+DISCOVERY_TOPIC = "ros_discovery_info"
+DISCOVERY_TYPE = "rmw_dds_common/msg/ParticipantEntitiesInfo"
+TAKE_MAX = 64  # samples taken per reader and wake-up
+WAKE_S = 0.05  # the reader thread looks at matched endpoints at least this often
+
+Ros2Error = wire.Ros2Error
+
+
+def connect(name: str, settings: dict[str, Any]) -> Ros2Node:
+    """Join the ROS 2 graph as a node; returns once the node's endpoints exist. A bad
+    setting or no usable network: one line on stderr and exit status 2."""
+    try:
+        return Ros2Node(name, settings)
+    except (Ros2Error, DDSException) as exc:
+        with contextlib.suppress(ValueError, OSError):
+            sys.stderr.write(f"{name}: ros2: {_one_line(exc)}\n")
+        raise SystemExit(2) from None
+
+
+def _one_line(exc: Exception) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+class _Sub:
+    """What the reader thread keeps of one subscription (replaced whole)."""
+
+    __slots__ = ("arrived", "cdr", "count", "dropped", "msg", "publishers")
+
+    def __init__(self) -> None:
+        self.msg: Any = None
+        self.cdr: bytes | None = None
+        self.arrived = 0.0
+        self.count = 0
+        self.dropped = 0
+        self.publishers = 0
+
+
+class Ros2Queries:
+    """What snippets call. Reads return the snapshot taken when the instant began."""
+
+    name: str
+    _subs: dict[str, Any]  # subscription name -> its settings
+    _pubs: dict[str, Any]  # publication name -> its settings
+    _snap: dict[str, tuple[Any, float, int, int]]  # name -> (msg, age, count, publishers)
+    _snap_subscribers: dict[str, int]
+
+    def __getattr__(self, attr: str) -> Any:
+        """``robot.scan``: the latest message of subscription ``scan`` when the instant
+        began; None before the first."""
+        subs = self.__dict__.get("_subs") or {}
+        if attr in subs:
+            return self.__dict__["_snap"][attr][0]
+        name = self.__dict__.get("name", "?")
+        raise AttributeError(f"the ros2 interface `{name}` has no subscription or method "
+                             f"`{attr}` (subscriptions: {', '.join(subs) or 'none'})",
+                             name=attr, obj=self)
+
+    def age(self, name: str) -> float:
+        """Seconds since the latest message of ``name`` arrived; inf before the first."""
+        return self._snap[self._sub(name)][1]
+
+    def count(self, name: str) -> int:
+        """How many messages of ``name`` have arrived since start."""
+        return self._snap[self._sub(name)][2]
+
+    def publishers(self, name: str) -> int:
+        """How many remote publishers the subscription ``name`` is matched with."""
+        return self._snap[self._sub(name)][3]
+
+    def subscribers(self, name: str) -> int:
+        """How many remote subscribers the publication ``name`` is matched with."""
+        return self._snap_subscribers[self._pub(name)]
+
+    def publish(self, name: str, msg: Any) -> None:
+        """Send ``msg`` on the publication ``name`` now (a command)."""
+        setting = self._pubs[self._pub(name)]
+        cls = setting["class"]
+        if type(msg) is not cls:
+            raise TypeError(f"{self.name}.publish({name!r}, ...): a {cls._TYPE} is expected, "
+                            f"not {_kind(msg)}")
+        self._send(name, cdr.serialize(msg))
+
+    def _send(self, name: str, data: bytes) -> None:
+        raise NotImplementedError  # the live class and the replay define it
+
+    def _sub(self, name: str) -> str:
+        if name not in self._subs:
+            raise KeyError(f"the ros2 interface `{self.name}` has no subscription `{name}` "
+                           f"(subscriptions: {', '.join(self._subs) or 'none'})")
+        return name
+
+    def _pub(self, name: str) -> str:
+        if name not in self._pubs:
+            raise KeyError(f"the ros2 interface `{self.name}` does not publish `{name}` "
+                           f"(publications: {', '.join(self._pubs) or 'none'})")
+        return name
+
+
+def _kind(msg: Any) -> str:
+    t = getattr(type(msg), "_TYPE", None)
+    return t if isinstance(t, str) else type(msg).__name__
+
+
+class Ros2Node(Ros2Queries):
+    """A ROS 2 node on DDS: its subscriptions and publications, and the reader thread."""
+
+    def __init__(self, name: str, settings: dict[str, Any]) -> None:
+        self.name = name
+        self.distro = str(settings.get("distro") or "jazzy")
+        if self.distro not in DISTROS:
+            raise Ros2Error(f"distro `{self.distro}`: one of {', '.join(DISTROS)}")
+        self.node = wire.validate_node_name(str(settings.get("node") or name))
+        self.namespace = wire.validate_namespace(str(settings.get("namespace") or "/"))
+        self.domain = wire.domain_id(settings.get("domain"))
+        self._subs = self._endpoints(settings.get("subscribe") or {})
+        self._pubs = self._endpoints(settings.get("publish") or {})
+        self._check_topics()
+        self.on_publish: Callable[[str, bytes], None] | None = None  # a recording's hook
+        self._lock = threading.Lock()
+        self._pending = {n: _Sub() for n in self._subs}
+        self._snap = {n: (None, math.inf, 0, 0) for n in self._subs}
+        self._snap_subscribers = dict.fromkeys(self._pubs, 0)
+        self._subscribers = dict.fromkeys(self._pubs, 0)
+        self._said: set[str] = set()
+        self._closed = False
+        self._open_dds()
+        self._stop = GuardCondition(self._dp)
+        self._thread = threading.Thread(target=self._run, name=f"ros2 {name}", daemon=True)
+        self._thread.start()
+        atexit.register(self.close)
+
+    def __repr__(self) -> str:
+        return f"<ros2 {self.name} node {self.namespace.rstrip('/')}/{self.node} " \
+               f"domain {self.domain}>"
+
+    def _endpoints(self, table: Any) -> dict[str, Any]:
+        if not isinstance(table, dict):
+            raise Ros2Error("subscribe and publish map names to topics")
+        out: dict[str, Any] = {}
+        for key, spec in table.items():
+            if not isinstance(spec, dict) or "type" not in spec:
+                raise Ros2Error(f"`{key}`: {{topic, type, qos}}")
+            cls = wire.message_class(str(spec["type"]))
+            topic = wire.resolve_name(str(spec.get("topic") or key), self.namespace, self.node)
+            out[str(key)] = {"topic": topic, "class": cls, "qos": wire.qos_of(spec.get("qos"))}
+        return out
+
+    def _check_topics(self) -> None:
+        seen: dict[str, Any] = {}
+        for key, s in [*self._subs.items(), *self._pubs.items()]:
+            other = seen.setdefault(s["topic"], s["class"])
+            if other is not s["class"]:
+                raise Ros2Error(f"topic {s['topic']} (`{key}`) is used with two types: "
+                                f"{other._TYPE} and {s['class']._TYPE}")
+
+    # -- DDS ---------------------------------------------------------------------------
+    def _open_dds(self) -> None:
+        self._dp = DomainParticipant(self.domain, qos=wire.dds_qos(("reliable", "volatile", 1),
+                                                                   b"enclave=/;"))
+        topics: dict[str, Topic[Any]] = {}
+
+        def topic(s: dict[str, Any]) -> Topic[Any]:
+            if s["topic"] not in topics:
+                topics[s["topic"]] = Topic(self._dp, "rt" + s["topic"], wire.dds_type(s["class"]))
+            return topics[s["topic"]]
+
+        self._readers = {n: DataReader(self._dp, topic(s), qos=self._qos(s))
+                         for n, s in self._subs.items()}
+        self._writers = {n: DataWriter(self._dp, topic(s), qos=self._qos(s))
+                         for n, s in self._pubs.items()}
+        self._topics = topics
+        self._announce()
+
+    def _qos(self, s: dict[str, Any]) -> Any:
+        user = f"typehash={s['class']._HASH};".encode() if self.distro == "jazzy" else None
+        return wire.dds_qos(s["qos"], user)
+
+    def _announce(self) -> None:
+        """The node and its endpoints on ros_discovery_info, as rmw_dds_common does."""
+        info_cls = wire.message_class(DISCOVERY_TYPE)
+        gid_cls = wire.message_class("rmw_dds_common/msg/Gid")
+        size = int(gid_cls._FIELDS["data"].rsplit("[", 1)[1].rstrip("]"))
+
+        def gid(entity: Any) -> Any:
+            return gid_cls(data=list(entity.guid.bytes.ljust(size, b"\x00")))
+
+        node_cls = wire.message_class("rmw_dds_common/msg/NodeEntitiesInfo")
+        node = node_cls(node_namespace=self.namespace, node_name=self.node,
+                        reader_gid_seq=[gid(r) for r in self._readers.values()],
+                        writer_gid_seq=[gid(w) for w in self._writers.values()])
+        info = info_cls(gid=gid(self._dp), node_entities_info_seq=[node])
+        kind = wire.dds_type(info_cls)
+        qos = ("reliable", "transient_local", 1)
+        user = f"typehash={info_cls._HASH};".encode() if self.distro == "jazzy" else None
+        self._info_topic = Topic(self._dp, DISCOVERY_TOPIC, kind)
+        self._info_writer = DataWriter(self._dp, self._info_topic, qos=wire.dds_qos(qos, user))
+        self._info_writer.write(wire.raw_sample(kind, cdr.serialize(info)))
+
+    def _send(self, name: str, data: bytes) -> None:
+        writer = self._writers[name]
+        writer.write(wire.raw_sample(writer.data_type, data))
+        if self.on_publish is not None:
+            self.on_publish(name, data)
+
+    # -- the instant's snapshot ------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        """Freeze the latest state for the instant that begins; queries return it. The
+        result (for a recording): per subscription its count, age, matched publishers,
+        dropped samples and the latest CDR bytes; per publication its subscribers."""
+        now = time.monotonic()
+        with self._lock:
+            pending = [(n, s.msg, s.cdr, s.arrived, s.count, s.dropped, s.publishers)
+                       for n, s in self._pending.items()]
+            self._snap_subscribers = dict(self._subscribers)
+        snap: dict[str, tuple[Any, float, int, int]] = {}
+        topics: dict[str, Any] = {}
+        for n, msg, data, arrived, count, dropped, pubs in pending:
+            age = now - arrived if count else math.inf
+            snap[n] = (msg, age, count, pubs)
+            topics[n] = {"count": count, "age": age, "publishers": pubs, "dropped": dropped,
+                         "cdr": data}
+        self._snap = snap
+        return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers)}
+
+    def dropped(self, name: str) -> int:
+        """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""
+        with self._lock:
+            return self._pending[self._sub(name)].dropped
+
+    def close(self) -> None:
+        """Leave the graph (also run at exit): the reader thread stops, DDS entities go."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set(True)
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+        with contextlib.suppress(DDSException):
+            self._dp.__del__()
+
+    # -- the reader thread -------------------------------------------------------------
+    def _run(self) -> None:
+        ws = WaitSet(self._dp)
+        mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
+        conds = {n: ReadCondition(r, mask) for n, r in self._readers.items()}
+        for c in conds.values():
+            ws.attach(c)
+        ws.attach(self._stop)
+        while not self._closed:
+            try:
+                ws.wait(duration(seconds=WAKE_S))
+                for n, reader in self._readers.items():
+                    self._take(n, reader)
+                self._matched()
+            except DDSException as exc:
+                if self._closed:
+                    return
+                self._say(f"DDS: {_one_line(exc)}")
+                time.sleep(WAKE_S)
+
+    def _take(self, name: str, reader: DataReader[Any]) -> None:
+        samples = reader.take(TAKE_MAX)
+        if not samples:
+            return
+        cls = self._subs[name]["class"]
+        for sample in samples:
+            data = sample.__dict__.get("raw")
+            if data is None:  # an instance disposed, no data
+                continue
+            now = time.monotonic()
+            try:
+                msg = cdr.deserialize(cls, data)
+            except cdr.CdrError as exc:
+                with self._lock:
+                    self._pending[name].dropped += 1
+                if name not in self._said:
+                    self._said.add(name)
+                    self._say(f"a malformed sample on {self._subs[name]['topic']} dropped "
+                              f"({exc}); further ones are counted")
+                continue
+            with self._lock:
+                s = self._pending[name]
+                s.msg, s.cdr, s.arrived, s.count = msg, bytes(data), now, s.count + 1
+
+    def _matched(self) -> None:
+        readers: dict[str, Any] = self._readers  # the binding's status calls are untyped
+        writers: dict[str, Any] = self._writers
+        pubs = {n: int(r.get_subscription_matched_status().current_count)
+                for n, r in readers.items()}
+        subs = {n: int(w.get_publication_matched_status().current_count)
+                for n, w in writers.items()}
+        with self._lock:
+            for n, c in pubs.items():
+                self._pending[n].publishers = c
+            self._subscribers = subs
+
+    def _say(self, text: str) -> None:
+        with contextlib.suppress(ValueError, OSError):
+            sys.stderr.write(f"{self.name}: ros2: {text}\n")
+            sys.stderr.flush()
