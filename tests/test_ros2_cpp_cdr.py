@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from hfsmc.ros2.cpp_messages import cpp_message_files, cpp_type_name, header_path
+from hfsmc.ros2.cpp_messages import RUNTIME_TYPES, cpp_message_files, cpp_type_name, header_path
+from hfsmc.ros2.definitions import message_set
+from tests.ros2_support import AT
 from tests.support import ROOT
 
 STORES = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY}
@@ -46,6 +48,9 @@ BUILT = r"""
     p.polygon.points[1].y = 4.0f;
     return hfsmc::cdr::serialize(p);
   }
+  if (which == "quat") {  // Quaternion.msg: `float64 w 1`
+    return hfsmc::cdr::serialize(geometry_msgs::msg::Quaternion());
+  }
 """
 
 
@@ -62,6 +67,9 @@ def _built(store: Any, which: str) -> bytes:
                                              np.array([1.0, 2.5, 3.0], np.float32),
                                              np.array([], np.float32))
         return bytes(store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
+    if which == "quat":
+        msg = t["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0)
+        return bytes(store.serialize_cdr(msg, "geometry_msgs/msg/Quaternion"))
     p32 = t["geometry_msgs/msg/Point32"]
     polygon = t["geometry_msgs/msg/Polygon"]([p32(0.0, 0.0, 0.0), p32(0.0, 4.0, 0.0)])
     msg = t["shape_msgs/msg/SolidPrimitive"](1, np.array([1.0, 2.0, 3.0]), polygon)
@@ -130,7 +138,8 @@ def program(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFac
     store = get_typestore(STORES[distro])
     types = _types(store)
     out = tmp_path_factory.mktemp(f"cdr-{distro}")
-    for rel, text in cpp_message_files(store, types, distro, model="test").items():
+    ms = message_set(distro, [(t, AT) for t in [*types, *RUNTIME_TYPES]])
+    for rel, text in cpp_message_files(ms, model="test").items():
         path = out / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
@@ -200,10 +209,11 @@ def test_every_type_round_trips_byte_for_byte(program: tuple[str, Any, list[str]
 
 def test_messages_built_in_cpp_are_rosbags_bytes(
         program: tuple[str, Any, list[str], Path]) -> None:
-    """Defaults (zero) and fields set by rclcpp's names give rosbags' bytes of the same values."""
+    """Defaults (zero, and the .msg's: Quaternion's w 1) and fields set by rclcpp's names give rosbags' bytes of the same values."""
     _, store, _, exe = program
-    got = _run(exe, [f"built {w} -" for w in ("twist", "scan", "shape")])
-    assert got == [_built(store, w).hex() for w in ("twist", "scan", "shape")]
+    which = ("twist", "scan", "shape", "quat")
+    got = _run(exe, [f"built {w} -" for w in which])
+    assert got == [_built(store, w).hex() for w in which]
 
 
 def test_a_malformed_sample_is_refused(program: tuple[str, Any, list[str], Path]) -> None:

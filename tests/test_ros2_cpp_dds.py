@@ -20,7 +20,9 @@ from pathlib import Path
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from hfsmc.ros2.cpp_messages import cpp_message_files
+from hfsmc.ros2.cpp_messages import RUNTIME_TYPES, cpp_message_files
+from hfsmc.ros2.definitions import message_set
+from tests.ros2_support import AT
 from tests.support import ROOT, wait_until
 
 HERE = Path(__file__).resolve().parent / "ros2_cpp"
@@ -36,8 +38,8 @@ LOOPBACK = ("<CycloneDDS><Domain Id=\"any\"><General><Interfaces>"
 
 
 def _build(out: Path, distro: str, fastdds: bool) -> Path:
-    store = get_typestore(STORES[distro])
-    for rel, text in cpp_message_files(store, TYPES, distro, model="test").items():
+    ms = message_set(distro, [(t, AT) for t in [*TYPES, *RUNTIME_TYPES]])
+    for rel, text in cpp_message_files(ms, model="test").items():
         path = out / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)

@@ -1,32 +1,33 @@
-"""C++ message types of the ``ros2`` interface, generated from the distro's definitions.
+"""C++ message types of the ``ros2`` interface, generated from the neutral definitions.
 
 Each ROS 2 message a model uses becomes ``PKG::msg::Name`` in
 ``include/PKG/msg/snake_name.hpp`` (the path rclcpp code includes), with rclcpp's field
-names and C++ types (``std::string``, ``std::vector``, ``std::array``, nested types,
-``static constexpr`` constants, zero or ROS 2 defaults), and two free functions found by
-argument-dependent lookup, ``cdr_write`` and ``cdr_read``, that put it on the wire as
-plain CDR exactly as rosbags (and ROS 2) does: docs/ros2-cpp.md says why the component
-writes its CDR itself rather than through IDL compiled by ``idlc``.
+names and C++ types (``std::string``, ``std::vector``, ``std::array``, bounded sequences,
+nested types, ``static constexpr`` constants, ROS 2 defaults as member initialisers), and
+two free functions found by argument-dependent lookup, ``cdr_write`` and ``cdr_read``,
+that put it on the wire as plain CDR exactly as rosbags (and ROS 2) does: docs/ros2-cpp.md
+says why the component writes its CDR itself rather than through IDL compiled by ``idlc``.
 
-Only the types a model names are generated, with the types they contain, and
-``rmw_dds_common/msg/ParticipantEntitiesInfo`` that the runtime announces its node with.
-The definitions come from a rosbags type store (the distro's standard packages plus the
-model's own ``.msg`` files registered into it); the view computed here is all a template
-sees, and it only loops and prints.
+The input is a :class:`~hfsmc.ros2.definitions.MessageSet` (the closure of the types a
+model uses, dependencies first); the runtime also needs
+``rmw_dds_common/msg/ParticipantEntitiesInfo`` (:data:`RUNTIME_TYPES`: a model's message
+set is asked with it). The view computed here is all a template sees; it only loops and
+prints.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.resources import files as resource_files
-from typing import Any
 
 import jinja2
 
 from hfsmc.errors import HfsmcError
+from hfsmc.ros2.definitions import Field, FieldType, Message, MessageSet, Scalar
 
 # rclcpp's C++ type of each ROS 2 primitive (rosidl_generator_cpp), with its size on the wire.
 PRIMITIVES: Mapping[str, tuple[str, int]] = {
@@ -39,8 +40,6 @@ PRIMITIVES: Mapping[str, tuple[str, int]] = {
 # What the runtime itself sends on every participant (ros_discovery_info).
 RUNTIME_TYPES = ("rmw_dds_common/msg/ParticipantEntitiesInfo",)
 
-_BASE, _NAME, _ARRAY, _SEQUENCE = 1, 2, 3, 4  # rosbags' Nodetype values
-
 
 @dataclass(frozen=True, slots=True)
 class FieldView:
@@ -52,11 +51,6 @@ class FieldView:
 
 
 @dataclass(frozen=True, slots=True)
-class ConstantView:
-    decl: str           # `static constexpr int32_t ARROW = 0;`
-
-
-@dataclass(frozen=True, slots=True)
 class MessageView:
     package: str
     name: str
@@ -64,10 +58,9 @@ class MessageView:
     dds_type: str       # sensor_msgs::msg::dds_::LaserScan_
     type_hash: str      # RIHS01_... (jazzy), "" (humble)
     definition: str     # the ros2msg text (with its dependencies), a C++ literal
-    guard_comment: str
     includes: tuple[str, ...]
     fields: tuple[FieldView, ...]
-    constants: tuple[ConstantView, ...]
+    constants: tuple[str, ...]  # `static constexpr int32_t ARROW = 0;`
 
 
 def snake_case(name: str) -> str:
@@ -88,75 +81,75 @@ def cpp_type_name(ros_type: str) -> str:
     return f"{package}::msg::{name}"
 
 
-def closure(store: Any, names: Iterable[str]) -> list[str]:
-    """The types named and every type they contain, dependencies first, each once."""
-    out: list[str] = []
-
-    def visit(name: str, path: tuple[str, ...]) -> None:
-        if name in out:
-            return
-        if name not in store.fielddefs:
-            raise HfsmcError(f"unknown ROS 2 message type {name!r}")
-        for ref in _references(store.fielddefs[name][1]):
-            if ref not in path:
-                visit(ref, path + (name,))
-        out.append(name)
-
-    for name in [*names, *RUNTIME_TYPES]:
-        visit(name, ())
-    return out
-
-
-def _references(fields: Iterable[tuple[str, Any]]) -> list[str]:
-    refs = []
-    for _, (kind, desc) in fields:
-        if kind == _NAME:
-            refs.append(desc)
-        elif kind in (_ARRAY, _SEQUENCE) and desc[0][0] == _NAME:
-            refs.append(desc[0][1])
-    return refs
-
-
 def _literal(text: str) -> str:
     """A C++ string literal of ``text`` (ASCII escapes only: json's are valid C++)."""
     return json.dumps(text, ensure_ascii=True)
 
 
-def _element(kind: int, desc: Any) -> tuple[str, str, int, int]:
-    """(C++ type, kind: prim|bool|string|msg, wire size or minimal size, string bound)."""
-    if kind == _NAME:
-        return cpp_type_name(desc), "msg", 1, 0
-    base, bound = desc
-    if base == "string":
-        return "std::string", "string", 5, bound
-    if base == "wstring":
+def _element(t: FieldType) -> tuple[str, str, int]:
+    """(C++ type, kind: prim|bool|string|msg, wire size or the least an element takes)."""
+    if t.kind == "nested":
+        return cpp_type_name(t.name), "msg", 1
+    if t.kind == "string":
+        return "std::string", "string", 5
+    if t.kind == "wstring":
         raise HfsmcError("wstring fields are not supported by the C++ component yet")
+    if t.name == "bool":
+        return "bool", "bool", 1
+    ctype, size = PRIMITIVES[t.name]
+    return ctype, "prim", size
+
+
+def _value(base: str, value: Scalar) -> str:
+    """A C++ literal of a constant's or a default's value."""
+    if base in ("string", "wstring"):
+        return _literal(str(value))
     if base == "bool":
-        return "bool", "bool", 1, 0
-    ctype, size = PRIMITIVES[base]
-    return ctype, "prim", size, 0
+        return "true" if value else "false"
+    if base in ("float32", "float64"):
+        v = float(value)
+        if math.isnan(v):
+            return "std::numeric_limits<double>::quiet_NaN()"
+        if math.isinf(v):
+            return ("-" if v < 0 else "") + "std::numeric_limits<double>::infinity()"
+        text = repr(v)
+        return text + ("f" if base == "float32" else "")
+    if base.startswith("u") or base in ("byte", "char"):
+        return f"{int(value)}u" if base != "uint64" else f"UINT64_C({int(value)})"
+    if base == "int64":
+        return f"INT64_C({int(value)})"
+    return str(int(value))
 
 
-def _field(name: str, kind: int, desc: Any) -> FieldView:
-    m = f"m.{name}"
-    if kind in (_BASE, _NAME):
-        ctype, ek, _, sbound = _element(kind, desc)
-        init = "" if ek in ("msg", "string") else "{}"
-        return FieldView(name, f"{ctype} {name}{init};", *_scalar(ek, ctype, m, sbound))
-    (ekind, edesc), size = desc
-    ctype, ek, wire, sbound = _element(ekind, edesc)
-    if kind == _ARRAY:
-        decl = f"std::array<{ctype}, {size}> {name}{{}};"
+def _initialiser(f: Field) -> str:
+    t = f.type
+    if f.default is None:
+        return "" if t.kind in ("nested", "string") or t.array in ("bounded", "unbounded") \
+            else "{}"
+    values = f.default if isinstance(f.default, tuple) else (f.default,)
+    items = ", ".join(_value(t.name if t.kind == "primitive" else t.kind, v) for v in values)
+    return f"{{{items}}}"
+
+
+def _field(f: Field) -> FieldView:
+    t, name, m = f.type, f.name, f"m.{f.name}"
+    ctype, ek, wire = _element(t)
+    init = _initialiser(f)
+    if t.array == "none":
+        return FieldView(name, f"{ctype} {name}{init};", *_scalar(ek, ctype, m, t.string_bound))
+    if t.array == "fixed":
+        decl = f"std::array<{ctype}, {t.size}> {name}{init or '{}'};"
         if ek == "prim":
-            return FieldView(name, decl, (f"w.prims({m}.data(), {size});",),
-                             (f"r.prims({m}.data(), {size});",))
-        w, r = _scalar(ek, ctype, "e", sbound)
+            return FieldView(name, decl, (f"w.prims({m}.data(), {t.size});",),
+                             (f"r.prims({m}.data(), {t.size});",))
+        w, r = _scalar(ek, ctype, "e", t.string_bound)
         return FieldView(name, decl, (f"for (const auto& e : {m}) {{ {' '.join(w)} }}",),
                          (f"for (auto& e : {m}) {{ {' '.join(r)} }}",))
+    size = t.size if t.array == "bounded" else 0
     if size:
-        decl = f"::hfsmc::cdr::BoundedVector<{ctype}, {size}> {name};"
+        decl = f"::hfsmc::cdr::BoundedVector<{ctype}, {size}> {name}{init};"
     else:
-        decl = f"std::vector<{ctype}> {name};"
+        decl = f"std::vector<{ctype}> {name}{init};"
     write = [f"w.bound({m}.size(), {size});", f"w.count({m}.size());"]
     read = [f"{{ std::size_t n = r.count({wire}); r.bound(n, {size}); {m}.resize(n);"]
     if ek == "prim":
@@ -166,7 +159,7 @@ def _field(name: str, kind: int, desc: Any) -> FieldView:
         write.append(f"for (bool e : {m}) w.boolean(e);")
         read.append(f"for (std::size_t i = 0; i < n; ++i) {m}[i] = r.boolean(); }}")
     else:
-        w, r = _scalar(ek, ctype, "e", sbound)
+        w, r = _scalar(ek, ctype, "e", t.string_bound)
         write.append(f"for (const auto& e : {m}) {{ {' '.join(w)} }}")
         read.append(f"for (auto& e : {m}) {{ {' '.join(r)} }} }}")
     return FieldView(name, decl, tuple(write), (" ".join(read),))
@@ -182,58 +175,32 @@ def _scalar(ek: str, ctype: str, ref: str, sbound: int) -> tuple[tuple[str, ...]
     return (f"w.prim<{ctype}>({ref});",), (f"{ref} = r.prim<{ctype}>();",)
 
 
-def _constant(name: str, base: str, value: Any) -> ConstantView:
+def _constant(name: str, base: str, value: Scalar) -> str:
     if base in ("string", "wstring"):
-        return ConstantView(f"static constexpr const char* {name} = {_literal(str(value))};")
-    ctype = PRIMITIVES[base][0]
-    if base == "bool":
-        text = "true" if value else "false"
-    elif base in ("float32", "float64"):
-        text = repr(float(value))
-        text = text if any(c in text for c in ".en") else text + ".0"
-        text = {"inf": "std::numeric_limits<double>::infinity()",
-                "-inf": "-std::numeric_limits<double>::infinity()",
-                "nan": "std::numeric_limits<double>::quiet_NaN()"}.get(text, text)
-    elif base.startswith("u") or base in ("byte", "char"):
-        text = f"{int(value)}u"
-    elif base == "int64":
-        text = f"INT64_C({int(value)})"
-    else:
-        text = str(int(value))
-    return ConstantView(f"static constexpr {ctype} {name} = {text};")
+        return f"static constexpr const char* {name} = {_literal(str(value))};"
+    return f"static constexpr {PRIMITIVES[base][0]} {name} = {_value(base, value)};"
 
 
-def message_view(store: Any, ros_type: str, type_hash: str) -> MessageView:
-    """The view of one message type (its definition in ``store``)."""
-    package, _, name = ros_type.split("/")
-    consts, fields = store.fielddefs[ros_type]
-    includes = sorted({header_path(ref) for ref in _references(fields)})
-    try:
-        definition = store.generate_msgdef(ros_type, ros_version=2)[0]
-    except Exception:  # a definition rosbags cannot print back: the recording names the type
-        definition = ""
+def message_view(m: Message, distro: str) -> MessageView:
+    """The view of one message type."""
+    nested = {f.type.name for f in m.fields if f.type.kind == "nested"}
     return MessageView(
-        package=package, name=name, ros_type=ros_type,
-        dds_type=f"{package}::msg::dds_::{name}_", type_hash=type_hash,
-        definition=_literal(definition), guard_comment=ros_type,
-        includes=tuple(includes),
-        fields=tuple(_field(fname, kind, desc) for fname, (kind, desc) in fields),
-        constants=tuple(_constant(c[0], c[1], c[2]) for c in consts))
+        package=m.package, name=m.short, ros_type=m.name, dds_type=m.dds_type_name,
+        type_hash=m.type_hash if distro == "jazzy" else "",
+        definition=_literal(m.ros2msg),
+        includes=tuple(sorted(header_path(n) for n in nested)),
+        fields=tuple(_field(f) for f in m.fields),
+        constants=tuple(_constant(c.name, c.type, c.value) for c in m.constants))
 
 
-def cpp_message_files(store: Any, names: Iterable[str], distro: str,
-                      model: str = "") -> dict[str, str]:
-    """The headers of the types ``names`` (and those they contain), by their path in the
-    component folder (``include/geometry_msgs/msg/twist.hpp``). ``distro`` is ``jazzy``
-    (the headers carry each type's RIHS01 hash) or ``humble`` (no hash)."""
+def cpp_message_files(ms: MessageSet, model: str = "") -> dict[str, str]:
+    """The headers of the messages of ``ms``, by their path in the component folder
+    (``include/geometry_msgs/msg/twist.hpp``). On jazzy each carries its type's RIHS01 hash
+    (the endpoints' USER_DATA); on humble none."""
     template = _environment().get_template("ros2_message.hpp.j2")
-    files: dict[str, str] = {}
-    for ros_type in closure(store, names):
-        type_hash = store.hash_rihs01(ros_type) if distro == "jazzy" else ""
-        view = message_view(store, ros_type, type_hash)
-        files["include/" + header_path(ros_type)] = template.render(
-            m=view, distro=distro, model=model)
-    return files
+    return {"include/" + header_path(m.name):
+            template.render(m=message_view(m, ms.distro), distro=ms.distro, model=model)
+            for m in ms}
 
 
 def _environment() -> jinja2.Environment:
