@@ -230,8 +230,8 @@ def test_a_malformed_sample_is_refused(program: tuple[str, Any, list[str], Path]
     huge[at:at + 4] = (0x7fffffff).to_bytes(4, "little")
     over = bytearray(shape)
     over[8:12] = (4).to_bytes(4, "little")  # dimensions: 4 > its bound 3
-    xcdr2 = b"\x00\x07" + scan[2:]
-    lines = [f"rt sensor_msgs/msg/LaserScan {b.hex() or '-'}"
+    xcdr2 = b"\x00\x07" + bytes(scan[2:])
+    lines = [f"rt sensor_msgs/msg/LaserScan {bytes(b).hex() or '-'}"
              for b in [*cut, no_nul, huge, xcdr2]]
     lines.append(f"rt shape_msgs/msg/SolidPrimitive {bytes(over).hex()}")
     got = _run(exe, lines)

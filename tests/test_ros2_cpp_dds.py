@@ -15,7 +15,7 @@ import subprocess
 import time
 from collections.abc import Iterator
 from pathlib import Path
-
+from typing import Any
 
 import pytest
 from rosbags.typesys import Stores, get_typestore
@@ -23,7 +23,7 @@ from rosbags.typesys import Stores, get_typestore
 from hfsmc.ros2.cpp_messages import RUNTIME_TYPES, cpp_message_files
 from hfsmc.ros2.definitions import message_set
 from tests.ros2_support import AT
-from tests.support import ROOT, wait_until
+from tests.support import ROOT
 
 HERE = Path(__file__).resolve().parent / "ros2_cpp"
 STORES = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY}
@@ -158,7 +158,7 @@ def test_discovery_as_a_ros2_node(builds: dict[str, Path], domain: int, distro: 
         hashed = f"typehash={store.hash_rihs01(ros_type)};"
         assert endpoint[4] == (hashed if distro == "jazzy" else "-")
 
-    announced = [store.deserialize_cdr(bytes.fromhex(h),
+    announced: list[Any] = [store.deserialize_cdr(bytes.fromhex(h),
                                        "rmw_dds_common/msg/ParticipantEntitiesInfo")
                  for h in re.findall(r"^discovery (\w+)$", out, re.M)]
     msg = next(m for m in announced if bytes(m.gid.data[:16]).hex() == ours[0])

@@ -26,7 +26,7 @@ from importlib.resources import files as resource_files
 
 import jinja2
 
-from hfsmc.errors import HfsmcError
+from hfsmc.errors import Diagnostic, EmitError, Span
 from hfsmc.ros2.definitions import Field, FieldType, Message, MessageSet, Scalar
 
 # rclcpp's C++ type of each ROS 2 primitive (rosidl_generator_cpp), with its size on the wire.
@@ -92,8 +92,6 @@ def _element(t: FieldType) -> tuple[str, str, int]:
         return cpp_type_name(t.name), "msg", 1
     if t.kind == "string":
         return "std::string", "string", 5
-    if t.kind == "wstring":
-        raise HfsmcError("wstring fields are not supported by the C++ component yet")
     if t.name == "bool":
         return "bool", "bool", 1
     ctype, size = PRIMITIVES[t.name]
@@ -183,6 +181,12 @@ def _constant(name: str, base: str, value: Scalar) -> str:
 
 def message_view(m: Message, distro: str) -> MessageView:
     """The view of one message type."""
+    wide = [f.name for f in m.fields if f.type.kind == "wstring"]
+    if wide:
+        raise EmitError([Diagnostic(
+            "E318", f"{m.name}: wstring fields ({', '.join(wide)}) are not supported by the "
+            "C++ component yet", Span(m.origin, 1, 1), "error",
+            ("use string (UTF-8) in the model's own .msg files",))])
     nested = {f.type.name for f in m.fields if f.type.kind == "nested"}
     return MessageView(
         package=m.package, name=m.short, ros_type=m.name, dds_type=m.dds_type_name,
