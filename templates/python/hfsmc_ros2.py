@@ -96,6 +96,7 @@ class Ros2Queries:
     """What snippets call. Reads return the snapshot taken when the instant began."""
 
     name: str
+    url: str | None = None  # every interface has one (docs/drivers.md); a ros2 one has none
     _subs: dict[str, Any]  # subscription name -> its settings
     _pubs: dict[str, Any]  # publication name -> its settings
     _snap: dict[str, tuple[Any, float, int, int]]  # name -> (msg, age, count, publishers)
