@@ -11,6 +11,7 @@ active states and the transition that went the other way, with its model line.
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import subprocess
@@ -73,12 +74,15 @@ def write_playback(rec: Recording, folder: Path) -> None:
             frames[fr.interface, fr.count] = fr
     cameras = {n for n, spec in rec.interfaces.items()
                if isinstance(spec, Mapping) and spec.get("type") == "camera"}
+    ros2 = _Ros2Samples(rec)
     entries: list[tuple[int, dict[str, Any]]] = [(0, {"t": 0, "kind": "recorded"})]
     for s in rec.snapshots:
         values = dict(s.values)
         entry: dict[str, Any] = {"t": s.t, "kind": "snapshot", "interface": s.interface,
                                  "values": values}
-        if s.interface in cameras:
+        if s.interface in ros2.interfaces:
+            ros2.fill(s.t, s.interface, entry)
+        elif s.interface in cameras:
             count = values.get("count", 0)
             known = isinstance(count, int) and not isinstance(count, bool)
             seen = frames.get((s.interface, count)) if known else None
@@ -98,6 +102,43 @@ def write_playback(rec: Recording, folder: Path) -> None:
     with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
         for _, entry in entries:
             f.write(json.dumps(entry, separators=(",", ":")) + "\n")
+
+
+class _Ros2Samples:
+    """A ros2 interface's snapshots as a playback takes them: each subscription's entry
+    with the CDR of the sample that entered the snapshot at that instant (base64); a
+    subscription whose latest sample the recording does not hold is `unrecorded` (a cut,
+    a recording made without them): a snippet that reads it gets no evidence."""
+
+    def __init__(self, rec: Recording) -> None:
+        self.interfaces = {n for n, spec in rec.interfaces.items()
+                           if isinstance(spec, Mapping) and spec.get("type") == "ros2"}
+        self.bytes: dict[tuple[int, str, str], bytes] = {}
+        for sample in rec.samples:
+            topic = rec.topics[sample.topic]
+            if topic.role == "subscription":
+                self.bytes[(sample.t, topic.interface, topic.name)] = sample.data
+        self.held: dict[tuple[str, str], Any] = {}  # the count of the last sample given
+
+    def fill(self, t: int, interface: str, entry: dict[str, Any]) -> None:
+        values = entry["values"]
+        subs = values.get("subscriptions")
+        if not isinstance(subs, Mapping):
+            return  # the component refuses it, with the line
+        subs = values["subscriptions"] = {n: dict(v) if isinstance(v, Mapping) else v
+                                          for n, v in subs.items()}
+        lacking = []
+        for n, v in subs.items():
+            if not isinstance(v, dict):
+                continue
+            data = self.bytes.get((t, interface, n))
+            if data is not None:
+                v["cdr"] = base64.b64encode(data).decode("ascii")
+                self.held[(interface, n)] = v.get("count")
+            elif v.get("count") and self.held.get((interface, n)) != v.get("count"):
+                lacking.append(n)  # its latest sample is not in the recording
+        if lacking:
+            entry["unrecorded"] = lacking
 
 
 def unanswered(folder: Path) -> dict[str, Any] | None:
