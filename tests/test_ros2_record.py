@@ -144,3 +144,103 @@ def test_a_sample_the_recording_lacks_is_no_evidence(recorded: tuple[str, Path, 
     assert done.returncode == 0, done.stderr
     asked = json.loads(done.stdout.splitlines()[-1])["unanswered"]
     assert asked == {"t": first.t, "interface": "robot", "query": "scan", "reason": "scan"}
+
+
+def _hfsmc(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "hfsmc", *args], capture_output=True,
+                          text=True, timeout=120, check=False)
+
+
+def test_export_rosbag_reads_back_with_rosbags(recorded: tuple[str, Path, Path],
+                                               tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    distro, _, mcap = recorded
+    bag = tmp_path / "bag"
+    bag.mkdir()  # an empty folder is fine
+    done = _hfsmc("export", "rosbag", str(mcap), str(bag))
+    assert done.returncode == 0, done.stderr
+    assert "2 topics" in done.stdout and "/tb2/scan (sensor_msgs/msg/LaserScan)" in done.stdout
+    rec = read_recording(mcap)
+    want = sorted((rec.topics[s.topic].topic, rec.start_ns + s.t * 1000, s.data)
+                  for s in rec.samples)
+    store = get_typestore(Stores.ROS2_JAZZY if distro == "jazzy" else Stores.ROS2_HUMBLE)
+    with Reader(bag) as reader:
+        assert "storage_identifier: mcap" in (bag / "metadata.yaml").read_text()
+        types = {c.topic: c.msgtype for c in reader.connections}
+        got = sorted((c.topic, ts, bytes(raw)) for c, ts, raw in reader.messages())
+        hashes = {c.topic: c.digest for c in reader.connections}
+    assert types == {"/tb2/scan": "sensor_msgs/msg/LaserScan",
+                     "/tb2/cmd_vel": "geometry_msgs/msg/Twist"}
+    assert got == want  # the same messages, byte for byte, at the same times
+    assert hashes["/tb2/cmd_vel"] == store.hash_rihs01("geometry_msgs/msg/Twist")
+    for topic, _, raw in got:  # and they decode, with the distro's own definitions
+        msg = store.deserialize_cdr(raw, types[topic])
+        if topic == "/tb2/scan":
+            assert len(msg.ranges) == 3
+
+
+def _rewrite(src: Path, dst: Path, change: Any) -> None:
+    """A copy of a recording with each message's bytes passed through ``change``."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    with src.open("rb") as f, dst.open("wb") as out:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        w = Writer(out)
+        w.start()
+        for m in reader.iter_metadata():
+            w.add_metadata(m.name, m.metadata)
+        for s in summary.schemas.values():
+            w.register_schema(s.name, s.encoding, s.data)  # ids 1.. in the same order
+        for c in summary.channels.values():
+            w.register_channel(c.topic, c.message_encoding, c.schema_id, c.metadata)
+        for _, ch, m in reader.iter_messages():
+            w.add_message(ch.id, m.log_time, change(ch.topic, m.data), m.publish_time)
+        w.finish()
+
+
+def test_export_refuses_and_says_why_in_one_line(recorded: tuple[str, Path, Path],
+                                                 tmp_path: Path) -> None:
+    _, _, mcap = recorded
+    full = tmp_path / "full"
+    full.mkdir()
+    (full / "keep.txt").write_text("mine")
+    done = _hfsmc("export", "rosbag", str(mcap), str(full))
+    assert done.returncode == 1 and (full / "keep.txt").read_text() == "mine"
+    assert done.stderr == f"hfsmc export: {full} is not empty (an export writes a new " \
+                          "rosbag folder, never into another's)\n"
+    bad = tmp_path / "bad.mcap"
+    first = []
+
+    def garble(topic: str, data: bytes) -> bytes:
+        if topic == "/tb2/scan" and not first:
+            first.append(data)
+            return data[:9]  # cut short: no LaserScan
+        return data
+
+    _rewrite(mcap, bad, garble)
+    done = _hfsmc("export", "rosbag", str(bad), str(tmp_path / "out"))
+    assert done.returncode == 1 and not (tmp_path / "out").exists()
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hfsmc export: a /tb2/scan sample at "), lines
+    assert "is no sensor_msgs/msg/LaserScan" in lines[0] and "Traceback" not in done.stderr
+    none = tmp_path / "none.mcap"  # a recording of the same run with no topic
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    with mcap.open("rb") as f, none.open("wb") as out:
+        reader = make_reader(f)
+        w = Writer(out)
+        w.start()
+        for m in reader.iter_metadata():
+            w.add_metadata(m.name, m.metadata)
+        s = w.register_schema("hfsmc.TraceRecord", "jsonschema", b"{}")
+        c = w.register_channel("/hfsmc/trace", "json", s)
+        w.add_message(c, int(read_recording(mcap).start_ns), b'{"t":0,"ev":"start"}', 0)
+        w.finish()
+    done = _hfsmc("export", "rosbag", str(none), str(tmp_path / "out"))
+    assert done.returncode == 1 and done.stderr.startswith("hfsmc export: it holds no ROS 2 topic")
