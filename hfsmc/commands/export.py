@@ -18,11 +18,11 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from hfsmc.recording import Recording, Topic, read_recording
 
-ROSBAG_VERSION = 9  # rosbag2's metadata version of Jazzy (type hashes); Humble reads 8
+ROSBAG_VERSION: Literal[9] = 9  # rosbag2's metadata version of Jazzy (type hashes); Humble reads 8
 
 
 class ExportError(Exception):

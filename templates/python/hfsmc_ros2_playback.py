@@ -51,7 +51,7 @@ class Ros2Fake(ros2.Ros2Queries):
         self._subs = ros2.Ros2Node._endpoints(self, settings.get("subscribe") or {})  # type: ignore[arg-type]
         self._pubs = ros2.Ros2Node._endpoints(self, settings.get("publish") or {})  # type: ignore[arg-type]
         ros2.Ros2Node._check_topics(self)  # type: ignore[arg-type]
-        self._state = {n: {"count": 0, "age": None, "publishers": None, "dropped": 0,
+        self._state: dict[str, dict[str, Any]] = {n: {"count": 0, "age": None, "publishers": None, "dropped": 0,
                            "msg": None, "cdr": None, "arrived": None} for n in self._subs}
         self._given_subscribers = dict.fromkeys(self._pubs, 0)
         self._snap = {n: (None, math.inf, 0, 0) for n in self._subs}
