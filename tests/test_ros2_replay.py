@@ -71,7 +71,8 @@ def test_replay_of_a_model_that_publishes_other_bytes(recording: tuple[Path, Pat
     done = _hfsmc("replay", str(mcap), "--model", str(changed / "stop_at_wall.yaml"))
     assert done.returncode == 1, done.stdout + done.stderr
     assert "different" in done.stdout and "(command 1):" in done.stdout
-    assert "robot.publish(" in done.stdout
+    assert 'recorded: robot.publish("cmd_vel", Twist(linear.x=0.4)) at ' in done.stdout
+    assert 'now:      robot.publish("cmd_vel", Twist(linear.x=0.396)) at ' in done.stdout
 
 
 def test_recorded_topics_decode_and_export(recording: tuple[Path, Path], tmp_path: Path) -> None:

@@ -327,14 +327,14 @@ def _compare(rec: Recording, now_trace: list[dict[str, Any]], now_commands: list
                           until_us(rec) // 1000)
         if changed and j is not None:
             report.add("")
-            _command_difference(report, rec_cmds, cmds_now, j, "then at")
+            _command_difference(report, rec_cmds, cmds_now, j, "then at", rec)
             report.add(NOT_EVIDENCE, "yellow")
         elif changed:
             report.add("it commands the vehicle as recorded throughout: the recording stays "
                        "evidence for the whole run", "green")
     else:
         assert j is not None
-        _command_difference(report, rec_cmds, cmds_now, j, "at")
+        _command_difference(report, rec_cmds, cmds_now, j, "at", rec)
         report.add("  the trace is the same up to this command")
         states = active_states(a[:_records_before(a, cmd_ms - 1)])
         if states:
@@ -436,17 +436,60 @@ def _record_text(r: Mapping[str, Any] | None) -> str:
 
 
 def _command_difference(report: Report, a: Sequence[Command], b: Sequence[Command], j: int,
-                        lead: str) -> None:
+                        lead: str, rec: Recording | None = None) -> None:
     old = a[j] if j < len(a) else None
     new = b[j] if j < len(b) else None
     t = min(c.t for c in (old, new) if c is not None)
     report.add(f"{lead} {seconds(t)} (command {j + 1}):", "bold")
-    report.add(f"  recorded: {_command_text(old)}")
-    report.add(f"  now:      {_command_text(new)}")
+    report.add(f"  recorded: {_command_text(old, rec)}")
+    report.add(f"  now:      {_command_text(new, rec)}")
 
 
-def _command_text(c: Command | None) -> str:
-    return "(no more commands)" if c is None else f"{c.text()} at {seconds(c.t)}"
+def _command_text(c: Command | None, rec: Recording | None = None) -> str:
+    if c is None:
+        return "(no more commands)"
+    text = _publish_text(c, rec) if rec is not None and c.call == "publish" else None
+    return f"{text or c.text()} at {seconds(c.t)}"
+
+
+def _publish_text(c: Command, rec: Recording) -> str | None:
+    """A ros2 publish with its message decoded from the CDR (its fields that are not
+    zero), by the definition the recording holds: ``robot.publish("cmd_vel",
+    Twist(linear.x=0.4))``; None when it cannot be decoded (the base64 is shown)."""
+    if len(c.args) != 2 or not all(isinstance(a, str) for a in c.args):
+        return None
+    topic = next((t for t in rec.topics if t.interface == c.interface
+                  and t.role == "publication" and t.name == c.args[0]), None)
+    if topic is None:
+        return None
+    try:
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(topic.definition, topic.type))
+        msg = store.deserialize_cdr(base64.b64decode(c.args[1], validate=True), topic.type)
+    except Exception:  # bytes or a definition rosbags refuses: the raw text then
+        return None
+    fields = ", ".join(f"{k}={v!r}" for k, v in _fields(msg, ""))
+    return (f"{c.interface}.publish({json.dumps(c.args[0])}, "
+            f"{topic.type.rsplit('/', 1)[1]}({fields}))")
+
+
+def _fields(msg: Any, prefix: str) -> list[tuple[str, Any]]:
+    """A rosbags message's fields that are not zero or empty, nested ones dotted."""
+    out: list[tuple[str, Any]] = []
+    for name in getattr(msg, "__dataclass_fields__", {}):
+        if name == "__msgtype__":
+            continue
+        v = getattr(msg, name)
+        if hasattr(v, "__dataclass_fields__"):
+            out.extend(_fields(v, f"{prefix}{name}."))
+        elif hasattr(v, "tolist"):
+            if len(v):
+                out.append((f"{prefix}{name}", v.tolist()))
+        elif v:
+            out.append((f"{prefix}{name}", v))
+    return out
 
 
 # --- the command --------------------------------------------------------------------------
