@@ -144,10 +144,8 @@ def wire(engine: Any, wired: dict[str, Any]) -> None:
         kind = str(given.get("type", kind))
         where = None if where is None else str(where)
         engine.wiring[name] = {"type": kind, "url": where, "options": merged}
-        if engine.playback is not None:
-            fake = make_fake(engine, name, kind, where, merged)
-        else:
-            fake = None
+        fake = (make_fake(engine, name, kind, where, merged) if engine.playback is not None
+                else None)
         ns[name] = fake if fake is not None else make_interface(
             name, kind, where, merged, engine.sim, m.get("drivers"))
         if callable(getattr(type(ns[name]), "snapshot", None)):  # not Unavailable's __getattr__
