@@ -325,6 +325,41 @@ def replay(recording: str, model_arg: str | None, allow_code: bool, target: str 
     sys.exit(report.status)
 
 
+@main.group()
+def export() -> None:
+    """Write what a recording holds in another tool's format."""
+
+
+@export.command("rosbag")
+@click.argument("recording", type=click.Path(dir_okay=False))
+@click.argument("folder", metavar="DIR", type=click.Path())
+@_guard
+def export_rosbag(recording: str, folder: str) -> None:
+    """Write RECORDING's ROS 2 topics (a ros2 interface's subscriptions and publishes, the
+    bytes that went over the wire) as a rosbag2 with MCAP storage in DIR, a new or empty
+    folder, which `ros2 bag` and rosbags read (docs/ros2.md, "Recordings").
+
+    Exit status 0: written; 1: the recording holds no topics, cannot be read, or DIR is
+    not new or empty."""
+    from hfsmc.commands.export import ExportError
+    from hfsmc.commands.export import export_rosbag as run_export
+    from hfsmc.recording import RecordingError
+
+    try:
+        done = run_export(recording, folder)
+    except RecordingError as e:
+        click.echo(f"hfsmc export: {recording}: {e}", err=True)
+        sys.exit(1)
+    except ExportError as e:
+        click.echo(f"hfsmc export: {e}", err=True)
+        sys.exit(1)
+    span = (done.end_ns - done.start_ns) / 1e9
+    click.echo(f"{done.folder}: rosbag2 (mcap), {len(done.topics)} topics, "
+               f"{sum(n for *_, n in done.topics)} messages over {span:.3f} s")
+    for topic, kind, n in done.topics:
+        click.echo(f"  {topic} ({kind}): {n}")
+
+
 @main.command("test")
 @click.argument("scenarios", nargs=-1, required=True, type=click.Path())
 @click.option("-t", "--target", type=click.Choice(["python", "cpp"]),

@@ -38,6 +38,9 @@ MAX_MESSAGE_BYTES = 1 << 20  # a message that is not a frame (a snapshot is unde
 MAX_DEPTH = 16  # how deep a JSON value of a message or the metadata nests
 MAX_INT = (1 << 62) - 1  # times (us), counts, ticks
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_ROS_TYPE = re.compile(r"[A-Za-z][A-Za-z0-9_]*/msg/[A-Za-z][A-Za-z0-9_]*")
+_ROS_TOPIC = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+")
+_ROLES = ("subscription", "publication")
 _HASH = re.compile(r"sha256:[0-9a-f]{64}")
 
 
@@ -65,6 +68,28 @@ class Frame:
     data: bytes
     format: str  # jpeg or png
     crc32: int | None
+
+
+@dataclass(frozen=True, slots=True)
+class Topic:
+    """A channel of raw messages a driver keeps of its own (a ``ros2`` interface's topic:
+    the CDR of each sample, schemas/recording.md)."""
+
+    interface: str
+    role: str  # subscription or publication
+    name: str  # the subscription's or publication's name in the model
+    topic: str  # the resolved ROS name: /tb2/scan
+    type: str  # pkg/msg/Name
+    definition: str  # the `ros2msg` schema: the message's definition and its nested types'
+
+
+@dataclass(frozen=True, slots=True)
+class Sample:
+    """One message of a :class:`Topic`: at the instant ``t`` (us), its CDR bytes."""
+
+    t: int
+    topic: int  # its index in Recording.topics
+    data: bytes
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,6 +140,9 @@ class Recording:
     trace: tuple[TraceRecord, ...]
     cut: bool  # the component did not close the file: it ends at its last complete record
     end_us: int  # the last instant recorded, in us since start
+    topics: tuple[Topic, ...] = ()  # raw channels (ros2 topics), in order of declaration
+    samples: tuple[Sample, ...] = ()  # their messages, in file order
+    start_ns: int = 0  # the run's start (unix ns): a message's log time is start + t
 
     @property
     def component(self) -> str:
@@ -221,6 +249,8 @@ class _Stream:
         self.total = self.inflate_budget = max(MAX_INFLATED_BYTES, INFLATION * size)
         self.metadata: dict[str, dict[str, str]] = {}
         self.channels: dict[int, str] = {}
+        self.schemas: dict[int, tuple[str, str, bytes]] = {}  # id -> name, encoding, data
+        self.raw: dict[int, Topic | None] = {}  # a raw channel's id -> its topic (None: not ours)
         self.messages: _Messages | None = None  # made at the first message: metadata first
         self.cut = False
         self.closed = False
@@ -281,19 +311,26 @@ class _Stream:
         return data
 
     def _record(self, record: Any) -> None:
-        from mcap.records import Channel, Footer, Message, Metadata
+        from mcap.records import Channel, Footer, Message, Metadata, Schema
 
         if isinstance(record, Metadata):
             self.metadata.setdefault(record.name, dict(record.metadata))
+        elif isinstance(record, Schema):
+            self.schemas.setdefault(record.id, (record.name, record.encoding, record.data))
         elif isinstance(record, Channel):
             self.channels[record.id] = record.topic
+            if record.message_encoding != "json":
+                self.raw[record.id] = _raw_topic(record, self.schemas)
         elif isinstance(record, Message):
             topic = self.channels.get(record.channel_id)
             if topic is None:
                 raise RecordingError(f"corrupted: a message of channel {record.channel_id}, "
                                      "which was never declared")
             self.messages = self.messages or _Messages(self.metadata)
-            self.messages.add(topic, record.log_time, record.data)
+            if record.channel_id in self.raw:
+                self.messages.add_raw(self.raw[record.channel_id], record.log_time, record.data)
+            else:
+                self.messages.add(topic, record.log_time, record.data)
         elif isinstance(record, Footer):
             self.closed = True
 
@@ -330,7 +367,22 @@ class _Messages:
         self.skips: list[Skip] = []
         self.signals: list[Signal] = []
         self.trace: list[TraceRecord] = []
+        self.topics: dict[Topic, int] = {}
+        self.samples: list[Sample] = []
         self.end = 0
+
+    def add_raw(self, topic: Topic | None, log_time: int, data: bytes) -> None:
+        """A message of a raw channel (a ros2 topic's CDR); one of a channel that is not
+        hfsmc's (another tool added it) is left out."""
+        if topic is None:
+            return
+        t = (log_time - self.start_ns) // 1000
+        if not 0 <= t <= MAX_INT:
+            raise RecordingError(f"corrupted: a {_short(topic.topic)} message logged at "
+                                 f"{log_time} ns, before the run's start or too late")
+        self.end = max(self.end, t)
+        index = self.topics.setdefault(topic, len(self.topics))
+        self.samples.append(Sample(t, index, bytes(data)))
 
     def add(self, topic: str, log_time: int, data: bytes) -> None:
         t = (log_time - self.start_ns) // 1000
@@ -380,7 +432,35 @@ class _Messages:
         return Recording(path, self.run, self.parameters, self.interfaces, self.sources,
                          tuple(self.snapshots), tuple(self.frames), tuple(self.commands),
                          tuple(self.skips), tuple(self.signals), tuple(self.trace), cut,
-                         self.end)
+                         self.end, tuple(self.topics), tuple(self.samples), self.start_ns)
+
+
+def _raw_topic(channel: Any, schemas: Mapping[int, tuple[str, str, bytes]]) -> Topic | None:
+    """The topic of a raw channel hfsmc wrote (a ros2 topic: ``cdr`` messages, a ``ros2msg``
+    schema, hfsmc's metadata), checked; None for a channel of another kind or tool."""
+    meta = dict(channel.metadata)
+    name = meta.get("hfsmc.interface")
+    if channel.message_encoding != "cdr" or name is None:
+        return None
+    roles = [r for r in _ROLES if f"hfsmc.{r}" in meta]
+    where = f"channel {_short(channel.topic)}"
+    if len(roles) != 1:
+        raise RecordingError(f"corrupted: {where} is neither one subscription nor one "
+                             "publication")
+    schema = schemas.get(channel.schema_id)
+    if schema is None or schema[1] != "ros2msg":
+        raise RecordingError(f"corrupted: {where} has no ros2msg schema")
+    if not _ROS_TYPE.fullmatch(schema[0]):
+        raise RecordingError(f"corrupted: {where}'s type `{_short(schema[0])}` is not "
+                             "pkg/msg/Name")
+    if not _ROS_TOPIC.fullmatch(channel.topic):
+        raise RecordingError(f"corrupted: {where} is not a ROS 2 topic name")
+    try:
+        text = schema[2].decode("utf-8")
+    except UnicodeDecodeError:
+        raise RecordingError(f"corrupted: {where}'s message definition is not UTF-8") from None
+    return Topic(_name(name, "interface"), roles[0], _name(meta[f"hfsmc.{roles[0]}"], roles[0]),
+                 channel.topic, schema[0], text)
 
 
 def _check_sources(sources: tuple[tuple[str, str], ...], digest: str) -> None:

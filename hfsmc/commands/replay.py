@@ -11,6 +11,7 @@ active states and the transition that went the other way, with its model line.
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import subprocess
@@ -73,12 +74,15 @@ def write_playback(rec: Recording, folder: Path) -> None:
             frames[fr.interface, fr.count] = fr
     cameras = {n for n, spec in rec.interfaces.items()
                if isinstance(spec, Mapping) and spec.get("type") == "camera"}
+    ros2 = _Ros2Samples(rec)
     entries: list[tuple[int, dict[str, Any]]] = [(0, {"t": 0, "kind": "recorded"})]
     for s in rec.snapshots:
         values = dict(s.values)
         entry: dict[str, Any] = {"t": s.t, "kind": "snapshot", "interface": s.interface,
                                  "values": values}
-        if s.interface in cameras:
+        if s.interface in ros2.interfaces:
+            ros2.fill(s.t, s.interface, entry)
+        elif s.interface in cameras:
             count = values.get("count", 0)
             known = isinstance(count, int) and not isinstance(count, bool)
             seen = frames.get((s.interface, count)) if known else None
@@ -98,6 +102,43 @@ def write_playback(rec: Recording, folder: Path) -> None:
     with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
         for _, entry in entries:
             f.write(json.dumps(entry, separators=(",", ":")) + "\n")
+
+
+class _Ros2Samples:
+    """A ros2 interface's snapshots as a playback takes them: each subscription's entry
+    with the CDR of the sample that entered the snapshot at that instant (base64); a
+    subscription whose latest sample the recording does not hold is `unrecorded` (a cut,
+    a recording made without them): a snippet that reads it gets no evidence."""
+
+    def __init__(self, rec: Recording) -> None:
+        self.interfaces = {n for n, spec in rec.interfaces.items()
+                           if isinstance(spec, Mapping) and spec.get("type") == "ros2"}
+        self.bytes: dict[tuple[int, str, str], bytes] = {}
+        for sample in rec.samples:
+            topic = rec.topics[sample.topic]
+            if topic.role == "subscription":
+                self.bytes[(sample.t, topic.interface, topic.name)] = sample.data
+        self.held: dict[tuple[str, str], Any] = {}  # the count of the last sample given
+
+    def fill(self, t: int, interface: str, entry: dict[str, Any]) -> None:
+        values = entry["values"]
+        subs = values.get("subscriptions")
+        if not isinstance(subs, Mapping):
+            return  # the component refuses it, with the line
+        subs = values["subscriptions"] = {n: dict(v) if isinstance(v, Mapping) else v
+                                          for n, v in subs.items()}
+        lacking = []
+        for n, v in subs.items():
+            if not isinstance(v, dict):
+                continue
+            data = self.bytes.get((t, interface, n))
+            if data is not None:
+                v["cdr"] = base64.b64encode(data).decode("ascii")
+                self.held[(interface, n)] = v.get("count")
+            elif v.get("count") and self.held.get((interface, n)) != v.get("count"):
+                lacking.append(n)  # its latest sample is not in the recording
+        if lacking:
+            entry["unrecorded"] = lacking
 
 
 def unanswered(folder: Path) -> dict[str, Any] | None:
@@ -286,14 +327,14 @@ def _compare(rec: Recording, now_trace: list[dict[str, Any]], now_commands: list
                           until_us(rec) // 1000)
         if changed and j is not None:
             report.add("")
-            _command_difference(report, rec_cmds, cmds_now, j, "then at")
+            _command_difference(report, rec_cmds, cmds_now, j, "then at", rec)
             report.add(NOT_EVIDENCE, "yellow")
         elif changed:
             report.add("it commands the vehicle as recorded throughout: the recording stays "
                        "evidence for the whole run", "green")
     else:
         assert j is not None
-        _command_difference(report, rec_cmds, cmds_now, j, "at")
+        _command_difference(report, rec_cmds, cmds_now, j, "at", rec)
         report.add("  the trace is the same up to this command")
         states = active_states(a[:_records_before(a, cmd_ms - 1)])
         if states:
@@ -395,17 +436,60 @@ def _record_text(r: Mapping[str, Any] | None) -> str:
 
 
 def _command_difference(report: Report, a: Sequence[Command], b: Sequence[Command], j: int,
-                        lead: str) -> None:
+                        lead: str, rec: Recording | None = None) -> None:
     old = a[j] if j < len(a) else None
     new = b[j] if j < len(b) else None
     t = min(c.t for c in (old, new) if c is not None)
     report.add(f"{lead} {seconds(t)} (command {j + 1}):", "bold")
-    report.add(f"  recorded: {_command_text(old)}")
-    report.add(f"  now:      {_command_text(new)}")
+    report.add(f"  recorded: {_command_text(old, rec)}")
+    report.add(f"  now:      {_command_text(new, rec)}")
 
 
-def _command_text(c: Command | None) -> str:
-    return "(no more commands)" if c is None else f"{c.text()} at {seconds(c.t)}"
+def _command_text(c: Command | None, rec: Recording | None = None) -> str:
+    if c is None:
+        return "(no more commands)"
+    text = _publish_text(c, rec) if rec is not None and c.call == "publish" else None
+    return f"{text or c.text()} at {seconds(c.t)}"
+
+
+def _publish_text(c: Command, rec: Recording) -> str | None:
+    """A ros2 publish with its message decoded from the CDR (its fields that are not
+    zero), by the definition the recording holds: ``robot.publish("cmd_vel",
+    Twist(linear.x=0.4))``; None when it cannot be decoded (the base64 is shown)."""
+    if len(c.args) != 2 or not all(isinstance(a, str) for a in c.args):
+        return None
+    topic = next((t for t in rec.topics if t.interface == c.interface
+                  and t.role == "publication" and t.name == c.args[0]), None)
+    if topic is None:
+        return None
+    try:
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(topic.definition, topic.type))
+        msg = store.deserialize_cdr(base64.b64decode(c.args[1], validate=True), topic.type)
+    except Exception:  # bytes or a definition rosbags refuses: the raw text then
+        return None
+    fields = ", ".join(f"{k}={v!r}" for k, v in _fields(msg, ""))
+    return (f"{c.interface}.publish({json.dumps(c.args[0])}, "
+            f"{topic.type.rsplit('/', 1)[1]}({fields}))")
+
+
+def _fields(msg: Any, prefix: str) -> list[tuple[str, Any]]:
+    """A rosbags message's fields that are not zero or empty, nested ones dotted."""
+    out: list[tuple[str, Any]] = []
+    for name in getattr(msg, "__dataclass_fields__", {}):
+        if name == "__msgtype__":
+            continue
+        v = getattr(msg, name)
+        if hasattr(v, "__dataclass_fields__"):
+            out.extend(_fields(v, f"{prefix}{name}."))
+        elif hasattr(v, "tolist"):
+            if len(v):
+                out.append((f"{prefix}{name}", v.tolist()))
+        elif v:
+            out.append((f"{prefix}{name}", v))
+    return out
 
 
 # --- the command --------------------------------------------------------------------------

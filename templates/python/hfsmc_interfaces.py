@@ -117,9 +117,7 @@ def make_fake(engine: Any, name: str, kind: str, url: str | None,
     own = engine.m.get("drivers", {}).get(kind)
     try:
         if own is None:
-            made: object | None = engine.playback.fake(name, kind)
-            if made is None and kind == "ros2":  # never the live node in a playback
-                return Unavailable(name, "a ros2 interface is not scripted by --playback yet")
+            made: object | None = engine.playback.fake(name, kind, options)
             return made
         cls = getattr(_import(name, kind, own[0]), own[1])
         try:

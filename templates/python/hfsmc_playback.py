@@ -150,9 +150,21 @@ class Playback:
         else:
             raise ValueError(f"unknown kind `{kind}` (snapshot, skip, signal, recorded)")
 
-    def fake(self, name: str, kind: str) -> Any:
-        """The fake of interface ``name`` (None for a kind that has none)."""
+    def fake(self, name: str, kind: str, settings: dict[str, Any] | None = None) -> Any:
+        """The fake of interface ``name`` (None for a kind that has none); ``settings``:
+        a ``ros2`` interface's (node, namespace, subscribe, publish), as its ``connect``."""
         fake: Any
+        if kind == "ros2":
+            import hfsmc_ros2_playback  # type: ignore[import-not-found]  # beside the component
+            try:
+                fake, rows = hfsmc_ros2_playback.fake(name, settings or {}, self,
+                                                      self.raw.get(name, []))
+            except ValueError as e:
+                raise PlaybackError(f"{self.path}: {e}") from None
+            self.snapshots[name] = rows
+            self.fakes[name] = fake
+            self.place[name] = 0
+            return fake
         if name in self.bad and kind in ("mavlink", "camera"):
             raise PlaybackError(self.bad[name])
         if kind == "mavlink":

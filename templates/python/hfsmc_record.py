@@ -49,6 +49,16 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
             "format": {"type": "string"},
             "count": {"type": "integer", "description": "the camera's frame number"},
             "crc32": {"type": "integer", "description": "CRC-32 of the decoded BGR pixels"}}},
+    "hfsmc.ros2.Snapshot": {
+        "title": "What the automaton saw of its ROS 2 topics during one instant",
+        "type": "object", "properties": {
+            "t": {"type": "integer"},
+            "subscriptions": {"type": "object", "additionalProperties": {
+                "type": "object", "properties": {
+                    "count": {"type": "integer", "description": "samples arrived since start"},
+                    "age": {"type": ["number", "string"], "description": "s; inf: none yet"},
+                    "publishers": {"type": "integer"}, "dropped": {"type": "integer"}}}},
+            "subscribers": {"type": "object", "additionalProperties": {"type": "integer"}}}},
     "hfsmc.Command": {
         "title": "A command a snippet sent to an interface", "type": "object", "properties": {
             "t": {"type": "integer"}, "call": {"type": "string"}, "args": {"type": "array"}}},
@@ -103,6 +113,10 @@ class Recorder:
         self.w.add_metadata("hfsmc.sources", dict(sources))
         self.schemas: dict[str, int] = {}
         self.channels: dict[str, int] = {}
+        # drivers with channels of their own: name -> (driver, key -> channel spec)
+        self.own: dict[str, tuple[Any, dict[str, dict[str, Any]]]] = {}
+        self.own_ids: dict[tuple[str, str], int] = {}  # (interface, key) -> channel id
+        self.own_last: dict[tuple[str, str], int] = {}  # (interface, key) -> last count written
         self.out.flush()
 
     def _channel(self, topic: str, schema: str) -> int:
@@ -122,13 +136,58 @@ class Recorder:
         self._io(lambda: self.w.add_message(self._channel(topic, schema), at,
                                             _json(message).encode(), at))
 
+    def attach(self, name: str, iface: Any, clock: Callable[[], int]) -> None:
+        """A driver with channels of its own (docs/drivers.md): ``own_channels()`` says
+        them (key -> topic, schema name, schema encoding and data, message encoding,
+        metadata), ``recorded(values)`` splits each snapshot into its JSON part and raw
+        parts (key -> (count, bytes), written when the count is new); a ``ros2``
+        interface's publishes (``on_publish(name, data)``) are commands, recorded with
+        their bytes (base64) and on their own channel too."""
+        if not callable(getattr(type(iface), "own_channels", None)):
+            return
+        self.own[name] = (iface, iface.own_channels())
+        if hasattr(iface, "on_publish"):
+            def published(pub: str, data: bytes) -> None:
+                t = clock()
+                self.command(t, name, "publish", [pub, base64.b64encode(data).decode("ascii")])
+                self.raw(t, name, f"publication/{pub}", data)
+            iface.on_publish = published
+
+    def _own_channel(self, name: str, key: str) -> int:
+        c = self.own_ids.get((name, key))
+        if c is None:
+            spec = self.own[name][1][key]
+            schema = (spec["schema_encoding"], spec["schema"])
+            s = self.schemas.get("\0".join(schema))
+            if s is None:
+                s = self.schemas["\0".join(schema)] = self.w.register_schema(
+                    spec["schema"], spec["schema_encoding"], spec["schema_data"])
+            c = self.own_ids[(name, key)] = self.w.register_channel(
+                spec["topic"], spec["encoding"], s, dict(spec.get("metadata") or {}))
+        return c
+
+    def raw(self, t_us: int, name: str, key: str, data: bytes) -> None:
+        """Bytes on a driver's own channel ``key``, logged at the instant ``t_us``."""
+        if self.broken:
+            return
+        at = self.start_ns + t_us * 1000
+        self._io(lambda: self.w.add_message(self._own_channel(name, key), at, data, at))
+
     def declare(self, kind: str, schema: dict[str, Any]) -> None:
         """The snapshot schema of a user's driver (hfsmc_driver.Driver.snapshot_schema)."""
         _SCHEMAS.setdefault(f"hfsmc.{kind}.Snapshot", schema)
 
     def snapshot(self, t_us: int, name: str, kind: str, values: dict[str, Any]) -> None:
+        own = self.own.get(name)
+        raw: dict[str, tuple[int, bytes]] = {}
+        if own is not None:
+            values, raw = own[0].recorded(values)
         self._write(f"/hfsmc/interface/{name}", f"hfsmc.{kind}.Snapshot", t_us,
                     {"t": t_us, **plain(values)})
+        for key, (count, data) in raw.items():  # a new sample: its bytes, once
+            if self.own_last.get((name, key)) != count:
+                self.own_last[(name, key)] = count
+                self.raw(t_us, name, key, data)
 
     def frame(self, t_us: int, name: str, count: int, image: Any, jpeg: Any) -> None:
         """Frame ``count`` of camera ``name``: its JPEG as the camera sent it, else a PNG

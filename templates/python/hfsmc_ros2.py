@@ -141,6 +141,34 @@ class Ros2Queries:
     def _send(self, name: str, data: bytes) -> None:
         raise NotImplementedError  # the live class and the replay define it
 
+    # -- the recording's own channels (docs/drivers.md) -------------------------------
+    def own_channels(self) -> dict[str, dict[str, Any]]:
+        """The MCAP channels of this interface's topics, one per subscription and per
+        publication (key ``subscription/NAME``, ``publication/NAME``): named after the
+        resolved topic, the message's ``ros2msg`` definition as schema, ``cdr`` bytes."""
+        out: dict[str, dict[str, Any]] = {}
+        for role, table in (("subscription", self._subs), ("publication", self._pubs)):
+            for n, s in table.items():
+                cls = s["class"]
+                out[f"{role}/{n}"] = {
+                    "topic": s["topic"], "schema": cls._TYPE, "schema_encoding": "ros2msg",
+                    "schema_data": cls._ROS2MSG.encode(), "encoding": "cdr",
+                    "metadata": {"hfsmc.interface": self.name, f"hfsmc.{role}": n}}
+        return out
+
+    @staticmethod
+    def recorded(values: dict[str, Any]) -> tuple[dict[str, Any], dict[str, tuple[int, bytes]]]:
+        """A snapshot as recorded: its JSON part (per subscription count, age, publishers,
+        dropped; per publication its subscribers), and per subscription the latest
+        sample's CDR with its count (the recording writes it when the count is new)."""
+        subs: dict[str, Any] = {}
+        raw: dict[str, tuple[int, bytes]] = {}
+        for n, v in values["subscriptions"].items():
+            subs[n] = {k: v[k] for k in ("count", "age", "publishers", "dropped")}
+            if v.get("cdr") is not None:
+                raw[f"subscription/{n}"] = (int(v["count"]), v["cdr"])
+        return {"subscriptions": subs, "subscribers": dict(values["subscribers"])}, raw
+
     def _sub(self, name: str) -> str:
         if name not in self._subs:
             raise KeyError(f"the ros2 interface `{self.name}` has no subscription `{name}` "

@@ -1046,6 +1046,7 @@ def _record(engine: Engine, args: argparse.Namespace, until: int | None,
     engine.recorder = rec
     for name, _kind, iface in engine.inputs:
         hfsmc_interfaces.hook(engine, name, iface)
+        rec.attach(name, iface, lambda: engine.t)  # a driver's own channels (ros2's topics)
 
 
 def main(engine: Engine, argv: Sequence[str], here: str) -> int:
