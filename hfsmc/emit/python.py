@@ -25,7 +25,8 @@ from hfsmc.ir import Code, DictValue, Interface, Model, Value
 from hfsmc.pycheck import import_statement
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py",
-                 "hfsmc_monitor.py", "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py")
+                 "hfsmc_monitor.py", "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py",
+                 "hfsmc_helpers.py")
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_px4.py"), "camera": ("hfsmc_camera.py",),
                    "driver": ("hfsmc_driver.py",)}
 _STATEMENT_INDENT = 8  # def / try / body
