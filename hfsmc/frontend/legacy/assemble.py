@@ -40,11 +40,21 @@ from hfsmc.frontend.legacy.code import (
     references,
     single_return,
 )
-from hfsmc.frontend.legacy.form import Context, Legacy, Level, LState, Member, Space, Transition
+from hfsmc.frontend.legacy.form import (
+    Context,
+    Interface,
+    Legacy,
+    Level,
+    LState,
+    Member,
+    Space,
+    Transition,
+)
 from hfsmc.frontend.legacy.names import Names
 from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.frontend.source import PathKey
 from hfsmc.ir import DEFAULT_ROOT_PERIOD_MS
+from hfsmc.ros2.definitions import ros2_type_name
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,6 +102,7 @@ class Assembler(Names):
         self._interfaces()
         self._implicit_members()
         self._name_members()
+        self.ros2_names()
         self._name_states(lg.root, "")
         if imports:
             self._put(d, ("imports",), [t for t, _ in imports], imports[0][1])
@@ -291,7 +302,12 @@ class Assembler(Names):
             return
         out: dict[str, Any] = {}
         self._put(d, ("interfaces",), out, self.legacy.interfaces[0].span)
+        topics = [i for i in self.legacy.interfaces if self.ros2_topic(i)]
+        if topics:
+            self._ros2_data(out, topics)
         for itf in self.legacy.interfaces:
+            if itf in topics:
+                continue
             assert itf.member is not None
             path: PathKey = ("interfaces", itf.member.final)
             spec: dict[str, Any] = {}
@@ -304,6 +320,43 @@ class Assembler(Names):
                 self._put(spec, (*path, "options"), opts, itf.span)
                 for k, v in itf.options.items():
                     self._put(opts, (*path, "options", k), v, itf.span)
+
+    def _ros2_data(self, out: dict[str, Any], topics: list[Interface]) -> None:
+        """The VisualStates topics as one `ros2` interface (SPEC 5.2): ROS 1 type names
+        become ROS 2's; subscriptions take the sensor-data QoS (best effort), which matches
+        every publisher, as a ROS 1 subscriber matched every publisher."""
+        base: PathKey = ("interfaces", self.ros_member.final)
+        spec: dict[str, Any] = {}
+        self._put(out, base, spec, topics[0].span)
+        self._put(spec, (*base, "type"), "ros2", topics[0].span)
+        for direction in ("subscribe", "publish"):
+            mine = [i for i in topics if i.options["direction"] == direction]
+            if not mine:
+                continue
+            table: dict[str, Any] = {}
+            self._put(spec, (*base, direction), table, mine[0].span)
+            for itf in mine:
+                assert itf.member is not None and itf.url is not None
+                name = itf.member.final.rpartition(".")[2]
+                path: PathKey = (*base, direction, name)
+                entry: dict[str, Any] = {}
+                self._put(table, path, entry, itf.span)
+                self._put(entry, (*path, "topic"), itf.url, itf.span)
+                self._put(entry, (*path, "type"), ros2_type_name(itf.options["message"]),
+                          itf.span)
+                if direction == "subscribe":
+                    self._put(entry, (*path, "qos"), "sensor_data", itf.span)
+
+    def _publishers(self) -> list[Mapped]:
+        """A function per publication, named as the legacy code called it."""
+        out = []
+        for itf in self.legacy.interfaces:
+            if self.ros2_topic(itf) and itf.options["direction"] == "publish":
+                assert itf.member is not None
+                name = itf.member.final
+                out.append(Mapped.synth(f"def {name}(msg):\n    {self.ros_member.final}.publish("
+                                        f"{name!r}, msg)\n", self.r.pos(itf.span)))
+        return out
 
     def _variable_data(self, d: dict[str, Any], kind: str = "variable",
                        section: str = "variables") -> None:
@@ -342,6 +395,9 @@ class Assembler(Names):
         if inits:
             section("set when the component loads: values that are not plain literals, "
                     "attributes never declared", inits[0].start, inits)
+        publishers = self._publishers()
+        if publishers:
+            section("the ROS topics' publish methods", publishers[0].start, publishers)
         if self.helpers:
             section("conditions written as function bodies", self.helpers[0].start, self.helpers)
         if parts:
@@ -442,6 +498,7 @@ class Assembler(Names):
             for member in space.members.values():
                 kinds[member.kind] = kinds.get(member.kind, 0) + 1
         words = {"variable": "variables", "function": "functions", "interface": "interfaces",
+                 "topic": "ROS topics read through the ros2 interface",
                  "parameter": "parameters (settable at start, as VisualStates' were)",
                  "init": "names set by statements kept in `functions`",
                  "implicit": "attributes assigned but never declared (None at first)"}

@@ -36,7 +36,7 @@ from hfsmc.frontend.legacy.code import (
     references,
     uses,
 )
-from hfsmc.frontend.legacy.form import Context, Legacy, Level, LState, Member, Space
+from hfsmc.frontend.legacy.form import Context, Interface, Legacy, Level, LState, Member, Space
 from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.ir import HELPERS, RESERVED_PREFIX
 
@@ -51,6 +51,7 @@ class Names:
         self.taken: set[str] = set()  # every name the model's snippets may see
         self.imported: dict[str, Span] = {}  # names the imports bind
         self.renames = 0  # W206 warnings given
+        self.ros_member = Member("ros", "interface", Span("", 0, 0))  # the ros2 interface
 
     # -- walking the neutral form ------------------------------------------------
     def _states(self, level: Level) -> Iterator[LState]:
@@ -232,15 +233,39 @@ class Names:
                 return self.r.to_span(m.at(found.start()))
         return None
 
+    def ros2_topic(self, itf: Interface) -> bool:
+        """A VisualStates ROS topic a Python model can reach through a `ros2` interface: it
+        has a name, a message type and a direction (SPEC 5.2; docs/legacy.md)."""
+        return self.language == "python" and itf.type == "ros_topic" and bool(itf.url) \
+            and bool(itf.options.get("message")) \
+            and itf.options.get("direction") in ("publish", "subscribe")
+
     def _interfaces(self) -> None:
         texts = [m.text for m, _ in self._all_code()]
         glob = self.legacy.spaces[0]
+        topics = [i for i in self.legacy.interfaces if self.ros2_topic(i)]
+        if topics:
+            name, n = "ros", 2
+            while name in glob.members or name in self.imported:
+                name, n = f"ros_{n}", n + 1
+            self.ros_member = self._member(glob, name, "interface", topics[0].span)
         for itf in self.legacy.interfaces:
             name = next((c for c in itf.candidates if uses(texts, c, self.language)),
                         itf.candidates[0])
             base, n = name, 2
             while name in glob.members:
                 name, n = f"{base}_{n}", n + 1
+            if itf in topics:
+                publish = itf.options["direction"] == "publish"
+                itf.member = self._member(glob, name, "function" if publish else "topic",
+                                          itf.span)
+                self.r.note(itf.span, f"{itf.what} becomes the "
+                            f"{'publication' if publish else 'subscription'} `{name}` of the "
+                            f"ros2 interface `{self.ros_member.name}`: "
+                            + (f"`{name}(msg)` is kept as a function that publishes msg"
+                               if publish else f"code reads `{name}` as `{self.ros_member.name}."
+                               f"{name}`, the latest message"))
+                continue
             itf.member = self._member(glob, name, "interface", itf.span)
             if name != base:
                 self.renames += 1
@@ -253,6 +278,12 @@ class Names:
                         "uses it" if self.language != "cpp" else
                         "it has no operations in C++: a snippet that uses it does not compile "
                         "(build --compile shows where)")
+
+    def ros2_names(self) -> None:
+        """After the members are named: a subscription is read as ``ros.NAME``."""
+        for itf in self.legacy.interfaces:
+            if self.ros2_topic(itf) and itf.member is not None and itf.member.kind == "topic":
+                itf.member.final = f"{self.ros_member.final}.{itf.member.final}"
 
     # -- names -----------------------------------------------------------------
     def _implicit_members(self) -> None:
