@@ -50,7 +50,7 @@ from hfsmc.frontend.legacy.form import (
     Space,
     Transition,
 )
-from hfsmc.frontend.legacy.names import Names
+from hfsmc.frontend.legacy.names import TF_EULER, Names
 from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.frontend.source import PathKey
 from hfsmc.ir import DEFAULT_ROOT_PERIOD_MS
@@ -67,6 +67,17 @@ class _Converted:
 _COMMENT = {"python": "#", "cpp": "//"}
 
 
+_ROSPY = re.compile(r"(?<![\w.])rospy\s*\.\s*([A-Za-z_][\w.]*)")
+_ROSPY_INSTEAD = {
+    "loginfo": "`log(msg)`", "logwarn": "`log(msg)`", "logerr": "`log(msg)`",
+    "logdebug": "`log(msg)`", "Time": "`now()` (seconds since the component started)",
+    "get_time": "`now()`", "sleep": "a timed transition (`after:`) instead of sleeping",
+    "Rate": "the state's `period`", "is_shutdown": "`shutdown()` to stop; it never is",
+    "Publisher": "a `publish` entry of the ros2 interface",
+    "Subscriber": "a `subscribe` entry of the ros2 interface",
+}
+
+
 class Assembler(Names):
     """The neutral form as the plain data of a version-1 model, with spans."""
 
@@ -78,6 +89,7 @@ class Assembler(Names):
         self.helpers: list[Mapped] = []  # condition functions
         self.counts = {"global": 0, "local": 0, "self": 0}  # prefixes dropped
         self.selfs: set[tuple[Pos, str]] = set()  # (text, name) of `self.x` in state code, warned
+        self.said: set[Span] = set()  # W221 given here
 
     # -- the whole model -------------------------------------------------------
     def model(self) -> dict[str, Any]:
@@ -150,6 +162,7 @@ class Assembler(Names):
 
         C++ code names the members of its own namespace bare: those renamed are
         renamed there too."""
+        m = self._ros1_calls(m)
         bare_names: frozenset[str] = frozenset()
         if self.language == "cpp":
             bare_names = frozenset(n for s in ctx.scopes.get("bare", ())
@@ -184,6 +197,34 @@ class Assembler(Names):
                     stores[ref.start + shift] = member
             shift += len(new) - (ref.end - ref.start)
         return _Converted(edit(m, edits), stores, named)
+
+    def _ros1_calls(self, m: Mapped) -> Mapped:
+        """ROS 1 calls of Python code that have no ROS 2 equivalent in a component: tf's
+        euler_from_quaternion becomes hfsmc's helper of that name (W221, same result);
+        rospy's are named with what to write instead (W221), and left as they are."""
+        if self.language != "python":
+            return m
+        masked = mask(m.text, "python")
+        edits = []
+        for found in TF_EULER.finditer(masked):
+            at = self.r.to_span(m.at(found.start()))
+            if at not in self.said:
+                self.said.add(at)
+                self.r.warn("W221", "`tf.transformations.euler_from_quaternion` (ROS 1's tf, "
+                            "not in ROS 2) replaced by hfsmc's helper `euler_from_quaternion` "
+                            "(the same roll, pitch and yaw; `yaw_of(q)` gives the yaw alone)", at)
+            edits.append((found.start(), found.end(),
+                          Mapped.synth("euler_from_quaternion", m.at(found.start()))))
+        for found in _ROSPY.finditer(masked):
+            at = self.r.to_span(m.at(found.start()))
+            if at not in self.said:
+                self.said.add(at)
+                call = found.group(1)
+                instead = _ROSPY_INSTEAD.get(call.split(".")[0],
+                                             "nothing: the component runs the automaton itself")
+                self.r.warn("W221", f"`rospy.{call}` has no equivalent in an hfsmc component "
+                            f"(no rospy in ROS 2): write {instead}", at)
+        return edit(m, edits) if edits else m
 
     def _rename_locals(self, m: Mapped) -> Mapped:
         """Bare names of legacy Python code that are now also module-level names of the
