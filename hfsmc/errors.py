@@ -123,6 +123,7 @@ CODES: dict[str, str] = {
     "W215": "done() in a state without a sub-automaton: always false",
     "W216": "time_limit without on_interrupt: the time limit stops the component where it is",
     "W220": "legacy code problem that `convert` carries into the new model (fix it there)",
+    "W221": "legacy ROS 1 call with no ROS 2 equivalent: replaced by an hfsmc helper, or named",
 }
 
 

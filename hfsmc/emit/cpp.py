@@ -30,7 +30,7 @@ from hfsmc.ir import Code, Model, Value
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
                  "viewstate.hpp", "monitor.hpp", "mcap.hpp", "record.hpp", "playback.hpp",
-                 "jsonread.hpp", "jsonvalue.hpp", "simclock.hpp")
+                 "jsonread.hpp", "jsonvalue.hpp", "simclock.hpp", "helpers.hpp")
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
