@@ -100,8 +100,8 @@ def test_visualstates_kobuki_bump_and_go_drives_again(tmp_path: Path) -> None:
     world = tmp_path / "world.yaml"
     world.write_text("walls: [[[0, 0], [5, 0], [5, 4], [0, 4], [0, 0]]]\n"
                      "robots: [{name: kobuki, x: 2, y: 2}]\nlaser: {x: 0.15}\n")
-    robot, trace, err = drive(tmp_path, tmp_path / "c" / "kobuki_bump_and_go.py", world, 60,
-                              tmp_path / "robot.yaml")
+    robot, trace, _ = drive(tmp_path, tmp_path / "c" / "kobuki_bump_and_go.py", world, 60,
+                            tmp_path / "robot.yaml")
     fired = [json.loads(line) for line in trace.splitlines()]
     entered = [r["state"] for r in fired if r.get("ev") == "enter"]
     # It meets the wall (the file backs off only on contact), backs off, turns, goes on.
