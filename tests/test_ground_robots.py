@@ -112,3 +112,19 @@ def test_visualstates_kobuki_bump_and_go_drives_again(tmp_path: Path) -> None:
     cycle = [s.rpartition("/")[2] for s in entered]
     assert "GetBack" in cycle and "Rotate" in cycle
     assert cycle.count("Go") >= 2, cycle
+
+
+def test_wall_follower_goes_round_the_room_without_a_collision(
+        tmp_path: Path) -> None:
+    r = hfsmc("build", "examples/wall_follower/wall_follower.yaml", "-o", str(tmp_path / "c"))
+    assert r.returncode == 0, r.stderr
+    world = ROOT / "examples" / "wall_follower" / "world.yaml"
+    robot, _, err = drive(tmp_path, tmp_path / "c" / "wall_follower.py", world, 120)
+    assert robot["collisions"] == [], robot["collisions"]
+    # Its first 120 s went once round the L-shaped room (0.38 of it covered): the east end,
+    # the north wing and the west wall all reached.
+    xs = [p[1] for p in robot["trail"]]
+    ys = [p[2] for p in robot["trail"]]
+    assert max(xs) > 7 and max(ys) > 5 and min(xs) < 1, robot["trail"]
+    assert robot["coverage"] >= 0.3, robot["coverage"]
+    assert err.count("turning left") >= 4, err
