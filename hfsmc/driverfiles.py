@@ -66,12 +66,29 @@ def driver_files(model_file: str, spec: Mapping[str, Any], language: str,
     return found.get("python"), found.get("cpp"), d
 
 
-def _read(model_file: str, written: str, lang: str, span: Span,
-          texts: Mapping[str, str] | None, diags: Diagnostics) -> DriverFile | None:
+def confined(model_file: str, written: str) -> str:
+    """The path of a file the model names relative to its own folder; ValueError saying
+    why when it leaves that folder as written (absolute, ``~``, ``..``). A link that
+    leads out is found by :func:`leads_out` once the file exists."""
     home = os.path.dirname(model_file) or "."
-    path = os.path.normpath(os.path.join(home, written))
     if (os.path.isabs(written) or written.startswith("~")
             or os.path.normpath(written).split(os.sep)[0] == ".."):
+        raise ValueError("is outside the model's folder")
+    return os.path.normpath(os.path.join(home, written))
+
+
+def leads_out(model_file: str, path: str) -> str | None:
+    """Where ``path`` really leads when a link takes it out of the model's folder."""
+    home = os.path.dirname(model_file) or "."
+    real, root = os.path.realpath(path), os.path.realpath(home)
+    return None if os.path.commonpath([real, root]) == root else real
+
+
+def _read(model_file: str, written: str, lang: str, span: Span,
+          texts: Mapping[str, str] | None, diags: Diagnostics) -> DriverFile | None:
+    try:
+        path = confined(model_file, written)
+    except ValueError:
         diags.error("E185", f"driver `{written}` is outside the model's folder: a driver is "
                     "code, and is read only from the model's folder and below", span)
         return None
@@ -85,8 +102,8 @@ def _read(model_file: str, written: str, lang: str, span: Span,
             diags.error("E185", f"driver `{written}` is not in the recording", span)
             return None
         return DriverFile(written, path, text, span)
-    real, root = os.path.realpath(path), os.path.realpath(home)
-    if os.path.commonpath([real, root]) != root:
+    real = leads_out(model_file, path)
+    if real is not None:
         diags.error("E185", f"driver `{written}` leads outside the model's folder "
                     f"(to {real}): a driver is read only from the model's folder", span)
         return None

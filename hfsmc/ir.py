@@ -193,9 +193,48 @@ class DriverFile:
 
 
 @dataclass(frozen=True, slots=True)
+class Ros2Topic:
+    """One entry of a ``ros2`` interface's ``subscribe`` or ``publish`` (docs/ros2.md)."""
+
+    name: str  # the identifier snippets use: `robot.scan`, `robot.publish("cmd_vel", m)`
+    topic: str  # the ROS name as written (relative, absolute or `~/x`)
+    type: str  # `pkg/msg/Name` as written (a ROS 1 `pkg/Name` too)
+    qos: str | tuple[tuple[str, str | int], ...]  # a profile name, or the three written
+    span: Span = field(compare=False)  # the entry's key
+    type_span: Span = field(compare=False)
+    topic_span: Span = field(compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class MsgRef:
+    """One of a ``ros2`` interface's ``messages``: the model's own `.msg` file."""
+
+    written: str  # relative to the model's folder: `my_msgs/msg/Detection.msg`
+    path: str  # the model's folder joined with it
+    span: Span = field(compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class Ros2Settings:
+    """A ``ros2`` interface's keys (SPEC 5.2); None where the model leaves the default."""
+
+    node: str | None
+    namespace: str | None
+    domain: int | None
+    distro: str | None
+    subscribe: tuple[Ros2Topic, ...]
+    publish: tuple[Ros2Topic, ...]
+    messages: tuple[MsgRef, ...]
+
+    @property
+    def distro_or_default(self) -> str:
+        return self.distro or "jazzy"
+
+
+@dataclass(frozen=True, slots=True)
 class Interface:
     name: str
-    type: str  # mavlink | camera | ros_topic | ice | driver
+    type: str  # mavlink | camera | ros_topic | ice | driver | ros2
     url: str | None
     options: tuple[tuple[str, str], ...]
     span: Span = field(compare=False)
@@ -203,6 +242,7 @@ class Interface:
     cpp: DriverFile | None = None  # type driver: the C++ driver's header
     # type driver: what the driver of the model's language declares (None: not read)
     declaration: Driver | None = field(default=None, compare=False)
+    ros2: Ros2Settings | None = None  # type ros2: its keys
 
     @property
     def kind(self) -> str:

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 from hfsmc.driverfiles import driver_files
+from hfsmc.ros2files import check_messages, misplaced_keys, ros2_settings
 from hfsmc.durations import has_unit, parse_us
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend.source import YAML11_BOOLS, Document, PathKey
@@ -117,12 +118,16 @@ class _IrBuilder:
             self.diags.error("E103", f"time_limit `{d['time_limit']}` must be more than 0",
                              self.doc.span(("time_limit",)))
             limit_us = None
+        imports = tuple(Import(t, self.doc.span(("imports", i)))
+                        for i, t in enumerate(d.get("imports", [])))
+        interfaces = self.interfaces()
+        check_messages(interfaces, imports, self.diags)
         return Model(
             name=d["name"],
             language=language,
             description=d.get("description"),
-            imports=tuple(Import(t, self.doc.span(("imports", i))) for i, t in enumerate(d.get("imports", []))),
-            interfaces=self.interfaces(),
+            imports=imports,
+            interfaces=interfaces,
             parameters=self.parameters(),
             variables=self.variables(language),
             functions=self.code(d, (), "functions"),
@@ -146,6 +151,12 @@ class _IrBuilder:
         for name, spec in (self.data.get("interfaces") or {}).items():
             opts = tuple(sorted((str(k), str(v)) for k, v in (spec.get("options") or {}).items()))
             span = self.doc.key_span(("interfaces", name))
+            if spec["type"] == "ros2":
+                settings = ros2_settings(self.doc, name, spec, self.data["name"],
+                                         self.data.get("language", "python"), self.diags)
+                out.append(Interface(name, "ros2", None, (), span, ros2=settings))
+                continue
+            misplaced_keys(self.doc, name, spec, self.diags)
             if spec["type"] != "driver":
                 out.append(Interface(name, spec["type"], spec.get("url"), opts, span))
                 continue

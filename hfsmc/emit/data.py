@@ -6,7 +6,17 @@ import json
 from typing import Any
 
 from hfsmc.durations import format_us
-from hfsmc.ir import Automaton, Binding, Code, DictValue, Model, State, Transition, Value
+from hfsmc.ir import (
+    Automaton,
+    Binding,
+    Code,
+    DictValue,
+    Model,
+    Ros2Settings,
+    State,
+    Transition,
+    Value,
+)
 
 
 def thaw(v: Value) -> Any:
@@ -33,7 +43,8 @@ def model_to_data(model: Model) -> dict[str, Any]:
             i.name: {"type": i.type, **({"url": i.url} if i.url is not None else {}),
                      **({"python": i.python.written} if i.python is not None else {}),
                      **({"cpp": i.cpp.written} if i.cpp is not None else {}),
-                     **({"options": dict(i.options)} if i.options else {})}
+                     **({"options": dict(i.options)} if i.options else {}),
+                     **(ros2_data(i.ros2) if i.ros2 is not None else {})}
             for i in model.interfaces
         }
     if model.parameters:
@@ -131,12 +142,42 @@ def _transition(t: Transition) -> dict[str, Any]:
     return d
 
 
+def ros2_data(r: Ros2Settings) -> dict[str, Any]:
+    """A ros2 interface's keys as the model writes them (those it leaves out, left out)."""
+    d: dict[str, Any] = {}
+    for key in ("node", "namespace", "domain", "distro"):
+        value = getattr(r, key)
+        if value is not None:
+            d[key] = value
+    for key, topics in (("subscribe", r.subscribe), ("publish", r.publish)):
+        if topics:
+            d[key] = {t.name: {"topic": t.topic, "type": t.type,
+                               **({} if t.qos == "default" else
+                                  {"qos": t.qos if isinstance(t.qos, str) else dict(t.qos)})}
+                      for t in topics}
+    if r.messages:
+        d["messages"] = [m.written for m in r.messages]
+    return d
+
+
+def ros2_config(model_name: str, r: Ros2Settings) -> dict[str, Any]:
+    """A ros2 interface as NAME.yaml gives it to the component: every key, defaults filled
+    in (the domain stays null: $ROS_DOMAIN_ID, else 0, at start)."""
+    topics = {key: {t.name: {"topic": t.topic, "type": t.type,
+                             "qos": t.qos if isinstance(t.qos, str) else dict(t.qos)}
+                    for t in ts}
+              for key, ts in (("subscribe", r.subscribe), ("publish", r.publish))}
+    return {"type": "ros2", "node": r.node or model_name, "namespace": r.namespace or "/",
+            "domain": r.domain, "distro": r.distro_or_default, **topics}
+
+
 def component_config(model: Model) -> str:
     """The body of a component's NAME.yaml: parameters and interfaces, JSON-syntax YAML."""
     data = {
         "parameters": {p.name: thaw(p.default) for p in model.parameters},
-        "interfaces": {i.name: {"type": i.kind, "url": i.url, **({"options": dict(i.options)}
-                                                                 if i.options else {})}
+        "interfaces": {i.name: ros2_config(model.name, i.ros2) if i.ros2 is not None else
+                       {"type": i.kind, "url": i.url,
+                        **({"options": dict(i.options)} if i.options else {})}
                        for i in model.interfaces},
     }
     return json.dumps(data, indent=2, ensure_ascii=True)

@@ -30,7 +30,18 @@ def dump(model: Model) -> str:
         out.append(f"  import {imp.text!r} {_at(imp.span)}")
     for itf in model.interfaces:
         opts = "".join(f" {k}={v!r}" for k, v in itf.options)
-        out.append(f"  interface {itf.name}: {itf.type} url={itf.url!r}{opts} {_at(itf.span)}")
+        if itf.ros2 is None:
+            out.append(f"  interface {itf.name}: {itf.type} url={itf.url!r}{opts} {_at(itf.span)}")
+            continue
+        r = itf.ros2
+        out.append(f"  interface {itf.name}: ros2 node={r.node!r} namespace={r.namespace!r} "
+                   f"domain={r.domain!r} distro={r.distro_or_default} {_at(itf.span)}")
+        for kind, topics in (("subscribe", r.subscribe), ("publish", r.publish)):
+            for t in topics:
+                out.append(f"    {kind} {t.name}: topic={t.topic!r} type={t.type} "
+                           f"qos={t.qos!r} {_at(t.span)}")
+        for m in r.messages:
+            out.append(f"    message {m.written!r} {_at(m.span)}")
     for p in model.parameters:
         out.append(f"  parameter {p.name}: {p.type} = {p.default!r} {_at(p.span)}")
     for v in model.variables:

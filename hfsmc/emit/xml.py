@@ -18,7 +18,7 @@ from hfsmc.durations import format_us
 from hfsmc.emit.data import binding_value, thaw, written_first
 from hfsmc.errors import Diagnostic, EmitError, Span
 from hfsmc.frontend.xmlsource import clean_text
-from hfsmc.ir import Automaton, Binding, Code, Model, State, Transition, Value
+from hfsmc.ir import Automaton, Binding, Code, Model, Ros2Settings, State, Transition, Value
 
 _INDENT = "  "
 # Characters XML 1.0 cannot carry at all, not even as character references.
@@ -46,6 +46,9 @@ def to_xml(model: Model, comments: Sequence[tuple[int, str]] = ()) -> str:
         attrs = [("name", i.name), ("type", i.type), ("url", i.url),
                  ("python", i.python.written if i.python else None),
                  ("cpp", i.cpp.written if i.cpp else None)]
+        if i.ros2 is not None:
+            _ros2(w, i.name, i.ros2, i.span)
+            continue
         if not i.options:
             w.empty(1, "interface", attrs, i.span)
             continue
@@ -69,6 +72,26 @@ def to_xml(model: Model, comments: Sequence[tuple[int, str]] = ()) -> str:
     w.comments_before(None, 1)
     w.close(0, "hfsm")
     return "\n".join(w.lines) + "\n"
+
+
+def _ros2(w: _Writer, name: str, r: Ros2Settings, span: Span) -> None:
+    """A ros2 interface: its keys as attributes, its topics and .msg files as elements."""
+    attrs = [("name", name), ("type", "ros2"), ("node", r.node), ("namespace", r.namespace),
+             ("domain", None if r.domain is None else str(r.domain)), ("distro", r.distro)]
+    if not (r.subscribe or r.publish or r.messages):
+        w.empty(1, "interface", attrs, span)
+        return
+    w.open(1, "interface", attrs, span)
+    for kind, topics in (("subscribe", r.subscribe), ("publish", r.publish)):
+        for t in topics:
+            qos: list[tuple[str, str | None]] = (
+                [] if t.qos == "default" else [("qos", t.qos)] if isinstance(t.qos, str)
+                else [(k, str(v)) for k, v in t.qos])
+            w.empty(2, kind, [("name", t.name), ("topic", t.topic), ("type", t.type), *qos],
+                    t.span)
+    for m in r.messages:
+        w.empty(2, "message", [("file", m.written)], m.span)
+    w.close(1, "interface")
 
 
 def _duration(us: int | None) -> str | None:

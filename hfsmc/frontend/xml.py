@@ -254,6 +254,13 @@ _SINGLE = frozenset({"description", "functions", "on_shutdown", "automaton", "en
                      "exit", "when", "do"})
 
 
+def _number(text: str) -> int | str:
+    """An integer attribute (a domain id, a QoS depth); other text stays text, for the
+    schema to say what it must be."""
+    stripped = text.strip()
+    return int(stripped) if re.fullmatch(r"[+-]?\d{1,12}", stripped) else text
+
+
 def _flag(value: str) -> bool:
     return value == "true"  # the XSD allows only true and false
 
@@ -372,8 +379,12 @@ class _Converter:
         if found is None:
             return
         item, path = found
-        for name in ("type", "url", "python", "cpp", "default", "init", "description"):
+        for name in ("type", "url", "python", "cpp", "default", "init", "description", "node",
+                     "namespace", "distro"):
             self.attr(el, path, item, name)
+        self.attr(el, path, item, "domain", convert=_number)
+        if tag == "interface":
+            self.ros2_children(el, path, item)
         for option in el.iterchildren("option"):
             self.first_key(option, (*path, "options"))
             opt = self.named(option, (*path, "options"), item.setdefault("options", {}), "option")
@@ -382,6 +393,39 @@ class _Converter:
                 _, value_span = self.index.attribute(option, "value")
                 self.put(item["options"], opath, option.get("value", ""), self.index.span(option),
                          value_span)
+
+    def ros2_children(self, el: Element, path: PathKey, item: dict[str, Any]) -> None:
+        """A ros2 interface's `<subscribe>`, `<publish>` and `<message>` (docs/ros2.md)."""
+        for child in el.iterchildren("subscribe", "publish"):
+            key = str(child.tag)
+            self.first_key(child, (*path, key))
+            found = self.named(child, (*path, key), item.setdefault(key, {}), key)
+            if found is None:
+                continue
+            entry, epath = found
+            for name in ("topic", "type"):
+                self.attr(child, epath, entry, name)
+            if child.get("qos") is not None:
+                self.attr(child, epath, entry, "qos")
+            elif any(child.get(k) is not None for k in ("reliability", "durability", "depth")):
+                qos: dict[str, Any] = {}
+                self.put(entry, (*epath, "qos"), qos, self.index.span(child),
+                         self.index.span(child))
+                for name in ("reliability", "durability"):
+                    self.attr(child, (*epath, "qos"), qos, name)
+                self.attr(child, (*epath, "qos"), qos, "depth", convert=_number)
+        for child in el.iterchildren("message"):
+            messages = item.setdefault("messages", [])
+            self.first_key(child, (*path, "messages"))
+            _, value_span = self.index.attribute(child, "file")
+            self.put_item(messages, (*path, "messages", len(messages)), child.get("file", ""),
+                          self.index.span(child), value_span)
+
+    def put_item(self, items: list[Any], path: PathKey, value: Any, key: Span,
+                 span: Span) -> None:
+        items.append(value)
+        self.doc.key_spans[path] = key
+        self.doc.spans[path] = span
 
     # -- states ----------------------------------------------------------------
     def automaton(self, el: Element, path: PathKey, d: dict[str, Any]) -> None:
