@@ -58,6 +58,9 @@ def model_files(model: Model) -> list[str]:
     for automaton in model.automata():
         if automaton.instance is not None and automaton.instance.file not in files:
             files.append(automaton.instance.file)
+    for i in model.interfaces:  # a ros2 interface's own .msg files
+        files += [m.path for m in (i.ros2.messages if i.ros2 is not None else ())
+                  if m.path not in files]
     return files
 
 

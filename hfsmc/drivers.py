@@ -105,11 +105,24 @@ class Driver:
         return (*self.methods, *ATTRIBUTES)
 
 
+# The ros2 interface (templates/python/hfsmc_ros2.py, docs/ros2.md): its methods are read
+# from the class snippets call, as for the other built-in drivers; what the runtime's
+# declaration cannot say in Python is here: which argument names a subscription or a
+# publication, and that each subscription is an attribute (`robot.scan`).
+ROS2_SOURCE = ("hfsmc_ros2.py", "Ros2Queries")
+ROS2_NAMES = {"age": (("name", "subscribe"),), "count": (("name", "subscribe"),),
+              "publishers": (("name", "subscribe"),), "subscribers": (("name", "publish"),),
+              "publish": (("name", "publish"),)}
+ROS2_COMMANDS = frozenset({"publish"})
+
+
 @cache
 def driver(kind: str) -> Driver | None:
     """The built-in driver of interface type ``kind``; None for a type without one (a
     legacy ROS topic or ICE interface, which components cannot drive; a user's driver,
     which the interface itself carries: ``Interface.declaration``)."""
+    if kind == "ros2":
+        return _ros2_driver()
     source = SOURCES.get(kind)
     if source is None:
         return None
@@ -123,6 +136,21 @@ def driver(kind: str) -> Driver | None:
                     and node.name not in skip and node.name not in methods):
                 methods[node.name] = _method(node)
     return Driver(kind, methods)
+
+
+def _ros2_driver() -> Driver:
+    file, queries = ROS2_SOURCE
+    text = files("hfsmc.templates").joinpath("python").joinpath(file).read_text("utf-8")
+    cls = next(n for n in ast.parse(text).body if isinstance(n, ast.ClassDef)
+               and n.name == queries)
+    methods: dict[str, Method] = {}
+    for node in cls.body:
+        if isinstance(node, ast.FunctionDef) and not node.name.startswith("_"):
+            m = _method(node)
+            methods[node.name] = Method(m.name, m.params, m.required,
+                                        node.name in ROS2_COMMANDS, False, m.doc,
+                                        ROS2_NAMES.get(node.name, ()))
+    return Driver("ros2", methods, attributes_from=("subscribe",))
 
 
 def _method(node: ast.FunctionDef) -> Method:

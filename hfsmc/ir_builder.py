@@ -14,7 +14,6 @@ from collections.abc import Callable
 from typing import Any
 
 from hfsmc.driverfiles import driver_files
-from hfsmc.ros2files import check_messages, misplaced_keys, ros2_settings
 from hfsmc.durations import has_unit, parse_us
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend.source import YAML11_BOOLS, Document, PathKey
@@ -32,6 +31,7 @@ from hfsmc.ir import (
     Value,
     Variable,
 )
+from hfsmc.ros2files import check_messages, misplaced_keys, ros2_settings
 
 _LITERAL_TYPES: dict[type, str] = {bool: "bool", int: "int", float: "float", str: "str", list: "list"}
 _PY_TYPES = {"bool": bool, "int": int, "float": float, "str": str, "list": list, "dict": dict}

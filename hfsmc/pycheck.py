@@ -458,8 +458,12 @@ def _drivers(model: Model) -> dict[str, Driver]:
 
 
 def _listed(model: Model) -> dict[str, dict[str, tuple[str, ...]]]:
-    """Per interface, the names each of its options lists (a driver's `names`)."""
-    return {i.name: {k: option_names(v) for k, v in i.options} for i in model.interfaces}
+    """Per interface, the names each of its options lists (a driver's `names`; a ros2
+    interface's subscriptions and publications)."""
+    return {i.name: ({"subscribe": tuple(t.name for t in i.ros2.subscribe),
+                      "publish": tuple(t.name for t in i.ros2.publish)} if i.ros2 is not None
+                     else {k: option_names(v) for k, v in i.options})
+            for i in model.interfaces}
 
 
 def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver],
@@ -490,7 +494,8 @@ def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver]
         if method is None and any(node.attr in listed.get(o, ()) for o in d.attributes_from):
             continue  # an attribute per listed name (a subscription's latest message)
         if method is None and node.attr not in d.names:
-            _unknown_member(sn, iface, d, node.attr, where, diags)
+            attributes = tuple(n for o in d.attributes_from for n in listed.get(o, ()))
+            _unknown_member(sn, iface, d, node.attr, where, diags, attributes)
         elif method is None and id(node) in called:  # name, url: called as C++ has them
             diags.error("E148", f"`{iface}.{node.attr}` is an attribute in Python, not a "
                         f"method: write `{iface}.{node.attr}` (C++: `{iface}.{node.attr}()`)",
@@ -501,14 +506,16 @@ def _check_interface_uses(sn: Snippet, tree: ast.AST, drivers: dict[str, Driver]
 
 
 def _unknown_member(sn: Snippet, iface: str, d: Driver, attr: str, where: Span,
-                    diags: Diagnostics) -> None:
+                    diags: Diagnostics, attributes: tuple[str, ...] = ()) -> None:
     python = {v: k for k, v in CPP_NAMES.items()}.get(attr)
     note = (f"`{attr}` is the C++ name; in Python the method is `{python}`" if python
-            else did_you_mean(attr, d.names))
+            else did_you_mean(attr, (*attributes, *d.names)))
     if note is None:
         listed = ", ".join(m.signature() for m in d.methods.values())
-        note = f"{d.type} methods: {listed}; attributes: name, url"
-    diags.error("E148", f"`{iface}` ({d.type} interface) has no method `{attr}`", where, note)
+        note = f"{d.type} methods: {listed}; attributes: {', '.join((*attributes, 'name', 'url'))}"
+    what = (f"has no {' or '.join(d.attributes_from)} entry or method" if d.attributes_from
+            else "has no method")
+    diags.error("E148", f"`{iface}` ({d.type} interface) {what} `{attr}`", where, note)
 
 
 def _check_arguments(sn: Snippet, iface: str, m: Method, call: ast.Call, where: Span,
@@ -558,7 +565,7 @@ def _check_names(sn: Snippet, iface: str, m: Method, call: ast.Call,
             diags.error("E148", f"`{iface}.{m.name}`: `{arg.value}` is not one of the "
                         f"interface's `{option}` ({', '.join(names) or 'none declared'})",
                         sn.code.position(line, col), did_you_mean(arg.value, names) or
-                        f"declare it in the interface's option `{option}`")
+                        f"declare it in the interface's `{option}`")
 
 
 def _attr_where(sn: Snippet, rows: list[str], node: ast.Attribute) -> Span:

@@ -17,17 +17,20 @@ import re
 import tokenize
 from dataclasses import dataclass
 
-from hfsmc.emit.data import component_config
+from hfsmc.emit.data import component_config, ros2_config
 from hfsmc.emit.templating import environment, runtime_files, template_folder
 from hfsmc.emit.walk import InstanceView, MachineView, Snippet, Walk
-from hfsmc.errors import EmitError, Span, fail
+from hfsmc.errors import CheckError, EmitError, Span, fail
 from hfsmc.ir import Code, DictValue, Interface, Model, Value
 from hfsmc.pycheck import import_statement
+from hfsmc.ros2.python_messages import python_message_files
+from hfsmc.ros2files import used_messages
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py",
                  "hfsmc_monitor.py", "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py")
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_px4.py"), "camera": ("hfsmc_camera.py",),
-                   "driver": ("hfsmc_driver.py",)}
+                   "driver": ("hfsmc_driver.py",),
+                   "ros2": ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_cdr.py")}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
 _TRY_MARK = re.compile(r"^\s*try:  # s(\d+)$")
@@ -218,7 +221,7 @@ class PythonWalk(Walk[PythonSnippet]):
                              for p in m.parameters),
             descriptions_literal=repr(descriptions) if descriptions else "",
             variables=tuple(VariableView(v.name, _py_literal(v.init)) for v in m.variables),
-            interfaces=tuple(InterfaceView(i.name, i.kind, i.url, repr(dict(i.options)))
+            interfaces=tuple(InterfaceView(i.name, i.kind, i.url, _options_literal(m, i))
                              for i in m.interfaces),
             drivers_literal=repr({i.kind: (driver_module(m, i), i.declaration.cls)
                                   for i in m.interfaces if i.declaration is not None}),
@@ -248,6 +251,27 @@ class PythonWalk(Walk[PythonSnippet]):
             interfaces=tuple(i.name for i in m.interfaces),
             machine=self.machine(),
         )
+
+
+def _options_literal(m: Model, i: Interface) -> str:
+    """An interface's options as the component's table gives them to the seam
+    (hfsmc_interfaces.py); a ros2 interface's are its settings (docs/ros2.md)."""
+    if i.ros2 is None:
+        return repr(dict(i.options))
+    settings = ros2_config(m.name, i.ros2)
+    del settings["type"]
+    return repr(settings)
+
+
+def _ros2_files(model: Model) -> dict[str, bytes]:
+    """The message packages of the types the model uses, and of those the runtime needs."""
+    if not any(i.ros2 is not None for i in model.interfaces):
+        return {}
+    try:
+        messages = used_messages(model.interfaces, model.imports, runtime=True)
+    except CheckError as e:  # `check` has said it already; a build says it again
+        raise EmitError(e.diagnostics) from None
+    return {path: text.encode("utf-8") for path, text in python_message_files(messages).items()}
 
 
 def unit_module(unit: str) -> str:
@@ -353,4 +377,5 @@ def component_files(model: Model) -> dict[str, bytes]:
     out.update(runtime_files(template_folder("python"), RUNTIME_FILES, INTERFACE_FILES,
                              (i.type for i in model.interfaces)))
     out.update(_driver_files(model))
+    out.update(_ros2_files(model))
     return out

@@ -17,10 +17,15 @@ from collections.abc import Callable
 from typing import Any, NoReturn
 
 # The built-in drivers: interface type -> module (beside the component).
-BUILTIN = {"mavlink": "hfsmc_mavlink", "camera": "hfsmc_camera"}
+BUILTIN = {"mavlink": "hfsmc_mavlink", "camera": "hfsmc_camera", "ros2": "hfsmc_ros2"}
 # What to install for a module a driver imports (pip names; Debian: python3-opencv etc.).
 _INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": "numpy",
-            "serial": "pyserial"}
+            "serial": "pyserial", "cyclonedds": "cyclonedds"}
+# A ros2 interface's settings that the configuration file may change without a rebuild,
+# and those it may only repeat (the generated messages depend on them: docs/ros2.md).
+ROS2_CHANGEABLE = ("node", "namespace", "domain")
+ROS2_FIXED = ("type", "distro")
+ROS2_TOPIC_CHANGEABLE = ("topic", "qos")
 
 
 class UsageError(Exception):
@@ -79,6 +84,9 @@ def make_interface(name: str, kind: str, url: str | None, options: dict[str, str
         return Unavailable(name, f"interfaces of type `{kind}` are kept from a legacy model "
                                  "but hfsmc components cannot drive them")
     module = _import(name, kind, BUILTIN[kind] if own is None else own[0])
+    if kind == "ros2":  # its settings are a table, not a URL (docs/ros2.md); exits 2 itself
+        made: object = module.connect(name, options)
+        return made
     try:
         factory: Callable[..., object] = (module.connect if own is None
                                           else getattr(module, own[1]).connect)
@@ -110,6 +118,8 @@ def make_fake(engine: Any, name: str, kind: str, url: str | None,
     try:
         if own is None:
             made: object | None = engine.playback.fake(name, kind)
+            if made is None and kind == "ros2":  # never the live node in a playback
+                return Unavailable(name, "a ros2 interface is not scripted by --playback yet")
             return made
         cls = getattr(_import(name, kind, own[0]), own[1])
         try:
@@ -128,19 +138,65 @@ def wire(engine: Any, wired: dict[str, Any]) -> None:
     ns = m["namespace"]
     for name, kind, url, options in m["interfaces"]:
         given = wired.get(name) or {}
-        extra = given.get("options") or {}
+        if kind == "ros2":
+            merged = ros2_settings(name, options, given)
+        else:
+            merged = {**options, **(given.get("options") or {})}
         where = given.get("url", url)
         kind = str(given.get("type", kind))
         where = None if where is None else str(where)
-        engine.wiring[name] = {"type": kind, "url": where, "options": {**options, **extra}}
-        if engine.playback is not None:
-            fake = make_fake(engine, name, kind, where, {**options, **extra})
-        else:
-            fake = None
+        engine.wiring[name] = {"type": kind, "url": where, "options": merged}
+        fake = (make_fake(engine, name, kind, where, merged) if engine.playback is not None
+                else None)
         ns[name] = fake if fake is not None else make_interface(
-            name, kind, where, {**options, **extra}, engine.sim, m.get("drivers"))
+            name, kind, where, merged, engine.sim, m.get("drivers"))
         if callable(getattr(type(ns[name]), "snapshot", None)):  # not Unavailable's __getattr__
             engine.inputs.append((name, kind, ns[name]))
+
+
+def ros2_settings(name: str, built: dict[str, Any], given: dict[str, Any]) -> dict[str, Any]:
+    """A ros2 interface's settings: the model's (``built``), with what the configuration
+    file changes (``given``: node, namespace, domain, each topic's name and QoS). A type or
+    a distro other than the model's, or a topic the model does not declare, needs a
+    rebuild (the messages are generated for them): UsageError."""
+    where = f"the configuration of interface `{name}`"
+    out = {**built, "subscribe": {k: dict(v) for k, v in built.get("subscribe", {}).items()},
+           "publish": {k: dict(v) for k, v in built.get("publish", {}).items()}}
+    for key, value in given.items():
+        if key in ROS2_CHANGEABLE:
+            out[key] = value
+        elif key in ROS2_FIXED:
+            if value != (built.get(key) if key != "type" else "ros2"):
+                raise UsageError(f"{where}: `{key}: {value}` differs from the model's "
+                                 f"({built.get(key, 'ros2')}): change the model and rebuild")
+        elif key in ("subscribe", "publish"):
+            if not isinstance(value, dict):
+                raise UsageError(f"{where}: `{key}` maps names to {{topic, qos}}")
+            for entry, spec in value.items():
+                _ros2_topic(where, key, entry, spec, out[key])
+        elif key not in ("url", "options") or given[key]:
+            raise UsageError(f"{where}: `{key}` is not a setting of a ros2 interface "
+                             f"(the file may change {', '.join(ROS2_CHANGEABLE)} and each "
+                             "topic's topic and qos)")
+    return out
+
+
+def _ros2_topic(where: str, key: str, entry: str, spec: Any, table: dict[str, Any]) -> None:
+    if entry not in table:
+        raise UsageError(f"{where}: `{key}` has no `{entry}` in the model "
+                         f"({', '.join(table) or 'none'}): add it to the model and rebuild")
+    if not isinstance(spec, dict):
+        raise UsageError(f"{where}: `{key}.{entry}` is {{topic, type, qos}}")
+    for k, v in spec.items():
+        if k in ROS2_TOPIC_CHANGEABLE:
+            table[entry][k] = v
+        elif k == "type":
+            if v != table[entry]["type"]:
+                raise UsageError(f"{where}: `{key}.{entry}.type: {v}` differs from the "
+                                 f"model's ({table[entry]['type']}): change the model and "
+                                 "rebuild")
+        else:
+            raise UsageError(f"{where}: `{key}.{entry}.{k}`: a topic has topic, type and qos")
 
 
 def hook(engine: Any, name: str, iface: Any) -> None:
