@@ -29,6 +29,7 @@ from hfsmc.emit.templating import environment, runtime_files, template_folder
 from hfsmc.emit.walk import InstanceView, MachineView, Snippet, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, Value
+from hfsmc.ros2files import model_distro
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
                  "viewstate.hpp", "monitor.hpp", "mcap.hpp", "record.hpp", "playback.hpp",
@@ -228,6 +229,9 @@ class CppComponentView:
     description_lines: tuple[str, ...]  # comment text
     includes: tuple[IncludeView, ...]
     driver_headers: tuple[str, ...]  # "hfsmc/mavlink.hpp", ...
+    # The generated classes of the ros2 interfaces: never precompiled (they differ between
+    # components of one CMake project that share a precompiled header set).
+    ros2_headers: tuple[str, ...]
     driver_libraries: tuple[DriverLibraryView, ...]  # in the order of driver_headers
     parameters: tuple[MemberView, ...]
     parameter_help: tuple[ParameterHelpView, ...]
@@ -361,10 +365,10 @@ class CppWalk(Walk[CppSnippet]):
             includes=tuple(IncludeView(_include(i.text), _line(i.span.file, i.span.line))
                            for i in imports),
             driver_headers=tuple(f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds)
-                                 if k in INTERFACE_FILES) + tuple(user_headers(m).values())
-            + tuple(interface_header(i.name) for i in m.interfaces if i.ros2 is not None),
+                                 if k in INTERFACE_FILES) + tuple(user_headers(m).values()),
+            ros2_headers=tuple(interface_header(i.name) for i in m.interfaces if i.ros2 is not None),
             driver_libraries=tuple(
-                DriverLibraryView(f"hfsmc_{k}", " ".join(f"src/{f}" for f in INTERFACE_SOURCES[k]),
+                DriverLibraryView(_library(m, k), " ".join(f"src/{f}" for f in INTERFACE_SOURCES[k]),
                                   _DRIVER_LINKS[k])
                 for k in sorted(kinds) if k in INTERFACE_SOURCES),
             uses_ros2="ros2" in kinds,
@@ -395,6 +399,15 @@ class CppWalk(Walk[CppSnippet]):
             hash_literal=cpp_string(machine.model_hash),
             version_literal=cpp_string(machine.version),
         )
+
+
+def _library(m: Model, kind: str) -> str:
+    """A driver's library: ``hfsmc_KIND``; ``hfsmc_ros2_DISTRO`` for ros2, whose node is
+    compiled with the distro's discovery message (components of two distros in one CMake
+    project each get theirs)."""
+    if kind == "ros2":
+        return f"hfsmc_ros2_{model_distro(m.interfaces)}"
+    return f"hfsmc_{kind}"
 
 
 def _automaton_states(machine: MachineView[CppSnippet]) -> tuple[tuple[int, ...], ...]:
