@@ -38,10 +38,10 @@ ENV = {**os.environ, "CYCLONEDDS_URI": LOOPBACK}
 def twin(folder: Path, name: str, distro: str) -> Path:
     """The pingpong model ``name`` for ``distro`` (the distro is the model's: a rebuild)."""
     text = (MODELS / name / f"{name}.yaml").read_text()
-    out = folder / distro / name / f"{name}.yaml"
+    out = folder / f"{name}_{distro}" / f"{name}_{distro}.yaml"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text.replace("    node: pingpong\n",
-                                f"    node: pingpong\n    distro: {distro}\n"))
+    out.write_text(text.replace("    node: pingpong\n", f"    node: pingpong\n    distro: {distro}\n")
+                   .replace(f"name: {name}\n", f"name: {name}_{distro}\n"))
     return out
 
 
@@ -79,12 +79,13 @@ def test_the_python_and_cpp_twins_exchange_messages_both_ways(
     result = hfsmc("build", str(py_model), "-o", str(tmp_path / "py"))
     assert result.returncode == 0, result.stderr
     with ros2_domain() as dom:
-        cpp_config = crossed(sb.folder(models[distro]) / "pingpong_cpp.yaml", "a", "b", dom)
-        py_config = crossed(tmp_path / "py" / "pingpong.yaml", "b", "a", dom)
+        cpp_config = crossed(sb.folder(models[distro]) / f"pingpong_cpp_{distro}.yaml", "a", "b",
+                             dom)
+        py_config = crossed(tmp_path / "py" / f"pingpong_{distro}.yaml", "b", "a", dom)
         cpp = subprocess.Popen([str(exe), "--config", str(cpp_config), "--until", "30s"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
         try:
-            py = subprocess.run([sys.executable, str(tmp_path / "py" / "pingpong.py"),
+            py = subprocess.run([sys.executable, str(tmp_path / "py" / f"pingpong_{distro}.py"),
                                  "--config", str(py_config), "--until", "30s"],
                                 capture_output=True, text=True, timeout=60, env=ENV)
             cpp_out, cpp_err = cpp.communicate(timeout=60)
@@ -151,12 +152,13 @@ def test_in_lockstep_the_cpp_component_holds_every_sample_and_runs_the_same_twic
         assert run.returncode == 0, run.stderr
         assert "lockstep: component stop_at_wall_cpp connected" in err, err
         assert "did not" not in err + run.stderr, err + run.stderr  # matched, nothing late
-        runs.append((run.stderr, truth))
+        said = [ln for ln in run.stderr.splitlines() if "waiting for the simulator" not in ln]
+        runs.append(("\n".join(said), truth))
     assert runs[0] == runs[1]
     said, truth = runs[0]
     # A scan every 100 ms of simulated time, each held before the instant that follows it:
     # the stop comes at the same instant and after the same number of scans every run.
-    assert "Stop: stopped 0.79 m from the wall" in said, said
+    assert "[    5.900] Stop: stopped 0.75 m from the wall, 59 scans read" in said, said
     assert 4.6 < truth["pose"]["x"] < 5.4 and truth["collisions"] == []
 
 
