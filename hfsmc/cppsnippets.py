@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from difflib import get_close_matches
 from dataclasses import dataclass
+from difflib import get_close_matches
 
 from hfsmc.errors import Diagnostics, Span
 from hfsmc.ir import Model

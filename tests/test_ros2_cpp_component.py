@@ -88,7 +88,7 @@ def test_the_python_and_cpp_twins_exchange_messages_both_ways(
             py = subprocess.run([sys.executable, str(tmp_path / "py" / f"pingpong_{distro}.py"),
                                  "--config", str(py_config), "--until", "30s"],
                                 capture_output=True, text=True, timeout=60, env=ENV)
-            cpp_out, cpp_err = cpp.communicate(timeout=60)
+            _, cpp_err = cpp.communicate(timeout=60)
         finally:
             if cpp.poll() is None:
                 cpp.kill()
@@ -152,8 +152,8 @@ def test_in_lockstep_the_cpp_component_holds_every_sample_and_runs_the_same_twic
         assert run.returncode == 0, run.stderr
         assert "lockstep: component stop_at_wall_cpp connected" in err, err
         assert "did not" not in err + run.stderr, err + run.stderr  # matched, nothing late
-        said = [ln for ln in run.stderr.splitlines() if "waiting for the simulator" not in ln]
-        runs.append(("\n".join(said), truth))
+        lines = [ln for ln in run.stderr.splitlines() if "waiting for the simulator" not in ln]
+        runs.append(("\n".join(lines), truth))
     assert runs[0] == runs[1]
     said, truth = runs[0]
     # A scan every 100 ms of simulated time, each held before the instant that follows it:

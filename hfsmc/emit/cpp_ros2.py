@@ -84,14 +84,14 @@ def interface_view(model: Model, i: Interface, base: str) -> Ros2InterfaceView:
                  f"`{i.name}.{t.name}()` is the interface's own method; rename it", t.span)
     topics = (*(_topic(t, False) for t in r.subscribe), *(_topic(t, True) for t in r.publish))
     by_type: dict[str, list[str]] = {}
-    for t in topics:
-        if t.publication:
-            by_type.setdefault(t.cpp_type, []).append(t.key)
+    for view in topics:
+        if view.publication:
+            by_type.setdefault(view.cpp_type, []).append(view.key)
     return Ros2InterfaceView(
         name=i.name, base=base, cls=f"Ros2_{i.name}", distro=r.distro_or_default,
         node=r.node or model.name, ns=r.namespace or "/",
         domain=r.domain if r.domain is not None else -1,
-        headers=tuple(dict.fromkeys(header_path(t.type) for t in topics)),
+        headers=tuple(dict.fromkeys(header_path(view.type) for view in topics)),
         topics=topics,
         publish_types=tuple((k, ", ".join(v)) for k, v in by_type.items()))
 
