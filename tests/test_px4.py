@@ -11,6 +11,7 @@ import dataclasses
 import json
 import math
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -29,6 +30,7 @@ from hfsmc.sim import px4
 from hfsmc.sim.autopilot import parse_datagram
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
+from tests import test_missions
 from tests.support import flight, free_port, wait_until
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -274,26 +276,61 @@ def test_a_mode_px4_lacks_is_denied(main: int, sub: int) -> None:
     assert bench.ap.mode == px4.HOLD
 
 
-@pytest.mark.slow
-def test_follow_colors_flies_unchanged_on_px4_in_lockstep(tmp_path: Path) -> None:
-    """The ArduPilot mission, not a line changed, against the PX4 simulator (Python)."""
-    with flight(tmp_path, "--autopilot", "px4", "--source-port", "0", lockstep=True) as f:
+cpp_follow_colors = test_missions.cpp_follow_colors  # the fixture: follow_colors_cpp compiled
+
+
+def fly_px4(tmp_path: Path, command: list[str] | None = None) -> tuple[Path, str]:
+    """follow_colors (Python, or ``command``) against the PX4 simulator in lockstep: the
+    flight's folder and the component's log, once it ended with status 0."""
+    with flight(tmp_path, "--autopilot", "px4", "--source-port", "0", command=command,
+                lockstep=True) as f:
         status = f.component.wait(timeout=900)  # PX4's 366 messages/s, on a shared machine
         f.sim.wait(timeout=30)
         log = (f.folder / "component.log").read_text()
         assert status == 0, log[-3000:]
-    report = json.loads((f.folder / "report.json").read_text())
+    return f.folder, log
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("language", ["python", pytest.param(
+    "cpp", marks=pytest.mark.timeout(test_missions.CPP_BUILD_TIMEOUT + 900))])
+def test_follow_colors_flies_unchanged_on_px4_in_lockstep(
+        tmp_path: Path, language: str, request: pytest.FixtureRequest) -> None:
+    """The ArduPilot mission, not a line changed, against the PX4 simulator (Python, and
+    follow_colors_cpp with the C++ driver)."""
+    command = request.getfixturevalue("cpp_follow_colors") if language == "cpp" else None
+    folder, log = fly_px4(tmp_path, command)
+    report = json.loads((folder / "report.json").read_text())
     assert report["stages"] == ["green", "blue", "green", "red"], log[-3000:]
-    truth = f.truth()
+    truth = json.loads((folder / "truth.json").read_text())
     assert truth["armed"] is False and truth["landed"] is True
-    red = next(o for o in truth["objects"] if o["name"] == "red")  # type: ignore[attr-defined]
+    red = next(o for o in truth["objects"] if o["name"] == "red")
     landing = truth["landing"]
-    assert isinstance(landing, dict)
     assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
     assert "drone: PX4 vehicle 1/1" in log
     assert "drone: PX4: setpoints streaming: switching to OFFBOARD" in log
     assert "drone: set_mode GUIDED (OFFBOARD) accepted" in log
     assert "drone: PX4: GUIDED on the ground is Hold" in log
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(test_missions.CPP_BUILD_TIMEOUT + 900)
+def test_python_and_cpp_fly_the_same_trace_on_px4_in_lockstep(
+        tmp_path: Path, cpp_follow_colors: list[str]) -> None:
+    """Both drivers send PX4 the same datagrams at the same simulated instants (the
+    setpoint stream, the OFFBOARD switch): the same trace, the same truth, the same lines."""
+    py, py_log = fly_px4(tmp_path / "python")
+    cpp, cpp_log = fly_px4(tmp_path / "cpp", cpp_follow_colors)
+    py_trace = (py / "trace.jsonl").read_text().replace(str(py), "DIR")
+    cpp_trace = (cpp / "trace.jsonl").read_text().replace(str(cpp), "DIR") \
+        .replace("follow_colors_cpp", "follow_colors")
+    assert cpp_trace == py_trace
+    assert (cpp / "truth.json").read_bytes() == (py / "truth.json").read_bytes()
+
+    def said(log: str) -> list[str]:  # the driver's lines, ports taken out
+        return [re.sub(r"127\.0\.0\.1:\d+", "PORT", line) for line in log.splitlines()
+                if line.startswith("drone: ")]
+    assert said(cpp_log) == said(py_log)
 
 
 @pytest.fixture

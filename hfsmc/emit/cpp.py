@@ -34,10 +34,10 @@ RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
-INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",),
+INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp"), "camera": ("camera.hpp",),
                    "driver": ("driver.hpp",)}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera): src/, beside the runtime's.
-INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",)}
+INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_px4.cpp"), "camera": ("hfsmc_camera.cpp",)}
 # What each driver's library links against, besides hfsmc_runtime.
 _DRIVER_LINKS = {"mavlink": "Eigen3::Eigen", "camera": "${OpenCV_LIBS}"}
 LIBRARY_SOURCES = frozenset(RUNTIME_SOURCES).union(*INTERFACE_SOURCES.values())
@@ -199,9 +199,10 @@ class StepView:
 
 @dataclass(frozen=True, slots=True)
 class DriverLibraryView:
-    """A driver's library (hfsmc_mavlink, hfsmc_camera), built from src/NAME.cpp."""
+    """A driver's library (hfsmc_mavlink, hfsmc_camera), built from its sources in src/."""
 
     name: str
+    sources: str  # "src/hfsmc_mavlink.cpp src/hfsmc_px4.cpp"
     links: str  # what it links against, besides hfsmc_runtime
 
 
@@ -351,7 +352,9 @@ class CppWalk(Walk[CppSnippet]):
                            for i in imports),
             driver_headers=tuple(f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds)
                                  if k in INTERFACE_FILES) + tuple(user_headers(m).values()),
-            driver_libraries=tuple(DriverLibraryView(f"hfsmc_{k}", _DRIVER_LINKS[k])
+            driver_libraries=tuple(DriverLibraryView(f"hfsmc_{k}",
+                                                     " ".join(f"src/{n}" for n in INTERFACE_SOURCES[k]),
+                                                     _DRIVER_LINKS[k])
                                    for k in sorted(kinds) if k in INTERFACE_SOURCES),
             parameters=params,
             parameter_help=tuple(

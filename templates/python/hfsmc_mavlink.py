@@ -301,7 +301,8 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
                       "auto used")
             self._autopilot = "auto"
         for key in sorted(set(options) - {"rate", "ack_timeout", "source_system", "autopilot"}):
-            self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system)")
+            self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system, "
+                      "autopilot)")
         try:
             self._conn: Any = mavutil.mavlink_connection(  # as a ground station: component 190
                 url, source_system=sysid, source_component=190)
