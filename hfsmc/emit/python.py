@@ -26,7 +26,7 @@ from hfsmc.pycheck import import_statement
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py",
                  "hfsmc_monitor.py", "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py")
-INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_px4.py"), "camera": ("hfsmc_camera.py",),
+INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py", "hfsmc_px4.py"), "camera": ("hfsmc_camera.py",),
                    "driver": ("hfsmc_driver.py",)}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
