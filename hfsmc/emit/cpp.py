@@ -37,12 +37,13 @@ RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
-INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",),
+INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp"), "camera": ("camera.hpp",),
                    "driver": ("driver.hpp",),
                    "ros2": ("ros2_interface.hpp", "ros2.hpp", "cdr.hpp", "ros2_wire.hpp")}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera, hfsmc_ros2): src/, beside
 # the runtime's; the library's first file names it.
-INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",),
+INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_px4.cpp"),
+                     "camera": ("hfsmc_camera.cpp",),
                      "ros2": ("hfsmc_ros2.cpp", "hfsmc_ros2_wire.cpp", "hfsmc_ros2_interface.cpp")}
 # What each driver's library links against, besides hfsmc_runtime.
 _DRIVER_LINKS = {"mavlink": "Eigen3::Eigen", "camera": "${OpenCV_LIBS}",
@@ -207,7 +208,7 @@ class StepView:
 
 @dataclass(frozen=True, slots=True)
 class DriverLibraryView:
-    """A driver's library (hfsmc_mavlink, hfsmc_camera), built from src/NAME.cpp."""
+    """A driver's library (hfsmc_mavlink, hfsmc_camera), built from its sources in src/."""
 
     name: str
     sources: str  # its source files, under src/
