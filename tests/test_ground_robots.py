@@ -128,3 +128,16 @@ def test_wall_follower_goes_round_the_room_without_a_collision(
     assert max(xs) > 7 and max(ys) > 5 and min(xs) < 1, robot["trail"]
     assert robot["coverage"] >= 0.3, robot["coverage"]
     assert err.count("turning left") >= 4, err
+
+
+def test_no_usable_network_is_one_line_and_exit_2(bump_and_go: Path) -> None:
+    uri = ("<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"nosuch0\"/>"
+           "</Interfaces></General></Domain></CycloneDDS>")
+    run = subprocess.run([sys.executable, str(bump_and_go), "--until", "1s"], capture_output=True,
+                         text=True, timeout=60, env={"PATH": "/usr/bin:/bin",
+                                                     "CYCLONEDDS_URI": uri})
+    assert run.returncode == 2
+    ours = [ln for ln in run.stderr.splitlines() if ln.startswith("robot: ")]
+    assert ours == ["robot: ros2: cannot join ROS 2 domain 0: Cyclone DDS found no usable "
+                    "network interface (CYCLONEDDS_URI is set: look at its network settings)"]
+    assert "Traceback" not in run.stderr

@@ -25,6 +25,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import math
+import os
 import sys
 import threading
 import time
@@ -244,8 +245,14 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
 
     # -- DDS ---------------------------------------------------------------------------
     def _open_dds(self) -> None:
-        self._dp = DomainParticipant(self.domain, qos=wire.dds_qos(("reliable", "volatile", 1),
-                                                                   b"enclave=/;"))
+        try:
+            self._dp = DomainParticipant(self.domain, qos=wire.dds_qos(
+                ("reliable", "volatile", 1), b"enclave=/;"))
+        except DDSException:
+            uri = " (CYCLONEDDS_URI is set: look at its network settings)" \
+                if os.environ.get("CYCLONEDDS_URI") else ""
+            raise Ros2Error(f"cannot join ROS 2 domain {self.domain}: Cyclone DDS found no "
+                            f"usable network interface{uri}") from None
         topics: dict[str, Topic[Any]] = {}
 
         def topic(s: dict[str, Any]) -> Topic[Any]:
