@@ -27,7 +27,8 @@ Value: TypeAlias = bool | int | float | str | tuple["Value", ...] | DictValue | 
 
 SNIPPET_KINDS = ("entry", "during", "exit", "when", "do", "functions", "on_shutdown")
 # The functions every snippet may call (docs/interfaces.md lists them).
-HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown")
+HELPERS = ("log", "elapsed", "now", "done", "active", "shutdown", "yaw_of",
+           "euler_from_quaternion")
 # Generated components name their own symbols with this prefix; a model may not.
 RESERVED_PREFIX = "_hfsm"
 # The root automaton's period when a model does not give one.

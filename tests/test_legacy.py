@@ -143,7 +143,8 @@ def source_counts(path: Path) -> tuple[int, int]:
 def test_corpus_file_converts_with_its_counts(path: Path) -> None:
     result = compiled(path)
     assert result.ok, short(result.diagnostics)
-    assert {d.code for d in result.diagnostics} <= {"W202", "W205", "W206", "W207", "W208"}
+    assert {d.code for d in result.diagnostics} <= {"W202", "W205", "W206", "W207", "W208",
+                                                    "W221"}
     model = model_of(path)
     n_states = sum(1 for _ in model.states())
     n_transitions = sum(len(s.transitions) for s in model.states())
@@ -235,10 +236,22 @@ def test_convert_prints_the_report(tmp_path: Path) -> None:
     assert compile_file(str(xml)).model == model_of(path)
 
 
-def test_topics_are_warned_at_their_position() -> None:
+def test_ros_topics_become_one_ros2_interface_said_at_their_positions() -> None:
     result = compiled(CORPUS / "visualstates" / "kobuki_bump_and_go.xml")
-    w205 = [(d.span.line, d.span.col) for d in result.diagnostics if d.code == "W205"]
-    assert w205 == [(19, 7), (25, 7), (31, 7)]  # the three <topic> elements
+    assert result.ok and not [d for d in result.diagnostics if d.code == "W205"]
+    model = result.model
+    assert model is not None
+    [ros] = model.interfaces
+    assert ros.name == "ros" and ros.type == "ros2"
+    d = [(d.code, d.span.line, d.span.col) for d in result.diagnostics]
+    # tf's euler_from_quaternion (line 51) is hfsmc's helper now
+    assert ("W221", 51, 16) in d
+    assert model.functions is not None
+    text = model.functions.text
+    assert "laserData = (ros.turtlebotROS_laser_scan or LaserScan())" in text
+    assert "euler_from_quaternion(e_q)[2]" in text and "tf." not in text
+    assert "def turtlebotROS_mobile_base_commands_velocity(msg):\n    ros.publish(" in text
+    assert "tf" not in [i.text for i in model.imports]
 
 
 def test_runtime_error_points_into_the_legacy_file(tmp_path: Path) -> None:
@@ -427,7 +440,12 @@ def test_older_ros_topics_named_as_the_code_uses_them() -> None:
     code = "msg = Twist()\nmsg.linear.x = len(self.rosNode.robot_scan.ranges)\n" \
         "self.rosNode.publishrobot_cmd_vel(msg)"
     model, _ = ok(vs_file(vs_state(1, "A", code, True), top=config))
-    assert [i.name for i in model.interfaces] == ["publishrobot_cmd_vel", "robot_scan"]
+    assert [i.name for i in model.interfaces] == ["ros"]
+    assert model.functions is not None
+    assert "def publishrobot_cmd_vel(msg):" in model.functions.text
+    state = model.find("A")
+    assert state is not None and state.during is not None
+    assert "len((ros.robot_scan or LaserScan()).ranges)" in state.during.text
     assert [i.text for i in model.imports] == ["from geometry_msgs.msg import Twist",
                                                "from sensor_msgs.msg import LaserScan"]
 

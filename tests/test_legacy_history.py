@@ -198,14 +198,15 @@ def test_parameters_locals_escapes_and_imports() -> None:
     model, diags = model_and_diags("prius_overtake_params")
     assert [(p.name, p.type, p.default) for p in model.parameters] == [
         ("change_lane_peek_width", "float", 1.7), ("change_lane_peek_width_2", "float", 1.5)]
-    assert ("W206", "80:2") in [(c, at) for c, at, m in diags if "`odom_local`" in m]
-    assert model.functions is not None and "odom_local = odom\n" in model.functions.text
+    # the topic `odom` is read as `ros.odom` now: the local `odom` needs no new name
+    assert not [m for c, at, m in diags if "`odom_local`" in m]
+    assert model.functions is not None and "odom = (ros.odom or Odometry())\n" in model.functions.text
 
     model, diags = model_and_diags("BumpAndGoPython")
     assert model.functions is not None
     assert "if val < obstacle_threshold:" in model.functions.text
-    assert "import tf" in [i.text for i in model.imports]
-    assert ("W208", "62:16") in [(c, at) for c, at, _ in diags]
+    assert "import tf" not in [i.text for i in model.imports]  # no tf in ROS 2
+    assert ("W221", "62:16") in [(c, at) for c, at, _ in diags]
 
     model, diags = model_and_diags("prius_in_city")
     assert [(c, at) for c, at, m in diags if "`self.overtake_done`" in m] == [("W208", "548:15")]

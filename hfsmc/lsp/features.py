@@ -29,7 +29,9 @@ from hfsmc.resources import schema_file
 
 HELPERS = {"log": "log(msg): write a log line", "elapsed": "elapsed(): seconds since the state was entered",
            "now": "now(): seconds since the component started", "done": "done(): the sub-automaton is in a final state",
-           "active": 'active("A/B"): that state is active now', "shutdown": "shutdown(): ask for a graceful stop"}
+           "active": 'active("A/B"): that state is active now', "shutdown": "shutdown(): ask for a graceful stop",
+           "yaw_of": "yaw_of(q): the heading (rad) of a quaternion",
+           "euler_from_quaternion": "euler_from_quaternion(q): roll, pitch and yaw (rad) of a quaternion"}
 _STATE_VALUE = re.compile(r"(?:^|[{,\s])(?:to|initial|on_interrupt)\s*(?::\s*[\"']?|=\s*[\"'])(\w*)$")
 _ACTIVE_OPEN = re.compile(r"""active\(\s*(?:\\?["']|&quot;|&apos;)([\w/]*)$""")
 _ATTRIBUTE = re.compile(r"\b([A-Za-z_]\w*)\.(\w*)$")

@@ -49,9 +49,11 @@ from cyclonedds.util import duration
 if __package__:
     from . import hfsmc_ros2_cdr as cdr
     from . import hfsmc_ros2_wire as wire
+    from .hfsmc_ros2_lockstep import Ros2Lockstep
 else:  # copied beside the generated component, where the modules are top level
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
+    from hfsmc_ros2_lockstep import Ros2Lockstep  # type: ignore[import-not-found, no-redef]
 
 DISTROS = ("humble", "jazzy")
 DISCOVERY_TOPIC = "ros_discovery_info"
@@ -187,7 +189,7 @@ def _kind(msg: Any) -> str:
     return t if isinstance(t, str) else type(msg).__name__
 
 
-class Ros2Node(Ros2Queries):
+class Ros2Node(Ros2Lockstep, Ros2Queries):
     """A ROS 2 node on DDS: its subscriptions and publications, and the reader thread."""
 
     def __init__(self, name: str, settings: dict[str, Any]) -> None:
@@ -202,6 +204,7 @@ class Ros2Node(Ros2Queries):
         self._pubs = self._endpoints(settings.get("publish") or {})
         self._check_topics()
         self.on_publish: Callable[[str, bytes], None] | None = None  # a recording's hook
+        self._lockstep_init()
         self._lock = threading.Lock()
         self._pending = {n: _Sub() for n in self._subs}
         self._snap = {n: (None, math.inf, 0, 0) for n in self._subs}
@@ -285,6 +288,7 @@ class Ros2Node(Ros2Queries):
     def _send(self, name: str, data: bytes) -> None:
         writer = self._writers[name]
         writer.write(wire.raw_sample(writer.data_type, data))
+        self._count_published(name)
         if self.on_publish is not None:
             self.on_publish(name, data)
 
@@ -301,7 +305,7 @@ class Ros2Node(Ros2Queries):
         snap: dict[str, tuple[Any, float, int, int]] = {}
         topics: dict[str, Any] = {}
         for n, msg, data, arrived, count, dropped, pubs in pending:
-            age = now - arrived if count else math.inf
+            age = self._age(n, count, arrived, now)
             snap[n] = (msg, age, count, pubs)
             topics[n] = {"count": count, "age": age, "publishers": pubs, "dropped": dropped,
                          "cdr": data}
@@ -311,7 +315,7 @@ class Ros2Node(Ros2Queries):
     def dropped(self, name: str) -> int:
         """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""
         with self._lock:
-            return self._pending[self._sub(name)].dropped
+            return int(self._pending[self._sub(name)].dropped)
 
     def close(self) -> None:
         """Leave the graph (also run at exit): the reader thread stops, DDS entities go."""

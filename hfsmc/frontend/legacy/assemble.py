@@ -40,11 +40,21 @@ from hfsmc.frontend.legacy.code import (
     references,
     single_return,
 )
-from hfsmc.frontend.legacy.form import Context, Legacy, Level, LState, Member, Space, Transition
-from hfsmc.frontend.legacy.names import Names
+from hfsmc.frontend.legacy.form import (
+    Context,
+    Interface,
+    Legacy,
+    Level,
+    LState,
+    Member,
+    Space,
+    Transition,
+)
+from hfsmc.frontend.legacy.names import TF_EULER, Names
 from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.frontend.source import PathKey
 from hfsmc.ir import DEFAULT_ROOT_PERIOD_MS
+from hfsmc.ros2.definitions import ros2_type_name
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,6 +65,17 @@ class _Converted:
 
 
 _COMMENT = {"python": "#", "cpp": "//"}
+
+
+_ROSPY = re.compile(r"(?<![\w.])rospy\s*\.\s*([A-Za-z_][\w.]*)")
+_ROSPY_INSTEAD = {
+    "loginfo": "`log(msg)`", "logwarn": "`log(msg)`", "logerr": "`log(msg)`",
+    "logdebug": "`log(msg)`", "Time": "`now()` (seconds since the component started)",
+    "get_time": "`now()`", "sleep": "a timed transition (`after:`) instead of sleeping",
+    "Rate": "the state's `period`", "is_shutdown": "`shutdown()` to stop; it never is",
+    "Publisher": "a `publish` entry of the ros2 interface",
+    "Subscriber": "a `subscribe` entry of the ros2 interface",
+}
 
 
 class Assembler(Names):
@@ -68,6 +89,7 @@ class Assembler(Names):
         self.helpers: list[Mapped] = []  # condition functions
         self.counts = {"global": 0, "local": 0, "self": 0}  # prefixes dropped
         self.selfs: set[tuple[Pos, str]] = set()  # (text, name) of `self.x` in state code, warned
+        self.said: set[Span] = set()  # W221 given here
 
     # -- the whole model -------------------------------------------------------
     def model(self) -> dict[str, Any]:
@@ -92,6 +114,7 @@ class Assembler(Names):
         self._interfaces()
         self._implicit_members()
         self._name_members()
+        self.ros2_names()
         self._name_states(lg.root, "")
         if imports:
             self._put(d, ("imports",), [t for t, _ in imports], imports[0][1])
@@ -139,6 +162,7 @@ class Assembler(Names):
 
         C++ code names the members of its own namespace bare: those renamed are
         renamed there too."""
+        m = self._ros1_calls(m)
         bare_names: frozenset[str] = frozenset()
         if self.language == "cpp":
             bare_names = frozenset(n for s in ctx.scopes.get("bare", ())
@@ -173,6 +197,34 @@ class Assembler(Names):
                     stores[ref.start + shift] = member
             shift += len(new) - (ref.end - ref.start)
         return _Converted(edit(m, edits), stores, named)
+
+    def _ros1_calls(self, m: Mapped) -> Mapped:
+        """ROS 1 calls of Python code that have no ROS 2 equivalent in a component: tf's
+        euler_from_quaternion becomes hfsmc's helper of that name (W221, same result);
+        rospy's are named with what to write instead (W221), and left as they are."""
+        if self.language != "python":
+            return m
+        masked = mask(m.text, "python")
+        edits = []
+        for found in TF_EULER.finditer(masked):
+            at = self.r.to_span(m.at(found.start()))
+            if at not in self.said:
+                self.said.add(at)
+                self.r.warn("W221", "`tf.transformations.euler_from_quaternion` (ROS 1's tf, "
+                            "not in ROS 2) replaced by hfsmc's helper `euler_from_quaternion` "
+                            "(the same roll, pitch and yaw; `yaw_of(q)` gives the yaw alone)", at)
+            edits.append((found.start(), found.end(),
+                          Mapped.synth("euler_from_quaternion", m.at(found.start()))))
+        for found in _ROSPY.finditer(masked):
+            at = self.r.to_span(m.at(found.start()))
+            if at not in self.said:
+                self.said.add(at)
+                call = found.group(1)
+                instead = _ROSPY_INSTEAD.get(call.split(".")[0],
+                                             "nothing: the component runs the automaton itself")
+                self.r.warn("W221", f"`rospy.{call}` has no equivalent in an hfsmc component "
+                            f"(no rospy in ROS 2): write {instead}", at)
+        return edit(m, edits) if edits else m
 
     def _rename_locals(self, m: Mapped) -> Mapped:
         """Bare names of legacy Python code that are now also module-level names of the
@@ -291,7 +343,12 @@ class Assembler(Names):
             return
         out: dict[str, Any] = {}
         self._put(d, ("interfaces",), out, self.legacy.interfaces[0].span)
+        topics = [i for i in self.legacy.interfaces if self.ros2_topic(i)]
+        if topics:
+            self._ros2_data(out, topics)
         for itf in self.legacy.interfaces:
+            if itf in topics:
+                continue
             assert itf.member is not None
             path: PathKey = ("interfaces", itf.member.final)
             spec: dict[str, Any] = {}
@@ -304,6 +361,43 @@ class Assembler(Names):
                 self._put(spec, (*path, "options"), opts, itf.span)
                 for k, v in itf.options.items():
                     self._put(opts, (*path, "options", k), v, itf.span)
+
+    def _ros2_data(self, out: dict[str, Any], topics: list[Interface]) -> None:
+        """The VisualStates topics as one `ros2` interface (SPEC 5.2): ROS 1 type names
+        become ROS 2's; subscriptions take the sensor-data QoS (best effort), which matches
+        every publisher, as a ROS 1 subscriber matched every publisher."""
+        base: PathKey = ("interfaces", self.ros_member.final)
+        spec: dict[str, Any] = {}
+        self._put(out, base, spec, topics[0].span)
+        self._put(spec, (*base, "type"), "ros2", topics[0].span)
+        for direction in ("subscribe", "publish"):
+            mine = [i for i in topics if i.options["direction"] == direction]
+            if not mine:
+                continue
+            table: dict[str, Any] = {}
+            self._put(spec, (*base, direction), table, mine[0].span)
+            for itf in mine:
+                assert itf.member is not None and itf.url is not None
+                name = itf.member.final.rpartition(".")[2].partition(" ")[0]
+                path: PathKey = (*base, direction, name)
+                entry: dict[str, Any] = {}
+                self._put(table, path, entry, itf.span)
+                self._put(entry, (*path, "topic"), itf.url, itf.span)
+                self._put(entry, (*path, "type"), ros2_type_name(itf.options["message"]),
+                          itf.span)
+                if direction == "subscribe":
+                    self._put(entry, (*path, "qos"), "sensor_data", itf.span)
+
+    def _publishers(self) -> list[Mapped]:
+        """A function per publication, named as the legacy code called it."""
+        out = []
+        for itf in self.legacy.interfaces:
+            if self.ros2_topic(itf) and itf.options["direction"] == "publish":
+                assert itf.member is not None
+                name = itf.member.final
+                out.append(Mapped.synth(f"def {name}(msg):\n    {self.ros_member.final}.publish("
+                                        f"{name!r}, msg)\n", self.r.pos(itf.span)))
+        return out
 
     def _variable_data(self, d: dict[str, Any], kind: str = "variable",
                        section: str = "variables") -> None:
@@ -342,6 +436,9 @@ class Assembler(Names):
         if inits:
             section("set when the component loads: values that are not plain literals, "
                     "attributes never declared", inits[0].start, inits)
+        publishers = self._publishers()
+        if publishers:
+            section("the ROS topics' publish methods", publishers[0].start, publishers)
         if self.helpers:
             section("conditions written as function bodies", self.helpers[0].start, self.helpers)
         if parts:
@@ -442,6 +539,7 @@ class Assembler(Names):
             for member in space.members.values():
                 kinds[member.kind] = kinds.get(member.kind, 0) + 1
         words = {"variable": "variables", "function": "functions", "interface": "interfaces",
+                 "topic": "ROS topics read through the ros2 interface",
                  "parameter": "parameters (settable at start, as VisualStates' were)",
                  "init": "names set by statements kept in `functions`",
                  "implicit": "attributes assigned but never declared (None at first)"}

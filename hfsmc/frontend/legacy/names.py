@@ -36,9 +36,13 @@ from hfsmc.frontend.legacy.code import (
     references,
     uses,
 )
-from hfsmc.frontend.legacy.form import Context, Legacy, Level, LState, Member, Space
+from hfsmc.frontend.legacy.form import Context, Interface, Legacy, Level, LState, Member, Space
 from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.ir import HELPERS, RESERVED_PREFIX
+from hfsmc.ros2.definitions import ros2_type_name, standard_types
+
+# ROS 1's tf.transformations.euler_from_quaternion: hfsmc's helper of that name instead
+TF_EULER = re.compile(r"(?<![\w.])tf\s*\.\s*transformations\s*\.\s*euler_from_quaternion\b")
 
 
 class Names:
@@ -51,6 +55,7 @@ class Names:
         self.taken: set[str] = set()  # every name the model's snippets may see
         self.imported: dict[str, Span] = {}  # names the imports bind
         self.renames = 0  # W206 warnings given
+        self.ros_member = Member("ros", "interface", Span("", 0, 0))  # the ros2 interface
 
     # -- walking the neutral form ------------------------------------------------
     def _states(self, level: Level) -> Iterator[LState]:
@@ -177,6 +182,11 @@ class Names:
         for text, span in self.legacy.libraries:
             if self.language == "cpp" and not text.startswith(("<", '"')):
                 text = f"<{text}>"
+            if self.language == "python" and text == "tf" and self._only_tf_euler():
+                self.r.note(span, "`import tf` dropped: ROS 2 has no tf module, and its one use "
+                            "here, `tf.transformations.euler_from_quaternion`, becomes hfsmc's "
+                            "helper `euler_from_quaternion`")
+                continue
             add(text, span)
         for itf in self.legacy.interfaces:
             if itf.msg_import is not None:
@@ -200,7 +210,8 @@ class Names:
             texts = [m.text for m, _ in self._all_code()]
             for package, span in self.legacy.ros_dependencies:
                 if identifier(package, "") == package and package not in self.imported \
-                        and self._declared(package) is None:
+                        and self._declared(package) is None \
+                        and not (package == "tf" and self._only_tf_euler()):
                     at = self._first_use(package, module=True)
                     if at is not None and add(f"import {package}", span):
                         self.r.warn("W208", f"`{package}` is used as a module, and it is a ROS "
@@ -215,6 +226,15 @@ class Names:
                         self.r.note(at, f"`import {module}` added: the code {self.r.kind} "
                                     "generated imported it, and this model uses it")
         return out
+
+    def _only_tf_euler(self) -> bool:
+        """Whether Python code uses `tf` only as tf.transformations.euler_from_quaternion."""
+        any_tf = re.compile(r"(?<![\w.])tf\b")
+        for m, _ in self._all_code():
+            text = TF_EULER.sub("", mask(m.text, "python"))
+            if any_tf.search(text):
+                return False
+        return True
 
     def _declared(self, name: str) -> Member | None:
         for space in self.legacy.spaces:
@@ -232,27 +252,66 @@ class Names:
                 return self.r.to_span(m.at(found.start()))
         return None
 
+    def ros2_topic(self, itf: Interface) -> bool:
+        """A VisualStates ROS topic a Python model can reach through a `ros2` interface: it
+        has a name, a message type and a direction (SPEC 5.2; docs/legacy.md)."""
+        return self.language == "python" and itf.type == "ros_topic" and bool(itf.url) \
+            and itf.options.get("direction") in ("publish", "subscribe") \
+            and ros2_type_name(itf.options.get("message", "")) in standard_types("jazzy")
+
     def _interfaces(self) -> None:
         texts = [m.text for m, _ in self._all_code()]
         glob = self.legacy.spaces[0]
+        topics = [i for i in self.legacy.interfaces if self.ros2_topic(i)]
+        if topics:
+            name, n = "ros", 2
+            while name in glob.members or name in self.imported:
+                name, n = f"ros_{n}", n + 1
+            self.ros_member = self._member(glob, name, "interface", topics[0].span)
         for itf in self.legacy.interfaces:
             name = next((c for c in itf.candidates if uses(texts, c, self.language)),
                         itf.candidates[0])
             base, n = name, 2
             while name in glob.members:
                 name, n = f"{base}_{n}", n + 1
+            if itf in topics:
+                publish = itf.options["direction"] == "publish"
+                itf.member = self._member(glob, name, "function" if publish else "topic",
+                                          itf.span)
+                self.r.note(itf.span, f"{itf.what} becomes the "
+                            f"{'publication' if publish else 'subscription'} `{name}` of the "
+                            f"ros2 interface `{self.ros_member.name}`: "
+                            + (f"`{name}(msg)` is kept as a function that publishes msg"
+                               if publish else f"code reads `{name}` as `({self.ros_member.name}."
+                               f"{name} or {itf.options['message'].rpartition('/')[2]}())`, the "
+                               "latest message, an empty one before the first"))
+                continue
             itf.member = self._member(glob, name, "interface", itf.span)
             if name != base:
                 self.renames += 1
                 self.r.warn("W206", f"{itf.what} renamed `{name}`: `{base}` is already the "
                             f"name of a {glob.members[base].kind}", itf.span)
             named = "an interface" if f"`{name}`" in itf.what else f"interface `{name}`"
+            message = itf.options.get("message", "")
+            why = f" (its message type `{message}` is not one of ROS 2's standard messages: " \
+                  "give its .msg file in a ros2 interface's `messages` and move the topic " \
+                  "there, docs/ros2.md)" if itf.type == "ros_topic" and message \
+                  and self.language == "python" else ""
             self.r.warn("W205", f"{itf.what} kept as {named} of type {itf.type}: "
-                        "hfsmc components cannot drive it", itf.span,
+                        f"hfsmc components cannot drive it{why}", itf.span,
                         "the component starts, and fails with a clear message when a snippet "
                         "uses it" if self.language != "cpp" else
                         "it has no operations in C++: a snippet that uses it does not compile "
                         "(build --compile shows where)")
+
+    def ros2_names(self) -> None:
+        """After the members are named: code reads a subscription as ``(ros.NAME or
+        Msg())``: the latest message, an empty one before the first (VisualStates' node
+        began with an empty message of each subscribed type)."""
+        for itf in self.legacy.interfaces:
+            if self.ros2_topic(itf) and itf.member is not None and itf.member.kind == "topic":
+                short = ros2_type_name(itf.options["message"]).rpartition("/")[2]
+                itf.member.final = f"({self.ros_member.final}.{itf.member.final} or {short}())"
 
     # -- names -----------------------------------------------------------------
     def _implicit_members(self) -> None:
