@@ -106,7 +106,8 @@ def _where(run: Run, r: Record) -> str:
     words = ", ".join(json.dumps(a) for a in args) if isinstance(args, list) else str(args)
     message = _message(run, r)
     if message is not None:
-        words = f"{json.dumps(args[0])}, {type(message).__name__}({describe(message)})"
+        kind = str(getattr(message, "__msgtype__", "")).rsplit("/", 1)[-1]
+        words = f"{json.dumps(args[0])}, {kind}({describe(message)})"
     us = r.us
     ms = str(us // 1000) if us % 1000 == 0 else f"{us / 1000:.3f}"
     return (f"commands.jsonl:{r.line}: at {ms} ms: {r.data.get('interface')}."
