@@ -142,7 +142,7 @@ def _mcap(path: Path, topics: dict[str, tuple[str, list[tuple[int, Any]]]]) -> N
                 w.add_message(channel, log_time=t, publish_time=t,
                               data=msg if isinstance(msg, bytes)
                               else bytes(store.serialize_cdr(msg, kind)))
-        w.finish()
+        w.finish()  # type: ignore[no-untyped-call]
 
 
 def _scan(store: Any, ahead: float) -> Any:
