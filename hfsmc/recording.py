@@ -563,13 +563,16 @@ def raw_channel(path: str | Path, topic: str) -> list[tuple[int, str, bytes]]:
     bytes), in order; read within the bounds of :func:`read_recording`. Of an hfsmc
     recording that has it both subscribed and published, the subscription's. Raises
     :class:`RecordingError` (no such channel: it names the CDR channels there are)."""
-    from mcap.exceptions import McapError
+    from mcap.exceptions import InvalidMagic, McapError
 
     try:
         with open(path, "rb") as f:
             stream = _Channels(f, _size(f), topic)
             try:
                 stream.read()
+            except InvalidMagic:
+                raise RecordingError("not an MCAP file (a recording or a rosbag2 in MCAP "
+                                     "storage)") from None
             except (McapError, ValueError, KeyError, IndexError, MemoryError, OverflowError,
                     EOFError, struct.error, UnicodeDecodeError, RecursionError) as e:
                 raise RecordingError(f"cannot be read: {_said(e)}") from None
