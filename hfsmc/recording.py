@@ -551,3 +551,73 @@ def _object(data: bytes, topic: str) -> dict[str, Any]:
     if not isinstance(body, dict):
         raise RecordingError(f"corrupted: a {_short(topic)} message is not a JSON object")
     return body
+
+
+# ---------------------------------------------------------------------------
+# one ROS 2 topic of any MCAP file (a scenario's recorded topic: docs/testing.md)
+
+
+def raw_channel(path: str | Path, topic: str) -> list[tuple[int, str, bytes]]:
+    """The messages of the CDR channel named ``topic`` in an MCAP file (hfsmc's recording or
+    a rosbag2): (time since the file's first message in us, its ``ros2msg`` type, the
+    bytes), in order; read within the bounds of :func:`read_recording`. Of an hfsmc
+    recording that has it both subscribed and published, the subscription's. Raises
+    :class:`RecordingError` (no such channel: it names the CDR channels there are)."""
+    from mcap.exceptions import InvalidMagic, McapError
+
+    try:
+        with open(path, "rb") as f:
+            stream = _Channels(f, _size(f), topic)
+            try:
+                stream.read()
+            except InvalidMagic:
+                raise RecordingError("not an MCAP file (a recording or a rosbag2 in MCAP "
+                                     "storage)") from None
+            except (McapError, ValueError, KeyError, IndexError, MemoryError, OverflowError,
+                    EOFError, struct.error, UnicodeDecodeError, RecursionError) as e:
+                raise RecordingError(f"cannot be read: {_said(e)}") from None
+    except OSError as e:
+        raise RecordingError(f"cannot read it: {e.strerror or e}") from None
+    wanted = [c for c, (name, _, _) in stream.cdr.items() if name == topic]
+    if not wanted:
+        there = sorted({name for name, _, _ in stream.cdr.values()})
+        raise RecordingError(f"no CDR channel `{_short(topic)}` in it (its ROS 2 topics: "
+                             f"{', '.join(there) or 'none'})")
+    wanted.sort(key=lambda c: stream.cdr[c][2] != "subscription")
+    channel = wanted[0]
+    schema = stream.types.get(channel, "")
+    start = stream.first if stream.first is not None else 0
+    return [((t - start) // 1000, schema, data) for c, t, data in stream.found if c == channel]
+
+
+class _Channels(_Stream):
+    """Every CDR channel of a file, and the messages of those named ``topic``."""
+
+    def __init__(self, f: Any, size: int, topic: str) -> None:
+        super().__init__(f, size)
+        self.topic = topic
+        self.cdr: dict[int, tuple[str, str, str]] = {}  # id -> topic, type, hfsmc role
+        self.types: dict[int, str] = {}
+        self.found: list[tuple[int, int, bytes]] = []
+        self.first: int | None = None
+
+    def _record(self, record: Any) -> None:
+        from mcap.records import Channel, Message, Schema
+
+        if isinstance(record, Schema):
+            self.schemas.setdefault(record.id, (record.name, record.encoding, record.data))
+        elif isinstance(record, Channel):
+            schema = self.schemas.get(record.schema_id)
+            if record.message_encoding == "cdr" and schema is not None:
+                meta = dict(record.metadata)
+                role = next((r for r in _ROLES if f"hfsmc.{r}" in meta), "")
+                self.cdr[record.id] = (record.topic, schema[0], role)
+                self.types[record.id] = schema[0]
+        elif isinstance(record, Message):
+            t = int(record.log_time)
+            self.first = t if self.first is None else min(self.first, t)
+            name = self.cdr.get(record.channel_id, ("",))[0]
+            if name == self.topic:
+                if len(record.data) > MAX_RECORD_BYTES:
+                    raise RecordingError("a message is too large")
+                self.found.append((record.channel_id, t, bytes(record.data)))

@@ -27,6 +27,7 @@ from hfsmc.frontend import read_text
 from hfsmc.frontend.source import Document, PathKey
 from hfsmc.frontend.yaml import load_yaml
 from hfsmc.ir import Model
+from hfsmc.scenario_ros2 import RecordedTopic, Topics, Written, recorded_topic, written
 
 Language = Literal["python", "cpp"]
 LANGUAGES: tuple[Language, ...] = ("python", "cpp")
@@ -53,14 +54,15 @@ TOP_KEYS = ("name", "description", "model", "languages", "parameters", "until", 
 # An expectation is one mapping: one of these kinds, and the modifiers it takes.
 _WINDOW = ("after", "before", "between")
 KINDS: dict[str, tuple[str, ...]] = {
-    "entered": (*_WINDOW, "count"),
+    "entered": (*_WINDOW, "count", "at_least"),
     "not_entered": _WINDOW,
     "active": ("at",),
     "stop": _WINDOW,
-    "log": (*_WINDOW, "count"),
-    "log_matches": (*_WINDOW, "count"),
-    "command": ("args", *_WINDOW, "count"),
-    "error": (*_WINDOW, "count"),
+    "log": (*_WINDOW, "count", "at_least"),
+    "log_matches": (*_WINDOW, "count", "at_least"),
+    "command": ("args", *_WINDOW, "count", "at_least"),
+    "published": ("fields", "type", *_WINDOW, "count", "at_least"),
+    "error": (*_WINDOW, "count", "at_least"),
     "trace": (),
 }
 ENTRY_KEYS = ("at", "from", "to")
@@ -112,6 +114,9 @@ class Expectation:
     at_us: int | None = None
     count: int | None = None
     args: tuple[Any, ...] | None = None
+    at_least: int | None = None
+    fields: Written | None = None  # published: the fields the message must have
+    msg_type: str | None = None  # published: the type it must be (`type:`)
 
     def describe(self) -> str:
         """The expectation in words, as the failure report says it."""
@@ -124,6 +129,8 @@ class Expectation:
             "log_matches": f"a log line matching /{self.subject}/",
             "command": f"command {self.subject}"
                        + (f"({', '.join(_show(a) for a in self.args)})" if self.args is not None else ""),
+            "published": f"{self.subject} published"
+                         + (f" with {_written_words(self.fields)}" if self.fields is not None else ""),
             "error": f"an error in a snippet ({self.subject})",
             "trace": f"the trace equal to {self.subject}",
         }[self.kind]
@@ -134,6 +141,8 @@ def window_words(e: Expectation) -> str:
     parts = []
     if e.count is not None:
         parts.append(f" {e.count} time(s)")
+    if e.at_least is not None:
+        parts.append(f" at least {e.at_least} time(s)")
     if e.at_us is not None:
         parts.append(f" at {_secs(e.at_us)}")
     if e.after_us is not None and e.before_us is not None:
@@ -147,6 +156,23 @@ def window_words(e: Expectation) -> str:
 
 def _secs(us: int) -> str:
     return f"{us / 1e6:g} s"
+
+
+def _written_words(w: Written) -> str:
+    """An expectation's fields as written: `linear.x=0, angular.z={not: 0}`."""
+    def flat(v: Written, prefix: str) -> list[str]:
+        if isinstance(v.value, dict) and not (set(v.value) & {"above", "below", "not"}):
+            return [p for k, x in v.value.items() for p in flat(x, f"{prefix}{k}.")]
+        return [f"{prefix[:-1]}={_plain(v)}"]
+    return ", ".join(flat(w, "")) or "any fields"
+
+
+def _plain(w: Written) -> str:
+    if isinstance(w.value, dict):
+        return "{" + ", ".join(f"{k}: {_plain(x)}" for k, x in w.value.items()) + "}"
+    if isinstance(w.value, list):
+        return "[" + ", ".join(_plain(x) for x in w.value) + "]"
+    return _show(w.value)
 
 
 def _show(v: Any) -> str:
@@ -423,12 +449,20 @@ class _Reader:
 
     def setting(self, key: str, v: Any, path: PathKey, span_entry: bool) -> Setting | None:
         kind = MAVLINK_FIELDS.get(key) or CAMERA_FIELDS.get(key)
+        if isinstance(v, dict) and key != "acks" and not (kind is not None and "ramp" in v):
+            # a message of a ros2 interface's subscription: checked once the model is known
+            topic: Written | RecordedTopic | None = written(self.doc, path)
+            if "recorded" in v:
+                topic = recorded_topic(self.doc, path, self.folder, self.diags, self.duration)
+            return None if topic is None else Setting(key, topic, self.at(path), self.key_at(path))
         if kind is None:
             allowed = tuple(MAVLINK_FIELDS) + tuple(CAMERA_FIELDS)
             note = did_you_mean(key, allowed)
             self.error("E190", f"unknown input `{key}`", self.key_at(path), *([note] if note else []),
                        f"a mavlink interface takes: {', '.join(MAVLINK_FIELDS)}; a camera: "
-                       f"{', '.join(CAMERA_FIELDS)} (and every entry at/from/to)")
+                       f"{', '.join(CAMERA_FIELDS)}; a ros2 interface: its subscriptions, each "
+                       "a message (`scan: {range_max: 12.0}`), and `rate` (and every entry "
+                       "at/from/to)")
             return None
         span = self.at(path)
         if isinstance(v, dict) and "ramp" in v:
@@ -593,6 +627,26 @@ class _Reader:
                 count = c
             else:
                 self.error("E191", "`count` must be a whole number (0: never)", self.at((*path, "count")))
+        at_least = None
+        if "at_least" in m and "at_least" in KINDS[kind]:
+            c = m["at_least"]
+            if "count" in m:
+                self.error("E193", "`count` (exactly) or `at_least`: write one or the other",
+                           self.key_at((*path, "at_least")))
+            elif isinstance(c, int) and not isinstance(c, bool) and c >= 1:
+                at_least = c
+            else:
+                self.error("E191", "`at_least` must be a whole number from 1 (`count: 0`: "
+                           "never)", self.at((*path, "at_least")))
+        fields = written(self.doc, (*path, "fields")) if "fields" in m and kind == "published" \
+            else None
+        msg_type = None
+        if "type" in m and kind == "published":
+            if isinstance(m["type"], str):
+                msg_type = m["type"]
+            else:
+                self.error("E191", "`type` must be a message type (`geometry_msgs/msg/Twist`)",
+                           self.at((*path, "type")))
         args = None
         if "args" in m and kind == "command":
             a = m["args"]
@@ -602,7 +656,7 @@ class _Reader:
                 self.error("E191", "`args` must be a list of numbers and strings",
                            self.at((*path, "args")))
         return Expectation(kind, subject, self.key_at(kpath), self.at(kpath), after, before, times.get("at"),
-                           count, args)
+                           count, args, at_least, fields, msg_type)
 
     def subject(self, kind: str, v: Any, path: PathKey) -> str | None:
         span = self.at(path)
@@ -628,8 +682,9 @@ class _Reader:
             except re.error as e:
                 self.error("E193", f"not a regular expression: {e}", span)
                 return None
-        if kind == "command" and not re.fullmatch(r"[A-Za-z_]\w*\.[A-Za-z_]\w*", v):
-            self.error("E193", f"`{v}`: write INTERFACE.COMMAND (`drone.land`)", span)
+        if kind in ("command", "published") and not re.fullmatch(r"[A-Za-z_]\w*\.[A-Za-z_]\w*", v):
+            self.error("E193", f"`{v}`: write INTERFACE.COMMAND (`drone.land`)" if kind == "command"
+                       else f"`{v}`: write INTERFACE.PUBLICATION (`robot.cmd_vel`)", span)
             return None
         return v
 
@@ -689,10 +744,11 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
         elif not _fits(p.type, o.value):
             diags.error("E196", f"parameter `{o.name}` is a {p.type}; {o.value!r} is not", o.span)
     interfaces = {i.name: i for i in model.interfaces}
+    topics = Topics(model) if any(i.type == "ros2" for i in model.interfaces) else None
     said: set[str] = set()
     for e in sc.inputs:
         iface = interfaces.get(e.interface)
-        if iface is None or FIELDS.get(iface.type) is None:
+        if iface is None or (FIELDS.get(iface.type) is None and iface.type != "ros2"):
             if e.interface in said:
                 continue
             said.add(e.interface)
@@ -701,13 +757,28 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
             diags.error("E195", f"{where} has no interface `{e.interface}`", e.interface_span,
                         *([note] if note else []))
             continue
+        if iface.type == "ros2" and topics is not None:
+            if model.language == "cpp":
+                if e.interface not in said:
+                    said.add(e.interface)
+                    diags.error("E195", f"`{e.interface}`: a C++ component's ros2 interface "
+                                "reads no scripted messages yet (with --playback nothing "
+                                "arrives: docs/ros2-cpp.md)", e.interface_span,
+                                "run this scenario with the Python model (`languages: python`)")
+                continue
+            topics.check_settings(e.interface, e.settings, diags)
+            continue
         fields = FIELDS.get(iface.type)
         if fields is None:
             diags.error("E195", f"`{e.interface}` is a {iface.type} interface: scenarios script "
-                        "mavlink and camera interfaces", e.interface_span)
+                        "mavlink, camera and ros2 interfaces", e.interface_span)
             continue
         for s in e.settings:
-            if s.field not in fields:
+            if isinstance(s.value, (Written, RecordedTopic)):
+                diags.error("E195", f"`{s.field}`: a message (a mapping of fields) is an input of "
+                            f"a ros2 interface; `{e.interface}` is a {iface.type} interface",
+                            s.key_span, f"it takes: {', '.join(fields)}")
+            elif s.field not in fields:
                 diags.error("E195", f"`{s.field}` is not an input of a {iface.type} interface "
                             f"(`{e.interface}`)", s.key_span, f"it takes: {', '.join(fields)}")
     states = {s.path for s in model.states()}
@@ -717,6 +788,17 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
                 note = did_you_mean(x.subject, states)
                 diags.error("E197", f"{where} has no state `{x.subject}`", x.subject_span,
                             *([note] if note else []))
+        elif x.kind == "published":
+            iname = x.subject.split(".")[0]
+            iface = interfaces.get(iname)
+            if iface is None or iface.type != "ros2" or topics is None:
+                note = did_you_mean(iname, [i for i, f in interfaces.items() if f.type == "ros2"])
+                diags.error("E195", f"{where} has no ros2 interface `{iname}`" if iface is None
+                            else f"`{iname}` is a {iface.type} interface: `published` is for "
+                            "the messages of a ros2 interface", x.subject_span,
+                            *([note] if note and iface is None else []))
+            else:
+                topics.check_published(x.subject, x.subject_span, x.msg_type, x.fields, diags)
         elif x.kind == "command":
             iname, call = x.subject.split(".")
             iface = interfaces.get(iname)

@@ -8,6 +8,7 @@ not be there), or says what is missing and how the run ended.
 
 from __future__ import annotations
 
+import base64
 import json
 import math
 import re
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hfsmc.scenario import Expectation, Scenario
+from hfsmc.scenario_ros2 import Topics, describe, matches
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,6 +50,7 @@ class Run:
     # The component's `file:line:col: error: ...` lines (stderr), which place each error in
     # the model: the line that matters in a failure report.
     errors: tuple[str, ...] = ()
+    topics: Topics | None = None  # the model's ros2 interfaces: publishes decoded with them
 
 
 _MODEL_ERROR = re.compile(r"^\S+:\d+:\d+: error: .+$")
@@ -101,6 +104,10 @@ def _where(run: Run, r: Record) -> str:
         return f"{run.trace_name}:{r.line}: {r.text}"
     args = r.data.get("args", [])
     words = ", ".join(json.dumps(a) for a in args) if isinstance(args, list) else str(args)
+    message = _message(run, r)
+    if message is not None:
+        kind = str(getattr(message, "__msgtype__", "")).rsplit("/", 1)[-1]
+        words = f"{json.dumps(args[0])}, {kind}({describe(message)})"
     us = r.us
     ms = str(us // 1000) if us % 1000 == 0 else f"{us / 1000:.3f}"
     return (f"commands.jsonl:{r.line}: at {ms} ms: {r.data.get('interface')}."
@@ -123,6 +130,12 @@ def _counted(x: Expectation, run: Run, stop: Record | None, matches: list[Record
     """The common rule of entered, log, command, error: at least once (or `count` times)
     inside the window."""
     inside = [r for r in matches if _in_window(x, r.us)]
+    if x.at_least is not None:
+        if len(inside) >= x.at_least:
+            return None
+        shown = tuple(_where(run, r) for r in inside[:5])
+        return Failure(x, f"{what} {len(inside)} time(s) in that window, not at least "
+                       f"{x.at_least}", shown)
     if x.count is not None:
         if len(inside) == x.count:
             return None
@@ -209,6 +222,42 @@ def _same_args(want: Iterable[Any], got: Any) -> bool:
     return True
 
 
+def _message(run: Run, r: Record) -> Any:
+    """A ros2 publish's message, decoded by the model's definitions (None: not one)."""
+    if run.topics is None or r.data.get("call") != "publish":
+        return None
+    args = r.data.get("args")
+    iface = str(r.data.get("interface"))
+    if not isinstance(args, list) or len(args) != 2 or iface not in run.topics.interfaces:
+        return None
+    t = run.topics.publication(iface, str(args[0]))
+    if t is None:
+        return None
+    try:
+        return run.topics.decode(base64.b64decode(str(args[1]), validate=True), t.type)
+    except Exception:  # bytes that do not decode: shown as they are (base64)
+        return None
+
+
+def _published(x: Expectation, run: Run, stop: Record | None) -> Failure | None:
+    iface, name = x.subject.split(".")
+    sent = [r for r in run.commands if r.data.get("interface") == iface
+            and r.data.get("call") == "publish" and isinstance(r.data.get("args"), list)
+            and r.data["args"][:1] == [name]]
+    if x.fields is None:
+        m = sent
+    else:
+        fields = x.fields
+        m = [r for r in sent if (msg := _message(run, r)) is not None and matches(msg, fields)]
+    f = _counted(x, run, stop, m, "published")
+    if f is not None and not m and sent:  # published, with other fields: show those
+        inside = [r for r in sent if _in_window(x, r.us)] or sent
+        return Failure(x, "published only with other fields" + (
+            "" if inside is not sent else " (and outside the window)"),
+            tuple(_where(run, r) for r in inside[:3]))
+    return f
+
+
 def _error(x: Expectation, run: Run, stop: Record | None) -> Failure | None:
     m = [r for r in run.trace if r.data.get("ev") == "error"
          and (x.subject == "any" or r.data.get("state") == x.subject)]
@@ -255,6 +304,7 @@ _CHECKS = {
     "log": _log,
     "log_matches": _log,
     "command": _command,
+    "published": _published,
     "error": _error,
     "trace": _trace,
 }

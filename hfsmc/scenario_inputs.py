@@ -20,6 +20,7 @@ from typing import Any
 
 from hfsmc.errors import Diagnostics
 from hfsmc.scenario import Entry, Ramp, Scenario, ScenarioError, Setting
+from hfsmc.scenario_ros2 import Topics, topic_rows
 
 DEFAULT_RATE = 10.0  # frames per second of a scripted camera
 
@@ -195,6 +196,8 @@ def snapshots(sc: Scenario, types: dict[str, str], step: int, frames: dict[str, 
     which one of its values changed, with the values that changed."""
     by_iface: dict[str, list[_Source]] = {}
     for order, e in enumerate(sc.inputs):
+        if types.get(e.interface) == "ros2":  # its messages: hfsmc/scenario_ros2.py
+            continue
         for s in e.settings:
             by_iface.setdefault(e.interface, []).append(_Source(e, s, order))
     # vehicles first: a camera that renders a world takes the pose of the first one at that time
@@ -230,16 +233,19 @@ def snapshots(sc: Scenario, types: dict[str, str], step: int, frames: dict[str, 
 _UNSET = object()
 
 
-def write_playback(sc: Scenario, types: dict[str, str], step: int, folder: Path) -> int:
-    """Write ``folder/inputs.jsonl`` and the camera pictures (PNG); the number of entries."""
+def write_playback(sc: Scenario, types: dict[str, str], step: int, folder: Path,
+                   topics: Topics | None = None) -> int:
+    """Write ``folder/inputs.jsonl`` and the camera pictures (PNG); the number of entries.
+    ``topics``: the model's ros2 interfaces, whose messages join the snapshots in time."""
     folder.mkdir(parents=True, exist_ok=True)
     frames = _write_frames(sc, types, folder)
-    n = 0
+    items = list(snapshots(sc, types, step, frames, _renderer(sc, folder)))
+    if topics is not None:
+        items = sorted(items + topic_rows(sc.inputs, sc.until_us, topics), key=lambda i: i["t"])
     with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
-        for item in snapshots(sc, types, step, frames, _renderer(sc, folder)):
+        for item in items:
             f.write(json.dumps(item, separators=(",", ":")) + "\n")
-            n += 1
-    return n
+    return len(items)
 
 
 def _write_frames(sc: Scenario, types: dict[str, str], folder: Path) -> dict[str, str]:

@@ -27,8 +27,11 @@ FOLLOW = ROOT / "examples/follow_colors/follow_colors.yaml"
 FOLLOW_TESTS = ROOT / "examples/follow_colors/tests"
 MONITOR_TESTS = ROOT / "examples/monitor_area/tests"
 LIB_TESTS = ROOT / "examples/lib/tests"  # the library's behaviours alone (land through a lost link)
+# Ground robots on ROS 2: Python only (tests/test_scenario_ros2.py)
+ROS2_TESTS = [ROOT / "examples/bump_and_go/tests", ROOT / "examples/stop_at_wall/tests"]
 EXAMPLES = (sorted(FOLLOW_TESTS.glob("*.yaml")) + sorted(MONITOR_TESTS.glob("*.yaml"))
-            + sorted(LIB_TESTS.glob("*.yaml")))
+            + sorted(LIB_TESTS.glob("*.yaml")) + [p for d in ROS2_TESTS for p in sorted(d.glob("*.yaml"))])
+CPP_EXAMPLES = [p for p in EXAMPLES if p.parent not in ROS2_TESTS]
 
 
 def write(folder: Path, text: str, name: str = "sc.yaml") -> Path:
@@ -452,12 +455,12 @@ def test_the_examples_pass_in_cpp_and_a_wrong_scenario_fails(tmp_path: Path) -> 
         pytest.fail(str(e))
     cache = tmp_path / "cache"
     report = tmp_path / "junit.xml"
-    r = hfsmc_test("-t", "cpp", "--junit", str(report), *map(str, EXAMPLES), cache=cache,
+    r = hfsmc_test("-t", "cpp", "--junit", str(report), *map(str, CPP_EXAMPLES), cache=cache,
                    timeout=1700)
     assert r.returncode == 0, r.stdout + r.stderr
-    for sc in EXAMPLES:
+    for sc in CPP_EXAMPLES:
         assert f"{sc}::cpp PASSED\n" in r.stdout
-    assert [c[2] for c in _junit(report)] == [None] * len(EXAMPLES)
+    assert [c[2] for c in _junit(report)] == [None] * len(CPP_EXAMPLES)
 
     cpp_model = ROOT / "examples/follow_colors_cpp/follow_colors_cpp.yaml"
     bad = write(tmp_path, MUST_FAIL.format(model=cpp_model))

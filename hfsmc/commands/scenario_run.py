@@ -42,6 +42,7 @@ from hfsmc.scenario import (
 )
 from hfsmc.scenario_check import Failure, Run, check, model_errors, read_records
 from hfsmc.scenario_inputs import write_playback
+from hfsmc.scenario_ros2 import Topics
 
 Echo = Callable[[str], None]
 
@@ -299,7 +300,8 @@ def run_one(sc: Scenario, model: Model, language: str, component: Component, fol
         shutil.rmtree(folder)
     folder.mkdir(parents=True)
     types = {i.name: i.type for i in model.interfaces}
-    write_playback(sc, types, grid_us([model]), folder)
+    topics = Topics(model) if "ros2" in types.values() else None
+    write_playback(sc, types, grid_us([model]), folder, topics)
     trace = folder / "trace.jsonl"
     args = [*component.command, "--playback", str(folder.resolve()), "--clock", "virtual",
             "--trace", str(trace.resolve()), "--until", format_us(sc.until_us)]
@@ -322,7 +324,7 @@ def run_one(sc: Scenario, model: Model, language: str, component: Component, fol
     commands_file = folder / "commands.jsonl"
     commands = commands_file.read_text("utf-8", errors="replace") if commands_file.is_file() else ""
     run = Run(read_records(text), read_records(commands), "trace.jsonl", status,
-              model_errors(stderr))
+              model_errors(stderr), topics)
     if status is not None:
         outcome.failures.extend(check(sc, run))
     if outcome.failures and (status not in (0, 1, 124) or not run.trace
