@@ -75,10 +75,14 @@ def scan_record(msg: dict[str, Any]) -> dict[str, Any] | None:
     a0, da = _float(msg.get("angle_min")), _float(msg.get("angle_increment"))
     if not isinstance(ranges, list) or len(ranges) > MAX_RAYS or a0 is None or da is None:
         return None
-    return {"type": "scan", "name": _text(msg.get("name"), 80), "t": _int(msg.get("t")),
-            "subscription": _text(msg.get("subscription"), 80),
-            "frame": _text(msg.get("frame"), 64), "angle_min": a0, "angle_increment": da,
-            "ranges": [_float(r) for r in ranges]}
+    out = {"type": "scan", "name": _text(msg.get("name"), 80), "t": _int(msg.get("t")),
+           "subscription": _text(msg.get("subscription"), 80),
+           "frame": _text(msg.get("frame"), 64), "angle_min": a0, "angle_increment": da,
+           "ranges": [_float(r) for r in ranges]}
+    pose = _pose(msg.get("pose"))
+    if pose is not None:
+        out["pose"] = pose
+    return out
 
 
 def odometry(rec: dict[str, Any]) -> dict[str, Any] | None:

@@ -385,12 +385,13 @@ class MonitorServer:
         """Encode each new scan once, and only while some client asked for scans."""
         if not any(c.scans for c in self._clients.values()):
             return
+        odom = _ros2view.odometry_of(views)
         for sub, (count, msg) in _ros2view.scans_of(views).items():
             key = f"{name}/{sub}"
             if key in self._scans and self._scans[key][0] == count:
                 continue
             with contextlib.suppress(Exception):
-                made = _ros2view.scan_message(name, sub, t_ms, msg)
+                made = _ros2view.scan_message(name, sub, t_ms, msg, odom)
                 if made is not None:
                     self._scans[key] = (count, encode(made))
 

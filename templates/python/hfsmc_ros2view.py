@@ -97,9 +97,43 @@ def scans_of(views: dict[str, Any]) -> dict[str, tuple[int, Any]]:
             if s["type"] == LASER_SCAN and s["msg"] is not None}
 
 
-def scan_message(name: str, subscription: str, t_ms: int, msg: Any) -> dict[str, Any] | None:
+def odometry_of(views: dict[str, Any]) -> Any:
+    """The latest message of the interface's first odometry subscription, or None."""
+    return next((s["msg"] for s in views["subscriptions"].values()
+                 if s["type"] == ODOMETRY and s["msg"] is not None), None)
+
+
+def _stamp(msg: Any) -> float:
+    return float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) * 1e-9
+
+
+def pose_at(odom: Any, scan: Any) -> dict[str, Any] | None:
+    """The odometry's pose taken back (or on) to the scan's stamp with its own twist, so
+    that a scan is drawn where the robot was when it was taken: turning at 1 rad/s, a scan
+    50 ms older than the odometry would otherwise be drawn 3 degrees off. Stamps more than
+    1 s apart (a publisher without a clock) are taken as equal."""
+    pose = pose_of(odom)
+    if pose is None:
+        return None
+    try:
+        dt = _stamp(odom) - _stamp(scan)
+    except (AttributeError, TypeError, ValueError):
+        dt = 0.0
+    if not math.isfinite(dt) or abs(dt) > 1.0:
+        dt = 0.0
+    yaw, v, w = pose["yaw"] or 0.0, pose["v"] or 0.0, pose["w"] or 0.0
+    back = yaw - w * dt
+    mid = (yaw + back) / 2
+    pose.update(x=_num(pose["x"] - v * math.cos(mid) * dt),
+                y=_num(pose["y"] - v * math.sin(mid) * dt), yaw=_num(back, 4))
+    return pose
+
+
+def scan_message(name: str, subscription: str, t_ms: int, msg: Any, odom: Any = None
+                 ) -> dict[str, Any] | None:
     """A ``scan`` message: a LaserScan's ranges (m, to the mm; null where there is no
-    return: out of range, inf, NaN), every k-th ray when it has more than MAX_RAYS."""
+    return: out of range, inf, NaN), every k-th ray when it has more than MAX_RAYS; with
+    the odometry ``odom``, the pose the scan was taken from (``pose_at``)."""
     try:
         ranges = list(msg.ranges)
         lo, hi = float(msg.range_min), float(msg.range_max)
@@ -112,4 +146,7 @@ def scan_message(name: str, subscription: str, t_ms: int, msg: Any) -> dict[str,
                "range_min": _num(lo), "range_max": _num(hi), "ranges": kept}
     except (AttributeError, TypeError, ValueError):
         return None
+    pose = pose_at(odom, msg) if odom is not None else None
+    if pose is not None:
+        out["pose"] = pose
     return out if out["angle_min"] is not None and out["angle_increment"] is not None else None
