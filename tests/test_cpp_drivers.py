@@ -261,7 +261,7 @@ def test_offline_answers_at_once_and_threads_leave_signals_alone(drivers: Path,
     said = err.splitlines()  # the grabber's line comes when it comes
     assert [line for line in said if line.startswith("drone:")] == [
         "drone: option rate: `fast` is not a positive number, 20 used",
-        "drone: unknown option `colour` ignored (options: rate, ack_timeout, source_system)",
+        "drone: unknown option `colour` ignored (options: rate, ack_timeout, source_system, autopilot)",
         "drone: arm: not sent, no vehicle yet (no heartbeat)"]
     assert [line for line in said if not line.startswith("drone:")] == [
         "camera: option size: `big` is not WxH (320x240): frames kept as they come",
@@ -300,6 +300,36 @@ def test_link_loss_is_seen_and_the_link_comes_back(drivers: Path, tmp_path: Path
         err = passed(s, 60)
     assert [line for line in err.splitlines() if "vehicle 1/1" not in line] == [
         "drone: link lost: no heartbeat for 2 s", "drone: link back"]
+
+
+def test_px4_in_the_simulator(drivers: Path, tmp_path: Path) -> None:
+    """The C++ driver on `hfsmc sim --autopilot px4`, as the Python one in tests/test_px4.py."""
+    port = free_port(socket.SOCK_DGRAM)
+    with simulator(tmp_path, port, "--no-camera", "--autopilot", "px4", "--source-port", "0",
+                   "--boot-time", "4") as sim, \
+            scenario(drivers, "px4", str(port), tmp_path) as s:
+        s.expect("drop the link", 60)
+        sim.send_signal(signal.SIGUSR1)  # the link drops: no setpoint reaches PX4
+        time.sleep(3.0)
+        sim.send_signal(signal.SIGUSR1)
+        s.go()
+        err = passed(s, 60)
+    said = err.splitlines()
+    assert said[0] == f"drone: PX4 vehicle 1/1 on udpin:127.0.0.1:{port}, mode HOLD", said
+    for line in ("drone: arm TEMPORARILY_REJECTED",
+                 "drone: PX4: Arming denied: Resolve system health failures first",  # two chunks
+                 "drone: PX4: GUIDED on the ground is Hold; targets switch to OFFBOARD in flight",
+                 "drone: set_mode GUIDED accepted", "drone: takeoff accepted",
+                 "drone: set_mode PRECLAND accepted",
+                 "drone: set_mode PRECLAND DENIED (second answer)",
+                 "drone: PX4: keeping a setpoint stream at 10 Hz (OFFBOARD needs one)",
+                 "drone: PX4: setpoints streaming: switching to OFFBOARD",
+                 "drone: set_mode GUIDED (OFFBOARD) accepted",
+                 "drone: PX4 left OFFBOARD for POSCTL (a failsafe or a pilot): the driver stops "
+                 "its stream; set_mode(\"GUIDED\") takes the vehicle back",
+                 "drone: land accepted"):
+        assert line in said, (line, said)
+    assert said.count("drone: set_mode GUIDED (OFFBOARD) accepted") == 1, said  # never fought
 
 
 def test_garbage_datagrams_do_not_break_the_reader(drivers: Path, tmp_path: Path) -> None:

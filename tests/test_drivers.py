@@ -411,7 +411,7 @@ def test_bad_options_are_said_and_replaced(capsys: pytest.CaptureFixture[str]) -
     drone.close()
     assert capsys.readouterr().err.splitlines() == [
         "drone: option rate: `fast` is not a positive number, 20 used",
-        "drone: unknown option `colour` ignored (options: rate, ack_timeout, source_system)"]
+        "drone: unknown option `colour` ignored (options: rate, ack_timeout, source_system, autopilot)"]
 
 
 # -- the camera interface -------------------------------------------------------------------

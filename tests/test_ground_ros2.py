@@ -68,7 +68,8 @@ def test_a_peer_drives_the_robot_and_reads_odom_scan_and_clock(tmp_path: Path) -
 
 
 def test_the_bumper_is_pressed_at_a_wall_and_the_truth_counts_it(tmp_path: Path) -> None:
-    got, _, robots = drive(tmp_path, ROOM + "robots: [{name: tb, x: 5.3, y: 2}]\n", "/", 3.0, 0.3)
+    # 0.32 m from the wall: reached within 2 s of the first cmd_vel, the peer sends for 5 s
+    got, _, robots = drive(tmp_path, ROOM + "robots: [{name: tb, x: 5.5, y: 2}]\n", "/", 5.0, 0.3)
     assert got["bumps"][:1] == [[1, 1]]  # CENTER, PRESSED
     assert len(robots["tb"]["collisions"]) == 1
     assert robots["tb"]["pose"]["x"] == pytest.approx(6 - 0.176, abs=2e-3)

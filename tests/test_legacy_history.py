@@ -200,7 +200,7 @@ def test_parameters_locals_escapes_and_imports() -> None:
         ("change_lane_peek_width", "float", 1.7), ("change_lane_peek_width_2", "float", 1.5)]
     # the topic `odom` is read as `ros.odom` now: the local `odom` needs no new name
     assert not [m for c, at, m in diags if "`odom_local`" in m]
-    assert model.functions is not None and "odom = ros.odom\n" in model.functions.text
+    assert model.functions is not None and "odom = (ros.odom or Odometry())\n" in model.functions.text
 
     model, diags = model_and_diags("BumpAndGoPython")
     assert model.functions is not None

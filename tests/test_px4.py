@@ -11,6 +11,7 @@ import dataclasses
 import json
 import math
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -29,6 +30,7 @@ from hfsmc.sim import px4
 from hfsmc.sim.autopilot import parse_datagram
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
+from tests import test_missions
 from tests.support import flight, free_port, wait_until
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -274,26 +276,61 @@ def test_a_mode_px4_lacks_is_denied(main: int, sub: int) -> None:
     assert bench.ap.mode == px4.HOLD
 
 
-@pytest.mark.slow
-def test_follow_colors_flies_unchanged_on_px4_in_lockstep(tmp_path: Path) -> None:
-    """The ArduPilot mission, not a line changed, against the PX4 simulator (Python)."""
-    with flight(tmp_path, "--autopilot", "px4", "--source-port", "0", lockstep=True) as f:
+cpp_follow_colors = test_missions.cpp_follow_colors  # the fixture: follow_colors_cpp compiled
+
+
+def fly_px4(tmp_path: Path, command: list[str] | None = None) -> tuple[Path, str]:
+    """follow_colors (Python, or ``command``) against the PX4 simulator in lockstep: the
+    flight's folder and the component's log, once it ended with status 0."""
+    with flight(tmp_path, "--autopilot", "px4", "--source-port", "0", command=command,
+                lockstep=True) as f:
         status = f.component.wait(timeout=900)  # PX4's 366 messages/s, on a shared machine
         f.sim.wait(timeout=30)
         log = (f.folder / "component.log").read_text()
         assert status == 0, log[-3000:]
-    report = json.loads((f.folder / "report.json").read_text())
+    return f.folder, log
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("language", ["python", pytest.param(
+    "cpp", marks=pytest.mark.timeout(test_missions.CPP_BUILD_TIMEOUT + 900))])
+def test_follow_colors_flies_unchanged_on_px4_in_lockstep(
+        tmp_path: Path, language: str, request: pytest.FixtureRequest) -> None:
+    """The ArduPilot mission, not a line changed, against the PX4 simulator (Python, and
+    follow_colors_cpp with the C++ driver)."""
+    command = request.getfixturevalue("cpp_follow_colors") if language == "cpp" else None
+    folder, log = fly_px4(tmp_path, command)
+    report = json.loads((folder / "report.json").read_text())
     assert report["stages"] == ["green", "blue", "green", "red"], log[-3000:]
-    truth = f.truth()
+    truth = json.loads((folder / "truth.json").read_text())
     assert truth["armed"] is False and truth["landed"] is True
-    red = next(o for o in truth["objects"] if o["name"] == "red")  # type: ignore[attr-defined]
+    red = next(o for o in truth["objects"] if o["name"] == "red")
     landing = truth["landing"]
-    assert isinstance(landing, dict)
     assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
     assert "drone: PX4 vehicle 1/1" in log
     assert "drone: PX4: setpoints streaming: switching to OFFBOARD" in log
     assert "drone: set_mode GUIDED (OFFBOARD) accepted" in log
     assert "drone: PX4: GUIDED on the ground is Hold" in log
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(test_missions.CPP_BUILD_TIMEOUT + 900)
+def test_python_and_cpp_fly_the_same_trace_on_px4_in_lockstep(
+        tmp_path: Path, cpp_follow_colors: list[str]) -> None:
+    """Both drivers send PX4 the same datagrams at the same simulated instants (the
+    setpoint stream, the OFFBOARD switch): the same trace, the same truth, the same lines."""
+    py, py_log = fly_px4(tmp_path / "python")
+    cpp, cpp_log = fly_px4(tmp_path / "cpp", cpp_follow_colors)
+    py_trace = (py / "trace.jsonl").read_text().replace(str(py), "DIR")
+    cpp_trace = (cpp / "trace.jsonl").read_text().replace(str(cpp), "DIR") \
+        .replace("follow_colors_cpp", "follow_colors")
+    assert cpp_trace == py_trace
+    assert (cpp / "truth.json").read_bytes() == (py / "truth.json").read_bytes()
+
+    def said(log: str) -> list[str]:  # the driver's lines, ports taken out
+        return [re.sub(r"127\.0\.0\.1:\d+", "PORT", line) for line in log.splitlines()
+                if line.startswith("drone: ")]
+    assert said(cpp_log) == said(py_log)
 
 
 @pytest.fixture
@@ -349,3 +386,49 @@ def test_driver_keeps_the_stream_up_and_never_fights_the_failsafe(
         vehicle.set_mode("BRAKE")
     vehicle.land()
     assert _until(vehicle, lambda s: s["mode"] == "LAND", 5)
+
+
+@pytest.fixture
+def px4_mission(request: pytest.FixtureRequest) -> list[str] | None:
+    """follow_colors to fly on PX4, by language (None: flight() builds the Python one)."""
+    if request.param == "python":
+        return None
+    command: list[str] = request.getfixturevalue("cpp_follow_colors")
+    return command
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("px4_mission", test_missions.LANGUAGES, indirect=True)
+def test_stop_paths_end_landed_and_disarmed_on_px4(tmp_path: Path,
+                                                   px4_mission: list[str] | None) -> None:
+    """Issue 29 item 5 on PX4, both languages: --time-limit and Ctrl+C both go through
+    on_interrupt to Land (NAV_LAND, PX4's AUTO.LAND): the vehicle is on the ground and
+    disarmed (PX4's COM_DISARM_LAND) when the component stops, nothing left armed."""
+    px4_args = ("--autopilot", "px4", "--source-port", "0")
+    with flight(tmp_path / "limit", *px4_args, command=px4_mission, lockstep=True,
+                component_args=("--time-limit", "30s")) as f:
+        status = f.component.wait(timeout=300)
+        f.sim.wait(timeout=30)
+        log = (f.folder / "component.log").read_text()
+        assert status == 124, log[-3000:]
+        truth = f.truth()
+    assert [r for r in f.trace if r["ev"] == "interrupt"] == [
+        {"t": 30000, "ev": "interrupt", "reason": "time_limit", "to": "Land"}]
+    assert [r["state"] for r in f.trace if r["ev"] == "enter"][-4:] == [
+        "Land", "Land/Landing", "Land/Landed", "Done"]
+    assert truth["armed"] is False and truth["landed"] is True, truth
+    assert "WARNING: ARMED" not in log and "drone: land accepted" in log
+    with flight(tmp_path / "sigint", *px4_args, "--speedup", "5", command=px4_mission,
+                lockstep=True) as f:
+        f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=120)
+        time.sleep(0.4)
+        f.component.send_signal(signal.SIGINT)
+        status = f.component.wait(timeout=300)
+        f.sim.wait(timeout=30)
+        log = (f.folder / "component.log").read_text()
+        assert status == 130, log[-3000:]
+        truth = f.truth()
+    events = [(r["ev"], r.get("to") or r.get("state")) for r in f.trace]
+    assert ("interrupt", "Land") in events and f.trace[-1]["reason"] == "sigint"
+    assert truth["armed"] is False and truth["landed"] is True, truth
+    assert "WARNING: ARMED" not in log

@@ -65,12 +65,32 @@ Mavlink::Mavlink(const std::string& name, const std::string& url,
     sysid = 255;
   }
   sysid_ = static_cast<uint8_t>(sysid);
-  for (const auto& kv : options) {
-    if (kv.first != "rate" && kv.first != "ack_timeout" && kv.first != "source_system") {
-      say("unknown option `" + kv.first +
-          "` ignored (options: rate, ack_timeout, source_system)");
+  auto chosen = options.find("autopilot");
+  if (chosen != options.end()) {
+    autopilot_ = chosen->second;
+    for (char& c : autopilot_) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+    if (autopilot_ != "auto" && autopilot_ != "ardupilot" && autopilot_ != "px4") {
+      say("option autopilot: `" + autopilot_ + "` is not auto, ardupilot or px4; auto used");
+      autopilot_ = "auto";
     }
   }
+  px4_ = autopilot_ == "px4";  // else known from the first heartbeat
+  for (const auto& kv : options) {
+    if (kv.first != "rate" && kv.first != "ack_timeout" && kv.first != "source_system" &&
+        kv.first != "autopilot") {
+      say("unknown option `" + kv.first +
+          "` ignored (options: rate, ack_timeout, source_system, autopilot)");
+    }
+  }
+  offboard_ = std::make_unique<px4::Offboard>(
+      [this](const px4::Target& t) { send_target(t); },
+      [this] {
+        Pending p{"set_mode", "set_mode GUIDED (OFFBOARD)", MAV_CMD_DO_SET_MODE, {0, 0, 0, 0, 0, 0, 0},
+                  {}, {}, true, false};
+        px4::set_mode_params(px4::kOffboard, &p.params[0], &p.params[1], &p.params[2]);
+        send_long(p);
+      },
+      [this](const std::string& line) { say(line); });
   if (playback::Inputs* inputs = playback::current()) {  // a fake fed from the inputs
     inputs_ = inputs;
     Snap scratch;  // every entry checked now: a bad value is said before the run
@@ -187,7 +207,7 @@ std::string Mavlink::snapshot_fields() const {
          ",\"altitude\":" + json_number(snap_.altitude) + ",\"velocity\":" + triple(snap_.velocity) +
          ",\"yaw\":" + json_number(snap_.yaw) + ",\"battery\":" + std::to_string(snap_.battery) +
          ",\"acks\":{" + acks + "},\"vehicle\":" + (snap_.vehicle ? "true" : "false") +
-         ",\"type\":" + std::to_string(snap_.type);
+         ",\"type\":" + std::to_string(snap_.type) + ",\"autopilot\":" + std::to_string(snap_.autopilot);
 }
 
 // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
@@ -195,6 +215,14 @@ std::string Mavlink::snapshot_fields() const {
 /// An unknown name throws std::invalid_argument (Python: ValueError).
 bool Mavlink::set_mode(const std::string& name) {
   std::string wanted = upper(strip(name));
+  if (snap_.autopilot == px4::kAutopilotPx4) {  // PX4's names: px4.hpp
+    uint32_t number = 0;
+    if (!px4::mode_number(name, &number))
+      throw std::invalid_argument(name_ + ": PX4 has no mode `" + name + "` (modes: " + px4::mode_list() + ")");
+    sent("set_mode", "[" + json_string(name) + "]");
+    if (inputs_ != nullptr) return command("set_mode", "set_mode " + wanted, MAV_CMD_DO_SET_MODE, {});
+    return px4_mode(wanted, number);
+  }
   const ModeTable table = modes(static_cast<uint8_t>(snap_.type));
   const Mode* found = nullptr;
   std::string names;
@@ -225,6 +253,7 @@ bool Mavlink::disarm() {
 /// Climb to `alt` m above home (MAV_CMD_NAV_TAKEOFF; GUIDED and armed).
 bool Mavlink::takeoff(double alt) {
   sent("takeoff", "[" + json_number(alt) + "]");
+  takeoff_alt_ = alt;  // PX4 adds home's altitude AMSL to the double, as Python does
   return command("takeoff", "takeoff", MAV_CMD_NAV_TAKEOFF,
                  {0, 0, 0, 0, 0, 0, static_cast<float>(alt)});
 }
@@ -301,6 +330,7 @@ Mavlink::Snap Mavlink::live_snapshot() const {
   Snap n;
   uint16_t flags;
   int fix;
+  bool prearm;
   {
     std::lock_guard<std::mutex> lock(state_);
     n.heartbeat_age = s_.heartbeat_seen ? seconds(now() - s_.heartbeat_at) : kInf;
@@ -313,11 +343,15 @@ Mavlink::Snap Mavlink::live_snapshot() const {
     n.battery = s_.battery;
     n.vehicle = s_.target_seen;
     n.type = s_.type;
+    n.autopilot = px4() ? px4::kAutopilotPx4 : s_.autopilot;
+    if (px4() && s_.heartbeat_seen) n.mode = px4::mode_name(s_.custom_mode);
     flags = s_.ekf_flags;
     fix = s_.gps_fix;
+    prearm = s_.prearm;
   }
-  bool position = n.armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
-                          : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
+  bool position = px4() ? prearm
+                  : n.armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
+                            : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
   n.ready = n.heartbeat_age < kLinkTimeoutS && fix >= GPS_FIX_TYPE_3D_FIX && position;
   std::lock_guard<std::mutex> lock(link_);
   n.acks = acks_;
@@ -345,6 +379,7 @@ void Mavlink::apply(Snap& s, const playback::Entry& e) const {
     else if (key == "battery") s.battery = static_cast<int>(in.whole(v, k, e.line));
     else if (key == "vehicle") s.vehicle = in.boolean(v, k, e.line);
     else if (key == "type") s.type = static_cast<int>(in.whole(v, k, e.line));
+    else if (key == "autopilot") s.autopilot = static_cast<int>(in.whole(v, k, e.line));
     else if (key == "acks") {
       if (v.kind != json::Value::OBJECT) in.bad(e.line, "`acks` must be an object");
       s.acks.clear();
@@ -373,16 +408,25 @@ bool Mavlink::command(const std::string& name, const std::string& label, uint16_
              std::initializer_list<float> params, bool quiet) {
   Pending p{name, label, cmd, {0, 0, 0, 0, 0, 0, 0}, {}, {}, true, quiet};
   std::copy(params.begin(), params.end(), p.params);
-  uint8_t system = 0, component = 0;
-  bool known = inputs_ == nullptr && target(&system, &component);
   if (!quiet) {
-    known = known && snap_.vehicle;
     snap_.acks[name] = snap_.vehicle ? "pending" : "not_sent";
-    if (inputs_ != nullptr) {
+    if (inputs_ != nullptr || !snap_.vehicle) {
       if (!snap_.vehicle) say(label + ": not sent, no vehicle yet (no heartbeat)");
+      if (inputs_ == nullptr) {
+        std::lock_guard<std::mutex> lock(link_);
+        acks_[name] = "not_sent";
+      }
       return snap_.vehicle;
     }
   }
+  return send_long(p);
+}
+
+/// The sending part of command(), from any thread (the snapshot untouched).
+bool Mavlink::send_long(Pending p) {
+  uint8_t system = 0, component = 0;
+  bool known = target(&system, &component);
+  if (known && px4() && !px4_command(p)) return false;
   {
     std::lock_guard<std::mutex> lock(link_);
     if (known) {
@@ -392,9 +436,9 @@ bool Mavlink::command(const std::string& name, const std::string& label, uint16_
       p.resend_at = now + duration(ack_timeout_ / 2);
       pending_.push_back(p);
     }
-    if (!quiet) acks_[name] = known ? "pending" : "not_sent";
+    if (!p.quiet) acks_[p.name] = known ? "pending" : "not_sent";
   }
-  if (!known) say(label + ": not sent, no vehicle yet (no heartbeat)");
+  if (!known) say(p.label + ": not sent, no vehicle yet (no heartbeat)");
   return known;
 }
 
@@ -412,17 +456,34 @@ bool Mavlink::target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Ei
   if (!snap_.vehicle) return false;  // a stream of targets: nothing to say
   uint8_t system, component;
   if (inputs_ != nullptr || !target(&system, &component)) return true;
+  const bool on_px4 = px4();
+  if (on_px4 && frame == MAV_FRAME_BODY_OFFSET_NED) frame = px4::kFrameBodyNed;  // turned by the heading
+  px4::Target t;
+  t.frame = frame;
+  t.mask = mask;
+  for (int i = 0; i < 3; ++i) {
+    t.pos[i] = pos[i];
+    t.vel[i] = vel[i];
+  }
+  t.yaw_rate = yaw_rate;
+  send_target(t);
+  if (on_px4) offboard_->target(now_s(), t);
+  return true;
+}
+
+void Mavlink::send_target(const px4::Target& t) {  // SET_POSITION_TARGET_LOCAL_NED, any thread
+  uint8_t system, component;
+  if (!target(&system, &component)) return;
   auto boot_ms = static_cast<uint32_t>(
       std::chrono::duration_cast<std::chrono::milliseconds>(now() - start_).count());
   std::lock_guard<std::mutex> lock(link_);
   mavlink_message_t msg;
   mavlink_msg_set_position_target_local_ned_pack_status(
-      sysid_, kGcsComponent, &wire_->tx_status, &msg, boot_ms, system, component, frame, mask,
-      static_cast<float>(pos.x()), static_cast<float>(pos.y()), static_cast<float>(pos.z()),
-      static_cast<float>(vel.x()), static_cast<float>(vel.y()), static_cast<float>(vel.z()),
-      0, 0, 0, 0, static_cast<float>(yaw_rate));
+      sysid_, kGcsComponent, &wire_->tx_status, &msg, boot_ms, system, component, t.frame, t.mask,
+      static_cast<float>(t.pos[0]), static_cast<float>(t.pos[1]), static_cast<float>(t.pos[2]),
+      static_cast<float>(t.vel[0]), static_cast<float>(t.vel[1]), static_cast<float>(t.vel[2]),
+      0, 0, 0, 0, static_cast<float>(t.yaw_rate));
   send(msg);
-  return true;
 }
 
 void Mavlink::send(const mavlink_message_t& msg) {  // under link_
@@ -447,6 +508,7 @@ void Mavlink::request_rates() {
       {"EKF_STATUS_REPORT", {MAVLINK_MSG_ID_EKF_STATUS_REPORT, slow}},
   };
   for (const auto& r : rates) {
+    if (px4() && r.second.first == MAVLINK_MSG_ID_EKF_STATUS_REPORT) continue;  // PX4 has none
     command("set_message_interval", std::string("set_message_interval ") + r.first,
             MAV_CMD_SET_MESSAGE_INTERVAL,
             {static_cast<float>(r.second.first),
@@ -478,6 +540,16 @@ void Mavlink::timed(Clock::time_point now) {
   }
   expire(now);
   watch_link();
+  if (px4()) {
+    uint32_t mode;
+    bool armed;
+    {
+      std::lock_guard<std::mutex> lock(state_);
+      mode = s_.custom_mode;
+      armed = s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
+    }
+    offboard_->tick(now_s(), mode, armed);
+  }
 }
 
 /// Handle every datagram waiting (at most 1000, so a flood cannot starve the
@@ -547,6 +619,11 @@ void Mavlink::handle(const mavlink_message_t& msg) {
     if (target(&system, &component) && msg.sysid == system) on_ack(msg);
     return;
   }
+  if (msg.msgid == MAVLINK_MSG_ID_STATUSTEXT) {
+    uint8_t system, component;
+    if (px4() && target(&system, &component) && msg.sysid == system) on_statustext(msg);
+    return;
+  }
   std::lock_guard<std::mutex> lock(state_);
   if (!s_.target_seen || msg.sysid != s_.target_system) return;
   switch (msg.msgid) {
@@ -557,15 +634,24 @@ void Mavlink::handle(const mavlink_message_t& msg) {
       s_.velocity = Eigen::Vector3d(m.vx, m.vy, m.vz);
       break;
     }
-    case MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
-      s_.relative_alt = mavlink_msg_global_position_int_get_relative_alt(&msg) / 1000.0;
+    case MAVLINK_MSG_ID_GLOBAL_POSITION_INT: {
+      mavlink_global_position_int_t m;
+      mavlink_msg_global_position_int_decode(&msg, &m);
+      s_.relative_alt = m.relative_alt / 1000.0;
       s_.relative_alt_seen = true;
+      if (m.lat != 0 || m.lon != 0) {
+        s_.home_amsl = (static_cast<int64_t>(m.alt) - m.relative_alt) / 1000.0;
+        s_.home_amsl_seen = true;
+      }
       break;
+    }
     case MAVLINK_MSG_ID_ATTITUDE:
       s_.yaw = mavlink_msg_attitude_get_yaw(&msg);
       break;
     case MAVLINK_MSG_ID_SYS_STATUS:
       s_.battery = mavlink_msg_sys_status_get_battery_remaining(&msg);
+      s_.prearm = mavlink_msg_sys_status_get_onboard_control_sensors_health(&msg) &
+                  MAV_SYS_STATUS_PREARM_CHECK;
       break;
     case MAVLINK_MSG_ID_GPS_RAW_INT:
       s_.gps_fix = mavlink_msg_gps_raw_int_get_fix_type(&msg);
@@ -593,6 +679,7 @@ void Mavlink::on_heartbeat(const mavlink_message_t& msg) {
       return;
     }
     first = !s_.target_seen;
+    if (first && autopilot_ == "auto") px4_ = hb.autopilot == px4::kAutopilotPx4;
     s_.target_seen = true;
     s_.target_system = msg.sysid;
     s_.target_component = msg.compid;
@@ -602,10 +689,10 @@ void Mavlink::on_heartbeat(const mavlink_message_t& msg) {
     s_.custom_mode = hb.custom_mode;
     s_.heartbeat_seen = true;
     s_.heartbeat_at = now();
-    now_mode = mode_name(s_.type, s_.custom_mode);
+    now_mode = px4() ? px4::mode_name(s_.custom_mode) : mode_name(s_.type, s_.custom_mode);
   }
   if (first) {
-    say("vehicle " + std::to_string(msg.sysid) + "/" + std::to_string(msg.compid) + " on " +
+    say(std::string(px4() ? "PX4 " : "") + "vehicle " + std::to_string(msg.sysid) + "/" + std::to_string(msg.compid) + " on " +
         url_ + ", mode " + now_mode);
     request_rates();
   } else if (lost_) {
@@ -623,22 +710,33 @@ void Mavlink::on_ack(const mavlink_message_t& msg) {
   mavlink_command_ack_t ack;
   mavlink_msg_command_ack_decode(&msg, &ack);
   std::string label, result;
-  bool quiet;
+  bool quiet = false;
   {
     std::lock_guard<std::mutex> lock(link_);
     auto it = std::find_if(pending_.begin(), pending_.end(),
                            [&](const Pending& p) { return p.command == ack.command; });
-    if (it == pending_.end()) return;
-    if (ack.result == MAV_RESULT_IN_PROGRESS) {  // wait for the final word, no resend
+    if (it == pending_.end()) {  // a second answer (PX4 v1.16's DO_SET_MODE): the last counts
+      label = late_ack(ack.command, ack.result);
+      quiet = label.empty();
+      result = "late";
+    }
+    if (result.empty() && ack.result == MAV_RESULT_IN_PROGRESS) {  // the final word: no resend
       it->deadline = now() + duration(ack_timeout_);
       it->resend = false;
       return;
     }
-    result = result_name(ack.result);
-    label = it->label;
-    quiet = it->quiet;
-    if (!quiet) acks_[it->name] = result;
-    pending_.erase(it);
+    if (result.empty()) {
+      result = result_name(ack.result);
+      label = it->label;
+      quiet = it->quiet;
+      answered_[it->command] = Answered{it->name, it->label, quiet, now() + duration(ack_timeout_)};
+      if (!quiet) acks_[it->name] = result;
+      pending_.erase(it);
+    }
+  }
+  if (result == "late") {
+    if (!quiet) say(label);
+    return;
   }
   if (quiet && result == "accepted") return;
   say(label + " " + (result == "accepted" ? result : upper(result)));

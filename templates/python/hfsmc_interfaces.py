@@ -86,6 +86,8 @@ def make_interface(name: str, kind: str, url: str | None, options: dict[str, str
     module = _import(name, kind, BUILTIN[kind] if own is None else own[0])
     if kind == "ros2":  # its settings are a table, not a URL (docs/ros2.md); exits 2 itself
         made: object = module.connect(name, options)
+        if sim is not None:  # it follows the simulator's time (hfsmc_ros2_lockstep)
+            sim.drivers.append(made)
         return made
     try:
         factory: Callable[..., object] = (module.connect if own is None

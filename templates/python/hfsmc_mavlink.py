@@ -26,11 +26,9 @@ so that what is sent and received depends on nothing else.
 from __future__ import annotations
 
 import atexit
-import collections
 import contextlib
 import math
 import select
-import socket
 import sys
 import threading
 import time
@@ -41,8 +39,10 @@ from typing import Any
 from pymavlink import mavutil
 
 try:  # beside the component, or in the hfsmc package
+    from . import hfsmc_mavlink_link as _link
     from . import hfsmc_px4 as _px4
 except ImportError:
+    import hfsmc_mavlink_link as _link  # type: ignore[import-not-found, no-redef]
     import hfsmc_px4 as _px4  # type: ignore[import-not-found, no-redef]
 
 _MAV: Any = mavutil.mavlink
@@ -55,8 +55,6 @@ POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
 FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
 SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
 DATAGRAM_WAIT_S = 10.0  # lockstep: the simulator's datagrams, counted, are that late at most
-DUPLICATE_WINDOW = 255  # frames remembered per source: a copy of one of them is dropped
-SILENCE_S = 0.5  # a source silent that long (a reboot) is remembered afresh
 
 # SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field"
 # (MAVLink POSITION_TARGET_TYPEMASK; bit 9, force, stays clear).
@@ -81,7 +79,6 @@ GPS_FIX_3D = 3  # GPS_RAW_INT.fix_type
 MODE_FLAG_SAFETY_ARMED = 128  # HEARTBEAT.base_mode
 MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 PREARM_CHECK = 0x10000000  # SYS_STATUS sensor bit PX4 sets healthy once it would arm
-SEVERITY_WARNING = 4  # STATUSTEXT severities up to this one are said on stderr
 
 RESULTS = _px4.RESULTS = {0: "accepted", 1: "temporarily_rejected", 2: "denied", 3: "unsupported",
            4: "failed", 5: "in_progress", 6: "cancelled"}  # MAV_RESULT
@@ -183,10 +180,7 @@ class VehicleQueries:
         """Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode)."""
         wanted = name.strip().upper()
         if self._snap.get("autopilot") == _px4.AUTOPILOT_PX4:  # PX4's names: hfsmc_px4.py
-            number = _px4.mode_number(name)
-            if number is None:
-                raise ValueError(f"{self.name}: PX4 has no mode `{name}` (modes: "
-                                 f"{', '.join(_px4.MODES)})")
+            number = _px4.checked_mode(self.name, name)
             self._issue("set_mode", [name], ack=True)
             self._px4_mode(wanted, number)
             return
@@ -289,24 +283,21 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
         self._sim = sim
         self._snap = NEVER_HEARD
         self.on_command = None
-        self._rate = _option(name, options, "rate", FAST_RATE_HZ)
-        self._ack_timeout = _option(name, options, "ack_timeout", ACK_TIMEOUT_S)
-        sysid = int(_option(name, options, "source_system", 255.0))
+        self._rate = _link.option(name, options, "rate", FAST_RATE_HZ)
+        self._ack_timeout = _link.option(name, options, "ack_timeout", ACK_TIMEOUT_S)
+        sysid = int(_link.option(name, options, "source_system", 255.0))
         if sysid > 255:
             self._say(f"option source_system: {sysid} is not 1..255, 255 used")
             sysid = 255
-        self._autopilot = str(options.get("autopilot", "auto")).lower()
-        if self._autopilot not in ("auto", "ardupilot", "px4"):
-            self._say(f"option autopilot: `{self._autopilot}` is not auto, ardupilot or px4; "
-                      "auto used")
-            self._autopilot = "auto"
+        self._px4_init(options)
         for key in sorted(set(options) - {"rate", "ack_timeout", "source_system", "autopilot"}):
-            self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system)")
+            self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system, "
+                      "autopilot)")
         try:
             self._conn: Any = mavutil.mavlink_connection(  # as a ground station: component 190
                 url, source_system=sysid, source_component=190)
         except (OSError, ValueError) as e:
-            _close_half_open(e)
+            _link.close_half_open(e)
             self._say(f"cannot open {url}: {e}")
             raise SystemExit(1) from None
         self._start = self._now()
@@ -325,19 +316,10 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
         self._battery = -1
         self._gps_fix = 0
         self._ekf_flags = 0
-        self._px4 = self._autopilot == "px4"  # else known from the first heartbeat
-        self._prearm = False  # PX4: SYS_STATUS says the pre-flight checks pass
-        self._home_amsl: float | None = None  # m: PX4's take-off wants its altitude AMSL
-        self._answered: dict[int, tuple[str, str, bool, float]] = {}  # late answers (PX4)
-        self._texts = _px4.Texts()
-        self._offboard = _px4.Offboard(self._send_target, self._switch_offboard, self._say)
-        # Per source (system, component): its last frames (bytes), how many of each, when.
-        self._recent: dict[tuple[int, int], tuple[collections.deque[bytes], collections.Counter[bytes]]] = {}
-        self._recent_at: dict[tuple[int, int], float] = {}
+        self._duplicates = _link.Duplicates()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"mavlink {name}", daemon=True)
-        self._sent = 0  # lockstep: datagrams sent and received so far
-        self._received = 0
+        self._counted: _link.Counted | None = None  # lockstep: datagrams sent and received
         self._next_heartbeat = 0.0
         if sim is None:
             self._thread.start()
@@ -355,23 +337,11 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
         if not isinstance(conn, mavutil.mavudp):
             self._say(f"--clock sim needs a UDP link (udpin: or udpout:), not {self.url}")
             raise SystemExit(1)
-        recv, write = conn.recv, conn.write
-
-        def counted_recv(n: Any = None) -> Any:
-            data = recv(n)
-            if data:
-                self._received += 1
-            return data
-
-        def counted_write(buf: Any) -> None:
-            write(buf)
-            self._sent += len(conn.clients) if conn.udp_server else 1
-
-        conn.recv, conn.write = counted_recv, counted_write
+        self._counted = _link.Counted(conn)
 
     def lockstep_sent(self) -> int:
         """Lockstep: the datagrams sent so far."""
-        return self._sent
+        return self._counted.sent if self._counted is not None else 0
 
     def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
         """Lockstep, before the instant at ``t_us``: read until the simulator's ``sent``
@@ -381,11 +351,12 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
         fd = self._conn.fd
         while True:
             self._drain()
-            if self._received >= want:
+            received = self._counted.received if self._counted is not None else 0
+            if received >= want:
                 break
             left = end - time.monotonic()
             if left <= 0:
-                return (f"{self.name}: {want - self._received} of the simulator's datagrams did "
+                return (f"{self.name}: {want - received} of the simulator's datagrams did "
                         f"not come in {DATAGRAM_WAIT_S:g} s (is {self.url} the simulator's link?)")
             with contextlib.suppress(InterruptedError):
                 select.select([fd], [], [], min(left, POLL_S))
@@ -457,7 +428,7 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
     def _target_local(self, frame: int, mask: int, pos: tuple[float, float, float],
                       vel: tuple[float, float, float], yaw_rate: float) -> None:
         if self._px4 and frame == MAV_FRAME_BODY_OFFSET_NED:
-            frame = _px4.MAV_FRAME_BODY_NED  # PX4 turns velocities by the heading in this one
+            frame = _px4.MAV_FRAME_BODY_NED  # PX4 turns velocities by the heading
         self._send_target(frame, mask, pos, vel, yaw_rate)
         if self._px4 and self._target is not None:
             self._offboard.target(self._now(), (frame, mask, pos, vel, yaw_rate))
@@ -513,8 +484,7 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
         self._expire(now)
         self._watch_link()
         if self._px4:
-            hb = self._heartbeat
-            self._offboard.tick(now, hb[3], bool(hb[2] & MODE_FLAG_SAFETY_ARMED))
+            self._px4_tick(now)
 
     def _drain(self) -> None:
         """Handle every datagram waiting; a bad one is dropped, never raised."""
@@ -534,7 +504,7 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
     def _handle(self, msg: Any) -> None:
         kind = msg.get_type()
         source = (msg.get_srcSystem(), msg.get_srcComponent())
-        if self._duplicate(source, bytes(msg.get_msgbuf())):
+        if self._duplicates.seen(self._now(), source, bytes(msg.get_msgbuf())):
             return
         if kind == "HEARTBEAT":
             self._on_heartbeat(msg, source)
@@ -554,37 +524,13 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
             self._battery = int(msg.battery_remaining)
             self._prearm = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
         elif kind == "STATUSTEXT" and self._px4:
-            for severity, text in self._texts.add(self._now(), int(msg.severity), msg.text,
-                                                  int(getattr(msg, "id", 0)),
-                                                  int(getattr(msg, "chunk_seq", 0))):
-                if severity <= SEVERITY_WARNING:
-                    self._say(f"PX4: {text}")
+            self._px4_text(msg)
         elif kind == "GPS_RAW_INT":
             self._gps_fix = int(msg.fix_type)
         elif kind == "EKF_STATUS_REPORT":
             self._ekf_flags = int(msg.flags)
         elif kind == "COMMAND_ACK":
             self._on_ack(msg)
-
-    def _duplicate(self, source: tuple[int, int], frame: bytes) -> bool:
-        """A copy of one of the last DUPLICATE_WINDOW frames of that source (same
-        seq, same bytes): a network duplicate, however late. A new frame can only
-        be byte for byte an old one 256 frames later (seq is 8 bits)."""
-        now = self._now()
-        if now - self._recent_at.get(source, -math.inf) > SILENCE_S:
-            self._recent[source] = (collections.deque(), collections.Counter())
-        self._recent_at[source] = now
-        order, count = self._recent[source]
-        if count[frame]:
-            return True
-        order.append(frame)
-        count[frame] += 1
-        if len(order) > DUPLICATE_WINDOW:
-            old = order.popleft()
-            count[old] -= 1
-            if not count[old]:
-                del count[old]
-        return False
 
     def _on_heartbeat(self, msg: Any, source: tuple[int, int]) -> None:
         if msg.autopilot == _MAV.MAV_AUTOPILOT_INVALID or msg.type == _MAV.MAV_TYPE_GCS:
@@ -658,29 +604,3 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
         with contextlib.suppress(ValueError, OSError):  # stderr closed at exit: nothing to tell
             sys.stderr.write(f"{self.name}: {text}\n")
             sys.stderr.flush()
-
-
-def _option(name: str, options: dict[str, str], key: str, default: float) -> float:
-    """A positive number from the interface's options; a bad one is said and replaced."""
-    raw = options.get(key)
-    if raw is None:
-        return default
-    try:
-        value = float(raw)
-    except (TypeError, ValueError):
-        value = -1.0
-    if not value > 0 or math.isinf(value):
-        sys.stderr.write(f"{name}: option {key}: `{raw}` is not a positive number, "
-                         f"{default:g} used\n")
-        return default
-    return value
-
-
-def _close_half_open(error: BaseException) -> None:
-    """pymavlink keeps the socket it failed to bind (or connect) open: close it."""
-    tb = error.__traceback__
-    while tb is not None:
-        port = getattr(tb.tb_frame.f_locals.get("self"), "port", None)
-        if isinstance(port, socket.socket):
-            port.close()
-        tb = tb.tb_next

@@ -33,6 +33,8 @@ RESEND_S = 0.1  # the stream's period when the snippet sends less often (10 Hz)
 WARMUP_S = 0.6  # stream this long before asking for OFFBOARD (PX4 wants 0.5 s)
 SWITCH_RETRY_S = 1.0  # a refused switch is asked again after this
 TEXT_WAIT_S = 1.0  # a chunked STATUSTEXT whose last chunk never comes is said as it is
+SEVERITY_WARNING = 4  # STATUSTEXT severities up to this one are said on stderr
+MODE_FLAG_SAFETY_ARMED = 128  # HEARTBEAT.base_mode
 
 
 def custom(main: int, sub: int = 0) -> int:
@@ -60,6 +62,14 @@ def mode_number(name: str) -> int | None:
     """A mode name (any case, PX4's spellings too) as PX4's custom_mode; None if PX4 lacks it."""
     wanted = name.strip().upper()
     return MODES.get(ALIASES.get(wanted, wanted))
+
+
+def checked_mode(vehicle: str, name: str) -> int:
+    """PX4's custom_mode for a mode name; ValueError naming PX4's modes if it lacks it."""
+    number = mode_number(name)
+    if number is None:
+        raise ValueError(f"{vehicle}: PX4 has no mode `{name}` (modes: {', '.join(MODES)})")
+    return number
 
 
 def set_mode_params(custom_mode: int) -> tuple[float, float, float]:
@@ -155,15 +165,48 @@ class Px4Vehicle:
     vehicle's: ``_offboard``, ``_acks``, ``_command``, ``_say``...)."""
 
     _offboard: Offboard
+    _texts: Texts
     _acks: dict[str, str]
     _answered: dict[int, tuple[str, str, bool, float]]
     _home_amsl: float | None
+    _heartbeat: tuple[int, int, int, int]
     _ack_timeout: float
+    _px4: bool
+    _prearm: bool
+    _autopilot: str
+    _send_target: Any
     _command: Any
     _say: Any
     _now: Any
     armed: Any
     hold: Any
+
+    def _px4_init(self, options: dict[str, str]) -> None:
+        """The option ``autopilot`` (auto, ardupilot, px4) and the PX4 side's state."""
+        self._autopilot = str(options.get("autopilot", "auto")).lower()
+        if self._autopilot not in ("auto", "ardupilot", "px4"):
+            self._say(f"option autopilot: `{self._autopilot}` is not auto, ardupilot or px4; "
+                      "auto used")
+            self._autopilot = "auto"
+        self._px4 = self._autopilot == "px4"  # else known from the first heartbeat
+        self._prearm = False  # SYS_STATUS says the pre-flight checks pass
+        self._home_amsl = None  # m: PX4's take-off wants its altitude AMSL
+        self._answered = {}  # command id -> the last answer's (name, label, quiet, until)
+        self._texts = Texts()
+        self._offboard = Offboard(self._send_target, self._switch_offboard, self._say)
+
+    def _px4_tick(self, now: float) -> None:
+        """The reader's timed work on PX4: the setpoint stream and the OFFBOARD switch."""
+        hb = self._heartbeat
+        self._offboard.tick(now, hb[3], bool(hb[2] & MODE_FLAG_SAFETY_ARMED))
+
+    def _px4_text(self, msg: Any) -> None:
+        """A STATUSTEXT (chunks joined): warnings and worse said on stderr."""
+        for severity, text in self._texts.add(self._now(), int(msg.severity), msg.text,
+                                              int(getattr(msg, "id", 0)),
+                                              int(getattr(msg, "chunk_seq", 0))):
+            if severity <= SEVERITY_WARNING:
+                self._say(f"PX4: {text}")
 
     def _px4_mode(self, name: str, number: int) -> None:
         """GUIDED on PX4: Hold on the ground (armable; targets switch to OFFBOARD once

@@ -25,6 +25,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import math
+import os
 import sys
 import threading
 import time
@@ -49,9 +50,11 @@ from cyclonedds.util import duration
 if __package__:
     from . import hfsmc_ros2_cdr as cdr
     from . import hfsmc_ros2_wire as wire
+    from .hfsmc_ros2_lockstep import Ros2Lockstep
 else:  # copied beside the generated component, where the modules are top level
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
+    from hfsmc_ros2_lockstep import Ros2Lockstep  # type: ignore[import-not-found, no-redef]
 
 DISTROS = ("humble", "jazzy")
 DISCOVERY_TOPIC = "ros_discovery_info"
@@ -187,7 +190,7 @@ def _kind(msg: Any) -> str:
     return t if isinstance(t, str) else type(msg).__name__
 
 
-class Ros2Node(Ros2Queries):
+class Ros2Node(Ros2Lockstep, Ros2Queries):
     """A ROS 2 node on DDS: its subscriptions and publications, and the reader thread."""
 
     def __init__(self, name: str, settings: dict[str, Any]) -> None:
@@ -202,12 +205,13 @@ class Ros2Node(Ros2Queries):
         self._pubs = self._endpoints(settings.get("publish") or {})
         self._check_topics()
         self.on_publish: Callable[[str, bytes], None] | None = None  # a recording's hook
+        self._lockstep_init()
         self._lock = threading.Lock()
         self._pending = {n: _Sub() for n in self._subs}
         self._snap = {n: (None, math.inf, 0, 0) for n in self._subs}
         self._snap_subscribers = dict.fromkeys(self._pubs, 0)
         self._subscribers = dict.fromkeys(self._pubs, 0)
-        self._published = dict.fromkeys(self._pubs, 0)  # for the live views (views())
+        self._sent = dict.fromkeys(self._pubs, 0)  # per publication, for the live views (views())
         self._said: set[str] = set()
         self._closed = False
         self._open_dds()
@@ -242,8 +246,14 @@ class Ros2Node(Ros2Queries):
 
     # -- DDS ---------------------------------------------------------------------------
     def _open_dds(self) -> None:
-        self._dp = DomainParticipant(self.domain, qos=wire.dds_qos(("reliable", "volatile", 1),
-                                                                   b"enclave=/;"))
+        try:
+            self._dp = DomainParticipant(self.domain, qos=wire.dds_qos(
+                ("reliable", "volatile", 1), b"enclave=/;"))
+        except DDSException:
+            uri = " (CYCLONEDDS_URI is set: look at its network settings)" \
+                if os.environ.get("CYCLONEDDS_URI") else ""
+            raise Ros2Error(f"cannot join ROS 2 domain {self.domain}: Cyclone DDS found no "
+                            f"usable network interface{uri}") from None
         topics: dict[str, Topic[Any]] = {}
 
         def topic(s: dict[str, Any]) -> Topic[Any]:
@@ -286,8 +296,9 @@ class Ros2Node(Ros2Queries):
     def _send(self, name: str, data: bytes) -> None:
         writer = self._writers[name]
         writer.write(wire.raw_sample(writer.data_type, data))
+        self._count_published(name)
         with self._lock:
-            self._published[name] += 1
+            self._sent[name] += 1
         if self.on_publish is not None:
             self.on_publish(name, data)
 
@@ -304,7 +315,7 @@ class Ros2Node(Ros2Queries):
         snap: dict[str, tuple[Any, float, int, int]] = {}
         topics: dict[str, Any] = {}
         for n, msg, data, arrived, count, dropped, pubs in pending:
-            age = now - arrived if count else math.inf
+            age = self._age(n, count, arrived, now)
             snap[n] = (msg, age, count, pubs)
             topics[n] = {"count": count, "age": age, "publishers": pubs, "dropped": dropped,
                          "cdr": data}
@@ -323,7 +334,7 @@ class Ros2Node(Ros2Queries):
                         "publishers": s.publishers, "dropped": s.dropped, "msg": s.msg}
                     for n, s in self._pending.items()}
             pubs = {n: {"topic": p["topic"], "type": p["class"]._TYPE,
-                        "count": self._published[n], "subscribers": self._subscribers[n]}
+                        "count": self._sent[n], "subscribers": self._subscribers[n]}
                     for n, p in self._pubs.items()}
         return {"node": self.node, "namespace": self.namespace, "domain": self.domain,
                 "distro": self.distro, "subscriptions": subs, "publications": pubs}
@@ -331,7 +342,7 @@ class Ros2Node(Ros2Queries):
     def dropped(self, name: str) -> int:
         """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""
         with self._lock:
-            return self._pending[self._sub(name)].dropped
+            return int(self._pending[self._sub(name)].dropped)
 
     def close(self) -> None:
         """Leave the graph (also run at exit): the reader thread stops, DDS entities go."""

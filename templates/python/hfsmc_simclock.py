@@ -82,11 +82,21 @@ class SimClock:
                     say(f"waiting for the simulator at {self.host}:{self.port}")
                 time.sleep(0.2)
         self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self._send({"hello": PROTOCOL, "version": VERSION, "component": name})
+        mine: dict[str, Any] = {"hello": PROTOCOL, "version": VERSION, "component": name}
+        topics = [d.lockstep_topics() for d in self.drivers if hasattr(d, "lockstep_topics")]
+        if topics:  # ROS 2 interfaces: their resolved topics (schemas/lockstep.md)
+            for key in ("subscribe", "publish"):
+                mine[key] = sorted({t for d in topics for t in d[key]})
+        self._send(mine)
         hello = self._read()
         if hello.get("hello") != PROTOCOL or hello.get("version") != VERSION:
             raise SimGone(f"{self.host}:{self.port} is not an hfsmc simulator in lockstep "
                           f"(it said {json.dumps(hello)[:80]})")
+        for d in self.drivers:
+            if hasattr(d, "lockstep_match"):
+                why = d.lockstep_match(hello)
+                if why:
+                    say(why)
 
     def advance(self, t_us: int) -> None:
         """Everything before ``t_us`` is done: step the simulator to it and wait until the
@@ -94,7 +104,12 @@ class SimClock:
         if self.gone is not None:
             raise SimGone(self.gone)
         try:
-            self._send({"next": t_us, "sent": sum(d.lockstep_sent() for d in self.drivers)})
+            ask: dict[str, Any] = {"next": t_us,
+                                   "sent": sum(d.lockstep_sent() for d in self.drivers)}
+            counts = [d.lockstep_counts() for d in self.drivers if hasattr(d, "lockstep_counts")]
+            if counts:
+                ask["topics"] = {t: n for c in counts for t, n in c.items()}
+            self._send(ask)
             step = self._read()
             if "bye" in step:
                 raise SimGone(f"the simulator has stopped ({step['bye']})")

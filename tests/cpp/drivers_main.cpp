@@ -192,6 +192,49 @@ int linkloss(const std::string& port) {
   return 0;
 }
 
+/// `hfsmc sim --autopilot px4` (docs/interfaces.md, "PX4 and ArduPilot"): arming refused
+/// with a text in two chunks, PX4's mode names, GUIDED as Hold on the ground, a target
+/// set once streamed by the driver, DO_SET_MODE's second answer, and a failsafe (the test
+/// drops the link) the driver does not fight.
+int px4(const std::string& port) {
+  hfsmc::Mavlink drone("drone", udpin(port), Options{});
+  check(wait_until([&] { return drone.connected(); }, 15), "connected");
+  check(drone.mode() == "HOLD" && !drone.ready(), "PX4's HOLD, not ready yet");
+  drone.arm();
+  check(wait_until([&] { return drone.last_ack("arm") == "temporarily_rejected"; }, 5),
+        "arm refused before the checks pass");
+  check(wait_until([&] { return drone.ready(); }, 15), "ready");
+  try {
+    drone.set_mode("BRAKE");
+    fail("BRAKE accepted");
+  } catch (const std::invalid_argument& e) {
+    check(std::string(e.what()).rfind("drone: PX4 has no mode `BRAKE` (modes: GUIDED, HOLD,", 0) == 0,
+          "a mode PX4 lacks throws");
+  }
+  check(drone.set_mode("guided") && drone.arm() && drone.takeoff(3.0), "GUIDED, arm, takeoff sent");
+  check(wait_until([&] { return drone.mode() == "HOLD" && drone.altitude() > 2.8; }, 30),
+        "took off, holds");
+  drone.set_mode("PRECLAND");  // the simulator answers ACCEPTED, then DENIED
+  check(wait_until([&] { return drone.last_ack("set_mode") == "denied"; }, 5),
+        "the second answer counts");
+  drone.set_mode("GUIDED");  // in the air: the driver streams a hold, then asks for OFFBOARD
+  drone.set_velocity(1.0, 0.0, 0.0, 0.0);  // once
+  check(wait_until([&] { return drone.mode() == "GUIDED" && drone.velocity().x() > 0.8; }, 10),
+        "OFFBOARD, flying north");
+  sleep_s(2.0);  // far longer than PX4's COM_OF_LOSS_T: the driver streams
+  snap();
+  check(drone.mode() == "GUIDED", "still OFFBOARD");
+  wait_for_go("drop the link");
+  check(wait_until([&] { return drone.heartbeat_age() < 1.0 && drone.mode() == "POSCTL"; }, 10),
+        "back in POSCTL (the failsafe)");
+  sleep_s(2.0);
+  snap();
+  check(drone.mode() == "POSCTL", "not taken back");
+  check(drone.land(), "land sent");
+  check(wait_until([&] { return drone.mode() == "LAND"; }, 5), "LAND");
+  return 0;
+}
+
 /// Junk datagrams (sent by the test) do not break the reader.
 int garbage(const std::string& port) {
   hfsmc::Mavlink drone("drone", udpin(port), Options{});
@@ -255,6 +298,7 @@ int main(int argc, char** argv) {
   if (scenario == "flight") return flight(arg);
   if (scenario == "linkloss") return linkloss(arg);
   if (scenario == "garbage") return garbage(arg);
+  if (scenario == "px4") return px4(arg);
   if (scenario == "camera") return camera(arg);
   std::cerr << "unknown scenario " << scenario << "\n";
   return 2;

@@ -378,7 +378,7 @@ class Assembler(Names):
             self._put(spec, (*base, direction), table, mine[0].span)
             for itf in mine:
                 assert itf.member is not None and itf.url is not None
-                name = itf.member.final.rpartition(".")[2]
+                name = itf.member.final.rpartition(".")[2].partition(" ")[0]
                 path: PathKey = (*base, direction, name)
                 entry: dict[str, Any] = {}
                 self._put(table, path, entry, itf.span)

@@ -41,7 +41,6 @@ from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.ir import HELPERS, RESERVED_PREFIX
 from hfsmc.ros2.definitions import ros2_type_name, standard_types
 
-
 # ROS 1's tf.transformations.euler_from_quaternion: hfsmc's helper of that name instead
 TF_EULER = re.compile(r"(?<![\w.])tf\s*\.\s*transformations\s*\.\s*euler_from_quaternion\b")
 
@@ -283,8 +282,9 @@ class Names:
                             f"{'publication' if publish else 'subscription'} `{name}` of the "
                             f"ros2 interface `{self.ros_member.name}`: "
                             + (f"`{name}(msg)` is kept as a function that publishes msg"
-                               if publish else f"code reads `{name}` as `{self.ros_member.name}."
-                               f"{name}`, the latest message"))
+                               if publish else f"code reads `{name}` as `({self.ros_member.name}."
+                               f"{name} or {itf.options['message'].rpartition('/')[2]}())`, the "
+                               "latest message, an empty one before the first"))
                 continue
             itf.member = self._member(glob, name, "interface", itf.span)
             if name != base:
@@ -305,10 +305,13 @@ class Names:
                         "(build --compile shows where)")
 
     def ros2_names(self) -> None:
-        """After the members are named: a subscription is read as ``ros.NAME``."""
+        """After the members are named: code reads a subscription as ``(ros.NAME or
+        Msg())``: the latest message, an empty one before the first (VisualStates' node
+        began with an empty message of each subscribed type)."""
         for itf in self.legacy.interfaces:
             if self.ros2_topic(itf) and itf.member is not None and itf.member.kind == "topic":
-                itf.member.final = f"{self.ros_member.final}.{itf.member.final}"
+                short = ros2_type_name(itf.options["message"]).rpartition("/")[2]
+                itf.member.final = f"({self.ros_member.final}.{itf.member.final} or {short}())"
 
     # -- names -----------------------------------------------------------------
     def _implicit_members(self) -> None:

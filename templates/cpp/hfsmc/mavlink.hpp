@@ -1,6 +1,10 @@
 // hfsmc: the `mavlink` interface of C++ components (docs/interfaces.md): a vehicle flown
 // the ArduPilot Copter way (GUIDED mode), over UDP with mavgen's C headers.
 //
+// ArduPilot Copter and PX4 alike: what PX4 needs (its mode names, a setpoint stream
+// for OFFBOARD, the take-off altitude AMSL, answers that come twice, STATUSTEXT in
+// chunks) is in px4.hpp and src/hfsmc_px4.cpp (docs/interfaces.md, "PX4 and ArduPilot").
+//
 // The C++ twin of templates/python/hfsmc_mavlink.py: the same queries and
 // commands, the same timeouts and the same lines on stderr. One reader thread
 // owns the receiving side: it polls the socket (50 ms at most, which bounds
@@ -56,6 +60,7 @@
 #include "json.hpp"
 #include "observer.hpp"
 #include "playback.hpp"
+#include "px4.hpp"
 #include "record.hpp"
 #include "simclock.hpp"
 #include "thread.hpp"
@@ -104,7 +109,8 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// The vehicle's last heartbeat says its motors are armed.
   bool armed() const { evidence_.asked("armed", "armed"); return snap_.armed; }
 
-  /// The flight mode's name (GUIDED, LAND, RTL, ...); "" before the first heartbeat.
+  /// The flight mode's name (GUIDED, LAND, RTL, ...; PX4's names on PX4); "" before the
+  /// first heartbeat.
   std::string mode() const { evidence_.asked("mode", "mode"); return snap_.mode; }
 
   /// (north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any.
@@ -139,8 +145,9 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   std::string lockstep_sync(long long t_us, const simclock::Step& step) override;
 
   // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
-  /// Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode).
-  /// An unknown name throws std::invalid_argument (Python: ValueError).
+  /// Ask for a flight mode by name (MAV_CMD_DO_SET_MODE with the custom mode; on PX4,
+  /// GUIDED is OFFBOARD through the setpoint stream, px4.hpp).
+  /// A name the autopilot lacks throws std::invalid_argument (Python: ValueError).
   bool set_mode(const std::string& name);
 
   /// Arm the motors (MAV_CMD_COMPONENT_ARM_DISARM 1).
@@ -220,6 +227,9 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     int battery = -1;
     int gps_fix = 0;
     uint16_t ekf_flags = 0;
+    bool prearm = false;  // PX4: SYS_STATUS says the pre-flight checks pass
+    bool home_amsl_seen = false;
+    double home_amsl = kNaN;  // m: PX4's take-off wants its altitude AMSL
   };
 
   struct Snap {  // what the automaton sees during one instant
@@ -234,6 +244,7 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     std::map<std::string, std::string> acks;
     bool vehicle = false;  // a vehicle has been heard: commands are sent
     int type = 0;  // its HEARTBEAT type (the mode names)
+    int autopilot = 0;  // its HEARTBEAT autopilot (12: PX4's mode names and ways)
   };
 
   /// The state at hand, as a snapshot (any thread).
@@ -256,9 +267,13 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// reader thread's own, `quiet`, ask the state at hand), its outcome awaited.
   bool command(const std::string& name, const std::string& label, uint16_t cmd,
                std::initializer_list<float> params, bool quiet = false);
+  /// The sending part of command(), from any thread (the snapshot untouched): false when
+  /// no vehicle is known or PX4 is not to be sent it (said why).
+  bool send_long(Pending p);
   void send_command(uint8_t system, uint8_t component, const Pending& p, uint8_t confirmation);
   bool target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Eigen::Vector3d vel,
                     double yaw_rate);
+  void send_target(const px4::Target& t);  // SET_POSITION_TARGET_LOCAL_NED, any thread
   void send(const mavlink_message& msg);  // under link_
   void request_rates();
 
@@ -277,6 +292,20 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// Resend a command once halfway to its deadline; give up at the deadline.
   void expire(Clock::time_point now);
   void watch_link();  // the reader thread: the state at hand, not the automaton's snapshot
+  void on_statustext(const mavlink_message& msg);
+
+  // -- PX4 (px4.hpp) -------------------------------------------------------------------
+  bool px4() const { return px4_.load(); }
+  /// GUIDED on PX4: Hold on the ground (armable; targets switch to OFFBOARD once their
+  /// stream runs), in the air a stream holding where the vehicle is, then OFFBOARD.
+  bool px4_mode(const std::string& name, uint32_t number);
+  /// A command as PX4 wants it (take-off altitude AMSL); the stream stops for a landing,
+  /// RTL or a disarm. False: not to be sent (said why).
+  bool px4_command(Pending& p);
+  /// A second answer (PX4 v1.16 answers DO_SET_MODE at once, then for real): the last
+  /// answer counts. Under link_; returns the line to say, or "".
+  std::string late_ack(uint16_t command, uint8_t result);
+  double now_s() const;  // now() in seconds as Python's driver counts them
 
   // -- opening -------------------------------------------------------------------------
   /// Open the socket the URL names; "" or why not.
@@ -312,6 +341,16 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   Snap fed_;  // with --playback: the entries applied so far
   std::size_t next_ = 0;  // the next entry to apply
   playback::Evidence evidence_;  // with --playback: what the inputs hold of this instant
+  std::string autopilot_ = "auto";  // option `autopilot`: auto, ardupilot or px4
+  std::atomic<bool> px4_{false};  // PX4 (the option, else the first heartbeat)
+  std::unique_ptr<px4::Offboard> offboard_;
+  px4::Texts texts_;  // the reader's own
+  struct Answered {  // the last answer to a command id, for a second one (PX4)
+    std::string name, label;
+    bool quiet;
+    Clock::time_point until;
+  };
+  double takeoff_alt_ = 0;  // the last takeoff()'s altitude, as given (PX4 adds home AMSL)
   double rate_ = kFastRateHz;
   double ack_timeout_ = kAckTimeoutS;
   uint8_t sysid_ = 255;
@@ -327,6 +366,7 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   bool peer_known_ = false;
   std::vector<Pending> pending_;
   std::map<std::string, std::string> acks_;
+  std::map<uint16_t, Answered> answered_;
 
   // The reader thread's own.
   std::vector<uint8_t> rx_buf_ = std::vector<uint8_t>(65536);
