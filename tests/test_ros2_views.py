@@ -20,9 +20,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
 from hfsmc.templates.python.hfsmc_ros2view import Rates  # type: ignore[import-not-found]
 from hfsmc.templates.python.hfsmc_view import ros2_rows  # type: ignore[import-not-found]
+
 from hfsmc.web.ros2 import Trail, WorldMap, world_message
 from tests.ros2_support import ros2_domain
 from tests.support import WEB_URL, Client, Process, Tmux, needs_browser, screenshot

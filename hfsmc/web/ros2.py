@@ -50,7 +50,7 @@ def ros2_record(msg: dict[str, Any]) -> dict[str, Any]:
     for s in subs[:MAX_TOPICS] if isinstance(subs, list) else ():
         if not isinstance(s, dict):
             continue
-        entry = {"name": _text(s.get("name"), 80), "topic": _text(s.get("topic")),
+        entry: dict[str, Any] = {"name": _text(s.get("name"), 80), "topic": _text(s.get("topic")),
                  "type": _text(s.get("type"), 120), "rate": _float(s.get("rate")),
                  "age": _float(s.get("age")), "count": _int(s.get("count")),
                  "publishers": _int(s.get("publishers")), "dropped": _int(s.get("dropped"))}
