@@ -267,15 +267,18 @@ def run(model: str, args: tuple[str, ...]) -> None:
 @click.option("--allow-host", "allow_hosts", metavar="NAME", multiple=True,
               help="With --web: also serve the page under this host name or address (as "
                    "another machine reaches it); repeatable. Loopback names always work.")
+@click.option("--world", metavar="WORLD.yaml", type=click.Path(dir_okay=False),
+              help="With --web: draw this ground world's walls and boxes under a ros2 "
+                   "interface's odometry map (hfsmc sim --robot diffdrive's world file).")
 @_guard
 def view(target: str | None, replay: str | None, model: str | None, speed: float,
          focus: str | None, no_autofocus: bool, web: str | None,
-         allow_hosts: tuple[str, ...]) -> None:
+         allow_hosts: tuple[str, ...], world: str | None) -> None:
     """Watch a component started with --monitor [HOST:]PORT, or replay a trace."""
     from hfsmc.commands.view import view as run_view
 
     sys.exit(run_view(target, replay, focus=focus, autofocus=not no_autofocus, speed=speed,
-                      model=model, web=web, allow_hosts=allow_hosts))
+                      model=model, web=web, allow_hosts=allow_hosts, world=world))
 
 
 @main.command()

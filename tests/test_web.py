@@ -507,8 +507,8 @@ def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_tha
         for msgs in (got, other):
             for m in msgs:
                 MONITOR_VALIDATOR.validate(m)
-            assert msgs[0]["minor"] == 2 and msgs[0]["feeds"] == {"vehicle": ["drone"],
-                                                                  "camera": ["camera"]}
+            assert msgs[0]["minor"] == 3 and msgs[0]["feeds"] == {"vehicle": ["drone"],
+                                                                  "camera": ["camera"], "ros2": []}
         vehicles = [m for m in got if m["type"] == "vehicle"]
         assert 3 <= len(vehicles) <= 6, len(vehicles)  # about 4 a second
         assert vehicles[0] == {"type": "vehicle", "t": 0, "name": "drone", "connected": True,
@@ -615,7 +615,7 @@ async def _feeds_story() -> None:
         while "frame" not in kinds or "model" not in kinds:
             msg = await next_message(page)
             kinds[msg["type"]] = msg
-        assert kinds["model"]["feeds"] == {"vehicle": ["drone"], "camera": ["camera"]}
+        assert kinds["model"]["feeds"] == {"vehicle": ["drone"], "camera": ["camera"], "ros2": []}
         assert kinds["vehicle"]["altitude"] == 2.346 and kinds["vehicle"]["battery"] == 87
         assert kinds["frame"]["width"] == 320 and kinds["frame"]["jpeg"]
         vehicle.alt = 7.5
@@ -627,7 +627,7 @@ async def _feeds_story() -> None:
             pass
         bridge.detach(page)
         bridge.detach(late)
-        assert not bridge._subscribed
+        assert bridge._subscribed == (False, False)  # neither frames nor scans
         while any(c.frames for c in srv._clients.values()):
             await asyncio.sleep(0.02)
     finally:

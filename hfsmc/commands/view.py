@@ -36,7 +36,8 @@ class _ViewError(Exception):
 
 def view(target: str | None, replay: str | None, focus: str | None = None,
          autofocus: bool = True, speed: float = 1.0, model: str | None = None,
-         web: str | None = None, allow_hosts: tuple[str, ...] = ()) -> int:
+         web: str | None = None, allow_hosts: tuple[str, ...] = (),
+         world: str | None = None) -> int:
     """Run ``hfsmc view`` and return its exit status.
 
     ``target`` is ``[HOST:]PORT`` of a component started with ``--monitor``;
@@ -46,7 +47,8 @@ def view(target: str | None, replay: str | None, focus: str | None = None,
     (``[HOST:]PORT``) the component is shown in a browser instead
     (docs/web.md), drawn from ``model`` when given, or the trace ``replay``
     is played there, from the pages' controls; the pages are served under loopback
-    names, the host of ``web`` and the names ``allow_hosts`` (``--allow-host``). Errors
+    names, the host of ``web`` and the names ``allow_hosts`` (``--allow-host``); ``world``
+    (a ground world file) is drawn under a ros2 interface's map. Errors
     are one line on stderr: exit 2 for usage errors, 1 for anything else.
     """
     try:
@@ -54,6 +56,9 @@ def view(target: str | None, replay: str | None, focus: str | None = None,
             raise _ViewError("give either [HOST:]PORT or --replay TRACE", 2)
         if allow_hosts and web is None:
             raise _ViewError("--allow-host is for the web view (--web [HOST:]PORT)", 2)
+        if world is not None and (web is None or replay is not None):
+            raise _ViewError("--world is for the web view of a running component "
+                             "(--web [HOST:]PORT and the component's [HOST:]PORT)", 2)
         if web is not None:
             if focus is not None:
                 raise _ViewError("--focus is for the terminal view; the web view draws every state",
@@ -62,7 +67,7 @@ def view(target: str | None, replay: str | None, focus: str | None = None,
             if replay is not None:
                 return _web_replay(web, replay, model, autofocus, speed, allowed)
             assert target is not None
-            return _web(web, target, model, autofocus, allowed)
+            return _web(web, target, model, autofocus, allowed, world)
         if replay is not None:
             return _replay(replay, focus, autofocus, speed, model)
         assert target is not None
@@ -147,8 +152,23 @@ def _web_replay(web: str, path: str, model_path: str | None, autofocus: bool,
         sock.close()
 
 
+def _world_map(path: str) -> Any:
+    """A ground world file as the web view's plain data; _ViewError at its problem."""
+    from hfsmc.sim.ground.world import load_ground_world
+    from hfsmc.sim.world import WorldError
+    from hfsmc.web.ros2 import WorldMap
+
+    try:
+        w = load_ground_world(path)
+    except WorldError as e:
+        raise _ViewError(f"--world: {e}") from None
+    return WorldMap(file=path, walls=w.walls,
+                    boxes=tuple((b.x, b.y, b.length, b.width, b.yaw_deg) for b in w.boxes),
+                    robots=tuple((r.name, r.namespace, r.x, r.y, r.yaw_deg) for r in w.robots))
+
+
 def _web(web: str, target: str, model_path: str | None, autofocus: bool,
-         allow: tuple[str, ...]) -> int:
+         allow: tuple[str, ...], world_path: str | None = None) -> int:
     from hfsmc.errors import UsageError
     from hfsmc.web import watch
 
@@ -160,10 +180,11 @@ def _web(web: str, target: str, model_path: str | None, autofocus: bool,
     if port == 0:
         raise _ViewError(f"bad address {target!r}: port 0 is not a component's port", 2)
     model = _load_model(model_path) if model_path is not None else None
+    world = _world_map(world_path) if world_path is not None else None
     sock = _web_listen(web)
     try:
         return int(watch(sock, host, port, model, autofocus=autofocus, named=named,
-                         allow=allow))
+                         allow=allow, world=world))
     except UsageError as e:
         raise _ViewError(str(e)) from None
     finally:

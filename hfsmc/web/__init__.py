@@ -19,14 +19,15 @@ from hfsmc.ir import Model
 
 def watch(sock: socket.socket, host: str, port: int, model: Model | None, *,
           autofocus: bool = True, out: TextIO | None = None, named: str | None = None,
-          allow: Iterable[str] = ()) -> int:
+          allow: Iterable[str] = (), world: Any = None) -> int:
     """Serve the web view on ``sock`` of the component at ``host:port`` until SIGINT/SIGTERM.
 
     The pages are served under loopback names, ``named`` (the host of ``--web``) and the
     names ``allow`` (``--allow-host``), to whoever has the URL printed on ``out``.
 
     ``model`` (``--model``) gives the picture while the component is that
-    model's; without it the picture is drawn from the component's structure.
+    model's; without it the picture is drawn from the component's structure. ``world``
+    (a ``hfsmc.web.ros2.WorldMap``) is drawn under a ros2 interface's map.
     Raises UsageError when ``dot`` cannot draw the model. Returns the exit status.
     """
     from hfsmc.web.bridge import Bridge, Picture
@@ -36,7 +37,7 @@ def watch(sock: socket.socket, host: str, port: int, model: Model | None, *,
 
     drawn = Picture(svg_of(model), "model", source=model) if model is not None else None
     paint = painter(drawn, structure_of(model) if model is not None else None)
-    bridge = Bridge(host, port, paint, autofocus=autofocus)
+    bridge = Bridge(host, port, paint, autofocus=autofocus, world=world)
     asyncio.run(serve(sock, bridge, Trust.new(sock, named, allow), out))
     return 0
 

@@ -17,7 +17,10 @@ component is back.
 A component of monitor minor version 1 also sends its vehicles' state and, to
 a client that asked for them, its cameras' frames: the bridge asks for frames
 only while a page is open, keeps the latest of each for a late page and passes
-them on as ``vehicle`` and ``frame`` messages.
+them on as ``vehicle`` and ``frame`` messages. Minor version 3 adds a ``ros2``
+interface's topics, passed on as ``ros2`` messages with the odometry's trail kept
+here, and its laser scans (asked for while a page is open) as ``scan`` messages;
+with a world file the pages also get its walls in the odom frame (hfsmc/web/ros2.py).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from hfsmc.ir import Model
 from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
 from hfsmc.templates.python import hfsmc_viewstate as viewstate
 from hfsmc.web.picture import svg_of
+from hfsmc.web.ros2 import Trail, WorldMap, odometry, ros2_record, scan_record, world_message
 
 QUEUE_LIMIT = 256  # messages waiting for one page; beyond, the page is dropped
 RETRY_FIRST_S = 0.2  # first delay before connecting again; doubled up to RETRY_MAX_S
@@ -103,7 +107,7 @@ class Bridge:
 
     def __init__(self, host: str, port: int, paint: Callable[[dict[str, Any]], Awaitable[Picture]], *,
                  autofocus: bool = True, log: TextIO | None = None,
-                 queue_limit: int = QUEUE_LIMIT) -> None:
+                 queue_limit: int = QUEUE_LIMIT, world: WorldMap | None = None) -> None:
         self.host, self.port = host, port
         self.label: str = monitor.format_address(host, port)
         self.watching = f"component {self.label}"  # what the server's first line names
@@ -126,11 +130,16 @@ class Bridge:
         self._subs_of: Picture | None = None  # the picture the sub-automata below were drawn for
         self._subs: dict[str, str | None] = {}
         self._drawable: frozenset[str] = frozenset()  # the picture's composite states and regions
-        self.feeds: dict[str, list[str]] = {"vehicle": [], "camera": []}  # from the hello
+        self.feeds: dict[str, list[str]] = {"vehicle": [], "camera": [], "ros2": []}  # hello's
         self.vehicles: dict[str, dict[str, Any]] = {}  # the latest vehicle message of each
         self.frames: dict[str, dict[str, Any]] = {}  # the latest frame of each camera
         self._writer: asyncio.StreamWriter | None = None  # to the component, while connected
-        self._subscribed = False
+        self._subscribed: tuple[bool, bool] = (False, False)  # asked for: frames, scans
+        self.world = world
+        self.ros2: dict[str, dict[str, Any]] = {}  # the latest ros2 message of each
+        self.scans: dict[str, dict[str, Any]] = {}  # the latest scan of each interface
+        self.trails: dict[str, Trail] = {}
+        self.worlds: dict[str, dict[str, Any]] = {}  # per interface, the world in its odom frame
 
     # -- sub-automata -----------------------------------------------------------------------
     async def sub_svg(self, path: str) -> str | None:
@@ -164,7 +173,10 @@ class Bridge:
         if self.structure is not None:
             page.offer(_dump(self.model_message()))
         page.offer(_dump(self.state_message()))
-        for msg in (*self.vehicles.values(), *self.frames.values()):
+        for msg in (*self.vehicles.values(), *self.frames.values(), *self.worlds.values(),
+                    *({"type": "trail", "name": n, "points": t.points}
+                      for n, t in self.trails.items()),
+                    *self.ros2.values(), *self.scans.values()):
             page.offer(_dump(msg))
         self.pages.add(page)
         self._subscribe()
@@ -175,13 +187,16 @@ class Bridge:
         self._subscribe()
 
     def _subscribe(self) -> None:
-        """Ask the component for camera frames while a page is open, and no longer after."""
-        want = bool(self.pages) and bool(self.feeds["camera"])
+        """Ask the component for camera frames and laser scans while a page is open, and
+        no longer after."""
+        want = (bool(self.pages) and bool(self.feeds["camera"]),
+                bool(self.pages) and bool(self.feeds["ros2"]))
         if self._writer is None or want == self._subscribed:
             return
         self._subscribed = want
         with contextlib.suppress(OSError, RuntimeError):
-            self._writer.write(b'{"type":"subscribe","frames":%s}\n' % (b"true" if want else b"false"))
+            self._writer.write(json.dumps({"type": "subscribe", "frames": want[0],
+                                           "scans": want[1]}).encode() + b"\n")
 
     def command(self, text: str) -> None:
         """A page's command (a replay's controls, hfsmc/web/replay.py): a live view takes none."""
@@ -297,7 +312,7 @@ class Bridge:
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, RETRY_MAX_S)
                 continue
-            self._writer, self._subscribed = writer, False
+            self._writer, self._subscribed = writer, (False, False)
             try:
                 if await self._read(reader):
                     delay = RETRY_FIRST_S
@@ -369,8 +384,10 @@ class Bridge:
             given = msg.get("feeds")
             feeds: dict[str, Any] = given if isinstance(given, dict) else {}
             self.feeds = {k: [str(n) for n in feeds.get(k, ()) if isinstance(n, str)][:8]
-                          if isinstance(feeds.get(k), list) else [] for k in ("vehicle", "camera")}
+                          if isinstance(feeds.get(k), list) else []
+                          for k in ("vehicle", "camera", "ros2")}
             self.vehicles, self.frames = {}, {}
+            self.ros2, self.scans, self.trails, self.worlds = {}, {}, {}, {}
             self._subscribe()
             return False
         name = msg.get("name")
@@ -378,6 +395,15 @@ class Bridge:
             rec = vehicle_record(msg)
             self.vehicles[name] = rec
             self._broadcast(rec)
+            return True
+        if kind == "ros2" and isinstance(name, str) and name in self.feeds["ros2"]:
+            self._ros2(ros2_record(msg))
+            return True
+        if kind == "scan" and isinstance(name, str) and name in self.feeds["ros2"]:
+            scan = scan_record(msg)
+            if scan is not None:
+                self.scans[name] = scan
+                self._broadcast(scan)
             return True
         if kind == "frame" and isinstance(name, str):
             jpeg, w, h = msg.get("jpeg"), msg.get("width"), msg.get("height")
@@ -389,6 +415,20 @@ class Bridge:
                 self._broadcast(frame)
             return True
         return False
+
+    def _ros2(self, rec: dict[str, Any]) -> None:
+        """A ros2 interface's topics: its trail grows, and the first one (or one of a new
+        namespace) draws the world in its odom frame."""
+        name = rec["name"]
+        if self.world is not None and (name not in self.worlds or
+                                       self.ros2.get(name, {}).get("namespace") != rec["namespace"]):
+            self.worlds[name] = world_message(self.world, name, rec["namespace"])
+            self._broadcast(self.worlds[name])
+        pose = odometry(rec)
+        if pose is not None:
+            self.trails.setdefault(name, Trail()).add(pose["x"], pose["y"])
+        self.ros2[name] = rec
+        self._broadcast(rec)
 
     def _log_status(self) -> None:
         line = f"hfsmc view: {self.note}"

@@ -28,7 +28,7 @@ from hfsmc.web.trust import Trust, guard, headers, loopback_only
 MAX_PAGES = 64  # pages served at once; more WebSockets are closed at once
 WS_MESSAGE_LIMIT = 1 << 16  # a page sends nothing legitimate: a bigger frame closes its socket
 STATIC = {"": ("index.html", "text/html"), "app.js": ("app.js", "text/javascript"),
-          "app.css": ("app.css", "text/css")}
+          "ros2.js": ("ros2.js", "text/javascript"), "app.css": ("app.css", "text/css")}
 # Only the page's own files and its WebSocket; the SVG is inline.
 CSP = ("default-src 'none'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
        "img-src 'self' data:; connect-src 'self'; base-uri 'none'; form-action 'none'; "
@@ -52,6 +52,7 @@ def make_app(bridge: Bridge, trust: Trust, log: TextIO | None = None) -> web.App
     app[_FILES] = static_files()
     app.router.add_get("/", _file)
     app.router.add_get("/app.js", _file)
+    app.router.add_get("/ros2.js", _file)
     app.router.add_get("/app.css", _file)
     app.router.add_get("/ws", _socket)
     app.router.add_get("/sub", _sub)

@@ -17,7 +17,10 @@ Minor version 1 adds two messages, for components with those interfaces: the
 ``vehicle`` of a ``mavlink`` interface (what the driver already holds, a few
 times a second) and the ``frame`` of a ``camera`` interface (the latest frame a
 snippet obtained, downscaled JPEG), the frames only to clients that subscribed
-to them, so a component without such a viewer pays nothing for them.
+to them, so a component without such a viewer pays nothing for them. Minor
+version 3 adds the ``ros2`` message of a ``ros2`` interface (its topics' rates,
+ages, counts and matched endpoints, an odometry's pose) to every client, and its
+LaserScans (``scan``) to the clients that asked for scans.
 """
 
 from __future__ import annotations
@@ -38,12 +41,16 @@ from collections.abc import Iterator
 from typing import Any, TextIO
 
 if __package__:
+    from . import hfsmc_ros2view as _ros2view
     from . import hfsmc_view as _view
 else:  # copied beside the generated component, where the modules are top level
+    import hfsmc_ros2view as _ros2view  # type: ignore[import-not-found, no-redef]
     import hfsmc_view as _view  # type: ignore[import-not-found, no-redef]
 
 PROTOCOL = 1
-MINOR = 2  # additions old viewers ignore: 1 feeds in hello, vehicle and frame messages; 2 sim_rate
+# Additions old viewers ignore: 1 feeds in hello, vehicle and frame messages; 2 sim_rate;
+# 3 ros2 feeds, ros2 and scan messages.
+MINOR = 3
 MAX_CLIENTS = 16  # more connections at once are told "busy" and closed
 # One address (127.0.0.1 too) may hold at most this share of the slots: a viewer elsewhere
 # always finds one.
@@ -53,7 +60,7 @@ INPUT_LIMIT = 1 << 20  # bytes one client may send (all ignored); beyond, it is 
 LINE_LIMIT = 1 << 24  # longest message a viewer reads
 SLICE = 1 << 16  # bytes of messages made before the sockets are served again
 FAREWELL_S = 0.5  # how long a stopping component tries to deliver the last messages
-FEED_EVERY_S = 0.25  # vehicle records and camera frames: at most 4 a second
+FEED_EVERY_S = 0.25  # vehicle records, camera frames, ros2 topics: at most 4 a second
 FRAME_WIDTH = 320  # frames sent are downscaled to at most that many pixels wide
 FRAME_QUALITY = 70  # JPEG quality of the frames sent
 FRAME_BACKLOG = 1 << 18  # a client with that many bytes still unsent gets no new frame
@@ -150,8 +157,8 @@ def busy_message(reason: str) -> bytes:
 
 
 class _Client:
-    __slots__ = ("addr", "events", "frames", "inbuf", "out", "reading", "received", "sent",
-                 "sock")
+    __slots__ = ("addr", "events", "frames", "inbuf", "out", "reading", "received", "scans",
+                 "sent", "sock")
 
     def __init__(self, sock: socket.socket, addr: str) -> None:
         self.sock = sock
@@ -163,6 +170,7 @@ class _Client:
         self.inbuf = b""  # the start of a request line
         self.frames = False  # it asked for camera frames
         self.sent: dict[str, Any] = {}  # per camera, the image whose frame it was given last
+        self.scans = False  # it asked for the ros2 interfaces' laser scans
 
 
 class MonitorServer:
@@ -195,6 +203,9 @@ class MonitorServer:
         self._sel = selectors.DefaultSelector()
         self._vehicles: dict[str, Any] = {}
         self._cameras: dict[str, Any] = {}
+        self._ros2: dict[str, Any] = {}
+        self._rates = _ros2view.Rates()
+        self._scans: dict[str, tuple[int, bytes]] = {}  # per interface/subscription: count, message
         self._encoded: dict[str, tuple[Any, bytes]] = {}  # per camera, the last image and its frame
         self._next_feed = 0.0
         self._cv2: Any = None
@@ -208,6 +219,8 @@ class MonitorServer:
             try:  # an interface the component cannot drive raises on any use
                 if all(callable(getattr(obj, a, None)) for a in VEHICLE_QUERIES):
                     self._vehicles[name] = obj
+                elif callable(getattr(obj, "views", None)) and callable(getattr(obj, "publish", None)):
+                    self._ros2[name] = obj  # a live ros2 node (a replay's fake has no views)
                 elif callable(getattr(obj, "_last_seen", None)):
                     self._cv2 = importlib.import_module("cv2")  # the camera driver has it
                     self._cameras[name] = obj
@@ -255,7 +268,7 @@ class MonitorServer:
             while not ended:
                 # A burst is sent a slice at a time, the sockets served in between.
                 wait = 0.0 if more else 0.5
-                if self._clients and (self._vehicles or self._cameras):
+                if self._clients and (self._vehicles or self._cameras or self._ros2):
                     wait = min(wait, max(self._next_feed - time.monotonic(), 0.0))
                 for key, mask in self._sel.select(wait):
                     if key.data == "listen":
@@ -329,8 +342,18 @@ class MonitorServer:
                 chunks.append(encode(vehicle_message(name, view.t_ms, vehicle)))
             except Exception:  # a driver's trouble must not stop the monitor
                 continue
+        now = time.monotonic()
+        for name, node in self._ros2.items():
+            try:
+                views = node.views()
+                chunks.append(encode(_ros2view.ros2_message(name, view.t_ms, views, self._rates,
+                                                            now)))
+            except Exception:  # a driver's trouble must not stop the monitor
+                continue
+            self._new_scans(name, views, view.t_ms)
         if chunks:
             self._send_all(b"".join(chunks))
+        self._send_scans()
         takers = [c for c in self._clients.values() if c.frames]
         if not takers:
             return
@@ -355,6 +378,31 @@ class MonitorServer:
                 if self._alive(c) and c.sent.get(name) is not image and \
                         len(c.out) + len(data) <= min(FRAME_BACKLOG, self._buffer_limit):
                     c.sent[name] = image
+                    c.out += data
+                    self._flush(c)
+
+    def _new_scans(self, name: str, views: dict[str, Any], t_ms: int) -> None:
+        """Encode each new scan once, and only while some client asked for scans."""
+        if not any(c.scans for c in self._clients.values()):
+            return
+        odom = _ros2view.odometry_of(views)
+        for sub, (count, msg) in _ros2view.scans_of(views).items():
+            key = f"{name}/{sub}"
+            if key in self._scans and self._scans[key][0] == count:
+                continue
+            with contextlib.suppress(Exception):
+                made = _ros2view.scan_message(name, sub, t_ms, msg, odom)
+                if made is not None:
+                    self._scans[key] = (count, encode(made))
+
+    def _send_scans(self) -> None:
+        """The latest scans to the clients that asked, each scan once, skipped (never
+        queued without bound) for a client that is behind."""
+        for c in [c for c in self._clients.values() if c.scans]:
+            for key, (count, data) in self._scans.items():
+                if self._alive(c) and c.sent.get(key) != count and \
+                        len(c.out) + len(data) <= min(FRAME_BACKLOG, self._buffer_limit):
+                    c.sent[key] = count
                     c.out += data
                     self._flush(c)
 
@@ -384,7 +432,8 @@ class MonitorServer:
             self._clients[sock.fileno()] = c
             hello = {"type": "hello", "protocol": PROTOCOL, "minor": MINOR,
                      "structure": self._structure,
-                     "feeds": {"vehicle": list(self._vehicles), "camera": list(self._cameras)}}
+                     "feeds": {"vehicle": list(self._vehicles), "camera": list(self._cameras),
+                               "ros2": list(self._ros2)}}
             c.out += encode(hello) + encode(view.snapshot())
             self._flush(c)
 
@@ -423,7 +472,7 @@ class MonitorServer:
         if c.received > self._input_limit:
             self._drop(c)
             return
-        if self._cameras:  # the one request a client may make: frames, or no more frames
+        if self._cameras or self._ros2:  # the one request a client may make: frames, scans
             lines = (c.inbuf + data).split(b"\n")
             c.inbuf = lines.pop()
             if len(c.inbuf) > REQUEST_LIMIT:
@@ -438,12 +487,18 @@ class MonitorServer:
             msg = json.loads(line)
         except ValueError:
             return
-        if isinstance(msg, dict) and msg.get("type") == "subscribe" and isinstance(msg.get("frames"), bool):
+        if not isinstance(msg, dict) or msg.get("type") != "subscribe":
+            return
+        if isinstance(msg.get("frames"), bool):
             # The latest frame goes to a new subscriber at the next feed (within FEED_EVERY_S),
             # already encoded: asking again and again costs the component no encoding.
             if msg["frames"] and not c.frames:
-                c.sent = {}
+                c.sent = {k: v for k, v in c.sent.items() if k not in self._cameras}
             c.frames = msg["frames"]
+        if isinstance(msg.get("scans"), bool):  # minor 3: the same for the laser scans
+            if msg["scans"] and not c.scans:
+                c.sent = {k: v for k, v in c.sent.items() if k in self._cameras}
+            c.scans = msg["scans"]
 
     def _flush(self, c: _Client) -> None:
         try:
@@ -525,6 +580,10 @@ def item(msg: object) -> _view.Item | None:
         if isinstance(t, int) and isinstance(values, dict) and isinstance(overruns, int):
             return "sample", (t, values, overruns, rate)
         return None
+    if kind == "ros2":  # minor 3: shown as sent (the view cleans what it prints)
+        ok = isinstance(msg.get("name"), str) and isinstance(msg.get("subscriptions"), list) \
+            and isinstance(msg.get("publications"), list)
+        return ("ros2", msg) if ok else None
     if kind == "busy":
         return "error", f"the component's monitor is busy: {msg.get('reason')}"
     if kind == "bye":

@@ -211,6 +211,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self._snap = {n: (None, math.inf, 0, 0) for n in self._subs}
         self._snap_subscribers = dict.fromkeys(self._pubs, 0)
         self._subscribers = dict.fromkeys(self._pubs, 0)
+        self._sent = dict.fromkeys(self._pubs, 0)  # per publication, for the live views (views())
         self._said: set[str] = set()
         self._closed = False
         self._open_dds()
@@ -296,6 +297,8 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         writer = self._writers[name]
         writer.write(wire.raw_sample(writer.data_type, data))
         self._count_published(name)
+        with self._lock:
+            self._sent[name] += 1
         if self.on_publish is not None:
             self.on_publish(name, data)
 
@@ -318,6 +321,23 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
                          "cdr": data}
         self._snap = snap
         return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers)}
+
+    def views(self) -> dict[str, Any]:
+        """What the live views show (the monitor's thread calls it; the instant's snapshot
+        is left alone): the node, and per subscription its topic, type, count, age, matched
+        publishers, dropped samples and latest message; per publication its topic, type,
+        published count and matched subscribers (docs/web.md, "ROS 2")."""
+        now = time.monotonic()
+        with self._lock:
+            subs = {n: {"topic": self._subs[n]["topic"], "type": self._subs[n]["class"]._TYPE,
+                        "count": s.count, "age": now - s.arrived if s.count else None,
+                        "publishers": s.publishers, "dropped": s.dropped, "msg": s.msg}
+                    for n, s in self._pending.items()}
+            pubs = {n: {"topic": p["topic"], "type": p["class"]._TYPE,
+                        "count": self._sent[n], "subscribers": self._subscribers[n]}
+                    for n, p in self._pubs.items()}
+        return {"node": self.node, "namespace": self.namespace, "domain": self.domain,
+                "distro": self.distro, "subscriptions": subs, "publications": pubs}
 
     def dropped(self, name: str) -> int:
         """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""

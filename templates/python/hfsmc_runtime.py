@@ -1137,11 +1137,14 @@ def _check_focus(engine: Engine, focus: str | None) -> None:
 
 
 def _observers(engine: Engine, args: argparse.Namespace) -> None:
+    ns = engine.m["namespace"]
+    interfaces = {name: ns.get(name) for name, *_ in engine.m["interfaces"]}
     if args.display or args.displaygui == "true":
         import hfsmc_view  # type: ignore[import-not-found]  # beside the component
-        engine.observers.append(hfsmc_view.Display(
-            focus=args.focus, autofocus=not args.no_autofocus,
-            stream=sys.stderr if args.trace == "-" else sys.stdout))
+        display = hfsmc_view.Display(focus=args.focus, autofocus=not args.no_autofocus,
+                                     stream=sys.stderr if args.trace == "-" else sys.stdout)
+        display.watch(interfaces)
+        engine.observers.append(display)
     if args.monitor:
         import hfsmc_monitor  # type: ignore[import-not-found]  # beside the component
         try:
@@ -1149,8 +1152,7 @@ def _observers(engine: Engine, args: argparse.Namespace) -> None:
             server = hfsmc_monitor.MonitorServer(host, port)
         except (OSError, ValueError) as e:
             raise UsageError(f"--monitor {args.monitor}: {e}") from None
-        ns = engine.m["namespace"]
-        server.watch({name: ns.get(name) for name, *_ in engine.m["interfaces"]})
+        server.watch(interfaces)
         engine.observers.append(server)
     if engine.observers:
         structure = engine.structure()

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from rich.text import Text
 
 if __package__:
+    from . import hfsmc_ros2view as _ros2view
     from .hfsmc_viewstate import (
         EVENTS,
         RECENT,
@@ -54,6 +55,7 @@ if __package__:
         readable,
     )
 else:  # copied beside the generated component, where the modules are top level
+    import hfsmc_ros2view as _ros2view  # type: ignore[import-not-found, no-redef]
     from hfsmc_viewstate import (  # type: ignore[import-not-found, no-redef]
         EVENTS,
         RECENT,
@@ -70,6 +72,7 @@ __all__ = ["EVENTS", "RECENT", "Display", "Item", "PlainLines", "ViewState", "ch
            "clean", "fit", "infer_structure", "readable", "render", "run_viewer"]
 
 REFRESH_S = 0.25  # the live view redraws at 4 Hz
+STALE_S = 2.0  # a topic whose latest message is older is shown yellow
 
 # -- the rich view -------------------------------------------------------------------------
 def _dur(ms: int) -> str:
@@ -236,6 +239,57 @@ def _walk(view: ViewState, focus: str, autofocus: bool) -> list[tuple[str, str, 
     return out
 
 
+def _rate(x: object) -> str:
+    return f"{x:.1f} Hz" if isinstance(x, int | float) and not isinstance(x, bool) else "– Hz"
+
+
+def ros2_rows(msg: dict[str, Any]) -> list[tuple[list[str], str]]:
+    """A ``ros2`` message as the terminal view's rows: (cells, style), the node first,
+    then ``<-`` per subscription (rate, age, count, matched publishers, dropped) and ``->``
+    per publication (rate, count, matched subscribers). Red: a subscription that never got
+    a message or has no publisher, a publication nobody subscribes to, dropped samples;
+    yellow: a message older than STALE_S."""
+    ns = clean(msg.get("namespace") or "/")
+    node = f"{ns.rstrip('/')}/{clean(msg.get('node'))}"
+    rows = [([f"ros2 {clean(msg.get('name'))}", node, f"domain {clean(msg.get('domain'))}",
+              clean(msg.get("distro")), "", ""], "bold")]
+    for s in msg.get("subscriptions", ()):
+        age = s.get("age")
+        style = ""
+        if not s.get("count") or not s.get("publishers"):
+            style = "red"
+        elif isinstance(age, int | float) and age > STALE_S:
+            style = "yellow"
+        seen = f"{age:.2f} s ago" if isinstance(age, int | float) else "never"
+        extra = f"  {s['dropped']} dropped" if s.get("dropped") else ""
+        rows.append(([f"<- {clean(s.get('name'))}", clean(s.get("topic")), _rate(s.get("rate")),
+                      seen, f"n {clean(s.get('count'))}",
+                      f"{clean(s.get('publishers'))} pub{extra}"],
+                     "red" if extra else style))
+    for p in msg.get("publications", ()):
+        rows.append(([f"-> {clean(p.get('name'))}", clean(p.get("topic")), _rate(p.get("rate")),
+                      "", f"n {clean(p.get('count'))}", f"{clean(p.get('subscribers'))} sub"],
+                     "" if p.get("subscribers") else "red"))
+    return rows
+
+
+def _ros2_part(view: ViewState) -> tuple[list[RenderableType], int]:
+    """The ros2 interfaces' topics, and the lines they take."""
+    from rich.table import Table
+
+    parts: list[RenderableType] = []
+    lines = 0
+    for name in sorted(view.ros2):
+        table = Table.grid(padding=(0, 2))
+        for _ in range(6):
+            table.add_column(no_wrap=True)
+        for cells, style in ros2_rows(view.ros2[name]):
+            table.add_row(*cells, style=style)
+            lines += 1
+        parts.append(table)
+    return parts, lines
+
+
 def _panel(view: ViewState, autofocus: bool, free: int = 1 << 30, keys: str | None = None
            ) -> RenderableType:
     """The side panel in at most ``free`` lines (its frame included)."""
@@ -259,9 +313,10 @@ def _panel(view: ViewState, autofocus: bool, free: int = 1 << 30, keys: str | No
     facts.add_row("overruns", Text(str(view.overruns), style="bold red" if view.overruns else ""))
     facts.add_row("autofocus", _autofocus(autofocus, keys))
     names = view.variable_names + sorted(set(view.values) - set(view.variable_names))
-    keep = fit(free - 2 - facts.row_count, {"transitions": len(view.transitions),
+    topics, topic_lines = _ros2_part(view)
+    keep = fit(free - 2 - facts.row_count - topic_lines, {"transitions": len(view.transitions),
                                              "logs": len(view.logs), "variables": len(names)})
-    parts: list[RenderableType] = [facts]
+    parts: list[RenderableType] = [facts, *topics]
     if keep["transitions"]:
         rows = Table.grid(padding=(0, 1))
         for tr in list(reversed(view.transitions))[:keep["transitions"]]:
@@ -312,7 +367,9 @@ def render(view: ViewState, focus: str | None = None, autofocus: bool = True,
         # sections; the tree may take the rest (and leaves what it does not use).
         items = [len(view.transitions), len(view.logs),
                  len(set(view.variable_names) | set(view.values))]
-        panel_min = 2 + 4 + (view.interrupt is not None) + min(sum(n + 1 for n in items if n), 6)
+        panel_min = 2 + 4 + (view.interrupt is not None) + min(sum(n + 1 for n in items if n), 6) \
+            + sum(1 + len(m.get("subscriptions", ())) + len(m.get("publications", ()))
+                  for m in view.ros2.values())
         tree, used = _tree(view, focus, autofocus, max(rows - panel_min, 2))
         return Group(tree, _panel(view, autofocus, rows - used, keys))
     tree, _ = _tree(view, focus, autofocus, rows)
@@ -460,6 +517,7 @@ class _Screen:
         self.live, self.quit_key = live, quit_key
         self.plain = PlainLines(focus)
         self.keys: str | None = "stdin is not a terminal"  # why keys are not read, if not
+        self.poll: Callable[[], list[Item]] | None = None  # items to apply before each redraw
 
     def run(self, q: queue.SimpleQueue[Item]) -> tuple[int, str | None]:
         """(exit status, closing message) once the source ends or the user quits."""
@@ -518,6 +576,9 @@ class _Screen:
                     with contextlib.suppress(Exception):  # malformed data: skipped
                         self.view.apply(kind, payload)
                 if result is not None or time.monotonic() >= due:
+                    for polled in self.poll() if self.poll is not None else ():
+                        with contextlib.suppress(Exception):
+                            self.view.apply(*polled)
                     live.update(render(self.view, self.focus, self.autofocus, console.width,
                                        console.height, self.keys), refresh=True)
                     due = time.monotonic() + REFRESH_S
@@ -539,6 +600,27 @@ class Display:
         self._thread: threading.Thread | None = None
         self._keys: _Keys | None = None
         self._writers: list[tuple[str, _QueueWriter]] = []
+        self._ros2: dict[str, Any] = {}
+        self._rates = _ros2view.Rates()
+        self._t_ms = 0
+
+    def watch(self, interfaces: dict[str, Any]) -> None:
+        """The component's interface objects (before ``start``): a live ros2 node's topics
+        are shown under the panel's facts, as the monitor sends them."""
+        for name, obj in interfaces.items():
+            with contextlib.suppress(Exception):  # an interface it cannot drive raises on use
+                if callable(getattr(obj, "views", None)) and callable(getattr(obj, "publish", None)):
+                    self._ros2[name] = obj
+
+    def _poll(self) -> list[Item]:
+        """On the display's thread, at each redraw: the ros2 nodes' topics."""
+        now = time.monotonic()
+        out: list[Item] = []
+        for name, node in self._ros2.items():
+            with contextlib.suppress(Exception):
+                out.append(("ros2", _ros2view.ros2_message(name, self._t_ms, node.views(),
+                                                           self._rates, now)))
+        return out
 
     def start(self, structure: dict[str, Any]) -> None:
         live = _isatty(self._stream)
@@ -547,6 +629,8 @@ class Display:
                   file=sys.stderr, flush=True)
             live = False
         screen = _Screen(self._focus, self._autofocus, self._stream, live, quit_key=False)
+        if self._ros2:
+            screen.poll = self._poll
         self._q.put(("structure", structure))
         if live:
             self._keys = _Keys(self._q.put)
@@ -572,6 +656,7 @@ class Display:
 
     def sample(self, t_ms: int, values: dict[str, str], overruns: int,
                rate: float | None = None) -> None:
+        self._t_ms = t_ms
         self._q.put(("sample", (t_ms, values, overruns, rate)))
 
     def close(self) -> None:

@@ -168,6 +168,7 @@ class ViewState:
         self.stop_reason: str | None = None
         self.stopped_in: dict[str, int] = {}  # the states the stop exited
         self.note: str | None = None  # "disconnected", "replayed ...": shown with the status
+        self.ros2: dict[str, dict[str, Any]] = {}  # a ros2 interface's latest ``ros2`` message
         self._exited: dict[str, int] = {}  # exits since the last enter, fire or interrupt
         if structure is not None:
             self.apply_structure(structure)
@@ -345,6 +346,8 @@ class ViewState:
             self.apply_snapshot(payload)
         elif kind == "advance":
             self.advance(payload)
+        elif kind == "ros2":
+            self.ros2[str(payload["name"])] = payload
 
 
 # -- plain lines ---------------------------------------------------------------------------

@@ -108,6 +108,7 @@
     if (view.replay) $("hv-timeline").max = String(view.replay.end);
     showVariablesAll({});
     showFeeds(msg.feeds || {});
+    window.hfsmcRos2.show((msg.feeds || {}).ros2 || []);
   }
 
   function drawPicture(svgText, problem) {
@@ -593,6 +594,10 @@
     else if (msg.type === "replay") onReplay(msg);
     else if (msg.type === "vehicle") onVehicle(msg);
     else if (msg.type === "frame") onFrame(msg);
+    else if (msg.type === "ros2") window.hfsmcRos2.onRos2(msg);
+    else if (msg.type === "scan") window.hfsmcRos2.onScan(msg);
+    else if (msg.type === "trail") window.hfsmcRos2.onTrail(msg);
+    else if (msg.type === "world") window.hfsmcRos2.onWorld(msg);
     else if (msg.type === "status") {
       setTime(msg.t);
       showStatus(msg.status, msg.note);
