@@ -18,6 +18,7 @@ from typing import Any
 import pytest
 
 from hfsmc.commands.replay import read_jsonl, write_playback
+from hfsmc.emit.python import INTERFACE_FILES
 from hfsmc.recording import read_recording
 from hfsmc.ros2.definitions import DISTROS
 from tests.ros2_support import build, ros2_domain
@@ -27,8 +28,7 @@ RUNTIME = ROOT / "templates" / "python"
 HERE = Path(__file__).resolve().parent / "ros2"
 TYPES = ["sensor_msgs/msg/LaserScan", "geometry_msgs/msg/Twist",
          "rmw_dds_common/msg/ParticipantEntitiesInfo"]
-FILES = ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_playback.py", "hfsmc_record.py",
-         "hfsmc_playback.py")
+FILES = (*INTERFACE_FILES["ros2"], "hfsmc_record.py", "hfsmc_playback.py")
 
 
 @pytest.fixture(scope="module", params=DISTROS)

@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 
+from hfsmc.emit.python import INTERFACE_FILES
 from hfsmc.ros2.definitions import DISTROS, typestore
 from tests.ros2_support import build, ros2_domain
 from tests.support import ROOT
@@ -34,7 +35,7 @@ def folder(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
     distro = str(request.param)
     out = tmp_path_factory.mktemp(f"ros2_{distro}")
     build(distro, TYPES, out)
-    for name in ("hfsmc_ros2.py", "hfsmc_ros2_wire.py"):
+    for name in INTERFACE_FILES["ros2"]:  # what a component gets beside it
         shutil.copy(RUNTIME / name, out / name)
     shutil.copy(HERE / "peer.py", out / "peer.py")
     return distro, out

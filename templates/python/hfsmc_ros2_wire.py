@@ -27,6 +27,17 @@ from cyclonedds.idl import make_idl_struct
 from cyclonedds.idl import types as _types
 from cyclonedds.util import duration
 
+if __package__:
+    from . import hfsmc_ros2_names as _names
+else:  # copied beside the generated component, where the modules are top level
+    import hfsmc_ros2_names as _names  # type: ignore[import-not-found, no-redef]
+
+# ROS 2's name rules live in hfsmc_ros2_names (standard library only: hfsmc check uses them)
+Ros2Error = _names.Ros2Error
+resolve_name = _names.resolve_name
+validate_namespace = _names.validate_namespace
+validate_node_name = _names.validate_node_name
+
 T: Any = _types  # sequence[...], array[...], bounded_str[...]: indexable at run time
 DOMAIN_MAX = 232  # the largest id for which DDS's port mapping works (as ROS 2 documents)
 PROFILES = {
@@ -34,64 +45,11 @@ PROFILES = {
     "sensor_data": ("best_effort", "volatile", 5),
     "latched": ("reliable", "transient_local", 1),
 }
-_TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _PRIMITIVES: dict[str, Any] = {
     "boolean": bool, "octet": T.byte, "uint8": T.uint8, "int8": T.int8, "int16": T.int16,
     "uint16": T.uint16, "int32": T.int32, "uint32": T.uint32, "int64": T.int64,
     "uint64": T.uint64, "float": T.float32, "double": T.float64, "string": str,
 }
-
-
-class Ros2Error(ValueError):
-    """A setting ROS 2 would refuse: a name, a domain id, a QoS, a type."""
-
-
-def resolve_name(name: str, namespace: str, node: str) -> str:
-    """ROS 2's resolution of a topic name: absolute as it is, ``~`` against the node
-    (``/ns/node/x``), relative against the namespace. Raises Ros2Error naming the rule a
-    name breaks."""
-    ns = validate_namespace(namespace)
-    if not name:
-        raise Ros2Error("a topic name is empty")
-    if name.startswith("~"):
-        if name != "~" and not name.startswith("~/"):
-            raise Ros2Error(f"topic `{name}`: `~` is followed by `/` (`~/x`)")
-        base = (ns.rstrip("/") + "/" + node)
-        full = base + name[1:]
-    elif name.startswith("/"):
-        full = name
-    else:
-        full = ns.rstrip("/") + "/" + name
-    _check_tokens(full, f"topic `{name}`")
-    return full
-
-
-def validate_namespace(namespace: str) -> str:
-    ns = namespace or "/"
-    if not ns.startswith("/"):
-        ns = "/" + ns
-    if ns != "/":
-        _check_tokens(ns, f"namespace `{namespace}`")
-    return ns
-
-
-def validate_node_name(node: str) -> str:
-    if not _TOKEN.match(node or ""):
-        raise Ros2Error(f"node name `{node}`: letters, digits and `_`, not starting with a digit")
-    return node
-
-
-def _check_tokens(full: str, what: str) -> None:
-    if full.endswith("/") and full != "/":
-        raise Ros2Error(f"{what} ends with `/`")
-    for token in full.split("/")[1:]:
-        if not token:
-            raise Ros2Error(f"{what} has an empty part (`//`)")
-        if not _TOKEN.match(token):
-            raise Ros2Error(f"{what}: `{token}` is not letters, digits and `_` "
-                            "(not starting with a digit)")
-        if "__" in token:
-            raise Ros2Error(f"{what}: `{token}` has `__` (ROS 2 keeps it for itself)")
 
 
 def domain_id(value: Any) -> int:
