@@ -12,6 +12,8 @@ from its cause or not at all:
 - a bracket the snippet leaves open, or closes without opening (E147): g++
   would see it only in the generated code after the snippet, and then report
   errors in the snippets that follow.
+- ``robot.age("scn")`` on a ``ros2`` interface, a literal name that the interface
+  does not declare (E148): the component would throw at run time.
 
 Everything else is g++'s business (hfsmc/cxxcheck.py).
 """
@@ -21,6 +23,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
+from difflib import get_close_matches
 
 from hfsmc.errors import Diagnostics, Span
 from hfsmc.ir import Model
@@ -59,7 +62,8 @@ def tokens(text: str) -> Iterator[Token]:
 
 
 def check_cpp_snippets(model: Model, diags: Diagnostics) -> None:
-    """E145, E146, E147 and W215 in every snippet of a C++ model."""
+    """E145, E146, E147, E148 and W215 in every snippet of a C++ model."""
+    ros2 = _ros2_names(model)
     for sn in snippets(model):
         text = sn.code.text
         toks: list[Token] | None = None
@@ -67,7 +71,43 @@ def check_cpp_snippets(model: Model, diags: Diagnostics) -> None:
             toks = list(tokens(text))  # only then: most snippets are balanced
             _check_brackets(sn, toks, diags)
         if "goto" in text or "active" in text or "done" in text:
-            _check(model, sn, toks if toks is not None else list(tokens(text)), diags)
+            toks = toks if toks is not None else list(tokens(text))
+            _check(model, sn, toks, diags)
+        if ros2 and any(name in text for name in ros2):
+            _check_ros2_names(ros2, sn, toks if toks is not None else list(tokens(text)), diags)
+
+
+# A ros2 interface's methods whose first argument names a subscription or a publication.
+_ROS2_NAMES = {"age": "subscribe", "count": "subscribe", "publishers": "subscribe",
+               "malformed": "subscribe", "subscribers": "publish", "publish": "publish"}
+
+
+def _ros2_names(model: Model) -> dict[str, dict[str, tuple[str, ...]]]:
+    return {i.name: {"subscribe": tuple(t.name for t in i.ros2.subscribe),
+                     "publish": tuple(t.name for t in i.ros2.publish)}
+            for i in model.interfaces if i.ros2 is not None}
+
+
+def _check_ros2_names(ros2: dict[str, dict[str, tuple[str, ...]]], sn: Snippet,
+                      toks: list[Token], diags: Diagnostics) -> None:
+    """E148 for ``robot.age("scn")`` when `scn` is not among the interface's names."""
+    for k in range(len(toks) - 4):
+        iface, dot, method, paren, arg = toks[k:k + 5]
+        if (iface.kind != "ident" or iface.text not in ros2 or dot.text not in (".", "->")
+                or method.text not in _ROS2_NAMES or paren.text != "(" or arg.kind != "string"
+                or (k and toks[k - 1].text in _MEMBER)):
+            continue
+        name = _unquote(arg.text)
+        option = _ROS2_NAMES[method.text]
+        names = ros2[iface.text][option]
+        if name is None or name in names:
+            continue
+        near = get_close_matches(name, names, 1)
+        diags.error("E148", f"`{iface.text}.{method.text}`: `{name}` is not one of the "
+                    f"interface's `{option}` ({', '.join(names) or 'none declared'})",
+                    _position(sn, arg.offset),
+                    f"did you mean `{near[0]}`?" if near
+                    else f"declare it in the interface's `{option}`")
 
 
 def _check_brackets(sn: Snippet, toks: list[Token], diags: Diagnostics) -> None:

@@ -93,8 +93,10 @@ def check_cpp(model: Model) -> CxxCheck:
         return CxxCheck(list(e.diagnostics))
     source = sources.unit()
     toolchain = _toolchain(compiler)
-    own = {inc: i.cpp.text for i in model.interfaces if i.cpp is not None
-           for path, inc in cpp.user_headers(model).items() if path == i.cpp.path}
+    try:  # a user's driver headers, a ros2 interface's messages and class
+        own = cpp.generated_headers(model)
+    except EmitError as e:
+        return CxxCheck(list(e.diagnostics))
     headers = tuple(h for h in _runtime_headers(source) if h not in own)  # a user's driver
     pch_key = _digest(toolchain, *headers, _mavlink_stamp(headers), _runtime_digest())
     key = _digest(pch_key, source, *sorted(own.items()))
@@ -104,7 +106,7 @@ def check_cpp(model: Model) -> CxxCheck:
         def compile_in(pch: Path) -> tuple[int, str]:
             folder = _header_set(pch, pch_key, headers, compiler)
             with tempfile.TemporaryDirectory(prefix="hfsmc-drivers-") as drivers:
-                for inc, text in own.items():  # a user's driver headers, beside the set's
+                for inc, text in own.items():  # the model's own headers, beside the set's
                     (Path(drivers) / inc).parent.mkdir(parents=True, exist_ok=True)
                     (Path(drivers) / inc).write_text(text, "utf-8")
                 return _run([compiler, *toolchain.flags, "-fsyntax-only",

@@ -88,7 +88,7 @@ CODES: dict[str, str] = {
     # ROS 2 messages (docs/ros2.md)
     "E310": "unknown ROS 2 message type (not in the distro nor in the model's .msg files)",
     "E311": "a .msg file that does not parse or names an unknown type",
-    "E312": "a ros2 interface's keys misused (a key of another interface type, a C++ model, two distros)",
+    "E312": "a ros2 interface's keys misused (a key of another interface type, two distros)",
     "E313": "a ROS 2 name that ROS 2 forbids (topic, namespace, node)",
     "E314": "one ROS 2 topic used with two message types",
     "E315": "a ros2 interface's .msg file outside the model's folder, missing or unreadable",

@@ -56,9 +56,6 @@ def ros2_settings(doc: Document, name: str, spec: Mapping[str, Any], model_name:
         if key in spec:
             diags.error("E312", f"`{key}` is not a key of `type: ros2` interfaces (they have "
                         f"{', '.join(ROS2_KEYS)})", doc.key_span((*path, key)))
-    if language != "python":
-        diags.error("E312", "C++ components with a ros2 interface: not yet (docs/ros2.md); "
-                    "write the model in Python", doc.span((*path, "type")))
     node = spec.get("node")
     namespace = spec.get("namespace")
     try:

@@ -37,10 +37,12 @@ def python_component(model: Model) -> str:
 
 
 def cpp_component(model: Model) -> str:
-    """The component's own files: the class (src/NAME.hpp), then its two units after a banner."""
+    """The component's own files: the class (src/NAME.hpp), then its two units after a banner,
+    then the class of each ros2 interface (include/hfsmc_ros2/NAME.hpp)."""
     files = cpp.component_files(model)
     text = files[f"src/{model.name}.hpp"].decode("utf-8")
-    for name in (f"src/{model.name}.cpp", f"src/{model.name}_main.cpp"):
+    ros2 = sorted(f for f in files if f.startswith("include/hfsmc_ros2/"))
+    for name in (f"src/{model.name}.cpp", f"src/{model.name}_main.cpp", *ros2):
         text += f"\n// ===== {name} =====\n" + files[name].decode("utf-8")
     return text
 
@@ -67,6 +69,14 @@ def render(example: Path, suffix: str) -> str:
     return GENERATORS[suffix](result.model)
 
 
+# Models with golden files that are not examples: what a feature needs shown in its output.
+EXTRA = [ROOT / "tests" / "ros2" / "models" / "pingpong_cpp" / "pingpong_cpp.yaml"]
+
+
+def golden_models() -> list[Path]:
+    return [*examples(), *EXTRA]
+
+
 def golden_path(example: Path, suffix: str) -> Path:
     return GOLDEN / f"{example.stem}.{suffix}"
 
@@ -76,7 +86,7 @@ def main() -> None:
 
     os.chdir(ROOT)  # spans and file names in the output are relative to the repository
     GOLDEN.mkdir(exist_ok=True)
-    for ex in examples():
+    for ex in golden_models():
         for suffix in GENERATORS:
             if not applies(ex, suffix):
                 continue

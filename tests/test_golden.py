@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import examples
-from tests.regen_golden import GENERATORS, applies, golden_path, render
+from tests.regen_golden import GENERATORS, applies, golden_models, golden_path, render
 
-CASES = [(ex, suffix) for ex in examples() for suffix in GENERATORS if applies(ex, suffix)]
+CASES = [(ex, suffix) for ex in golden_models() for suffix in GENERATORS if applies(ex, suffix)]
 
 
 @pytest.mark.parametrize(("example", "suffix"), CASES, ids=[f"{e.stem}.{s}" for e, s in CASES])

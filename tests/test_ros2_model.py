@@ -224,10 +224,3 @@ def test_a_message_of_the_wrong_type_is_reported_at_the_snippets_line(tmp_path: 
     assert run.returncode == 1, run.stderr
     assert f"{model}:15:7: error: TypeError: robot.publish('cmd_vel', ...): a " \
            "geometry_msgs/msg/Twist is expected, not geometry_msgs/msg/Vector3" in run.stderr
-
-
-def test_a_cpp_model_with_a_ros2_interface_is_refused_for_now() -> None:
-    result = compile_file("tests/invalid/ros2_cpp_not_yet.yaml")
-    assert result.model is None
-    assert any(d.code == "E312" and "C++ components with a ros2 interface: not yet"
-               in d.message for d in result.diagnostics)

@@ -18,15 +18,18 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from pathlib import Path
 
 import jinja2
 
 from hfsmc.emit.comments import comment_text
+from hfsmc.emit.cpp_ros2 import interface_class, interface_header, ros2_files
 from hfsmc.emit.data import component_config
 from hfsmc.emit.templating import environment, runtime_files, template_folder
 from hfsmc.emit.walk import InstanceView, MachineView, Snippet, Walk
 from hfsmc.errors import EmitError, Span, fail
 from hfsmc.ir import Code, Model, Value
+from hfsmc.ros2files import model_distro
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
                  "viewstate.hpp", "monitor.hpp", "mcap.hpp", "record.hpp", "playback.hpp",
@@ -35,13 +38,17 @@ RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one libr
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp",), "camera": ("camera.hpp",),
-                   "driver": ("driver.hpp",)}
-# A driver's code, one library each (hfsmc_mavlink, hfsmc_camera): src/, beside the runtime's.
-INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",)}
+                   "driver": ("driver.hpp",),
+                   "ros2": ("ros2_interface.hpp", "ros2.hpp", "cdr.hpp", "ros2_wire.hpp")}
+# A driver's code, one library each (hfsmc_mavlink, hfsmc_camera, hfsmc_ros2): src/, beside
+# the runtime's; the library's first file names it.
+INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp",), "camera": ("hfsmc_camera.cpp",),
+                     "ros2": ("hfsmc_ros2.cpp", "hfsmc_ros2_wire.cpp", "hfsmc_ros2_interface.cpp")}
 # What each driver's library links against, besides hfsmc_runtime.
-_DRIVER_LINKS = {"mavlink": "Eigen3::Eigen", "camera": "${OpenCV_LIBS}"}
+_DRIVER_LINKS = {"mavlink": "Eigen3::Eigen", "camera": "${OpenCV_LIBS}",
+                 "ros2": "CycloneDDS::ddsc"}
 LIBRARY_SOURCES = frozenset(RUNTIME_SOURCES).union(*INTERFACE_SOURCES.values())
-INTERFACE_CLASSES = {"mavlink": "hfsmc::Mavlink", "camera": "hfsmc::Camera"}
+INTERFACE_CLASSES = {"mavlink": "hfsmc::Mavlink", "camera": "hfsmc::Camera"}  # ros2: generated
 _TYPES = {"bool": "bool", "int": "long long", "float": "double", "str": "std::string"}
 _BACK = "#line @HFSMC_BACK@ HFSMC_SOURCE"  # the line number is filled in after rendering
 
@@ -71,6 +78,7 @@ class InterfaceView:
     url: str  # C++ string literal
     options: str  # C++ initializer of a std::map<std::string, std::string>
     line_directive: str
+    settings: bool = False  # made from NAME.yaml's settings of it (ros2), not url and options
 
 
 def cpp_string(text: str) -> str:
@@ -202,6 +210,7 @@ class DriverLibraryView:
     """A driver's library (hfsmc_mavlink, hfsmc_camera), built from src/NAME.cpp."""
 
     name: str
+    sources: str  # its source files, under src/
     links: str  # what it links against, besides hfsmc_runtime
 
 
@@ -220,6 +229,9 @@ class CppComponentView:
     description_lines: tuple[str, ...]  # comment text
     includes: tuple[IncludeView, ...]
     driver_headers: tuple[str, ...]  # "hfsmc/mavlink.hpp", ...
+    # The generated classes of the ros2 interfaces: never precompiled (they differ between
+    # components of one CMake project that share a precompiled header set).
+    ros2_headers: tuple[str, ...]
     driver_libraries: tuple[DriverLibraryView, ...]  # in the order of driver_headers
     parameters: tuple[MemberView, ...]
     parameter_help: tuple[ParameterHelpView, ...]
@@ -241,6 +253,7 @@ class CppComponentView:
     instances: tuple[CppInstanceView, ...]
     line_back: str  # a #line back into the generated file (numbered after rendering)
     config: str  # the body of NAME.yaml
+    uses_ros2: bool  # Cyclone DDS is needed
     sources: tuple[tuple[str, str], ...]  # (path, text) as C++ string literals, for --record
     hash_literal: str  # the sources' hash
     version_literal: str  # hfsmc's version
@@ -301,10 +314,12 @@ class CppWalk(Walk[CppSnippet]):
         for i in m.interfaces:
             options = ", ".join(f"{{{cpp_string(k)}, {cpp_string(val)}}}" for k, val in i.options)
             cls = (i.declaration.cls if i.declaration is not None
+                   else interface_class(i.name) if i.ros2 is not None
                    else INTERFACE_CLASSES.get(i.type, "hfsmc::Unavailable"))
             interfaces.append(InterfaceView(
                 i.name, cls,
-                cpp_string(i.url or ""), "{" + options + "}", _line(self.file, i.span.line)))
+                cpp_string(i.url or ""), "{" + options + "}", _line(self.file, i.span.line),
+                i.ros2 is not None))
         return tuple(params), tuple(variables), tuple(interfaces)
 
     def unit_view(self) -> CppUnitView:
@@ -351,8 +366,12 @@ class CppWalk(Walk[CppSnippet]):
                            for i in imports),
             driver_headers=tuple(f"hfsmc/{INTERFACE_FILES[k][0]}" for k in sorted(kinds)
                                  if k in INTERFACE_FILES) + tuple(user_headers(m).values()),
-            driver_libraries=tuple(DriverLibraryView(f"hfsmc_{k}", _DRIVER_LINKS[k])
-                                   for k in sorted(kinds) if k in INTERFACE_SOURCES),
+            ros2_headers=tuple(interface_header(i.name) for i in m.interfaces if i.ros2 is not None),
+            driver_libraries=tuple(
+                DriverLibraryView(_library(m, k), " ".join(f"src/{f}" for f in INTERFACE_SOURCES[k]),
+                                  _DRIVER_LINKS[k])
+                for k in sorted(kinds) if k in INTERFACE_SOURCES),
+            uses_ros2="ros2" in kinds,
             parameters=params,
             parameter_help=tuple(
                 ParameterHelpView(cpp_string(p.name), cpp_string(p.type),
@@ -380,6 +399,15 @@ class CppWalk(Walk[CppSnippet]):
             hash_literal=cpp_string(machine.model_hash),
             version_literal=cpp_string(machine.version),
         )
+
+
+def _library(m: Model, kind: str) -> str:
+    """A driver's library: ``hfsmc_KIND``; ``hfsmc_ros2_DISTRO`` for ros2, whose node is
+    compiled with the distro's discovery message (components of two distros in one CMake
+    project each get theirs)."""
+    if kind == "ros2":
+        return f"hfsmc_ros2_{model_distro(m.interfaces)}"
+    return f"hfsmc_{kind}"
 
 
 def _automaton_states(machine: MachineView[CppSnippet]) -> tuple[tuple[int, ...], ...]:
@@ -502,6 +530,21 @@ def user_headers(model: Model) -> dict[str, str]:
     return out
 
 
+def generated_headers(model: Model) -> dict[str, str]:
+    """The headers a component includes that come from the model, not from the runtime, by
+    their path under include/: a user's driver headers, a ros2 interface's message types
+    and classes (what ``hfsmc check`` puts beside the runtime's)."""
+    out = {inc: i.cpp.text for i in model.interfaces if i.cpp is not None
+           for path, inc in user_headers(model).items() if path == i.cpp.path}
+    for path, text in ros2_files(model, _environment(), _base(model)).items():
+        out[path.removeprefix("include/")] = text
+    return out
+
+
+def _base(model: Model) -> str:
+    return Path(model.file).name
+
+
 def component_files(model: Model) -> dict[str, bytes]:
     """Every file of the C++ component folder, by relative path."""
     if model.language != "cpp":
@@ -523,6 +566,8 @@ def component_files(model: Model) -> dict[str, bytes]:
     for i in model.interfaces:  # a user's driver headers (docs/drivers.md)
         if i.cpp is not None and i.declaration is not None:
             out[f"include/{user_headers(model)[i.cpp.path]}"] = i.cpp.text.encode("utf-8")
+    for path, text in ros2_files(model, env, view.base).items():  # docs/ros2-cpp.md
+        out[path] = text.encode("utf-8")
     if any(i.type == "mavlink" for i in model.interfaces):
         from hfsmc.emit.mavgen import MavgenError, mavlink_headers
 

@@ -68,6 +68,8 @@ void check_absolute(const std::string& name, const std::string& what) {
     if (!token_ok(name.substr(start, end - start)))
       throw StartError(what + " '" + name + "': each part is letters, digits and '_', "
                        "not starting with a digit, with no '//'");
+    if (name.substr(start, end - start).find("__") != std::string::npos)
+      throw StartError(what + " '" + name + "': '__' is kept by ROS 2 for itself");
     start = end + 1;
   }
 }

@@ -250,7 +250,29 @@ public:
         return fallback;
     }
 
+    std::map<std::string, std::string> settings(const char* iface) const override {
+        std::map<std::string, std::string> out;
+        flatten(interface(iface), "", out);
+        return out;
+    }
+
 private:
+    static void flatten(const YAML::Node& node, const std::string& path, std::map<std::string, std::string>& out) {
+        if (!node || node.IsNull()) return;
+        if (node.IsMap()) {
+            for (const auto& kv : node) {
+                const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : YAML::Dump(kv.first);
+                flatten(kv.second, path.empty() ? key : path + "." + key, out);
+            }
+        } else if (node.IsScalar()) {
+            out[path] = node.Scalar();
+        } else {
+            std::string dump = YAML::Dump(node);
+            for (char& ch : dump) if (ch == '\n') ch = ' ';
+            out[path] = dump;
+        }
+    }
+
     static std::string trim(std::string s) {
         while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
         std::size_t k = 0;

@@ -65,6 +65,9 @@ public:
     virtual std::string url(const char* iface, const char* fallback) const = 0;
     virtual std::map<std::string, std::string> options(
         const char* iface, std::map<std::string, std::string> fallback) const = 0;
+    // Every value NAME.yaml gives an interface, by its dotted path (`subscribe.scan.topic`);
+    // nulls left out (a `ros2` interface's settings, docs/ros2.md).
+    virtual std::map<std::string, std::string> settings(const char* /*iface*/) const { return {}; }
 };
 
 // --- the tables a generated component hands to its engine -------------------------

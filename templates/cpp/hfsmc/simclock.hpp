@@ -25,6 +25,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <map>
 #include <thread>
 #include <vector>
 
@@ -44,15 +45,62 @@ struct Gone : std::runtime_error {  // the simulator has stopped, died or broken
 
 struct Step {  // the simulator's answer: at t, `sent` datagrams in all, its latest frame
     long long t = -1, sent = 0, frame = 0;
+    std::string line;  // the whole answer (the ground robot's `topics`)
 };
 
-class Synced {  // a driver that follows the simulator's time (Mavlink, Camera)
+class Synced {  // a driver that follows the simulator's time (Mavlink, Camera, ros2)
 public:
     virtual ~Synced() = default;
     virtual long long lockstep_sent() const = 0;
     // Wait until the driver holds what `step` says was sent; why not, or "".
     virtual std::string lockstep_sync(long long t_us, const Step& step) = 0;
+    // Over ROS 2 (the ground robot): the resolved topics the hello names,
+    virtual void lockstep_topics(std::vector<std::string>& /*subscribe*/,
+                                 std::vector<std::string>& /*publish*/) const {}
+    // what to do once the simulator has answered the hello (why not, or ""),
+    virtual std::string lockstep_started(const std::string& /*hello*/) { return std::string(); }
+    // and the samples published on each topic since connecting, for `next`.
+    virtual void lockstep_counts(std::map<std::string, long long>& /*published*/) const {}
 };
+
+// The members of an object member `"key":{"a":1,"b":2}` of flat numbers (topic counts).
+inline std::map<std::string, long long> counts_member(const std::string& line, const char* key) {
+    std::map<std::string, long long> out;
+    const std::string k = std::string("\"") + key + "\":{";
+    std::size_t at = line.find(k);
+    if (at == std::string::npos) return out;
+    at += k.size();
+    while (at < line.size() && line[at] == '"') {
+        const std::size_t close = line.find('"', at + 1);
+        if (close == std::string::npos || close + 1 >= line.size() || line[close + 1] != ':') break;
+        const std::string name = line.substr(at + 1, close - at - 1);
+        const char* p = line.c_str() + close + 2;
+        char* end = nullptr;
+        const long long v = std::strtoll(p, &end, 10);
+        if (end == p) break;
+        out[name] = v;
+        at = static_cast<std::size_t>(end - line.c_str());
+        if (at < line.size() && line[at] == ',') ++at;
+    }
+    return out;
+}
+
+// The strings of an array member `"key":["a","b"]` (topic names: no escapes).
+inline std::vector<std::string> names_member(const std::string& line, const char* key) {
+    std::vector<std::string> out;
+    const std::string k = std::string("\"") + key + "\":[";
+    std::size_t at = line.find(k);
+    if (at == std::string::npos) return out;
+    at += k.size();
+    while (at < line.size() && line[at] == '"') {
+        const std::size_t close = line.find('"', at + 1);
+        if (close == std::string::npos) break;
+        out.push_back(line.substr(at + 1, close - at - 1));
+        at = close + 1;
+        if (at < line.size() && line[at] == ',') ++at;
+    }
+    return out;
+}
 
 // A number member `"key":123` of one of the simulator's lines (flat JSON objects).
 inline bool member(const std::string& line, const char* key, long long* out) {
@@ -86,6 +134,12 @@ inline std::string json_text(const std::string& s) {
         if (static_cast<unsigned char>(c) >= 0x20) out += c;
     }
     return out + "\"";
+}
+
+inline std::string json_list(const std::vector<std::string>& items) {
+    std::string out;
+    for (const std::string& s : items) out += (out.empty() ? "" : ",") + json_text(s);
+    return "[" + out + "]";
 }
 
 class Client {
@@ -136,14 +190,24 @@ public:
             }
             std::this_thread::sleep_for(std::chrono::milliseconds(200));
         }
+        std::vector<std::string> subscribe, publish;
+        for (const Synced* d : drivers_) d->lockstep_topics(subscribe, publish);
+        std::string topics;
+        if (!subscribe.empty() || !publish.empty()) {  // over ROS 2: the resolved topics
+            topics = ",\"subscribe\":" + json_list(subscribe) + ",\"publish\":" + json_list(publish);
+        }
         send(std::string("{\"hello\":\"") + kProtocol + "\",\"version\":" + std::to_string(kVersion) +
-             ",\"component\":" + json_text(name) + "}");
+             ",\"component\":" + json_text(name) + topics + "}");
         const std::string hello = read();
         long long version = 0;
         if (text_member(hello, "hello") != kProtocol || !member(hello, "version", &version) ||
             version != kVersion)
             throw Gone(host_ + ":" + std::to_string(port_) +
                        " is not an hfsmc simulator in lockstep (it said " + hello.substr(0, 80) + ")");
+        for (Synced* d : drivers_) {
+            const std::string problem = d->lockstep_started(hello);
+            if (!problem.empty()) throw Gone(problem);
+        }
     }
 
     // Everything before t_us is done: step the simulator to it and wait until the drivers
@@ -153,12 +217,19 @@ public:
         try {
             long long sent = 0;
             for (const Synced* d : drivers_) sent += d->lockstep_sent();
-            send("{\"next\":" + std::to_string(t_us) + ",\"sent\":" + std::to_string(sent) + "}");
+            std::map<std::string, long long> published;
+            for (const Synced* d : drivers_) d->lockstep_counts(published);
+            std::string topics;
+            for (const auto& kv : published)
+                topics += (topics.empty() ? "" : ",") + json_text(kv.first) + ":" + std::to_string(kv.second);
+            send("{\"next\":" + std::to_string(t_us) + ",\"sent\":" + std::to_string(sent) +
+                 (published.empty() ? std::string() : ",\"topics\":{" + topics + "}") + "}");
             const std::string line = read();
             bool bye = false;
             const std::string why = text_member(line, "bye", &bye);
             if (bye) throw Gone("the simulator has stopped (" + why + ")");
             Step step;
+            step.line = line;
             if (!member(line, "t", &step.t) || step.t != t_us || !member(line, "sent", &step.sent) ||
                 !member(line, "frame", &step.frame))
                 throw Gone("the simulator broke the protocol: " + line.substr(0, 80));

@@ -1,0 +1,346 @@
+// hfsmc: the base of a C++ component's `ros2` interface (hfsmc/ros2_interface.hpp).
+#include "hfsmc/ros2_interface.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <set>
+#include <thread>
+#include <utility>
+
+#include "hfsmc/json.hpp"
+#include "hfsmc/playback.hpp"
+#include "hfsmc/runtime.hpp"
+
+namespace hfsmc {
+namespace ros2 {
+
+namespace {
+
+constexpr double kMatchWaitS = 10.0;   // discovery between the simulator's nodes and ours
+constexpr double kSampleWaitS = 10.0;  // the samples a step names (schemas/lockstep.md)
+
+std::string base64(const std::vector<std::uint8_t>& data) {
+  static const char* const abc = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  std::size_t k = 0;
+  for (; k + 2 < data.size(); k += 3) {
+    const unsigned v = (data[k] << 16) | (data[k + 1] << 8) | data[k + 2];
+    out += {abc[v >> 18], abc[(v >> 12) & 63], abc[(v >> 6) & 63], abc[v & 63]};
+  }
+  if (k + 1 == data.size()) {
+    const unsigned v = data[k] << 16;
+    out += {abc[v >> 18], abc[(v >> 12) & 63], '=', '='};
+  } else if (k + 2 == data.size()) {
+    const unsigned v = (data[k] << 16) | (data[k + 1] << 8);
+    out += {abc[v >> 18], abc[(v >> 12) & 63], abc[(v >> 6) & 63], '='};
+  }
+  return out;
+}
+
+// `reliability=best_effort,durability=volatile,depth=5` (the model's three keys) or a
+// profile's name; what is not written keeps the default profile's value.
+Qos parse_qos(const std::string& text) {
+  if (text.find('=') == std::string::npos) return Qos::profile(text);
+  Qos q = Qos::profile("default");
+  std::size_t start = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find(',', start);
+    if (end == std::string::npos) end = text.size();
+    const std::string item = text.substr(start, end - start);
+    const std::size_t eq = item.find('=');
+    const std::string key = item.substr(0, eq), value = eq == std::string::npos ? "" : item.substr(eq + 1);
+    if (key == "reliability" && (value == "reliable" || value == "best_effort")) {
+      q.reliable = value == "reliable";
+    } else if (key == "durability" && (value == "volatile" || value == "transient_local")) {
+      q.transient_local = value == "transient_local";
+    } else if (key == "depth" && !value.empty() && value.find_first_not_of("0123456789") == std::string::npos &&
+               value.size() < 7 && std::atoi(value.c_str()) >= 1) {
+      q.depth = std::atoi(value.c_str());
+    } else {
+      throw StartError("QoS `" + item + "`: reliability is reliable or best_effort, durability "
+                       "volatile or transient_local, depth a whole number from 1");
+    }
+    start = end + 1;
+  }
+  return q;
+}
+
+}  // namespace
+
+Interface::Interface(std::string name, const char* distro, const char* node, const char* ns, int domain,
+                     std::vector<TopicDecl> topics, const Settings& settings)
+    : name_(std::move(name)), sim_(simclock::current()) {
+  options_.node = node;
+  options_.ns = ns;
+  options_.domain = domain;
+  options_.distro = distro;
+  for (const TopicDecl& t : topics) {
+    Decl d;
+    d.key = t.key;
+    d.topic = t.topic;
+    d.type = t.type;
+    d.publication = t.publication;
+    d.qos = Qos::profile("default");
+    decls_.push_back(d);
+    settings_qos_.push_back(t.qos);
+  }
+  configure(settings, distro);
+  std::set<std::string> seen;
+  for (std::size_t k = 0; k < decls_.size(); ++k) {
+    Decl& d = decls_[k];
+    guard([&] {
+      d.qos = parse_qos(settings_qos_[k]);
+      d.topic = resolve_topic(d.topic, options_.ns, options_.node);
+    });
+  }
+  guard([&] { options_.domain = domain_id(options_.domain); });
+  if (playback::current() == nullptr) guard([&] { node_ = std::make_unique<Node>(options_); });
+  register_source(this);
+  if (sim_ != nullptr) sim_->add(this);
+}
+
+Interface::~Interface() {
+  if (sim_ != nullptr && simclock::current() == sim_) sim_->remove(this);
+  unregister_source(this);
+}
+
+void Interface::fail(const std::string& why) const { throw UsageError(name_ + ": ros2: " + why); }
+
+// NAME.yaml's keys over the model's: node, namespace, domain, each topic's topic and qos.
+void Interface::configure(const Settings& settings, const char* distro) {
+  const std::string where = "the configuration of interface `" + name_ + "`";
+  for (const auto& kv : settings) {
+    const std::string& key = kv.first;
+    const std::string& value = kv.second;
+    if (key == "node") {
+      options_.node = value;
+    } else if (key == "namespace") {
+      options_.ns = value.empty() || value[0] != '/' ? "/" + value : value;
+    } else if (key == "domain") {
+      char* end = nullptr;
+      const long id = std::strtol(value.c_str(), &end, 10);
+      if (value.empty() || *end != '\0' || id < 0 || id > 232)
+        fail(where + ": domain `" + value + "` is not a ROS 2 domain id (0 to 232)");
+      options_.domain = static_cast<int>(id);
+    } else if (key == "type") {
+      if (value != "ros2") fail(where + ": `type: " + value + "` differs from the model's (ros2): rebuild");
+    } else if (key == "distro") {
+      if (value != distro)
+        fail(where + ": `distro: " + value + "` differs from the model's (" + distro +
+             "): the messages are generated for it; change the model and rebuild");
+    } else if (key.rfind("subscribe.", 0) == 0 || key.rfind("publish.", 0) == 0) {
+      const bool pub = key[0] == 'p';
+      const std::string rest = key.substr(pub ? 8 : 10);
+      const std::size_t dot = rest.find('.');
+      const std::string entry = rest.substr(0, dot), field = dot == std::string::npos ? "" : rest.substr(dot + 1);
+      std::size_t k = 0;
+      while (k < decls_.size() && !(decls_[k].key == entry && decls_[k].publication == pub)) ++k;
+      if (k == decls_.size())
+        fail(where + ": `" + (pub ? "publish" : "subscribe") + "` has no `" + entry +
+             "` in the model: add it to the model and rebuild");
+      if (field == "topic") {
+        decls_[k].topic = value;
+      } else if (field == "type") {
+        if (value != decls_[k].type)
+          fail(where + ": `" + key + ": " + value + "` differs from the model's (" + decls_[k].type +
+               "): change the model and rebuild");
+      } else if (field == "qos") {
+        settings_qos_[k] = value;
+      } else if (field.rfind("qos.", 0) == 0) {
+        std::string& q = settings_qos_[k];
+        if (q.find('=') == std::string::npos) q.clear();  // a table replaces a profile
+        q += (q.empty() ? "" : ",") + field.substr(4) + "=" + value;
+      } else {
+        fail(where + ": `" + key + "`: a topic has topic, type and qos");
+      }
+    } else if ((key == "url" || key.rfind("options", 0) == 0) && value.empty()) {
+      // written empty by older files: nothing to change
+    } else {
+      fail(where + ": `" + key + "` is not a setting of a ros2 interface (the file may change "
+                   "node, namespace, domain and each topic's topic and qos)");
+    }
+  }
+}
+
+const Interface::Decl& Interface::decl(const char* key, bool publication, const char* ros_type) const {
+  for (const Decl& d : decls_)
+    if (d.key == key && d.publication == publication && d.type == ros_type) return d;
+  throw std::logic_error("hfsmc::ros2: `" + std::string(key) + "` is not declared as " + ros_type);
+}
+
+const Interface::Decl& Interface::published(const std::string& key, const char* ros_type) const {
+  std::string listed;
+  for (const Decl& d : decls_) {
+    if (!d.publication) continue;
+    if (d.key == key) {
+      if (d.type != ros_type)
+        throw std::invalid_argument(name_ + ".publish: `" + key + "` publishes " + d.type + ", not " + ros_type);
+      return d;
+    }
+    listed += (listed.empty() ? "" : ", ") + d.key;
+  }
+  throw std::invalid_argument(name_ + ".publish: `" + key + "` is not one of publish: " +
+                              (listed.empty() ? "none" : listed));
+}
+
+const Interface::Decl& Interface::subscribed(const std::string& key, const char* method) const {
+  const bool pub = std::string(method) == "subscribers";
+  std::string listed;
+  for (const Decl& d : decls_) {
+    if (d.publication != pub) continue;
+    if (d.key == key) return d;
+    listed += (listed.empty() ? "" : ", ") + d.key;
+  }
+  throw std::invalid_argument(name_ + "." + method + ": `" + key + "` is not one of " +
+                              (pub ? "publish" : "subscribe") + ": " + (listed.empty() ? "none" : listed));
+}
+
+void Interface::start() {
+  if (node_) guard([&] { node_->start(); });
+}
+
+double Interface::age(const std::string& key) const {
+  subscribed(key, "age");
+  return node_ ? node_->age(key) : std::numeric_limits<double>::infinity();
+}
+long Interface::count(const std::string& key) const {
+  subscribed(key, "count");
+  return node_ ? node_->count(key) : 0;
+}
+int Interface::publishers(const std::string& key) const {
+  subscribed(key, "publishers");
+  return node_ ? node_->publishers(key) : 0;
+}
+int Interface::subscribers(const std::string& key) const {
+  subscribed(key, "subscribers");
+  return node_ ? node_->subscribers(key) : 0;
+}
+long Interface::malformed(const std::string& key) const {
+  subscribed(key, "malformed");
+  return node_ ? node_->malformed(key) : 0;
+}
+std::string Interface::topic(const std::string& key) const {
+  for (const Decl& d : decls_)
+    if (d.key == key) return d.topic;
+  throw std::invalid_argument(name_ + ".topic: no topic `" + key + "`");
+}
+
+void Interface::send_bytes(const Decl& d, const std::vector<std::uint8_t>& cdr) {
+  sent("publish", "[" + json_string(d.key) + "," + json_string(base64(cdr)) + "]");
+  ++sent_[d.topic];
+  if (node_) node_->publish_bytes(d.key, cdr);
+}
+
+// -- Source ---------------------------------------------------------------------------------
+std::string Interface::source_config() const {
+  std::string subs, pubs;
+  for (const Decl& d : decls_) {
+    std::string& out = d.publication ? pubs : subs;
+    out += (out.empty() ? "" : ",") + json_string(d.key) + ":{\"topic\":" + json_string(d.topic) +
+           ",\"type\":" + json_string(d.type) + "}";
+  }
+  return "{\"type\":\"ros2\",\"url\":null,\"options\":{\"node\":" + json_string(options_.node) +
+         ",\"namespace\":" + json_string(options_.ns) + ",\"domain\":" + std::to_string(options_.domain) +
+         ",\"distro\":" + json_string(options_.distro) + ",\"subscribe\":{" + subs + "},\"publish\":{" + pubs +
+         "}}}";
+}
+
+void Interface::take_snapshot(long long t_us) {
+  snapshot_t_ = t_us;
+  if (node_) node_->take_snapshot();
+}
+
+std::string Interface::snapshot_fields() const {
+  std::string subs, pubs;
+  for (const Decl& d : decls_) {
+    if (d.publication) {
+      pubs += (pubs.empty() ? "" : ",") + json_string(d.key) + ":{\"subscribers\":" +
+              std::to_string(subscribers(d.key)) + "}";
+    } else {
+      subs += (subs.empty() ? "" : ",") + json_string(d.key) + ":{\"age\":" + json_number(age(d.key)) +
+              ",\"count\":" + std::to_string(count(d.key)) + ",\"publishers\":" +
+              std::to_string(publishers(d.key)) + "}";
+    }
+  }
+  return "\"subscribe\":{" + subs + "},\"publish\":{" + pubs + "}";
+}
+
+std::string Interface::snapshot_schema() const {
+  return "{\"title\": \"What the automaton saw of a ros2 interface during one instant\", \"type\": \"object\", "
+         "\"properties\": {\"t\": {\"type\": \"integer\"}, \"subscribe\": {\"type\": \"object\", "
+         "\"additionalProperties\": {\"type\": \"object\", \"properties\": {\"age\": {\"type\": [\"number\", "
+         "\"string\"]}, \"count\": {\"type\": \"integer\"}, \"publishers\": {\"type\": \"integer\"}}}}, "
+         "\"publish\": {\"type\": \"object\", \"additionalProperties\": {\"type\": \"object\", \"properties\": "
+         "{\"subscribers\": {\"type\": \"integer\"}}}}}}";
+}
+
+// -- lockstep (schemas/lockstep.md, "Over ROS 2") ---------------------------------------------
+void Interface::lockstep_topics(std::vector<std::string>& subscribe, std::vector<std::string>& publish) const {
+  for (const Decl& d : decls_) (d.publication ? publish : subscribe).push_back(d.topic);
+}
+
+std::string Interface::lockstep_started(const std::string& hello) {
+  if (!node_) return std::string();
+  const std::vector<std::string> theirs_out = simclock::names_member(hello, "publish");
+  const std::vector<std::string> theirs_in = simclock::names_member(hello, "subscribe");
+  const std::set<std::string> out(theirs_out.begin(), theirs_out.end()), in(theirs_in.begin(), theirs_in.end());
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(kMatchWaitS);
+  for (;;) {
+    node_->take_snapshot();
+    std::string missing;
+    for (const Decl& d : decls_) {
+      const bool matched = d.publication ? (in.count(d.topic) == 0 || node_->subscribers(d.key) > 0)
+                                         : (out.count(d.topic) == 0 || node_->publishers(d.key) > 0);
+      if (!matched) missing += (missing.empty() ? "" : ", ") + d.topic;
+    }
+    if (missing.empty()) break;
+    if (std::chrono::steady_clock::now() > end) {
+      std::fprintf(stderr, "%s: ros2: lockstep: %s did not match the simulator's in %g s (going on)\n",
+                   name_.c_str(), missing.c_str(), kMatchWaitS);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  for (const Decl& d : decls_)
+    if (!d.publication) base_[d.key] = node_->count(d.key);
+  sent_.clear();
+  return std::string();
+}
+
+void Interface::lockstep_counts(std::map<std::string, long long>& published) const {
+  for (const Decl& d : decls_) {
+    if (!d.publication) continue;
+    const auto it = sent_.find(d.topic);
+    published[d.topic] = it == sent_.end() ? 0 : it->second;
+  }
+}
+
+std::string Interface::lockstep_sync(long long t_us, const simclock::Step& step) {
+  if (!node_) return std::string();
+  const std::map<std::string, long long> want = simclock::counts_member(step.line, "topics");
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(kSampleWaitS);
+  for (;;) {
+    node_->take_snapshot();
+    std::string short_of;
+    for (const Decl& d : decls_) {
+      if (d.publication) continue;
+      const auto w = want.find(d.topic);
+      const long held = node_->count(d.key) - base_[d.key];
+      if (w != want.end() && held < w->second)
+        short_of += (short_of.empty() ? "" : ", ") + d.topic + " " + std::to_string(held) + " of " +
+                    std::to_string(w->second);
+    }
+    if (short_of.empty()) return std::string();
+    if (std::chrono::steady_clock::now() > end) {
+      char text[64];
+      std::snprintf(text, sizeof text, " in %g s", kSampleWaitS);
+      return name_ + ": ros2: the samples the simulator sent before " + std::to_string(t_us) +
+             " us did not all come (" + short_of + ")" + text;
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+  }
+}
+
+}  // namespace ros2
+}  // namespace hfsmc
