@@ -49,7 +49,7 @@ from cyclonedds.util import duration
 
 
 @dataclass
-class Int64_(IdlStruct, typename="std_msgs::msg::dds_::Int64_"):  # noqa: N801 (ROS 2's name)
+class Int64_(IdlStruct, typename="std_msgs::msg::dds_::Int64_"):  # ROS 2's DDS name
     """std_msgs/msg/Int64 as a plain cyclonedds-python user declares it."""
 
     data: int64
