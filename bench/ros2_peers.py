@@ -69,7 +69,7 @@ def _bare_entities(topic: str) -> tuple[Any, Any, Any]:
 
 def bare_pub(topic: str, seconds: float, rate: float) -> int:
     dp, top, (kind, qos) = _bare_entities(topic)
-    writer = DataWriter(dp, top, qos=qos)
+    writer: Any = DataWriter(dp, top, qos=qos)  # the binding's status calls are untyped
     end = time.monotonic() + seconds
     while writer.get_publication_matched_status().current_count == 0:
         if time.monotonic() > end:

@@ -41,7 +41,6 @@ from hfsmc.frontend.legacy.reader import Reader
 from hfsmc.ir import HELPERS, RESERVED_PREFIX
 from hfsmc.ros2.definitions import ros2_type_name, standard_types
 
-
 # ROS 1's tf.transformations.euler_from_quaternion: hfsmc's helper of that name instead
 TF_EULER = re.compile(r"(?<![\w.])tf\s*\.\s*transformations\s*\.\s*euler_from_quaternion\b")
 
