@@ -9,11 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parent.parent
-
-pytest.importorskip("cyclonedds")
 
 
 def test_ros2_bench_quick_python(tmp_path: Path) -> None:
