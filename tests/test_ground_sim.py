@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import math
+import re
+from pathlib import Path
 from typing import Any
 
 import pytest
 from ruamel.yaml import YAML
 
 from hfsmc.sim.ground.base import CENTRE, LEFT
+from hfsmc.sim.ground.geometry import nearest
 from hfsmc.sim.ground.sim import STEP_S, Bumper, GroundSim, Odometry, Reading, Scan
-from hfsmc.sim.ground.world import GroundWorld, parse_ground_world
+from hfsmc.sim.ground.world import GroundWorld, load_ground_world, parse_ground_world
 from hfsmc.sim.world import WorldError
 
 ROOM = """\
@@ -143,3 +146,20 @@ def test_coverage_counts_the_cells_a_base_can_reach() -> None:
     walled_off = GroundSim(world("walls: [[[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]], "
                                  "[[3, 0], [3, 4]]]\nrobots: [{x: 1, y: 1}]"))
     assert len(walled_off.cells.reachable) < len(open_room.cells.reachable) * 0.6
+
+
+GROUND_WORLDS = sorted(p for p in Path("examples").glob("*/world.yaml")
+                       if re.search(r"^(walls|robots):", p.read_text(), re.M))
+
+
+def test_the_ground_example_worlds_are_there() -> None:
+    assert {p.parent.name for p in GROUND_WORLDS} >= {"bump_and_go", "wall_follower",
+                                                       "stop_at_wall"}
+
+
+@pytest.mark.parametrize("path", GROUND_WORLDS, ids=lambda p: p.parent.name)
+def test_a_ground_example_world_loads_and_its_robots_can_move(path: Path) -> None:
+    sim = GroundSim(load_ground_world(path))
+    assert len(sim.cells.reachable) > 50  # a room to drive in, not a box around the start
+    for r in sim.robots:  # nobody starts touching a wall or a box
+        assert r.contact is None and nearest(r.pose.x, r.pose.y, sim.walls)[0] > r.limits.radius

@@ -246,7 +246,7 @@ def test_the_live_views_show_simulated_time_and_its_rate(
         msgs = c.until(lambda m: m["type"] == "sample" and m["t"] > 3000)
         samples = [m for m in msgs if m["type"] == "sample"][-5:]
         assert samples and all(0 <= m["sim_rate"] <= 6.0 for m in samples), samples
-        assert msgs[0]["minor"] == 2
+        assert msgs[0]["minor"] >= 2  # sim_rate came with minor 2
     finally:
         sim.kill()
         sim.wait(timeout=20)

@@ -36,6 +36,10 @@ from typing import IO, Any
 from hfsmc.fsutil import write_atomic
 from hfsmc.sim import lockstep
 from hfsmc.sim.autopilot import Autopilot
+from hfsmc.sim.options import OutputError, open_outputs
+from hfsmc.sim.options import fail as _fail
+from hfsmc.sim.options import seconds as _seconds
+from hfsmc.sim.options import speedup as _speedup
 from hfsmc.sim.px4 import SOURCE_PORT, Px4
 from hfsmc.sim.telemetry import latlon
 from hfsmc.sim.vehicle import Body
@@ -335,11 +339,6 @@ def _r(x: float, digits: int) -> float:
     return round(x, digits) + 0.0
 
 
-def _seconds(text: str) -> float:
-    v = float(text)
-    if not math.isfinite(v) or v < 0:
-        raise argparse.ArgumentTypeError(f"expected seconds (>= 0), not {text!r}")
-    return v
 
 
 def _param(text: str) -> tuple[str, float]:
@@ -353,15 +352,6 @@ def _param(text: str) -> tuple[str, float]:
     return name.strip().upper(), number
 
 
-def _speedup(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not math.isfinite(v) or v <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive rate (10: ten times real time), "
-                                         f"not {text!r}")
-    return v
 
 
 def _port(text: str) -> int:
@@ -433,9 +423,6 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def _fail(text: str) -> int:
-    print(f"hfsmc: error: {text}", file=sys.stderr)
-    return 2
 
 
 def _camera_module() -> tuple[Any, str]:
@@ -503,20 +490,10 @@ def main(argv: list[str]) -> int:
         return _fail(f"--mavlink {args.mavlink}: cannot send{port}: {e.strerror or e}"
                      + (" (another PX4 simulator? --source-port 0 sends from any port)"
                         if source else ""))
-    server = None
-    if args.lockstep is not None:
-        try:
-            server = lockstep.Server(args.lockstep)
-        except (ValueError, OSError) as e:
-            link.close()
-            return _fail(f"--lockstep {args.lockstep}: {e}")
     try:
-        truth_log = None if args.truth_log is None else open(args.truth_log, "w")  # noqa: SIM115
-    except OSError as e:
-        link.close()
-        if server is not None:
-            server.close()
-        return _fail(f"--truth-log {args.truth_log}: {e.strerror or e}")
+        server, truth_log = open_outputs(args, link.close)
+    except OutputError as e:
+        return _fail(str(e))
     boot = BOOT_TIMES[args.autopilot] if args.boot_time is None else args.boot_time
     sim = Simulator(world, link, boot_time=boot, truth=args.truth, autopilot=args.autopilot,
                     drop_after=args.drop_link_after,

@@ -21,10 +21,13 @@ from types import FrameType
 from typing import IO, Any
 
 from hfsmc.fsutil import write_atomic
-from hfsmc.sim import lockstep
 from hfsmc.sim.ground import lockstep as ground_lockstep
 from hfsmc.sim.ground.sim import STEP_S, GroundSim
 from hfsmc.sim.ground.world import load_ground_world
+from hfsmc.sim.options import OutputError, open_outputs
+from hfsmc.sim.options import fail as _fail
+from hfsmc.sim.options import seconds as _seconds
+from hfsmc.sim.options import speedup as _speedup
 from hfsmc.sim.world import WorldError
 
 ROBOTS = ("diffdrive",)
@@ -106,24 +109,8 @@ class GroundRun:
                 signal.signal(s, h)
 
 
-def _seconds(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = -1.0
-    if not 0 <= v < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected seconds (>= 0), not {text!r}")
-    return v
 
 
-def _speedup(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not math.isfinite(v) or v <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive rate, not {text!r}")
-    return v
 
 
 def parser() -> argparse.ArgumentParser:
@@ -157,9 +144,6 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def _fail(text: str) -> int:
-    print(f"hfsmc: error: {text}", file=sys.stderr)
-    return 2
 
 
 def main(argv: list[str]) -> int:
@@ -180,20 +164,10 @@ def main(argv: list[str]) -> int:
         nodes = GroundNodes(sim, args.domain, args.distro)
     except NodeError as e:
         return _fail(str(e))
-    server = None
-    if args.lockstep is not None:
-        try:
-            server = lockstep.Server(args.lockstep)
-        except (ValueError, OSError) as e:
-            nodes.close()
-            return _fail(f"--lockstep {args.lockstep}: {e}")
     try:
-        truth_log = None if args.truth_log is None else open(args.truth_log, "w")  # noqa: SIM115
-    except OSError as e:
-        nodes.close()
-        if server is not None:
-            server.close()
-        return _fail(f"--truth-log {args.truth_log}: {e.strerror or e}")
+        server, truth_log = open_outputs(args, nodes.close)
+    except OutputError as e:
+        return _fail(str(e))
     run = GroundRun(sim, nodes, args.truth, truth_log)
     try:
         with run.signals():
