@@ -42,7 +42,11 @@ def drive(tmp: Path, world: str, namespace: str, seconds: float, linear: float
                                  timeout=seconds + 60, check=True, cwd=ROOT)
         finally:
             proc.send_signal(signal.SIGINT)
-            _, err = proc.communicate(timeout=30)
+            try:
+                _, err = proc.communicate(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()  # never left behind
+                _, err = proc.communicate()
     assert proc.returncode == 0, err
     truth = json.loads((tmp / "truth.json").read_text())["robots"]
     return json.loads(out.stdout), err.decode(), truth
@@ -125,7 +129,11 @@ def lockstep_run(tmp: Path, world: str) -> tuple[list[dict[str, Any]], dict[str,
         finally:
             if proc.poll() is None and out_failed(locals().get("out")):
                 proc.send_signal(signal.SIGINT)
-            _, err = proc.communicate(timeout=30)
+            try:
+                _, err = proc.communicate(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()  # never left behind
+                _, err = proc.communicate()
         assert out.returncode == 0, out.stderr
     assert proc.returncode == 0, err
     assert b"lockstep: component peer connected" in err
