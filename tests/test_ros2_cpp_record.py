@@ -135,7 +135,7 @@ def test_the_cpp_recordings_topics_decode_as_ros2_messages(recordings: dict[str,
         decoded: dict[str, list[int]] = {}
         for _, ch, _, msg in make_reader(f, decoder_factories=[DecoderFactory()]) \
                 .iter_decoded_messages(topics=["/a_to_b", "/b_to_a"]):
-            decoded.setdefault(ch.topic, []).append(msg.data)  # type: ignore[attr-defined]
+            decoded.setdefault(ch.topic, []).append(msg.data)
     assert decoded["/a_to_b"] == list(range(len(decoded["/a_to_b"])))  # what it published
     assert decoded["/b_to_a"][:5] == [0, 1, 2, 3, 4]  # what it read, each in its instant
 
