@@ -5,6 +5,7 @@ seconds), judged on the simulator's truth (docs/worlds.md, "Ground robots")."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -22,9 +23,10 @@ COVERAGE_BOUND = 0.2
 
 
 def drive(tmp: Path, component: Path, world: Path, seconds: int,
-          config: Path | None = None) -> tuple[dict[str, Any], str, str]:
-    """Run a built Python component against the simulator in lockstep: the robot's truth,
-    the component's trace (JSON lines) and its stderr."""
+          config: Path | None = None, *more: str) -> tuple[dict[str, Any], str, str]:
+    """Run a built component (Python, or a C++ executable) against the simulator in
+    lockstep: the robot's truth, the component's trace (JSON lines) and its stderr."""
+    command = [sys.executable, str(component)] if component.suffix == ".py" else [str(component)]
     port = free_port()
     truth = tmp / "truth.json"
     with ros2_domain() as dom:
@@ -33,9 +35,9 @@ def drive(tmp: Path, component: Path, world: Path, seconds: int,
                                 "--lockstep", str(port)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         try:
-            run = subprocess.run([sys.executable, str(component), "--clock", f"sim:{port}",
+            run = subprocess.run([*command, "--clock", f"sim:{port}",
                                   "--until", f"{seconds}s", "--trace", str(tmp / "trace.jsonl"),
-                                  *(["--config", str(config)] if config else [])],
+                                  *(["--config", str(config)] if config else []), *more],
                                  capture_output=True, text=True, timeout=300,
                                  env={"ROS_DOMAIN_ID": str(dom), "PATH": "/usr/bin:/bin"})
         finally:
@@ -141,3 +143,42 @@ def test_no_usable_network_is_one_line_and_exit_2(bump_and_go: Path) -> None:
     assert ours == ["robot: ros2: cannot join ROS 2 domain 0: Cyclone DDS found no usable "
                     "network interface (CYCLONEDDS_URI is set: look at its network settings)"]
     assert "Traceback" not in run.stderr
+
+
+@pytest.fixture(scope="module")
+def bump_and_go_cpp(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from tests.cppbuild import Superbuild
+
+    model = ROOT / "examples" / "bump_and_go_cpp" / "bump_and_go_cpp.yaml"
+    sb = Superbuild(tmp_path_factory.mktemp("bump_and_go_cpp"), [model], build_type="Release")
+    sb.build()
+    return sb.executable(model)
+
+
+def test_bump_and_go_cpp_drives_as_its_python_twin_and_replays_across(
+        tmp_path: Path, bump_and_go: Path, bump_and_go_cpp: Path) -> None:
+    """The C++ twin: 120 s without a collision, above the Python bound; it draws its random
+    headings as Python's random.Random(seed), so the two runs are the same (truth and trace);
+    each recording replays identical with the other twin (docs/ros2.md, "Recordings")."""
+    world = ROOT / "examples" / "bump_and_go" / "world.yaml"
+    runs = {}
+    for lang, component in (("cpp", bump_and_go_cpp), ("python", bump_and_go)):
+        (tmp_path / lang).mkdir()
+        runs[lang] = drive(tmp_path / lang, component, world, 120, None,
+                           "--record", str(tmp_path / lang / "run.mcap"))
+    robot, trace, err = runs["cpp"]
+    assert robot["collisions"] == [], robot["collisions"]
+    assert robot["coverage"] >= COVERAGE_BOUND, robot["coverage"]
+    assert err.count("Turn: turning to") >= 3, err
+    assert robot == runs["python"][0]  # poses, trail, coverage: the same run
+    assert trace.replace('"name":"bump_and_go_cpp"', '"name":"bump_and_go"') == runs["python"][1]
+    for recorded, model, label in (
+            ("cpp", "examples/bump_and_go/bump_and_go.yaml", "(cpp -> python)"),
+            ("python", "examples/bump_and_go_cpp/bump_and_go_cpp.yaml", "(python -> cpp)")):
+        done = hfsmc("replay", str(tmp_path / recorded / "run.mcap"), "--model", model,
+                     timeout=600)
+        assert done.returncode == 0, done.stdout + done.stderr
+        found = re.search(rf"{re.escape(label)}: identical: (\d+) trace records, (\d+) commands, "
+                          r"0-120\.000 s", done.stdout)
+        assert found is not None, done.stdout
+        assert int(found[2]) > 2000  # every publish of 120 s at 20 Hz, compared by its bytes

@@ -44,7 +44,8 @@ INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp"), "camera": ("camera.hpp
 # the runtime's; the library's first file names it.
 INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_px4.cpp"),
                      "camera": ("hfsmc_camera.cpp",),
-                     "ros2": ("hfsmc_ros2.cpp", "hfsmc_ros2_wire.cpp", "hfsmc_ros2_interface.cpp")}
+                     "ros2": ("hfsmc_ros2.cpp", "hfsmc_ros2_wire.cpp", "hfsmc_ros2_interface.cpp",
+                              "hfsmc_ros2_playback.cpp")}
 # What each driver's library links against, besides hfsmc_runtime.
 _DRIVER_LINKS = {"mavlink": "Eigen3::Eigen", "camera": "${OpenCV_LIBS}",
                  "ros2": "CycloneDDS::ddsc"}

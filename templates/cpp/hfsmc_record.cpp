@@ -79,6 +79,7 @@ void Recorder::start(const Run& run) {
 
 void Recorder::snapshot(const Source& s, long long t) {
     write(channels_[&s].snapshot, t, "{\"t\":" + std::to_string(t) + "," + s.snapshot_fields() + "}");
+    if (!broken_) s.record_raw(*this, t);
 }
 
 // A frame (its JPEG or PNG, base64) a snippet obtained first at instant t; `crc`: the CRC-32
@@ -96,6 +97,25 @@ void Recorder::frame(const Source& s, long long t, long count, const char* forma
 void Recorder::command(const Source& s, long long t, const char* call, const std::string& args) {
     write(channels_[&s].command, t,
           "{\"t\":" + std::to_string(t) + ",\"call\":" + json_string(call) + ",\"args\":" + args + "}");
+}
+
+void Recorder::raw(const Source& s, long long t, const RawChannel& channel, const std::uint8_t* data,
+                   std::size_t size) {
+    guard([&] {
+        const auto key = std::make_pair(&s, channel.key);
+        auto found = raw_.find(key);
+        if (found == raw_.end()) {
+            const std::string kind = channel.schema_encoding + std::string(1, '\0') + channel.schema;
+            auto schema = raw_schemas_.find(kind);
+            if (schema == raw_schemas_.end())
+                schema = raw_schemas_.emplace(kind, w_->add_schema(channel.schema, channel.schema_encoding,
+                                                                   channel.schema_data)).first;
+            found = raw_.emplace(key, w_->add_channel(channel.topic, channel.encoding, schema->second,
+                                                      channel.metadata)).first;
+        }
+        const std::uint64_t at = log_time(t);
+        w_->write(found->second, at, at, data, size);
+    });
 }
 
 void Recorder::skip(long long t, const std::string& automaton, long long deadline, long long missed) {

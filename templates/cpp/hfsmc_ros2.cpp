@@ -343,6 +343,10 @@ const std::vector<std::uint8_t>& Node::bytes(const std::string& key) const {
   return e.snap_bytes ? *e.snap_bytes : none;
 }
 
+std::shared_ptr<const std::vector<std::uint8_t>> Node::shared_bytes(const std::string& key) const {
+  return find(key).snap_bytes;
+}
+
 double Node::age(const std::string& key) const { return find(key).snap_age; }
 long Node::count(const std::string& key) const { return find(key).snap_count; }
 long Node::malformed(const std::string& key) const { return find(key).snap_bad; }

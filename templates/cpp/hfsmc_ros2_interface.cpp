@@ -86,6 +86,8 @@ Interface::Interface(std::string name, const char* distro, const char* node, con
     settings_qos_.push_back(t.qos);
   }
   configure(settings, distro);
+  for (const Decl& d : decls_) written_.push_back(d.topic);
+  domain_given_ = options_.domain;
   std::set<std::string> seen;
   for (std::size_t k = 0; k < decls_.size(); ++k) {
     Decl& d = decls_[k];
@@ -95,7 +97,9 @@ Interface::Interface(std::string name, const char* distro, const char* node, con
     });
   }
   guard([&] { options_.domain = domain_id(options_.domain); });
-  if (playback::current() == nullptr) guard([&] { node_ = std::make_unique<Node>(options_); });
+  inputs_ = playback::current();
+  if (inputs_ == nullptr) guard([&] { node_ = std::make_unique<Node>(options_); });
+  snap_.resize(decls_.size());
   register_source(this);
   if (sim_ != nullptr) sim_->add(this);
 }
@@ -163,8 +167,8 @@ void Interface::configure(const Settings& settings, const char* distro) {
   }
 }
 
-const Interface::Decl& Interface::decl(const char* key, bool publication, const char* ros_type) const {
-  for (const Decl& d : decls_)
+Interface::Decl& Interface::decl(const char* key, bool publication, const char* ros_type) {
+  for (Decl& d : decls_)
     if (d.key == key && d.publication == publication && d.type == ros_type) return d;
   throw std::logic_error("hfsmc::ros2: `" + std::string(key) + "` is not declared as " + ros_type);
 }
@@ -198,27 +202,35 @@ const Interface::Decl& Interface::subscribed(const std::string& key, const char*
 
 void Interface::start() {
   if (node_) guard([&] { node_->start(); });
+  if (inputs_ != nullptr) read_script();
 }
 
+// The queries read this instant's snapshot (snap_); with --playback each tells the evidence
+// what it reads (the subscription's or publication's name), as the Python fake does.
 double Interface::age(const std::string& key) const {
-  subscribed(key, "age");
-  return node_ ? node_->age(key) : std::numeric_limits<double>::infinity();
+  const Decl& d = subscribed(key, "age");
+  evidence_.asked("age", d.key.c_str());
+  return snap_[index(d)].age;
 }
 long Interface::count(const std::string& key) const {
-  subscribed(key, "count");
-  return node_ ? node_->count(key) : 0;
+  const Decl& d = subscribed(key, "count");
+  evidence_.asked("count", d.key.c_str());
+  return snap_[index(d)].count;
 }
 int Interface::publishers(const std::string& key) const {
-  subscribed(key, "publishers");
-  return node_ ? node_->publishers(key) : 0;
+  const Decl& d = subscribed(key, "publishers");
+  evidence_.asked("publishers", d.key.c_str());
+  return snap_[index(d)].matched;
 }
 int Interface::subscribers(const std::string& key) const {
-  subscribed(key, "subscribers");
-  return node_ ? node_->subscribers(key) : 0;
+  const Decl& d = subscribed(key, "subscribers");
+  evidence_.asked("subscribers", d.key.c_str());
+  return snap_[index(d)].matched;
 }
 long Interface::malformed(const std::string& key) const {
-  subscribed(key, "malformed");
-  return node_ ? node_->malformed(key) : 0;
+  const Decl& d = subscribed(key, "malformed");
+  evidence_.asked("malformed", d.key.c_str());
+  return snap_[index(d)].dropped;
 }
 std::string Interface::topic(const std::string& key) const {
   for (const Decl& d : decls_)
@@ -228,51 +240,116 @@ std::string Interface::topic(const std::string& key) const {
 
 void Interface::send_bytes(const Decl& d, const std::vector<std::uint8_t>& cdr) {
   sent("publish", "[" + json_string(d.key) + "," + json_string(base64(cdr)) + "]");
+  if (Recorder* r = recorder()) r->raw(*this, snapshot_t_, raw_channel(d), cdr.data(), cdr.size());
   ++sent_[d.topic];
   if (node_) node_->publish_bytes(d.key, cdr);
 }
 
 // -- Source ---------------------------------------------------------------------------------
+// The settings in force, as the Python runtime records them (its `connect` settings): each
+// topic as written (unresolved) with its QoS, a profile's name or {reliability, durability,
+// depth}; the domain as set (null: $ROS_DOMAIN_ID, else 0).
 std::string Interface::source_config() const {
   std::string subs, pubs;
-  for (const Decl& d : decls_) {
+  for (std::size_t k = 0; k < decls_.size(); ++k) {
+    const Decl& d = decls_[k];
+    const std::string& q = settings_qos_[k];
+    std::string qos = json_string(q);
+    if (q.find('=') != std::string::npos) {
+      qos.clear();
+      std::size_t start = 0;
+      while (start < q.size()) {
+        std::size_t end = q.find(',', start);
+        if (end == std::string::npos) end = q.size();
+        const std::string item = q.substr(start, end - start);
+        const std::size_t eq = item.find('=');
+        const std::string key = item.substr(0, eq), value = item.substr(eq + 1);
+        qos += (qos.empty() ? "{" : ",") + json_string(key) + ":" + (key == "depth" ? value : json_string(value));
+        start = end + 1;
+      }
+      qos += "}";
+    }
     std::string& out = d.publication ? pubs : subs;
-    out += (out.empty() ? "" : ",") + json_string(d.key) + ":{\"topic\":" + json_string(d.topic) +
-           ",\"type\":" + json_string(d.type) + "}";
+    out += (out.empty() ? "" : ",") + json_string(d.key) + ":{\"topic\":" + json_string(written_[k]) +
+           ",\"type\":" + json_string(d.type) + ",\"qos\":" + qos + "}";
   }
   return "{\"type\":\"ros2\",\"url\":null,\"options\":{\"node\":" + json_string(options_.node) +
-         ",\"namespace\":" + json_string(options_.ns) + ",\"domain\":" + std::to_string(options_.domain) +
+         ",\"namespace\":" + json_string(options_.ns) + ",\"domain\":" +
+         (domain_given_ < 0 ? std::string("null") : std::to_string(domain_given_)) +
          ",\"distro\":" + json_string(options_.distro) + ",\"subscribe\":{" + subs + "},\"publish\":{" + pubs +
          "}}}";
 }
 
 void Interface::take_snapshot(long long t_us) {
   snapshot_t_ = t_us;
-  if (node_) node_->take_snapshot();
+  if (!node_) {
+    fake_snapshot(t_us);
+    return;
+  }
+  node_->take_snapshot();
+  for (std::size_t k = 0; k < decls_.size(); ++k) {
+    const Decl& d = decls_[k];
+    Snap& s = snap_[k];
+    if (d.publication) {
+      s.matched = node_->subscribers(d.key);
+      continue;
+    }
+    s.age = node_->age(d.key);
+    s.count = node_->count(d.key);
+    s.dropped = node_->malformed(d.key);
+    s.matched = node_->publishers(d.key);
+    s.cdr = node_->shared_bytes(d.key);
+  }
 }
 
+// As the Python runtime writes it (schemas/recording.md): per subscription count, age,
+// publishers, dropped; per publication its subscribers. Read from snap_: no query is asked.
 std::string Interface::snapshot_fields() const {
   std::string subs, pubs;
-  for (const Decl& d : decls_) {
+  for (std::size_t k = 0; k < decls_.size(); ++k) {
+    const Decl& d = decls_[k];
+    const Snap& s = snap_[k];
     if (d.publication) {
-      pubs += (pubs.empty() ? "" : ",") + json_string(d.key) + ":{\"subscribers\":" +
-              std::to_string(subscribers(d.key)) + "}";
+      pubs += (pubs.empty() ? "" : ",") + json_string(d.key) + ":" + std::to_string(s.matched);
     } else {
-      subs += (subs.empty() ? "" : ",") + json_string(d.key) + ":{\"age\":" + json_number(age(d.key)) +
-              ",\"count\":" + std::to_string(count(d.key)) + ",\"publishers\":" +
-              std::to_string(publishers(d.key)) + "}";
+      subs += (subs.empty() ? "" : ",") + json_string(d.key) + ":{\"count\":" + std::to_string(s.count) +
+              ",\"age\":" + json_number(s.age) + ",\"publishers\":" + std::to_string(s.matched) +
+              ",\"dropped\":" + std::to_string(s.dropped) + "}";
     }
   }
-  return "\"subscribe\":{" + subs + "},\"publish\":{" + pubs + "}";
+  return "\"subscriptions\":{" + subs + "},\"subscribers\":{" + pubs + "}";
 }
 
+// The text the Python recorder registers (json.dumps of its schema), so both are alike.
 std::string Interface::snapshot_schema() const {
-  return "{\"title\": \"What the automaton saw of a ros2 interface during one instant\", \"type\": \"object\", "
-         "\"properties\": {\"t\": {\"type\": \"integer\"}, \"subscribe\": {\"type\": \"object\", "
-         "\"additionalProperties\": {\"type\": \"object\", \"properties\": {\"age\": {\"type\": [\"number\", "
-         "\"string\"]}, \"count\": {\"type\": \"integer\"}, \"publishers\": {\"type\": \"integer\"}}}}, "
-         "\"publish\": {\"type\": \"object\", \"additionalProperties\": {\"type\": \"object\", \"properties\": "
-         "{\"subscribers\": {\"type\": \"integer\"}}}}}}";
+  return "{\"title\": \"What the automaton saw of its ROS 2 topics during one instant\", \"type\": "
+         "\"object\", \"properties\": {\"t\": {\"type\": \"integer\"}, \"subscriptions\": {\"type\": "
+         "\"object\", \"additionalProperties\": {\"type\": \"object\", \"properties\": {\"count\": "
+         "{\"type\": \"integer\", \"description\": \"samples arrived since start\"}, \"age\": {\"type\": "
+         "[\"number\", \"string\"], \"description\": \"s; inf: none yet\"}, \"publishers\": {\"type\": "
+         "\"integer\"}, \"dropped\": {\"type\": \"integer\"}}}}, \"subscribers\": {\"type\": \"object\", "
+         "\"additionalProperties\": {\"type\": \"integer\"}}}}";
+}
+
+// A subscription's or publication's channel in the recording: the resolved topic, the
+// message's ros2msg definition, cdr bytes, and whose it is (as hfsmc_ros2.py names it).
+RawChannel Interface::raw_channel(const Decl& d) const {
+  const char* role = d.publication ? "publication" : "subscription";
+  return RawChannel{std::string(role) + "/" + d.key, d.topic, d.type, "ros2msg", d.definition, "cdr",
+                    {{"hfsmc.interface", name_}, {std::string("hfsmc.") + role, d.key}}};
+}
+
+// A subscription's sample is written once, at the instant whose snapshot it first enters.
+void Interface::record_raw(Recorder& r, long long t_us) const {
+  for (std::size_t k = 0; k < decls_.size(); ++k) {
+    const Decl& d = decls_[k];
+    const Snap& s = snap_[k];
+    if (d.publication || s.cdr == nullptr) continue;
+    const auto last = recorded_.find(d.key);
+    if (last != recorded_.end() && last->second == s.count) continue;
+    recorded_[d.key] = s.count;
+    r.raw(*this, t_us, raw_channel(d), s.cdr->data(), s.cdr->size());
+  }
 }
 
 // -- lockstep (schemas/lockstep.md, "Over ROS 2") ---------------------------------------------

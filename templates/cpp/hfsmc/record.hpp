@@ -47,6 +47,14 @@ inline std::string json_value(const std::string& v) { return json_string(v); }
 
 class Recorder;
 
+// A channel of raw bytes a driver keeps of its own (a `ros2` interface's topic: `cdr`
+// messages, a `ros2msg` schema), registered when its first message is written.
+struct RawChannel {
+    std::string key;  // the driver's name for it (`subscription/scan`), unique per driver
+    std::string topic, schema, schema_encoding, schema_data, encoding;
+    std::vector<std::pair<std::string, std::string>> metadata;
+};
+
 // The recorder of this run, nullptr without --record.
 inline Recorder*& recorder() {
     static Recorder* r = nullptr;
@@ -66,6 +74,9 @@ public:
     virtual std::string snapshot_fields() const = 0;
     // A user driver's JSON Schema of its snapshot (hfsmc/driver.hpp); "" for the built-in ones.
     virtual std::string snapshot_schema() const { return std::string(); }
+    // After the snapshot's JSON: what the driver writes on channels of its own this instant
+    // (a ros2 interface's new samples, Recorder::raw).
+    virtual void record_raw(Recorder& /*r*/, long long /*t_us*/) const {}
 
 protected:
     // A command a snippet gave: to the recording, and with --playback to DIR/commands.jsonl.
@@ -143,6 +154,9 @@ public:
     void frame(const Source& s, long long t, long count, const char* format, const std::string& data_base64,
                std::uint32_t crc);
     void command(const Source& s, long long t, const char* call, const std::string& args);
+    // Bytes on a driver's own channel (registered with its schema at its first message).
+    void raw(const Source& s, long long t, const RawChannel& channel, const std::uint8_t* data,
+             std::size_t size);
     void skip(long long t, const std::string& automaton, long long deadline, long long missed);
     void signal(long long t, const std::string& reason, long long ticks);
     // A trace record (its line without the newline) at logical time t (us).
@@ -175,6 +189,8 @@ private:
     std::unique_ptr<mcap::Writer> w_;
     std::uint64_t start_ns_ = 0;
     std::map<const Source*, Channels> channels_;
+    std::map<std::pair<const Source*, std::string>, std::uint16_t> raw_;  // a driver's own channels
+    std::map<std::string, std::uint16_t> raw_schemas_;  // by encoding NUL name
     std::uint16_t skip_ = 0, signal_ = 0, trace_ = 0;
     bool broken_ = false;
 };

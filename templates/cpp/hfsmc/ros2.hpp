@@ -108,6 +108,8 @@ class Node {
   }
   /// Its CDR bytes (for the recording): empty before the first.
   const std::vector<std::uint8_t>& bytes(const std::string& key) const;
+  /// The same bytes, shared (null before the first): kept by a recording without a copy.
+  std::shared_ptr<const std::vector<std::uint8_t>> shared_bytes(const std::string& key) const;
   double age(const std::string& key) const;          // seconds; +inf before the first
   long count(const std::string& key) const;          // samples received since start
   long malformed(const std::string& key) const;      // samples dropped as malformed

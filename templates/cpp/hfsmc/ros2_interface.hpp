@@ -15,8 +15,13 @@
 //   publishers(), subscribers() and the typed queries read it until the next instant;
 // - publish(): a command, told to the recording (`/hfsmc/command/NAME`, the message's CDR
 //   bytes in base64) and then sent at once;
-// - with --playback (hfsmc replay, hfsmc test) no node is made: nothing arrives, and a
-//   publish is recorded but never sent;
+// - with --record, each topic on a channel of its own (the resolved name, the message's
+//   `ros2msg` schema, `cdr` bytes): a subscription's sample when it first enters a snapshot,
+//   each publish as sent; the JSON snapshot as Python writes it (schemas/recording.md);
+// - with --playback (hfsmc replay, hfsmc test) no node is made: the interface is a fake fed
+//   from the script's snapshot entries, each sample decoded from its recorded CDR bytes at
+//   start (src/hfsmc_ros2_playback.cpp, the twin of hfsmc_ros2_playback.py), and a publish
+//   is recorded but never sent;
 // - with --clock sim (the ground robot in lockstep, schemas/lockstep.md "Over ROS 2") the
 //   hello names the resolved topics, each `next` says how many samples were published on
 //   each topic since connecting, and before an instant the interface waits (bounded) until
@@ -25,6 +30,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -80,6 +86,7 @@ class Interface : public Source, public simclock::Synced {
   void take_snapshot(long long t_us) override;
   std::string snapshot_fields() const override;
   std::string snapshot_schema() const override;
+  void record_raw(Recorder& r, long long t_us) const override;
 
   // -- simclock::Synced: lockstep with `hfsmc sim --robot diffdrive` ---------------------
   long long lockstep_sent() const override { return 0; }
@@ -97,21 +104,28 @@ class Interface : public Source, public simclock::Synced {
 
   template <class T>
   void subscribe(const char* key) {
-    const Decl& d = decl(key, false, cdr::Traits<T>::ros_type);
+    Decl& d = decl(key, false, cdr::Traits<T>::ros_type);
+    d.definition = cdr::Traits<T>::definition;
+    d.decode = [](const std::uint8_t* data, std::size_t size) -> std::shared_ptr<const void> {
+      return std::make_shared<const T>(cdr::deserialize<T>(data, size));
+    };
     if (node_) guard([&] { node_->subscribe<T>(d.key, d.topic, d.qos); });
   }
   template <class T>
   void advertise(const char* key) {
-    const Decl& d = decl(key, true, cdr::Traits<T>::ros_type);
+    Decl& d = decl(key, true, cdr::Traits<T>::ros_type);
+    d.definition = cdr::Traits<T>::definition;
     if (node_) guard([&] { node_->advertise<T>(d.key, d.topic, d.qos); });
   }
-  /// After the declarations: the node joins the graph.
+  /// After the declarations: the node joins the graph (with --playback: the script is read).
   void start();
 
   /// The latest message of subscription `key` in this instant's snapshot.
   template <class T>
   const T* latest(const char* key) const {
-    return node_ ? node_->get<T>(key) : nullptr;
+    if (node_) return node_->get<T>(key);
+    evidence_.asked(key, key);
+    return static_cast<const T*>(fake_message(key));
   }
   /// Publish `msg` on publication `key`: recorded, then sent (live only).
   template <class T>
@@ -121,10 +135,43 @@ class Interface : public Source, public simclock::Synced {
   }
 
  private:
+  using Decode = std::function<std::shared_ptr<const void>(const std::uint8_t*, std::size_t)>;
   struct Decl {
     std::string key, topic, type;
     Qos qos;
     bool publication = false;
+    const char* definition = "";  // ros2msg, for the recording's channel
+    Decode decode;                // a subscription's: CDR bytes to its message
+  };
+  /// With --playback: what the script gave a subscription so far (hfsmc_ros2_playback.cpp).
+  struct Fed {
+    long count = 0;
+    double age = -1;      // < 0: not given (the time since the latest sample's entry)
+    int publishers = -1;  // < 0: not given (1 from the first sample on)
+    long dropped = 0;
+    std::shared_ptr<const void> msg;
+    std::shared_ptr<const std::vector<std::uint8_t>> cdr;
+    long long arrived = -1;  // the time of the latest sample's entry, us
+  };
+  /// What one script entry gives a subscription: the fields it names.
+  struct Given {
+    std::size_t k = 0;  // the declaration
+    bool count = false, age = false, publishers = false, dropped = false, cdr = false;
+    Fed values;
+  };
+  /// One script entry of this interface, converted and checked at start.
+  struct FedEntry {
+    long long t;
+    std::vector<Given> subs;
+    std::vector<std::pair<std::size_t, int>> subscribers;  // declaration index, count
+  };
+  /// This instant's snapshot of one declaration (a fake's, or the node's copied).
+  struct Snap {
+    double age = std::numeric_limits<double>::infinity();
+    long count = 0, dropped = 0;
+    int matched = 0;
+    const void* msg = nullptr;
+    std::shared_ptr<const std::vector<std::uint8_t>> cdr;
   };
   template <class F>
   void guard(F&& f) {
@@ -136,19 +183,38 @@ class Interface : public Source, public simclock::Synced {
   }
   [[noreturn]] void fail(const std::string& why) const;
   void configure(const Settings& settings, const char* distro);
-  const Decl& decl(const char* key, bool publication, const char* ros_type) const;
+  Decl& decl(const char* key, bool publication, const char* ros_type);
   const Decl& published(const std::string& key, const char* ros_type) const;
   const Decl& subscribed(const std::string& key, const char* method) const;
   void send_bytes(const Decl& d, const std::vector<std::uint8_t>& cdr);
+  std::size_t index(const Decl& d) const { return static_cast<std::size_t>(&d - decls_.data()); }
+  RawChannel raw_channel(const Decl& d) const;
+  // -- the playback fake (hfsmc_ros2_playback.cpp) --------------------------------------
+  void read_script();
+  FedEntry convert(const playback::Entry& e, std::vector<std::string>& missing) const;
+  void fake_snapshot(long long t_us);
+  const void* fake_message(const char* key) const;
 
   std::string name_;
   Options options_;
   std::vector<Decl> decls_;
   std::vector<std::string> settings_qos_;  // per declaration, its QoS as written
+  std::vector<std::string> written_;       // per declaration, its topic as written (the settings)
+  int domain_given_ = -1;                  // the domain as set (-1: $ROS_DOMAIN_ID), for the recording
   std::unique_ptr<Node> node_;  // null with --playback
   simclock::Client* sim_ = nullptr;
   std::map<std::string, long long> sent_;  // per resolved topic, published since connecting
   std::map<std::string, long> base_;       // per subscription, received before the lockstep began
+  std::vector<Snap> snap_;                 // per declaration, this instant's
+  mutable std::map<std::string, long> recorded_;  // per subscription, the count last recorded
+  // --playback
+  playback::Inputs* inputs_ = nullptr;
+  std::vector<FedEntry> script_;
+  std::vector<playback::Entry> marks_;  // per script entry: its time and what it lacks
+  std::size_t next_ = 0;
+  std::vector<Fed> fed_;                 // per declaration
+  std::vector<int> fed_subscribers_;     // per declaration (publications)
+  playback::Evidence evidence_;
 };
 
 }  // namespace ros2
