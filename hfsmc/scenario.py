@@ -38,7 +38,8 @@ MAVLINK_FIELDS: dict[str, str] = {
     "connected": "bool", "heartbeat_age": "number", "ready": "bool", "armed": "bool",
     "vehicle": "bool", "mode": "str", "type": "int", "position": "vector",
     "velocity": "vector", "altitude": "number", "yaw": "number", "battery": "int",
-    "acks": "acks",
+    "acks": "acks", "location": "vector", "home": "vector", "status_text": "str",
+    "battery_failsafe": "str",
 }
 CAMERA_FIELDS: dict[str, str] = {"image": "image", "world": "world", "rate": "number"}
 FIELDS = {"mavlink": MAVLINK_FIELDS, "camera": CAMERA_FIELDS}

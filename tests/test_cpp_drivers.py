@@ -283,7 +283,9 @@ def test_flight_in_the_simulator(drivers: Path, tmp_path: Path) -> None:
     with simulator(tmp_path, port, "--no-camera"), \
             scenario(drivers, "flight", str(port), tmp_path) as s:
         err = passed(s, 90)
-    said = err.splitlines()
+    texts = [line for line in err.splitlines() if line.startswith("drone: ArduPilot: ")]
+    assert texts[:1] == ["drone: ArduPilot: Arm: Mode STABILIZE not armable"], err  # STATUSTEXT
+    said = [line for line in err.splitlines() if line not in texts]
     assert said[0] == f"drone: vehicle 1/1 on udpin:127.0.0.1:{port}, mode STABILIZE", said
     assert said[1] in ("drone: arm FAILED", "drone: arm DENIED"), said
     assert said[2:] == ["drone: set_mode GUIDED accepted", "drone: arm accepted",
@@ -330,6 +332,21 @@ def test_px4_in_the_simulator(drivers: Path, tmp_path: Path) -> None:
                  "drone: land accepted"):
         assert line in said, (line, said)
     assert said.count("drone: set_mode GUIDED (OFFBOARD) accepted") == 1, said  # never fought
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_mission_api_in_the_simulator(drivers: Path, tmp_path: Path, autopilot: str) -> None:
+    """The C++ mission API on both autopilots, as the Python one in tests/test_mission_api.py."""
+    from hfsmc.sim.telemetry import latlon
+    from hfsmc.sim.world import World
+    lat, lon = (x / 1e7 for x in latlon(World().home, 12.0, 9.0))
+    port = free_port(socket.SOCK_DGRAM)
+    extra = ("--autopilot", "px4", "--source-port", "0") if autopilot == "px4" else ()
+    with simulator(tmp_path, port, "--no-camera", "--boot-time", "4", *extra), \
+            scenario(drivers, f"mission:{lat!r},{lon!r}", str(port), tmp_path) as s:
+        err = passed(s, 200)
+    name = "RTL_RETURN_ALT set to 12" if autopilot == "px4" else "RTL_ALT set to 1200"
+    assert f"drone: rtl: {name}" in err.splitlines(), err
 
 
 def test_garbage_datagrams_do_not_break_the_reader(drivers: Path, tmp_path: Path) -> None:

@@ -46,7 +46,8 @@ def test_check_knows_every_public_method_of_the_imported_driver(kind: str) -> No
 
 def test_commands_are_what_the_scenarios_expect_and_script() -> None:
     assert commands_of("mavlink") == ("set_mode", "arm", "disarm", "takeoff", "land", "rtl",
-                                      "hold", "set_velocity", "goto")
+                                      "hold", "set_velocity", "goto", "goto_location",
+                                      "set_yaw")
     assert acknowledged("mavlink") == ("set_mode", "arm", "disarm", "takeoff", "land", "rtl")
     assert commands_of("camera") == () and commands_of("ros_topic") == ()
     # the docs' list of last_ack's commands is the driver's

@@ -23,6 +23,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from hfsmc.sim import failsafe
 from hfsmc.sim.telemetry import Telemetry, ned
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
@@ -122,6 +123,7 @@ class Autopilot:
         self.takeoff_point: tuple[float, float] | None = None
         self.landing_point: tuple[float, float] | None = None
         self.takeoffs = self.landings = 0
+        self.battery_level = failsafe.OK  # the battery failsafe's level, latched
         self._after_ack: list[str] = []
         self._handlers: dict[str, Callable[[Any], None]] = {
             "COMMAND_LONG": self._on_command_long, "COMMAND_INT": self._on_command_int,
@@ -162,6 +164,7 @@ class Autopilot:
             "MOT_SPOOL_TIME": 0.5, "TKOFF_SLEW_TIME": 2.0,
             "RTL_ALT": 1500, "RTL_LOIT_TIME": 5000,
             "DISARM_DELAY": 10, "WP_YAW_BEHAVIOR": 2, "ARMING_CHECK": 1,
+            **failsafe.ARDUPILOT_PARAMS,
         }
 
     # -- the loop's two entry points -----------------------------------------------
@@ -246,6 +249,32 @@ class Autopilot:
         if b.armed and not b.landed and b.energy_wh <= 0 and self.mode != LAND:
             self._text(M.MAV_SEVERITY_CRITICAL, "Battery empty: LAND")
             self.set_mode(LAND)
+        self._battery_failsafe()
+
+    def battery_grade(self) -> int:
+        """The battery failsafe's level now (failsafe.OK ... EMERGENCY)."""
+        return failsafe.ardupilot_level(self.params, self.body.voltage)
+
+    def battery_action(self, level: int) -> tuple[str, int]:
+        """What reaching a level does: (STATUSTEXT, the mode to switch to or -1)."""
+        mode = {"LAND": LAND, "RTL": RTL}.get(failsafe.ardupilot_action(self.params, level), -1)
+        return failsafe.ARDUPILOT_TEXT.get(min(level, failsafe.CRITICAL), ""), mode
+
+    def _battery_failsafe(self) -> None:
+        """A new, worse level: said once, acted on as the parameters say (in the air)."""
+        b = self.body
+        level = self.battery_grade() if b.armed else failsafe.OK
+        if level <= self.battery_level:
+            return
+        self.battery_level = level
+        text, mode = self.battery_action(level)
+        self.log(f"battery failsafe: level {level} ({text})")
+        self._text(M.MAV_SEVERITY_CRITICAL, text)
+        if mode >= 0 and not b.landed and self.mode != mode and self.mode != LAND:
+            self._failsafe_mode(mode)
+
+    def _failsafe_mode(self, mode: int) -> None:
+        self.set_mode(mode)
 
     @property
     def land_detect_time(self) -> float:

@@ -32,6 +32,7 @@ import math
 from collections.abc import Callable
 from typing import Any, ClassVar
 
+from hfsmc.sim import failsafe
 from hfsmc.sim.autopilot import ACCEPTED, DENIED, FAR, UNSUPPORTED, Autopilot, M, _sane
 from hfsmc.sim.telemetry import SENSORS, Telemetry
 from hfsmc.sim.vehicle import Body
@@ -76,7 +77,8 @@ class Px4Telemetry(Telemetry):
     RATES: ClassVar[dict[str, float]] = {"HEARTBEAT": 1.0, "SYS_STATUS": 5.0, "GPS_RAW_INT": 5.0,
              "EXTENDED_SYS_STATE": 5.0, "ATTITUDE": 50.0, "ATTITUDE_QUATERNION": 50.0,
              "LOCAL_POSITION_NED": 50.0, "GLOBAL_POSITION_INT": 50.0, "ALTITUDE": 50.0,
-             "VFR_HUD": 50.0, "HOME_POSITION": 0.0, "POSITION_TARGET_LOCAL_NED": 50.0}
+             "VFR_HUD": 50.0, "HOME_POSITION": 0.0, "POSITION_TARGET_LOCAL_NED": 50.0,
+             "BATTERY_STATUS": 0.5}
 
     def __init__(self, ap: Px4) -> None:
         super().__init__(ap)
@@ -201,7 +203,7 @@ class Px4(Autopilot):
             "MPC_LAND_ALT1": 10.0, "MPC_LAND_ALT2": 5.0, "MIS_TAKEOFF_ALT": 2.5,
             "COM_DISARM_LAND": 2.0, "COM_DISARM_PRFLT": 10.0, "COM_OF_LOSS_T": 1.0,
             "COM_OBL_RC_ACT": 0, "RTL_RETURN_ALT": 60.0, "RTL_DESCEND_ALT": 30.0,
-            "RTL_CONE_ANG": 45.0, "NAV_ACC_RAD": 2.0,
+            "RTL_CONE_ANG": 45.0, "NAV_ACC_RAD": 2.0, **failsafe.PX4_PARAMS,
         }
 
     def _apply_params(self) -> None:
@@ -277,6 +279,18 @@ class Px4(Autopilot):
         if b.armed and not b.landed and b.energy_wh <= 0 and self.mode != LAND:
             self.text(M.MAV_SEVERITY_CRITICAL, "Failsafe: battery empty, landing")
             self._enter(LAND)
+        self._battery_failsafe()
+
+    def battery_grade(self) -> int:
+        return failsafe.px4_level(self.params, self.body.battery_fraction)
+
+    def battery_action(self, level: int) -> tuple[str, int]:
+        mode = {"LAND": LAND, "RTL": RTL}.get(failsafe.px4_action(self.params, level), -1)
+        return failsafe.PX4_TEXT[level], mode
+
+    def _failsafe_mode(self, mode: int) -> None:
+        self.failsafe = "battery"
+        self._enter(mode)
 
     def _on_event(self, event: str) -> None:
         super()._on_event(event)
@@ -448,7 +462,10 @@ class Px4(Autopilot):
             return
         dist = math.hypot(b.north, b.east)
         cone = math.tan(math.radians(max(1.0, min(89.0, p["RTL_CONE_ANG"]))))
-        wanted = max(p["RTL_DESCEND_ALT"], min(p["RTL_RETURN_ALT"], dist / cone))
+        # the cone lowers the return near home, never below RTL_DESCEND_ALT (nor above
+        # RTL_RETURN_ALT, which may be the lower of the two)
+        floor = min(p["RTL_DESCEND_ALT"], p["RTL_RETURN_ALT"])
+        wanted = max(floor, min(p["RTL_RETURN_ALT"], dist / cone))
         self.rtl_alt = max(b.altitude, wanted)
         n, e, _ = b.stopping_point()
         b.goto(n, e, -self.rtl_alt)

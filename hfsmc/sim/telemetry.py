@@ -15,7 +15,8 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from hfsmc.sim.vehicle import Body, wrap_pi
+from hfsmc.sim.failsafe import CHARGE_STATE as CHARGE_STATES
+from hfsmc.sim.vehicle import CELLS, Body, wrap_pi
 from hfsmc.sim.world import Home, World
 
 
@@ -28,6 +29,7 @@ class Source(Protocol):
     world: World
     mode: int
     ready: bool
+    battery_level: int
 
     @property
     def navigating(self) -> bool: ...
@@ -48,7 +50,7 @@ SENSORS = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
 DEFAULT_RATES = {  # Hz; 0: only when asked (HOME_POSITION is also sent once, when ready)
     "HEARTBEAT": 1.0, "SYS_STATUS": 1.0, "GLOBAL_POSITION_INT": 10.0,
     "LOCAL_POSITION_NED": 10.0, "ATTITUDE": 10.0, "GPS_RAW_INT": 2.0,
-    "EKF_STATUS_REPORT": 2.0, "VFR_HUD": 2.0, "HOME_POSITION": 0.0,
+    "EKF_STATUS_REPORT": 2.0, "VFR_HUD": 2.0, "HOME_POSITION": 0.0, "BATTERY_STATUS": 0.0,
 }
 STREAMS = {  # REQUEST_DATA_STREAM's groups, as ArduPilot fills them
     M.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "GPS_RAW_INT"),
@@ -85,7 +87,7 @@ class Telemetry:
             "LOCAL_POSITION_NED": self._local_position, "ATTITUDE": self._attitude,
             "GPS_RAW_INT": self._gps, "EKF_STATUS_REPORT": self._ekf,
             "VFR_HUD": self._vfr_hud, "HOME_POSITION": self._home,
-            "AUTOPILOT_VERSION": self._version,
+            "AUTOPILOT_VERSION": self._version, "BATTERY_STATUS": self._battery_status,
         }
 
     def steps(self, hz: float) -> int:
@@ -215,6 +217,15 @@ class Telemetry:
         throttle = 0 if b.landed else min(100, round(100 * b.power_w / (2 * b.cfg.hover_w)))
         ap.mav.vfr_hud_send(speed, speed, round(math.degrees(b.yaw)) % 360, throttle,
                             ap.world.home.alt + b.altitude, -b.vd)
+
+    def _battery_status(self) -> None:
+        """BATTERY_STATUS, with the failsafe's level as charge_state (both autopilots)."""
+        ap, b = self.ap, self.ap.body
+        cells = [round(b.voltage * 1000 / CELLS)] * CELLS + [65535] * (10 - CELLS)
+        ap.mav.battery_status_send(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO,
+                                   32767, cells, round(b.current * 100), -1, -1,
+                                   round(100 * b.battery_fraction), 0,
+                                   CHARGE_STATES[ap.battery_level])
 
     def _home(self) -> None:
         ap = self.ap

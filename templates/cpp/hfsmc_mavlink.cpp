@@ -207,7 +207,10 @@ std::string Mavlink::snapshot_fields() const {
          ",\"altitude\":" + json_number(snap_.altitude) + ",\"velocity\":" + triple(snap_.velocity) +
          ",\"yaw\":" + json_number(snap_.yaw) + ",\"battery\":" + std::to_string(snap_.battery) +
          ",\"acks\":{" + acks + "},\"vehicle\":" + (snap_.vehicle ? "true" : "false") +
-         ",\"type\":" + std::to_string(snap_.type) + ",\"autopilot\":" + std::to_string(snap_.autopilot);
+         ",\"type\":" + std::to_string(snap_.type) + ",\"autopilot\":" + std::to_string(snap_.autopilot) +
+         ",\"location\":" + triple(snap_.location) + ",\"home\":" + triple(snap_.home) +
+         ",\"status_text\":" + json_string(snap_.status_text) +
+         ",\"battery_failsafe\":" + json_string(snap_.battery_failsafe);
 }
 
 // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
@@ -264,15 +267,10 @@ bool Mavlink::land() {
   return command("land", "land", MAV_CMD_NAV_LAND, {});
 }
 
-/// Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode).
-bool Mavlink::rtl() {
-  sent("rtl", "[]");
-  return command("rtl", "rtl", MAV_CMD_NAV_RETURN_TO_LAUNCH, {});
-}
-
 /// Stop where the vehicle is: a zero velocity target (GUIDED).
 bool Mavlink::hold() {
   sent("hold", "[]");
+  aim_ = Aim{};
   return target_local(MAV_FRAME_BODY_OFFSET_NED, kVelocityMask, {0, 0, 0}, {0, 0, 0}, 0);
 }
 
@@ -281,15 +279,9 @@ bool Mavlink::hold() {
 bool Mavlink::set_velocity(double vx, double vy, double vz, double yaw_rate) {
   sent("set_velocity", "[" + json_number(vx) + "," + json_number(vy) + "," + json_number(vz) + "," +
                            json_number(yaw_rate) + "]");
+  aim_ = Aim{};
   return target_local(MAV_FRAME_BODY_OFFSET_NED, kVelocityMask, {0, 0, 0}, {vx, vy, vz},
                       yaw_rate);
-}
-
-/// Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt).
-/// `goto` in Python; a C++ keyword, hence the underscore (recorded as `goto`).
-bool Mavlink::go_to(double north, double east, double alt) {
-  sent("goto", "[" + json_number(north) + "," + json_number(east) + "," + json_number(alt) + "]");
-  return target_local(MAV_FRAME_LOCAL_NED, kPositionMask, {north, east, -alt}, {0, 0, 0}, 0);
 }
 
 /// Stop the reader and close the socket (also done by the destructor).
@@ -345,6 +337,10 @@ Mavlink::Snap Mavlink::live_snapshot() const {
     n.type = s_.type;
     n.autopilot = px4() ? px4::kAutopilotPx4 : s_.autopilot;
     if (px4() && s_.heartbeat_seen) n.mode = px4::mode_name(s_.custom_mode);
+    n.location = s_.location;
+    n.home = s_.home;
+    n.status_text = s_.status_text;
+    n.battery_failsafe = s_.battery_failsafe;
     flags = s_.ekf_flags;
     fix = s_.gps_fix;
     prearm = s_.prearm;
@@ -380,6 +376,10 @@ void Mavlink::apply(Snap& s, const playback::Entry& e) const {
     else if (key == "vehicle") s.vehicle = in.boolean(v, k, e.line);
     else if (key == "type") s.type = static_cast<int>(in.whole(v, k, e.line));
     else if (key == "autopilot") s.autopilot = static_cast<int>(in.whole(v, k, e.line));
+    else if (key == "location") s.location = vector();
+    else if (key == "home") s.home = vector();
+    else if (key == "status_text") s.status_text = in.text(v, k, e.line);
+    else if (key == "battery_failsafe") s.battery_failsafe = in.text(v, k, e.line);
     else if (key == "acks") {
       if (v.kind != json::Value::OBJECT) in.bad(e.line, "`acks` must be an object");
       s.acks.clear();
@@ -452,7 +452,7 @@ void Mavlink::send_command(uint8_t system, uint8_t component, const Pending& p, 
 }
 
 bool Mavlink::target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Eigen::Vector3d vel,
-                  double yaw_rate) {
+                  double yaw_rate, double yaw) {
   if (!snap_.vehicle) return false;  // a stream of targets: nothing to say
   uint8_t system, component;
   if (inputs_ != nullptr || !target(&system, &component)) return true;
@@ -466,6 +466,7 @@ bool Mavlink::target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Ei
     t.vel[i] = vel[i];
   }
   t.yaw_rate = yaw_rate;
+  t.yaw = yaw;
   send_target(t);
   if (on_px4) offboard_->target(now_s(), t);
   return true;
@@ -478,12 +479,40 @@ void Mavlink::send_target(const px4::Target& t) {  // SET_POSITION_TARGET_LOCAL_
       std::chrono::duration_cast<std::chrono::milliseconds>(now() - start_).count());
   std::lock_guard<std::mutex> lock(link_);
   mavlink_message_t msg;
+  if (t.global) {  // lat, lon in degE7; the altitude above home
+    mavlink_msg_set_position_target_global_int_pack_status(
+        sysid_, kGcsComponent, &wire_->tx_status, &msg, boot_ms, system, component, t.frame,
+        t.mask, static_cast<int32_t>(std::nearbyint(t.pos[0] * 1e7)),
+        static_cast<int32_t>(std::nearbyint(t.pos[1] * 1e7)), static_cast<float>(t.pos[2]), 0, 0,
+        0, 0, 0, 0, static_cast<float>(t.yaw), 0);
+    send(msg);
+    return;
+  }
   mavlink_msg_set_position_target_local_ned_pack_status(
       sysid_, kGcsComponent, &wire_->tx_status, &msg, boot_ms, system, component, t.frame, t.mask,
       static_cast<float>(t.pos[0]), static_cast<float>(t.pos[1]), static_cast<float>(t.pos[2]),
       static_cast<float>(t.vel[0]), static_cast<float>(t.vel[1]), static_cast<float>(t.vel[2]),
-      0, 0, 0, 0, static_cast<float>(t.yaw_rate));
+      0, 0, 0, static_cast<float>(t.yaw), static_cast<float>(t.yaw_rate));
   send(msg);
+}
+
+void Mavlink::send_rtl_altitude(double alt) {  // a PARAM_SET: RTL_ALT in cm, PX4's in m
+  uint8_t system, component;
+  if (!target(&system, &component)) return;
+  const bool on_px4 = px4();
+  const char* name = on_px4 ? "RTL_RETURN_ALT" : "RTL_ALT";
+  const double value = on_px4 ? alt : std::nearbyint(alt * 100);
+  {
+    std::lock_guard<std::mutex> lock(link_);
+    mavlink_message_t msg;
+    char id[16] = {};  // mavgen copies all 16 bytes: a padded buffer, not the literal
+    std::strncpy(id, name, sizeof id);
+    mavlink_msg_param_set_pack_status(sysid_, kGcsComponent, &wire_->tx_status, &msg, system,
+                                      component, id, static_cast<float>(value),
+                                      on_px4 ? MAV_PARAM_TYPE_REAL32 : MAV_PARAM_TYPE_INT16);
+    send(msg);
+  }
+  say(std::string("rtl: ") + name + " set to " + fmt(value));
 }
 
 void Mavlink::send(const mavlink_message_t& msg) {  // under link_
@@ -505,6 +534,8 @@ void Mavlink::request_rates() {
       {"ATTITUDE", {MAVLINK_MSG_ID_ATTITUDE, fast}},
       {"SYS_STATUS", {MAVLINK_MSG_ID_SYS_STATUS, slow}},
       {"GPS_RAW_INT", {MAVLINK_MSG_ID_GPS_RAW_INT, slow}},
+      {"BATTERY_STATUS", {MAVLINK_MSG_ID_BATTERY_STATUS, slow}},
+      {"HOME_POSITION", {MAVLINK_MSG_ID_HOME_POSITION, 1e6 / kHomeRateHz}},
       {"EKF_STATUS_REPORT", {MAVLINK_MSG_ID_EKF_STATUS_REPORT, slow}},
   };
   for (const auto& r : rates) {
@@ -621,7 +652,7 @@ void Mavlink::handle(const mavlink_message_t& msg) {
   }
   if (msg.msgid == MAVLINK_MSG_ID_STATUSTEXT) {
     uint8_t system, component;
-    if (px4() && target(&system, &component) && msg.sysid == system) on_statustext(msg);
+    if (target(&system, &component) && msg.sysid == system) on_statustext(msg);
     return;
   }
   std::lock_guard<std::mutex> lock(state_);
@@ -639,6 +670,9 @@ void Mavlink::handle(const mavlink_message_t& msg) {
       mavlink_msg_global_position_int_decode(&msg, &m);
       s_.relative_alt = m.relative_alt / 1000.0;
       s_.relative_alt_seen = true;
+      s_.location = m.lat != 0 || m.lon != 0
+                        ? Eigen::Vector3d(m.lat / 1e7, m.lon / 1e7, m.relative_alt / 1000.0)
+                        : Eigen::Vector3d(kNaN, kNaN, kNaN);
       if (m.lat != 0 || m.lon != 0) {
         s_.home_amsl = (static_cast<int64_t>(m.alt) - m.relative_alt) / 1000.0;
         s_.home_amsl_seen = true;
@@ -655,6 +689,12 @@ void Mavlink::handle(const mavlink_message_t& msg) {
       break;
     case MAVLINK_MSG_ID_GPS_RAW_INT:
       s_.gps_fix = mavlink_msg_gps_raw_int_get_fix_type(&msg);
+      break;
+    case MAVLINK_MSG_ID_HOME_POSITION:
+      on_home(msg);
+      break;
+    case MAVLINK_MSG_ID_BATTERY_STATUS:
+      on_battery_status(msg);
       break;
     case MAVLINK_MSG_ID_EKF_STATUS_REPORT:
       s_.ekf_flags = mavlink_msg_ekf_status_report_get_flags(&msg);

@@ -273,7 +273,11 @@ void Mavlink::on_statustext(const mavlink_message_t& msg) {
   mavlink_msg_statustext_decode(&msg, &m);
   const std::string text(m.text, strnlen(m.text, sizeof m.text));
   for (const auto& [severity, whole] : texts_.add(now_s(), m.severity, text, m.id, m.chunk_seq)) {
-    if (severity <= px4::kSeverityWarning) say("PX4: " + whole);
+    {
+      std::lock_guard<std::mutex> lock(state_);
+      s_.status_text = whole;
+    }
+    if (severity <= px4::kSeverityWarning) say(std::string(px4() ? "PX4: " : "ArduPilot: ") + whole);
   }
 }
 

@@ -40,9 +40,11 @@ from pymavlink import mavutil
 
 try:  # beside the component, or in the hfsmc package
     from . import hfsmc_mavlink_link as _link
+    from . import hfsmc_mission as _mission
     from . import hfsmc_px4 as _px4
 except ImportError:
     import hfsmc_mavlink_link as _link  # type: ignore[import-not-found, no-redef]
+    import hfsmc_mission as _mission  # type: ignore[import-not-found, no-redef]
     import hfsmc_px4 as _px4  # type: ignore[import-not-found, no-redef]
 
 _MAV: Any = mavutil.mavlink
@@ -54,6 +56,7 @@ GCS_HEARTBEAT_S = 1.0  # our own heartbeat, so the vehicle sees a ground station
 POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
 FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
 SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
+HOME_RATE_HZ = 1.0  # HOME_POSITION (it moves only when the autopilot sets a new home)
 DATAGRAM_WAIT_S = 10.0  # lockstep: the simulator's datagrams, counted, are that late at most
 
 # SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field"
@@ -65,6 +68,7 @@ IGNORE_YAW = 0b0100_0000_0000
 IGNORE_YAW_RATE = 0b1000_0000_0000
 VELOCITY_MASK = IGNORE_POSITION | IGNORE_ACCELERATION | IGNORE_YAW  # 0x05C7: vx vy vz yaw_rate
 POSITION_MASK = IGNORE_VELOCITY | IGNORE_ACCELERATION | IGNORE_YAW | IGNORE_YAW_RATE  # 0x0DF8
+STOP_FACING_MASK = IGNORE_POSITION | IGNORE_ACCELERATION | IGNORE_YAW_RATE  # 0x09C7: v = 0, yaw
 
 MAV_FRAME_LOCAL_NED = 1
 MAV_FRAME_BODY_OFFSET_NED = 9  # velocities along the vehicle's heading: forward, right, down
@@ -108,7 +112,8 @@ NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
     "heartbeat_age": math.inf, "ready": False, "armed": False, "mode": "",
     "position": (math.nan, math.nan, math.nan), "altitude": math.nan,
     "velocity": (math.nan, math.nan, math.nan), "yaw": math.nan, "battery": -1,
-    "acks": {}, "vehicle": False, "type": 0, "autopilot": 0}
+    "acks": {}, "vehicle": False, "type": 0, "autopilot": 0,
+    "location": _mission.NAN3, "home": _mission.NAN3, "status_text": "", "battery_failsafe": ""}
 
 
 class VehicleQueries:
@@ -120,6 +125,7 @@ class VehicleQueries:
     name: str
     _snap: dict[str, Any]
     on_command: Callable[[str, list[Any]], None] | None
+    _aim: tuple[str, float, float, float] | None = None  # the latest position target
 
     def __getattr__(self, attr: str) -> Any:
         """Only for a name the class does not have: say which interface lacks it (the
@@ -169,6 +175,46 @@ class VehicleQueries:
         """Battery remaining in percent (SYS_STATUS); -1 when unknown."""
         return int(self._snap["battery"])
 
+    def location(self) -> tuple[float, float, float]:
+        """(lat, lon) in degrees and m above home (GLOBAL_POSITION_INT); NaN before a GPS fix."""
+        return self._snap["location"]  # type: ignore[no-any-return]
+
+    def home(self) -> tuple[float, float, float]:
+        """Home: (lat, lon) in degrees and m above mean sea level (HOME_POSITION); NaN before."""
+        return self._snap["home"]  # type: ignore[no-any-return]
+
+    def distance_to(self, north: float, east: float, alt: float | None = None) -> float:
+        """m from the vehicle to a local point (m from the EKF origin); with ``alt`` (m above
+        home) in 3-D, else horizontally. NaN before a position."""
+        return _mission.local_distance(self._snap["position"], float(self._snap["altitude"]),
+                                       north, east, None if alt is None else float(alt))
+
+    def distance_to_location(self, lat: float, lon: float, alt: float | None = None) -> float:
+        """m from the vehicle to a point by latitude and longitude (degrees); with ``alt`` (m
+        above home) in 3-D, else horizontally. NaN before a GPS fix."""
+        la, lo, al = _mission.checked_location(self.name, lat, lon, 0.0 if alt is None else alt)
+        return _mission.distance(self._snap["location"], (la, lo, None if alt is None else al))
+
+    def reached(self, north: float, east: float, alt: float,
+                tolerance: float = _mission.DEFAULT_TOLERANCE) -> bool:
+        """Within ``tolerance`` m (1 by default) of a local point, in 3-D."""
+        return bool(self.distance_to(north, east, alt) <= float(tolerance))
+
+    def reached_location(self, lat: float, lon: float, alt: float,
+                         tolerance: float = _mission.DEFAULT_TOLERANCE) -> bool:
+        """Within ``tolerance`` m (1 by default) of a point by latitude, longitude and altitude
+        above home, in 3-D."""
+        return bool(self.distance_to_location(lat, lon, alt) <= float(tolerance))
+
+    def status_text(self) -> str:
+        """The autopilot's latest STATUSTEXT (chunks joined); "" before any."""
+        return str(self._snap["status_text"])
+
+    def battery_failsafe(self) -> str:
+        """The battery's failsafe level (BATTERY_STATUS.charge_state): "" (none), low,
+        critical, emergency, failed, unhealthy."""
+        return str(self._snap["battery_failsafe"])
+
     def last_ack(self, command: str) -> str:
         """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
         accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
@@ -211,14 +257,23 @@ class VehicleQueries:
         self._issue("land", [], ack=True)
         self._command("land", "land", _MAV.MAV_CMD_NAV_LAND)
 
-    def rtl(self) -> None:
-        """Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode)."""
-        self._issue("rtl", [], ack=True)
+    def rtl(self, alt: float | None = None) -> None:
+        """Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode); with
+        ``alt``, at that altitude above home (RTL_ALT, PX4: RTL_RETURN_ALT, set first)."""
+        if alt is not None:
+            a = float(alt)
+            if not 0.0 < a <= _mission.MAX_TARGET:
+                raise ValueError(f"{self.name}: rtl altitude {a:g} m is not above home")
+            self._issue("rtl", [a], ack=True)
+            self._rtl_altitude(a)
+        else:
+            self._issue("rtl", [], ack=True)
         self._command("rtl", "rtl", _MAV.MAV_CMD_NAV_RETURN_TO_LAUNCH)
 
     def hold(self) -> None:
         """Stop where the vehicle is: a zero velocity target (GUIDED)."""
         self._issue("hold", [])
+        self._aim = None
         self._target_local(MAV_FRAME_BODY_OFFSET_NED, VELOCITY_MASK,
                            (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
 
@@ -227,14 +282,49 @@ class VehicleQueries:
         ArduPilot stops the vehicle when no new target comes for 3 s."""
         v = (float(vx), float(vy), float(vz))
         self._issue("set_velocity", [*v, float(yaw_rate)])
+        self._aim = None
         self._target_local(MAV_FRAME_BODY_OFFSET_NED, VELOCITY_MASK, (0.0, 0.0, 0.0), v,
                            float(yaw_rate))
 
-    def goto(self, north: float, east: float, alt: float) -> None:
-        """Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt)."""
-        self._issue("goto", [float(north), float(east), float(alt)])
-        self._target_local(MAV_FRAME_LOCAL_NED, POSITION_MASK,
-                           (float(north), float(east), -float(alt)), (0.0, 0.0, 0.0), 0.0)
+    def goto(self, north: float, east: float, alt: float, heading: float | None = None) -> None:
+        """Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt); with
+        ``heading`` (rad, 0 north, clockwise) the vehicle faces it."""
+        h = _mission.checked_heading(self.name, heading)
+        n, e, a = float(north), float(east), float(alt)
+        self._issue("goto", [n, e, a] if h is None else [n, e, a, h])
+        self._aim = ("local", n, e, a)
+        self._goto_local(n, e, a, h)
+
+    def goto_location(self, lat: float, lon: float, alt: float,
+                      heading: float | None = None) -> None:
+        """Position target by latitude and longitude (degrees) and m above home
+        (SET_POSITION_TARGET_GLOBAL_INT); with ``heading`` (rad) the vehicle faces it."""
+        la, lo, a = _mission.checked_location(self.name, lat, lon, alt)
+        h = _mission.checked_heading(self.name, heading)
+        self._issue("goto_location", [la, lo, a] if h is None else [la, lo, a, h])
+        self._aim = ("global", la, lo, a)
+        self._goto_global(la, lo, a, h)
+
+    def set_yaw(self, heading: float) -> None:
+        """Turn to a heading (rad, 0 north, clockwise): on the way to the latest goto or
+        goto_location target, else stopped where the vehicle is (a velocity target ends)."""
+        h = _mission.checked_heading(self.name, heading)
+        if h is None:
+            raise ValueError(f"{self.name}: set_yaw needs a heading in rad, not {heading!r}")
+        self._issue("set_yaw", [h])
+        aim = self._aim
+        if aim is not None and aim[0] == "local":
+            self._goto_local(aim[1], aim[2], aim[3], h)
+        elif aim is not None:
+            self._goto_global(aim[1], aim[2], aim[3], h)
+        else:
+            self._target_local(MAV_FRAME_LOCAL_NED, STOP_FACING_MASK, (0.0, 0.0, 0.0),
+                               (0.0, 0.0, 0.0), 0.0, h)
+
+    def _goto_local(self, n: float, e: float, alt: float, heading: float | None) -> None:
+        mask = POSITION_MASK if heading is None else POSITION_MASK & ~IGNORE_YAW
+        self._target_local(MAV_FRAME_LOCAL_NED, mask, (n, e, -alt), (0.0, 0.0, 0.0), 0.0,
+                           heading or 0.0)
 
     def warning_at_stop(self) -> str | None:
         """What the component says when it stops with the vehicle still armed (then nothing
@@ -261,8 +351,14 @@ class VehicleQueries:
         """Send a COMMAND_LONG (the live vehicle)."""
 
     def _target_local(self, frame: int, mask: int, pos: tuple[float, float, float],
-                      vel: tuple[float, float, float], yaw_rate: float) -> None:
+                      vel: tuple[float, float, float], yaw_rate: float, yaw: float = 0.0) -> None:
         """Send a SET_POSITION_TARGET_LOCAL_NED (the live vehicle)."""
+
+    def _goto_global(self, lat: float, lon: float, alt: float, heading: float | None) -> None:
+        """Send a SET_POSITION_TARGET_GLOBAL_INT (the live vehicle)."""
+
+    def _rtl_altitude(self, alt: float) -> None:
+        """Set RTL's altitude (the live vehicle)."""
 
     def _px4_mode(self, name: str, number: int) -> None:
         """Ask PX4 for a mode (the live vehicle)."""
@@ -274,7 +370,7 @@ def modes(vehicle_type: int) -> dict[int, str]:
     return dict(table or mavutil.mode_mapping_acm)
 
 
-class Vehicle(_px4.Px4Vehicle, VehicleQueries):
+class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, VehicleQueries):
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
@@ -290,6 +386,7 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
             self._say(f"option source_system: {sysid} is not 1..255, 255 used")
             sysid = 255
         self._px4_init(options)
+        self._mission_init()
         for key in sorted(set(options) - {"rate", "ack_timeout", "source_system", "autopilot"}):
             self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system, "
                       "autopilot)")
@@ -388,7 +485,7 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
             "position": pos, "altitude": -pos[2] if rel is None else rel,
             "velocity": self._velocity, "yaw": self._yaw, "battery": self._battery,
             "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0],
-            "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1]}
+            "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1], **self._mission_snapshot()}
         return self._snap
 
     def _mode_name(self, hb: tuple[int, int, int, int]) -> str:
@@ -426,15 +523,30 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
             self._say(f"{label}: not sent, no vehicle yet (no heartbeat)")
 
     def _target_local(self, frame: int, mask: int, pos: tuple[float, float, float],
-                      vel: tuple[float, float, float], yaw_rate: float) -> None:
+                      vel: tuple[float, float, float], yaw_rate: float, yaw: float = 0.0) -> None:
         if self._px4 and frame == MAV_FRAME_BODY_OFFSET_NED:
             frame = _px4.MAV_FRAME_BODY_NED  # PX4 turns velocities by the heading
-        self._send_target(frame, mask, pos, vel, yaw_rate)
+        self._send_target(frame, mask, pos, vel, yaw_rate, yaw)
         if self._px4 and self._target is not None:
-            self._offboard.target(self._now(), (frame, mask, pos, vel, yaw_rate))
+            self._offboard.target(self._now(), ("local", frame, mask, pos, vel, yaw_rate, yaw))
+
+    def _goto_global(self, lat: float, lon: float, alt: float, heading: float | None) -> None:
+        self._send_global(lat, lon, alt, heading)
+        if self._px4 and self._target is not None:
+            self._offboard.target(self._now(), ("global", lat, lon, alt, heading))
+
+    def _rtl_altitude(self, alt: float) -> None:
+        self._send_rtl_altitude(alt)
+
+    def _send_setpoint(self, kind: str, *args: Any) -> None:
+        """The PX4 stream's resend of a target (Offboard.send)."""
+        if kind == "global":
+            self._send_global(*args)
+        else:
+            self._send_target(*args)
 
     def _send_target(self, frame: int, mask: int, pos: tuple[float, float, float],
-                     vel: tuple[float, float, float], yaw_rate: float) -> None:
+                     vel: tuple[float, float, float], yaw_rate: float, yaw: float = 0.0) -> None:
         target = self._target
         if target is None:
             return  # a target is a stream, repeated each tick: nothing to say about one
@@ -444,14 +556,15 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
                 boot_ms, target[0], target[1], frame, mask,
                 float(pos[0]), float(pos[1]), float(pos[2]),
                 float(vel[0]), float(vel[1]), float(vel[2]),
-                0.0, 0.0, 0.0, 0.0, float(yaw_rate))
+                0.0, 0.0, 0.0, float(yaw), float(yaw_rate))
 
     def _request_rates(self) -> None:
         fast = 1e6 / max(self._rate, 0.1)
         slow = 1e6 / SLOW_RATE_HZ
         for message, interval in (("LOCAL_POSITION_NED", fast), ("GLOBAL_POSITION_INT", fast),
                                   ("ATTITUDE", fast), ("SYS_STATUS", slow),
-                                  ("GPS_RAW_INT", slow),
+                                  ("GPS_RAW_INT", slow), ("BATTERY_STATUS", slow),
+                                  ("HOME_POSITION", 1e6 / HOME_RATE_HZ),
                                   *(() if self._px4 else (("EKF_STATUS_REPORT", slow),))):
             self._command("set_message_interval", f"set_message_interval {message}",
                           _MAV.MAV_CMD_SET_MESSAGE_INTERVAL,
@@ -511,6 +624,8 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
             return
         if self._target is None or source[0] != self._target[0]:
             return
+        if self._mission_message(kind, msg):
+            return
         if kind == "LOCAL_POSITION_NED":
             self._position = (float(msg.x), float(msg.y), float(msg.z))
             self._velocity = (float(msg.vx), float(msg.vy), float(msg.vz))
@@ -523,8 +638,6 @@ class Vehicle(_px4.Px4Vehicle, VehicleQueries):
         elif kind == "SYS_STATUS":
             self._battery = int(msg.battery_remaining)
             self._prearm = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
-        elif kind == "STATUSTEXT" and self._px4:
-            self._px4_text(msg)
         elif kind == "GPS_RAW_INT":
             self._gps_fix = int(msg.fix_type)
         elif kind == "EKF_STATUS_REPORT":

@@ -31,9 +31,13 @@ _FLOATS = {"heartbeat_age", "altitude", "yaw", "age"}
 VEHICLE_QUERIES = {"connected": "heartbeat_age", "heartbeat_age": "heartbeat_age",
                    "ready": "ready", "armed": "armed", "mode": "mode", "position": "position",
                    "altitude": "altitude", "velocity": "velocity", "yaw": "yaw",
-                   "battery": "battery", "last_ack": "acks"}
+                   "battery": "battery", "last_ack": "acks", "location": "location",
+                   "home": "home", "distance_to": "position",
+                   "distance_to_location": "location", "reached": "position",
+                   "reached_location": "location", "status_text": "status_text",
+                   "battery_failsafe": "battery_failsafe"}
 CAMERA_QUERIES = {"frame": "frame", "age": "age", "ok": "age", "count": "count"}
-_TRIPLES = {"position", "velocity"}
+_TRIPLES = {"position", "velocity", "location", "home"}
 
 
 class PlaybackError(Exception):
@@ -64,8 +68,8 @@ def _normal(field: str, value: Any) -> Any:
         if not isinstance(value, bool):
             raise ValueError(f"`{field}` must be true or false")
         return value
-    if field == "mode" and not isinstance(value, str):
-        raise ValueError("`mode` must be a string")
+    if field in ("mode", "status_text", "battery_failsafe") and not isinstance(value, str):
+        raise ValueError(f"`{field}` must be a string")
     if field == "acks" and not (isinstance(value, dict)
                                 and all(isinstance(v, str) for v in value.values())):
         raise ValueError("`acks` must map commands to outcomes")
@@ -262,9 +266,9 @@ class Evidence:
 def _guarded(cls: Any, queries: dict[str, str]) -> Any:
     """``cls`` with each query first telling what it reads (Evidence._asked)."""
     def wrap(query: str, field: str, base: Any) -> Any:
-        def method(self: Any, *args: Any) -> Any:
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
             self._asked(query, field)
-            return base(self, *args)
+            return base(self, *args, **kwargs)
         method.__name__ = query
         method.__doc__ = base.__doc__
         return method

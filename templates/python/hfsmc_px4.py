@@ -174,7 +174,7 @@ class Px4Vehicle:
     _px4: bool
     _prearm: bool
     _autopilot: str
-    _send_target: Any
+    _send_setpoint: Any
     _command: Any
     _say: Any
     _now: Any
@@ -193,20 +193,12 @@ class Px4Vehicle:
         self._home_amsl = None  # m: PX4's take-off wants its altitude AMSL
         self._answered = {}  # command id -> the last answer's (name, label, quiet, until)
         self._texts = Texts()
-        self._offboard = Offboard(self._send_target, self._switch_offboard, self._say)
+        self._offboard = Offboard(self._send_setpoint, self._switch_offboard, self._say)
 
     def _px4_tick(self, now: float) -> None:
         """The reader's timed work on PX4: the setpoint stream and the OFFBOARD switch."""
         hb = self._heartbeat
         self._offboard.tick(now, hb[3], bool(hb[2] & MODE_FLAG_SAFETY_ARMED))
-
-    def _px4_text(self, msg: Any) -> None:
-        """A STATUSTEXT (chunks joined): warnings and worse said on stderr."""
-        for severity, text in self._texts.add(self._now(), int(msg.severity), msg.text,
-                                              int(getattr(msg, "id", 0)),
-                                              int(getattr(msg, "chunk_seq", 0))):
-            if severity <= SEVERITY_WARNING:
-                self._say(f"PX4: {text}")
 
     def _px4_mode(self, name: str, number: int) -> None:
         """GUIDED on PX4: Hold on the ground (armable; targets switch to OFFBOARD once

@@ -18,6 +18,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "hfsmc/camera.hpp"
 #include "hfsmc/mavlink.hpp"
@@ -26,6 +27,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using Options = std::map<std::string, std::string>;
+constexpr double kPi = 3.14159265358979323846;
 
 [[noreturn]] void fail(const std::string& what) {
   std::cout << "FAIL: " << what << std::endl;
@@ -235,6 +237,51 @@ int px4(const std::string& port) {
   return 0;
 }
 
+/// The mission API (docs/interfaces.md, "Missions") on either simulated autopilot: home,
+/// goto_location with a heading, set_yaw keeping the target, go_to with a heading, bad
+/// input thrown, RTL at 12 m. `target` is "LAT,LON" of a point 12 m north, 9 m east.
+int mission(const std::string& port, const std::string& where) {
+  const double lat = std::stod(where.substr(0, where.find(','))),
+               lon = std::stod(where.substr(where.find(',') + 1));
+  hfsmc::Mavlink drone("drone", udpin(port), Options{});
+  check(wait_until([&] { return drone.ready() && !std::isnan(drone.home().x()); }, 30), "ready, home");
+  check(drone.battery_failsafe().empty(), "no battery failsafe");
+  check(!drone.status_text().empty(), "a text: " + drone.status_text());
+  check(drone.set_mode("GUIDED") && drone.arm() && drone.takeoff(5.0), "GUIDED, arm, takeoff sent");
+  check(wait_until([&] { return drone.altitude() > 4.5; }, 40), "took off");
+  check(std::fabs(drone.distance_to_location(lat, lon) - 15.0) < 0.5, "15 m away");
+  drone.goto_location(lat, lon, 7.0, kPi / 2);
+  check(wait_until([&] { return drone.reached_location(lat, lon, 7.0, 0.5); }, 40), "reached");
+  check(drone.reached(12.0, 9.0, 7.0, 0.5) && drone.distance_to(12.0, 9.0) < 0.5, "reached, locally");
+  const auto facing = [&](double h) {
+    return std::fabs(std::remainder(drone.yaw() - h, 2 * kPi)) < 0.05;
+  };
+  check(wait_until([&] { return facing(kPi / 2); }, 10), "faces east");
+  drone.set_yaw(kPi);
+  check(wait_until([&] { return facing(kPi); }, 10), "faces south");
+  check(drone.reached(12.0, 9.0, 7.0, 0.5), "still there");
+  drone.go_to(12.0, 9.0, 7.0, -kPi / 2);
+  check(wait_until([&] { return facing(-kPi / 2); }, 10), "faces west");
+  const std::pair<std::function<void()>, std::string> bad[] = {
+      {[&] { drone.goto_location(91.0, lon, 5.0); }, "drone: latitude 91 is out of range -90..90"},
+      {[&] { drone.goto_location(lat, -190.0, 5.0); }, "drone: longitude -190 is out of range"},
+      {[&] { drone.rtl(-3.0); }, "drone: rtl altitude -3 m is not above home"}};
+  for (const auto& [call, message] : bad) {
+    try {
+      call();
+      fail("accepted: " + message);
+    } catch (const std::invalid_argument& e) {
+      check(std::string(e.what()).rfind(message, 0) == 0, std::string("thrown: ") + e.what());
+    }
+  }
+  check(drone.rtl(12.0), "rtl sent");
+  check(wait_until([&] { return drone.mode() == "RTL"; }, 5), "RTL");
+  check(wait_until([&] { return drone.altitude() > 11.5; }, 30), "climbs to 12 m");
+  check(wait_until([&] { return !drone.armed(); }, 120), "landed, disarmed");
+  check(drone.distance_to(0.0, 0.0) < 1.0, "at home");
+  return 0;
+}
+
 /// Junk datagrams (sent by the test) do not break the reader.
 int garbage(const std::string& port) {
   hfsmc::Mavlink drone("drone", udpin(port), Options{});
@@ -299,6 +346,7 @@ int main(int argc, char** argv) {
   if (scenario == "linkloss") return linkloss(arg);
   if (scenario == "garbage") return garbage(arg);
   if (scenario == "px4") return px4(arg);
+  if (scenario.rfind("mission:", 0) == 0) return mission(arg, scenario.substr(8));
   if (scenario == "camera") return camera(arg);
   std::cerr << "unknown scenario " << scenario << "\n";
   return 2;

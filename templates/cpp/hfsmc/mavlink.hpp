@@ -79,6 +79,7 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   static constexpr double kDatagramWaitS = 10.0;  // lockstep: the simulator's datagrams are that late at most
   static constexpr double kFastRateHz = 20.0;    // position, velocity, attitude (option `rate`)
   static constexpr double kSlowRateHz = 2.0;     // battery, GPS, EKF status
+  static constexpr double kHomeRateHz = 1.0;     // HOME_POSITION
   static constexpr size_t kDuplicateWindow = 255;  // frames remembered per source
   static constexpr double kSilenceS = 0.5;       // a source silent that long is a new one
 
@@ -128,6 +129,35 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// Battery remaining in percent (SYS_STATUS); -1 when unknown.
   int battery() const { evidence_.asked("battery", "battery"); return snap_.battery; }
 
+  /// (lat, lon) in degrees and m above home (GLOBAL_POSITION_INT); NaN before a GPS fix.
+  Eigen::Vector3d location() const { evidence_.asked("location", "location"); return snap_.location; }
+
+  /// Home: (lat, lon) in degrees and m above mean sea level (HOME_POSITION); NaN before.
+  Eigen::Vector3d home() const { evidence_.asked("home", "home"); return snap_.home; }
+
+  /// m from the vehicle to a local point (m from the EKF origin); with `alt` (m above
+  /// home) in 3-D, else (NaN) horizontally. NaN before a position.
+  double distance_to(double north, double east, double alt = kNaN) const;
+
+  /// m from the vehicle to a point by latitude and longitude (degrees); with `alt` (m
+  /// above home) in 3-D, else (NaN) horizontally. NaN before a GPS fix. A latitude or
+  /// longitude out of range throws std::invalid_argument.
+  double distance_to_location(double lat, double lon, double alt = kNaN) const;
+
+  /// Within `tolerance` m (1 by default) of a local point, in 3-D.
+  bool reached(double north, double east, double alt, double tolerance = 1.0) const;
+
+  /// Within `tolerance` m (1 by default) of a point by latitude, longitude and altitude
+  /// above home, in 3-D.
+  bool reached_location(double lat, double lon, double alt, double tolerance = 1.0) const;
+
+  /// The autopilot's latest STATUSTEXT (chunks joined); "" before any.
+  std::string status_text() const { evidence_.asked("status_text", "status_text"); return snap_.status_text; }
+
+  /// The battery's failsafe level (BATTERY_STATUS.charge_state): "" (none), low,
+  /// critical, emergency, failed, unhealthy.
+  std::string battery_failsafe() const { evidence_.asked("battery_failsafe", "battery_failsafe"); return snap_.battery_failsafe; }
+
   /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
   /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
   /// pending, timeout, not_sent; "" when never sent.
@@ -162,8 +192,9 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// Land where the vehicle is (MAV_CMD_NAV_LAND: LAND mode).
   bool land();
 
-  /// Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode).
-  bool rtl();
+  /// Return to launch and land there (MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL mode); with
+  /// `alt` (not NaN), at that altitude above home (RTL_ALT, PX4: RTL_RETURN_ALT, set first).
+  bool rtl(double alt = kNaN);
 
   /// Stop where the vehicle is: a zero velocity target (GUIDED).
   bool hold();
@@ -172,9 +203,19 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// ArduPilot stops the vehicle when no new target comes for 3 s.
   bool set_velocity(double vx, double vy, double vz, double yaw_rate);
 
-  /// Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt).
+  /// Position target in m from the EKF origin (MAV_FRAME_LOCAL_NED, down = -alt); with
+  /// `heading` (rad, 0 north, clockwise; NaN: none) the vehicle faces it.
   /// `goto` in Python; a C++ keyword, hence the underscore (recorded as `goto`).
-  bool go_to(double north, double east, double alt);
+  bool go_to(double north, double east, double alt, double heading = kNaN);
+
+  /// Position target by latitude and longitude (degrees) and m above home
+  /// (SET_POSITION_TARGET_GLOBAL_INT); with `heading` (rad) the vehicle faces it. A value
+  /// out of range throws std::invalid_argument.
+  bool goto_location(double lat, double lon, double alt, double heading = kNaN);
+
+  /// Turn to a heading (rad, 0 north, clockwise): on the way to the latest go_to or
+  /// goto_location target, else stopped where the vehicle is (a velocity target ends).
+  bool set_yaw(double heading);
 
   /// Stop the reader and close the socket (also done by the destructor).
   void close();
@@ -199,6 +240,7 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   static constexpr uint16_t kVelocityMask = kIgnorePosition | kIgnoreAcceleration | kIgnoreYaw;
   static constexpr uint16_t kPositionMask =
       kIgnoreVelocity | kIgnoreAcceleration | kIgnoreYaw | kIgnoreYawRate;
+  static constexpr uint16_t kStopFacingMask = kIgnorePosition | kIgnoreAcceleration | kIgnoreYawRate;
   static constexpr uint8_t kGcsComponent = 190;  // MAV_COMP_ID_MISSIONPLANNER, as mavutil
 
   struct Pending {  // a command waiting for its COMMAND_ACK
@@ -230,6 +272,10 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     bool prearm = false;  // PX4: SYS_STATUS says the pre-flight checks pass
     bool home_amsl_seen = false;
     double home_amsl = kNaN;  // m: PX4's take-off wants its altitude AMSL
+    Eigen::Vector3d location{kNaN, kNaN, kNaN};  // lat, lon, m above home
+    Eigen::Vector3d home{kNaN, kNaN, kNaN};  // lat, lon, m AMSL
+    std::string status_text;  // the latest STATUSTEXT, whole
+    std::string battery_failsafe;  // BATTERY_STATUS.charge_state's name
   };
 
   struct Snap {  // what the automaton sees during one instant
@@ -245,6 +291,9 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     bool vehicle = false;  // a vehicle has been heard: commands are sent
     int type = 0;  // its HEARTBEAT type (the mode names)
     int autopilot = 0;  // its HEARTBEAT autopilot (12: PX4's mode names and ways)
+    Eigen::Vector3d location{kNaN, kNaN, kNaN};
+    Eigen::Vector3d home{kNaN, kNaN, kNaN};
+    std::string status_text, battery_failsafe;
   };
 
   /// The state at hand, as a snapshot (any thread).
@@ -272,8 +321,20 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   bool send_long(Pending p);
   void send_command(uint8_t system, uint8_t component, const Pending& p, uint8_t confirmation);
   bool target_local(uint8_t frame, uint16_t mask, Eigen::Vector3d pos, Eigen::Vector3d vel,
-                    double yaw_rate);
-  void send_target(const px4::Target& t);  // SET_POSITION_TARGET_LOCAL_NED, any thread
+                    double yaw_rate, double yaw = 0);
+  /// SET_POSITION_TARGET_LOCAL_NED, or _GLOBAL_INT for a global target; any thread.
+  void send_target(const px4::Target& t);
+  // -- the mission API's own (src/hfsmc_mission.cpp) -------------------------------------
+  bool go_local(double north, double east, double alt, double heading);
+  bool go_global(double lat, double lon, double alt, double heading);
+  void send_rtl_altitude(double alt);  // a PARAM_SET of RTL_ALT (PX4: RTL_RETURN_ALT)
+  void on_home(const mavlink_message& msg);  // HOME_POSITION, BATTERY_STATUS: under state_
+  void on_battery_status(const mavlink_message& msg);
+  struct Aim {  // the latest position target (set_yaw keeps it)
+    int kind = 0;  // 0 none, 1 local (north, east, alt), 2 global (lat, lon, alt)
+    double a = 0, b = 0, alt = 0;
+  };
+  Aim aim_;  // the automaton's thread only
   void send(const mavlink_message& msg);  // under link_
   void request_rates();
 

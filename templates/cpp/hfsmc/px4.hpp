@@ -62,9 +62,11 @@ void set_mode_params(uint32_t custom_mode, float* p1, float* p2, float* p3);
 struct Target {
   uint8_t frame = 0;
   uint16_t mask = 0;
-  double pos[3] = {0, 0, 0};
+  double pos[3] = {0, 0, 0};  // a global target: lat, lon (degrees), m above home
   double vel[3] = {0, 0, 0};
   double yaw_rate = 0;
+  double yaw = 0;
+  bool global = false;  // SET_POSITION_TARGET_GLOBAL_INT (the mission API's goto_location)
 };
 
 /// The setpoint stream and the OFFBOARD switch of one vehicle. `send` sends a target
