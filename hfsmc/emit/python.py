@@ -32,7 +32,8 @@ RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py"
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py", "hfsmc_px4.py"),
                    "camera": ("hfsmc_camera.py",), "driver": ("hfsmc_driver.py",),
                    "ros2": ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_cdr.py",
-                            "hfsmc_ros2_playback.py", "hfsmc_ros2_lockstep.py")}
+                            "hfsmc_ros2_playback.py", "hfsmc_ros2_lockstep.py",
+                            "hfsmc_ros2_rpc.py")}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
 _TRY_MARK = re.compile(r"^\s*try:  # s(\d+)$")

@@ -31,7 +31,7 @@ from hfsmc.sim.ground.sim import Bumper, GroundSim, Odometry, Reading, Scan
 
 SHIPPED = Path(__file__).resolve().parent.parent.parent / "ros2" / "msg"
 BUMPER_MSG = SHIPPED / "kobuki_ros_interfaces" / "msg" / "BumperEvent.msg"
-RUNTIME = ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_lockstep.py")  # a component's, beside the messages
+RUNTIME = ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_lockstep.py", "hfsmc_ros2_rpc.py")  # a component's, beside the messages
 DISCOVERY = "rmw_dds_common/msg/ParticipantEntitiesInfo"  # every node announces itself
 TYPES = {
     "cmd_vel": "geometry_msgs/msg/Twist",
