@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from hfsmc.driverfiles import confined, leads_out
+from hfsmc.durations import parse_us
 from hfsmc.errors import CheckError, Diagnostics, Span
 from hfsmc.frontend.source import Document, PathKey
-from hfsmc.durations import parse_us
 from hfsmc.ir import Import, Interface, MsgRef, Ros2Rpc, Ros2Settings, Ros2Topic
 from hfsmc.ros2.definitions import (
     DEFAULT_DISTRO,

@@ -106,10 +106,10 @@ class Ros2Queries:
     _pubs: dict[str, Any]  # publication name -> its settings
     _snap: dict[str, tuple[Any, float, int, int]]  # name -> (msg, age, count, publishers)
     _snap_subscribers: dict[str, int]
-    _acts: dict[str, Any] = {}  # action name -> its settings (name, class, timeout)
-    _srvs: dict[str, Any] = {}  # service name -> its settings
-    _goal_snap: dict[str, tuple[str, Any, Any]] = {}  # action -> (status, feedback, result)
-    _call_snap: dict[str, tuple[str, Any]] = {}  # service -> (status, response)
+    _acts: dict[str, Any]  # action name -> its settings (name, class, timeout)
+    _srvs: dict[str, Any]  # service name -> its settings
+    _goal_snap: dict[str, tuple[str, Any, Any]]  # action -> (status, feedback, result)
+    _call_snap: dict[str, tuple[str, Any]]  # service -> (status, response)
 
     def __getattr__(self, attr: str) -> Any:
         """``robot.scan``: the latest message of subscription ``scan`` when the instant
@@ -381,7 +381,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             return gid_cls(data=list(entity.guid.bytes.ljust(size, b"\x00")))
 
         node_cls = wire.message_class("rmw_dds_common/msg/NodeEntitiesInfo")
-        rpcs: list[Any] = [e for c in (*self._actions.values(), *self._services.values())
+        rpcs: list[Any] = [e for c in self._clients()
                            for e in c.entities()]
         node = node_cls(node_namespace=self.namespace, node_name=self.node,
                         reader_gid_seq=[gid(r) for r in (*self._readers.values(),
@@ -453,6 +453,10 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             client.poll(time.monotonic())
         self._told("call", [name, base64.b64encode(data).decode("ascii")])
 
+    def _clients(self) -> list[Any]:
+        """The action and service clients."""
+        return [*self._actions.values(), *self._services.values()]
+
     def _told(self, call: str, args: list[Any]) -> None:
         if self.on_command is not None:
             with contextlib.suppress(Exception):  # a recording that has closed
@@ -461,7 +465,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
     def _rpc_poll(self) -> None:
         now = time.monotonic()
         with self._lock:
-            for c in (*self._actions.values(), *self._services.values()):
+            for c in self._clients():
                 try:
                     c.poll(now)
                 except cdr.CdrError as exc:
@@ -500,7 +504,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         ws = WaitSet(self._dp)
         mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
         conds = [ReadCondition(r, mask) for r in self._readers.values()]
-        for client in (*self._actions.values(), *self._services.values()):
+        for client in self._clients():
             conds += [ReadCondition(r, mask) for r in client.readers()]
         for c in conds:
             ws.attach(c)

@@ -10,10 +10,10 @@ import sys
 import time
 from typing import Any
 
-import hfsmc_ros2 as ros2
-import hfsmc_ros2_rpc as rpc
-from nav2_msgs.action import NavigateToPose
-from std_srvs.srv import Trigger
+import hfsmc_ros2 as ros2  # type: ignore[import-not-found]
+import hfsmc_ros2_rpc as rpc  # type: ignore[import-not-found]
+from nav2_msgs.action import NavigateToPose  # type: ignore[import-not-found]
+from std_srvs.srv import Trigger  # type: ignore[import-not-found]
 
 DOMAIN = int(sys.argv[1])
 SCENARIO = sys.argv[2]
@@ -27,7 +27,7 @@ def client(timeout: float | None) -> Any:
 
 
 def main() -> None:
-    server_node = None if SCENARIO == "no_server" else ros2.Ros2Node(
+    server_node: Any = None if SCENARIO == "no_server" else ros2.Ros2Node(
         "srv", {"node": "s", "domain": DOMAIN})
     raw: list[str] = []
     server = trigger = None

@@ -25,9 +25,9 @@ from pathlib import Path
 from typing import Any
 
 from hfsmc.errors import Span
-from hfsmc.sim.ground.base import DiffDrive
 from hfsmc.ros2.definitions import MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
+from hfsmc.sim.ground.base import DiffDrive
 from hfsmc.sim.ground.navigate import Navigator, reset_odometry
 from hfsmc.sim.ground.sim import Bumper, GroundSim, Odometry, Reading, Scan
 
