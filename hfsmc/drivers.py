@@ -112,8 +112,11 @@ class Driver:
 ROS2_SOURCE = ("hfsmc_ros2.py", "Ros2Queries")
 ROS2_NAMES = {"age": (("name", "subscribe"),), "count": (("name", "subscribe"),),
               "publishers": (("name", "subscribe"),), "subscribers": (("name", "publish"),),
-              "publish": (("name", "publish"),)}
-ROS2_COMMANDS = frozenset({"publish"})
+              "publish": (("name", "publish"),),
+              **dict.fromkeys(("send_goal", "cancel", "goal_status", "feedback", "result"),
+                              (("name", "actions"),)),
+              **dict.fromkeys(("call", "call_status", "response"), (("name", "services"),))}
+ROS2_COMMANDS = frozenset({"publish", "send_goal", "cancel", "call"})
 
 
 @cache

@@ -92,6 +92,7 @@ CODES: dict[str, str] = {
     "E313": "a ROS 2 name that ROS 2 forbids (topic, namespace, node)",
     "E314": "one ROS 2 topic used with two message types",
     "E315": "a ros2 interface's .msg file outside the model's folder, missing or unreadable",
+    "E316": "unknown ROS 2 service or action type, or one of the wrong kind",
     # snippets
     "E140": "syntax error in a Python snippet",
     "E141": "undefined name in a Python snippet",

@@ -206,6 +206,22 @@ class Ros2Topic:
     topic_span: Span = field(compare=False)
 
 
+SERVICE_TIMEOUT_US = 10_000_000  # a service call's time limit when the model gives none
+
+
+@dataclass(frozen=True, slots=True)
+class Ros2Rpc:
+    """One entry of a ``ros2`` interface's ``actions`` or ``services`` (SPEC 5.3)."""
+
+    name: str  # the identifier snippets use: `robot.send_goal("navigate", g)`
+    ros_name: str  # the action's or service's ROS name as written
+    type: str  # `pkg/action/Name` or `pkg/srv/Name`
+    timeout_us: int | None  # the time limit of each goal or call, as written (None: none)
+    span: Span = field(compare=False)
+    type_span: Span = field(compare=False)
+    name_span: Span = field(compare=False)
+
+
 @dataclass(frozen=True, slots=True)
 class MsgRef:
     """One of a ``ros2`` interface's ``messages``: the model's own `.msg` file."""
@@ -226,6 +242,8 @@ class Ros2Settings:
     subscribe: tuple[Ros2Topic, ...]
     publish: tuple[Ros2Topic, ...]
     messages: tuple[MsgRef, ...]
+    actions: tuple[Ros2Rpc, ...] = ()
+    services: tuple[Ros2Rpc, ...] = ()
 
     @property
     def distro_or_default(self) -> str:

@@ -461,7 +461,10 @@ def _listed(model: Model) -> dict[str, dict[str, tuple[str, ...]]]:
     """Per interface, the names each of its options lists (a driver's `names`; a ros2
     interface's subscriptions and publications)."""
     return {i.name: ({"subscribe": tuple(t.name for t in i.ros2.subscribe),
-                      "publish": tuple(t.name for t in i.ros2.publish)} if i.ros2 is not None
+                      "publish": tuple(t.name for t in i.ros2.publish),
+                      "actions": tuple(t.name for t in i.ros2.actions),
+                      "services": tuple(t.name for t in i.ros2.services)}
+                     if i.ros2 is not None
                      else {k: option_names(v) for k, v in i.options})
             for i in model.interfaces}
 

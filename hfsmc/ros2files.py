@@ -19,9 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from hfsmc.driverfiles import confined, leads_out
+from hfsmc.durations import parse_us
 from hfsmc.errors import CheckError, Diagnostics, Span
 from hfsmc.frontend.source import Document, PathKey
-from hfsmc.ir import Import, Interface, MsgRef, Ros2Settings, Ros2Topic
+from hfsmc.ir import Import, Interface, MsgRef, Ros2Rpc, Ros2Settings, Ros2Topic
 from hfsmc.ros2.definitions import (
     DEFAULT_DISTRO,
     MessageSet,
@@ -32,7 +33,8 @@ from hfsmc.ros2.definitions import (
 )
 from hfsmc.ros2.names import NameError_, resolve_name, validate_namespace, validate_node_name
 
-ROS2_KEYS = ("node", "namespace", "domain", "distro", "subscribe", "publish", "messages")
+ROS2_KEYS = ("node", "namespace", "domain", "distro", "subscribe", "publish", "messages",
+             "actions", "services")
 OTHER_KEYS = ("url", "options", "python", "cpp")
 # What the runtime needs besides the model's types: the node's announcement.
 RUNTIME_TYPES = ("rmw_dds_common/msg/ParticipantEntitiesInfo",)
@@ -73,9 +75,51 @@ def ros2_settings(doc: Document, name: str, spec: Mapping[str, Any], model_name:
     subscribe = _topics(doc, path, spec, "subscribe")
     publish = _topics(doc, path, spec, "publish")
     settings = Ros2Settings(node, namespace, spec.get("domain"), spec.get("distro"), subscribe,
-                            publish, _messages(doc, path, spec, diags))
+                            publish, _messages(doc, path, spec, diags),
+                            _rpcs(doc, path, spec, "actions"), _rpcs(doc, path, spec, "services"))
     _check_topics(settings, model_name if node is None else node, ns_ok, diags)
+    _check_rpcs(settings, model_name if node is None else node, ns_ok, language, diags)
     return settings
+
+
+def _rpcs(doc: Document, path: PathKey, spec: Mapping[str, Any], key: str
+          ) -> tuple[Ros2Rpc, ...]:
+    out = []
+    for entry, t in (spec.get(key) or {}).items():
+        epath = (*path, key, entry)
+        ros_name = t.get("name")
+        timeout = t.get("timeout")
+        out.append(Ros2Rpc(
+            str(entry), str(ros_name) if ros_name is not None else str(entry), str(t["type"]),
+            parse_us(timeout) if timeout is not None else None, doc.key_span(epath),
+            doc.span((*epath, "type")),
+            doc.span((*epath, "name")) if ros_name is not None else doc.key_span(epath)))
+    return tuple(out)
+
+
+def _check_rpcs(s: Ros2Settings, node: str, ns_ok: bool, language: str,
+                diags: Diagnostics) -> None:
+    """E313 for a ROS name ROS 2 forbids, E316 for a type of the wrong kind (a service
+    among the actions), E312 for a name used twice or in a C++ model (not yet)."""
+    names = {t.name for t in (*s.subscribe, *s.publish)}
+    for key, kind, rpcs in (("actions", "action", s.actions), ("services", "srv", s.services)):
+        for r in rpcs:
+            if language == "cpp":
+                diags.error("E312", f"`{key}` of a ros2 interface are not supported in C++ "
+                            "models yet (docs/ros2.md)", r.span)
+            if r.name in names:
+                diags.error("E312", f"`{r.name}` names two things of the interface: snippets "
+                            "name each by its own name", r.span)
+            names.add(r.name)
+            parts = r.type.split("/")
+            if len(parts) != 3 or parts[1] != kind:
+                diags.error("E316", f"`{r.type}` is not an {'action' if kind == 'action' else 'service'} "
+                            f"type: `pkg/{kind}/Name`", r.type_span)
+            try:
+                resolve_name(r.ros_name, s.namespace or "/" if ns_ok else "/", node)
+            except NameError_ as e:
+                diags.error("E313", str(e), r.name_span, "ROS 2 names: parts of letters, "
+                            "digits and `_`, not starting with a digit, no `__`")
 
 
 def _topics(doc: Document, path: PathKey, spec: Mapping[str, Any], key: str
@@ -219,4 +263,6 @@ def used_messages(interfaces: tuple[Interface, ...], imports: tuple[Import, ...]
     uses += imported_types(imports, _packages(distro, files))
     if runtime:
         uses += [(t, Span("<runtime>", 1, 1)) for t in RUNTIME_TYPES]
-    return message_set(distro, uses, files)
+    rpcs = [(r.type, r.type_span) for i in ros2_interfaces(interfaces) if i.ros2 is not None
+            for r in (*i.ros2.actions, *i.ros2.services) if r.type.count("/") == 2]
+    return message_set(distro, uses, files, rpcs)

@@ -7,6 +7,7 @@ from typing import Any
 
 from hfsmc.durations import format_us
 from hfsmc.ir import (
+    SERVICE_TIMEOUT_US,
     Automaton,
     Binding,
     Code,
@@ -157,6 +158,12 @@ def ros2_data(r: Ros2Settings) -> dict[str, Any]:
                       for t in topics}
     if r.messages:
         d["messages"] = [m.written for m in r.messages]
+    for key, rpcs in (("actions", r.actions), ("services", r.services)):
+        if rpcs:
+            d[key] = {x.name: {"name": x.ros_name, "type": x.type,
+                               **({} if x.timeout_us is None
+                                  else {"timeout": format_us(x.timeout_us)})}
+                      for x in rpcs}
     return d
 
 
@@ -167,8 +174,18 @@ def ros2_config(model_name: str, r: Ros2Settings) -> dict[str, Any]:
                              "qos": t.qos if isinstance(t.qos, str) else dict(t.qos)}
                     for t in ts}
               for key, ts in (("subscribe", r.subscribe), ("publish", r.publish))}
+    rpcs = {key: {x.name: {"name": x.ros_name, "type": x.type,
+                           "timeout": _timeout_s(x.timeout_us, key)} for x in xs}
+            for key, xs in (("actions", r.actions), ("services", r.services)) if xs}
     return {"type": "ros2", "node": r.node or model_name, "namespace": r.namespace or "/",
-            "domain": r.domain, "distro": r.distro_or_default, **topics}
+            "domain": r.domain, "distro": r.distro_or_default, **topics, **rpcs}
+
+
+def _timeout_s(us: int | None, key: str) -> float | None:
+    """A goal's or a call's time limit in seconds (services: 10 s when none is given)."""
+    if us is None:
+        return SERVICE_TIMEOUT_US / 1e6 if key == "services" else None
+    return us / 1e6
 
 
 def component_config(model: Model) -> str:

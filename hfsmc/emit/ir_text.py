@@ -42,6 +42,10 @@ def dump(model: Model) -> str:
                            f"qos={t.qos!r} {_at(t.span)}")
         for m in r.messages:
             out.append(f"    message {m.written!r} {_at(m.span)}")
+        for kind, rpcs in (("action", r.actions), ("service", r.services)):
+            for x in rpcs:
+                out.append(f"    {kind} {x.name}: name={x.ros_name!r} type={x.type} "
+                           f"timeout_us={x.timeout_us!r} {_at(x.span)}")
     for p in model.parameters:
         out.append(f"  parameter {p.name}: {p.type} = {p.default!r} {_at(p.span)}")
     for v in model.variables:

@@ -78,7 +78,7 @@ def _ros2(w: _Writer, name: str, r: Ros2Settings, span: Span) -> None:
     """A ros2 interface: its keys as attributes, its topics and .msg files as elements."""
     attrs = [("name", name), ("type", "ros2"), ("node", r.node), ("namespace", r.namespace),
              ("domain", None if r.domain is None else str(r.domain)), ("distro", r.distro)]
-    if not (r.subscribe or r.publish or r.messages):
+    if not (r.subscribe or r.publish or r.messages or r.actions or r.services):
         w.empty(1, "interface", attrs, span)
         return
     w.open(1, "interface", attrs, span)
@@ -91,6 +91,10 @@ def _ros2(w: _Writer, name: str, r: Ros2Settings, span: Span) -> None:
                     t.span)
     for m in r.messages:
         w.empty(2, "message", [("file", m.written)], m.span)
+    for kind, rpcs in (("action", r.actions), ("service", r.services)):
+        for x in rpcs:
+            w.empty(2, kind, [("name", x.name), ("ros_name", x.ros_name), ("type", x.type),
+                              ("timeout", _duration(x.timeout_us))], x.span)
     w.close(1, "interface")
 
 

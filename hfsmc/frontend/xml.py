@@ -414,6 +414,18 @@ class _Converter:
                 for name in ("reliability", "durability"):
                     self.attr(child, (*epath, "qos"), qos, name)
                 self.attr(child, (*epath, "qos"), qos, "depth", convert=_number)
+        for child in el.iterchildren("action", "service"):
+            key = f"{child.tag}s"
+            self.first_key(child, (*path, key))
+            found = self.named(child, (*path, key), item.setdefault(key, {}), str(child.tag))
+            if found is None:
+                continue
+            entry, epath = found
+            if child.get("ros_name") is not None:
+                _, span = self.index.attribute(child, "ros_name")
+                self.put(entry, (*epath, "name"), child.get("ros_name"), span, span)
+            for name in ("type", "timeout"):
+                self.attr(child, epath, entry, name)
         for child in el.iterchildren("message"):
             messages = item.setdefault("messages", [])
             self.first_key(child, (*path, "messages"))

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from hfsmc.errors import CheckError, Diagnostic, Diagnostics, Span, did_you_mean
+from hfsmc.ros2 import services
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -134,9 +135,16 @@ class Message:
         return self.name.split("/")[-1]
 
     @property
+    def module(self) -> str:
+        """Its Python module's path: ``geometry_msgs/msg``, ``std_srvs/srv``,
+        ``nav2_msgs/action`` (a service's or an action's messages live beside it)."""
+        return self.name.rsplit("/", 1)[0]
+
+    @property
     def dds_type_name(self) -> str:
-        """The DDS type name ROS 2 gives it: ``geometry_msgs::msg::dds_::Twist_``."""
-        return f"{self.package}::msg::dds_::{self.short}_"
+        """The DDS type name ROS 2 gives it: ``geometry_msgs::msg::dds_::Twist_``,
+        ``std_srvs::srv::dds_::Trigger_Request_``."""
+        return f"{self.module.replace('/', '::')}::dds_::{self.short}_"
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,6 +153,8 @@ class MessageSet:
 
     distro: str
     messages: tuple[Message, ...]
+    services: tuple[str, ...] = ()  # `pkg/srv/Name`: their messages are among `messages`
+    actions: tuple[str, ...] = ()  # `pkg/action/Name`
 
     def get(self, name: str) -> Message:
         for msg in self.messages:
@@ -157,6 +167,10 @@ class MessageSet:
 
     def packages(self) -> tuple[str, ...]:
         return tuple(sorted({m.package for m in self.messages}))
+
+    def modules(self) -> tuple[str, ...]:
+        """``pkg/msg``, ``pkg/srv``, ``pkg/action``: one Python module each."""
+        return tuple(sorted({m.module for m in self.messages}))
 
 
 @dataclass(frozen=True, slots=True)
@@ -181,7 +195,9 @@ def typestore(distro: str) -> Typestore:
 
     if distro not in DISTROS:
         raise ValueError(f"unknown ROS 2 distro `{distro}` (known: {', '.join(DISTROS)})")
-    return get_typestore(Stores.ROS2_HUMBLE if distro == "humble" else Stores.ROS2_JAZZY)
+    store = get_typestore(Stores.ROS2_HUMBLE if distro == "humble" else Stores.ROS2_JAZZY)
+    services.register(store, distro)
+    return store
 
 
 def standard_types(distro: str) -> tuple[str, ...]:
@@ -190,7 +206,8 @@ def standard_types(distro: str) -> tuple[str, ...]:
 
 
 def message_set(distro: str, uses: Iterable[tuple[str, Span]],
-                msg_files: Iterable[MsgFile] = ()) -> MessageSet:
+                msg_files: Iterable[MsgFile] = (),
+                interfaces: Iterable[tuple[str, Span]] = ()) -> MessageSet:
     """The messages ``uses`` (type names, ROS 1 or ROS 2 style, each with where the model
     names it) need, from the distro and the model's ``msg_files``. Raises CheckError with
     every problem found: an unknown type (with a did-you-mean), a ``.msg`` line that does
@@ -206,9 +223,35 @@ def message_set(distro: str, uses: Iterable[tuple[str, Span]],
             continue
         notes = [n for n in (did_you_mean(full, known),) if n]
         diags.error("E310", f"unknown ROS 2 message type `{name}` (distro {distro})", span, *notes)
+    srvs, acts = _interface_roots(distro, interfaces, roots, diags)
     if diags.has_errors:
         raise CheckError(diags.sorted())
-    return MessageSet(distro, tuple(store.describe(n) for n in _closure(store, roots)))
+    return MessageSet(distro, tuple(store.describe(n) for n in _closure(store, roots)),
+                      srvs, acts)
+
+
+def _interface_roots(distro: str, interfaces: Iterable[tuple[str, Span]], roots: list[str],
+                     diags: Diagnostics) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The services and actions named (E316 for one hfsmc does not have), their
+    messages added to ``roots``; an action brings the cancel service and status topic."""
+    known = services.shipped(distro)
+    srvs: set[str] = set()
+    acts: set[str] = set()
+    for name, span in interfaces:
+        if name not in known:
+            kind = services.kind_of(name) or "srv"
+            same = [k for k in known if services.kind_of(k) == kind]
+            notes = [n for n in (did_you_mean(name, same),) if n]
+            diags.error("E316", f"unknown ROS 2 {'action' if kind == 'action' else 'service'}"
+                        f" type `{name}` (distro {distro}; known: {', '.join(same)})",
+                        span, *notes)
+            continue
+        (acts if services.kind_of(name) == "action" else srvs).add(name)
+        roots += services.parts(name)
+    if acts:
+        srvs.add(services.CANCEL_SERVICE)
+        roots += [*services.parts(services.CANCEL_SERVICE), services.STATUS_MESSAGE]
+    return tuple(sorted(srvs)), tuple(sorted(acts))
 
 
 def rosbags_store(distro: str, msg_files: Iterable[MsgFile] = ()) -> Any:
@@ -244,8 +287,18 @@ class _Store:
             constants=tuple(Constant(c, t, v) for c, t, v in consts),
             type_hash=self.rosbags.hash_rihs01(name),
             origin=self.origins.get(name, self.distro),
-            ros2msg=self.rosbags.generate_msgdef(name, ros_version=2)[0],
+            ros2msg=_msgdef(self.rosbags, name),
         )
+
+
+def _msgdef(store: Any, name: str) -> str:
+    """The ``ros2msg`` definition (a recording's schema). rosbags writes none for a
+    message that holds a service's or an action's part (``_SendGoal_Request`` holds
+    ``_Goal``): those are not recorded as topics yet, and get an empty one."""
+    try:
+        return str(store.generate_msgdef(name, ros_version=2)[0])
+    except AssertionError:
+        return ""
 
 
 _UINT8 = (1, ("uint8", 0))  # rosbags' description of a uint8 field (Nodetype.BASE)
@@ -259,6 +312,7 @@ def _store_with(distro: str, msg_files: tuple[MsgFile, ...], diags: Diagnostics)
     if not msg_files:
         return _Store(distro, base, defaults, {})
     store = get_typestore(Stores.ROS2_HUMBLE if distro == "humble" else Stores.ROS2_JAZZY)
+    services.register(store, distro)
     parsed = [p for f in msg_files if (p := _read_msg(f, diags)) is not None]
     own = {p.name: p for p in parsed}
     known = set(base.fielddefs) | set(own)

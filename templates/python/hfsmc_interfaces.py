@@ -26,6 +26,7 @@ _INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": 
 ROS2_CHANGEABLE = ("node", "namespace", "domain")
 ROS2_FIXED = ("type", "distro")
 ROS2_TOPIC_CHANGEABLE = ("topic", "qos")
+ROS2_RPC_CHANGEABLE = ("name", "timeout")  # an action's or a service's
 
 
 class UsageError(Exception):
@@ -160,8 +161,8 @@ def ros2_settings(name: str, built: dict[str, Any], given: dict[str, Any]) -> di
     a distro other than the model's, or a topic the model does not declare, needs a
     rebuild (the messages are generated for them): UsageError."""
     where = f"the configuration of interface `{name}`"
-    out = {**built, "subscribe": {k: dict(v) for k, v in built.get("subscribe", {}).items()},
-           "publish": {k: dict(v) for k, v in built.get("publish", {}).items()}}
+    out = {**built, **{key: {k: dict(v) for k, v in built.get(key, {}).items()}
+                       for key in ("subscribe", "publish", "actions", "services")}}
     for key, value in given.items():
         if key in ROS2_CHANGEABLE:
             out[key] = value
@@ -174,11 +175,29 @@ def ros2_settings(name: str, built: dict[str, Any], given: dict[str, Any]) -> di
                 raise UsageError(f"{where}: `{key}` maps names to {{topic, qos}}")
             for entry, spec in value.items():
                 _ros2_topic(where, key, entry, spec, out[key])
+        elif key in ("actions", "services"):
+            if not isinstance(value, dict):
+                raise UsageError(f"{where}: `{key}` maps names to {{name, timeout}}")
+            for entry, spec in value.items():
+                _ros2_rpc(where, key, entry, spec, out[key])
         elif key not in ("url", "options") or given[key]:
             raise UsageError(f"{where}: `{key}` is not a setting of a ros2 interface "
                              f"(the file may change {', '.join(ROS2_CHANGEABLE)} and each "
                              "topic's topic and qos)")
     return out
+
+
+def _ros2_rpc(where: str, key: str, entry: str, spec: Any, table: dict[str, Any]) -> None:
+    """An action's or a service's ROS name and time limit (s) may change; its type not."""
+    if entry not in table or not isinstance(spec, dict):
+        raise UsageError(f"{where}: `{key}.{entry}`: the model has {', '.join(table) or 'none'}"
+                         " ({name, type, timeout} each): change the model and rebuild")
+    for k, v in spec.items():
+        if k in ROS2_RPC_CHANGEABLE:
+            table[entry][k] = v
+        elif k != "type" or v != table[entry]["type"]:
+            raise UsageError(f"{where}: `{key}.{entry}.{k}: {v}`: only name and timeout may "
+                             "change without a rebuild")
 
 
 def _ros2_topic(where: str, key: str, entry: str, spec: Any, table: dict[str, Any]) -> None:

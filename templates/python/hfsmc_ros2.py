@@ -23,6 +23,7 @@ Gid is 24 bytes in humble and 16 in jazzy, as generated).
 from __future__ import annotations
 
 import atexit
+import base64
 import contextlib
 import math
 import os
@@ -49,10 +50,12 @@ from cyclonedds.util import duration
 
 if __package__:
     from . import hfsmc_ros2_cdr as cdr
+    from . import hfsmc_ros2_rpc as rpc
     from . import hfsmc_ros2_wire as wire
     from .hfsmc_ros2_lockstep import Ros2Lockstep
 else:  # copied beside the generated component, where the modules are top level
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2_rpc as rpc  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
     from hfsmc_ros2_lockstep import Ros2Lockstep  # type: ignore[import-not-found, no-redef]
 
@@ -104,6 +107,10 @@ class Ros2Queries:
     _pubs: dict[str, Any]  # publication name -> its settings
     _snap: dict[str, tuple[Any, float, int, int]]  # name -> (msg, age, count, publishers)
     _snap_subscribers: dict[str, int]
+    _acts: dict[str, Any]  # action name -> its settings (name, class, timeout)
+    _srvs: dict[str, Any]  # service name -> its settings
+    _goal_snap: dict[str, tuple[str, Any, Any]]  # action -> (status, feedback, result)
+    _call_snap: dict[str, tuple[str, Any]]  # service -> (status, response)
 
     def __getattr__(self, attr: str) -> Any:
         """``robot.scan``: the latest message of subscription ``scan`` when the instant
@@ -141,8 +148,81 @@ class Ros2Queries:
                             f"not {_kind(msg)}")
         self._send(name, cdr.serialize(msg))
 
+    # -- actions and services (SPEC 5.3) --------------------------------------------
+    def send_goal(self, name: str, goal: Any) -> None:
+        """Send ``goal`` (``Action.Goal``) to the action ``name`` now (a command). A goal
+        still running is cancelled first. The status reads ``pending`` from now on in this
+        instant; what the server says is seen from the next instants."""
+        cls = self._acts[self._act(name)]["class"]
+        if type(goal) is not cls.Goal:
+            raise TypeError(f"{self.name}.send_goal({name!r}, ...): a {cls._TYPE} goal "
+                            f"({cls.Goal._TYPE}) is expected, not {_kind(goal)}")
+        self._goal_snap[name] = ("pending", None, None)
+        self._send_goal(name, goal)
+
+    def cancel(self, name: str) -> bool:
+        """Ask the server to cancel the running goal of ``name`` (a command); False, and
+        nothing sent, when no goal runs."""
+        if self._goal_snap[self._act(name)][0] not in rpc.RUNNING:
+            return False
+        self._cancel(name)
+        return True
+
+    def goal_status(self, name: str) -> str:
+        """The status of the latest goal of ``name``: none, pending, accepted, executing,
+        canceling, succeeded, aborted, canceled, rejected, no_server or timeout."""
+        return str(self._goal_snap[self._act(name)][0])
+
+    def feedback(self, name: str) -> Any:
+        """The latest feedback of the running goal of ``name``; None before any."""
+        return self._goal_snap[self._act(name)][1]
+
+    def result(self, name: str) -> Any:
+        """The result of the latest goal of ``name`` once it ended; None before."""
+        return self._goal_snap[self._act(name)][2]
+
+    def call(self, name: str, request: Any) -> None:
+        """Call the service ``name`` with ``request`` (``Service.Request``) now (a
+        command); a call still pending is forgotten. ``pending`` from now on."""
+        cls = self._srvs[self._srv(name)]["class"]
+        if type(request) is not cls.Request:
+            raise TypeError(f"{self.name}.call({name!r}, ...): a {cls._TYPE} request "
+                            f"({cls.Request._TYPE}) is expected, not {_kind(request)}")
+        self._call_snap[name] = ("pending", None)
+        self._call(name, request)
+
+    def call_status(self, name: str) -> str:
+        """The status of the latest call of ``name``: none, pending, done, no_server or
+        timeout."""
+        return str(self._call_snap[self._srv(name)][0])
+
+    def response(self, name: str) -> Any:
+        """The response of the latest call of ``name``; None until it is done."""
+        return self._call_snap[self._srv(name)][1]
+
     def _send(self, name: str, data: bytes) -> None:
         raise NotImplementedError  # the live class and the replay define it
+
+    def _send_goal(self, name: str, goal: Any) -> None:
+        raise NotImplementedError  # the live class defines it
+
+    def _cancel(self, name: str) -> None:
+        raise NotImplementedError
+
+    def _call(self, name: str, request: Any) -> None:
+        raise NotImplementedError
+
+    def _act(self, name: str) -> str:
+        if name not in self._acts:
+            raise KeyError(f"the ros2 interface `{self.name}` has no action `{name}` "
+                           f"(actions: {', '.join(self._acts) or 'none'})")
+        return name
+
+    def _srv(self, name: str) -> str:
+        if name not in self._srvs:
+            raise KeyError(f"the ros2 interface `{self.name}` has no service `{name}` "
+                           f"(services: {', '.join(self._srvs) or 'none'})")
+        return name
 
     # -- the recording's own channels (docs/drivers.md) -------------------------------
     def own_channels(self) -> dict[str, dict[str, Any]]:
@@ -203,8 +283,13 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self.domain = wire.domain_id(settings.get("domain"))
         self._subs = self._endpoints(settings.get("subscribe") or {})
         self._pubs = self._endpoints(settings.get("publish") or {})
+        self._acts = self._rpc_settings(settings.get("actions") or {})
+        self._srvs = self._rpc_settings(settings.get("services") or {})
+        self._goal_snap = {n: ("none", None, None) for n in self._acts}
+        self._call_snap = {n: ("none", None) for n in self._srvs}
         self._check_topics()
         self.on_publish: Callable[[str, bytes], None] | None = None  # a recording's hook
+        self.on_command: Callable[[str, list[Any]], None] | None = None  # the recording's
         self._lockstep_init()
         self._lock = threading.Lock()
         self._pending = {n: _Sub() for n in self._subs}
@@ -234,6 +319,26 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             cls = wire.message_class(str(spec["type"]))
             topic = wire.resolve_name(str(spec.get("topic") or key), self.namespace, self.node)
             out[str(key)] = {"topic": topic, "class": cls, "qos": wire.qos_of(spec.get("qos"))}
+        return out
+
+    def _rpc_settings(self, table: Any) -> dict[str, Any]:
+        """``actions`` / ``services``: name -> {name (the ROS name), type, timeout (s)}."""
+        if not isinstance(table, dict):
+            raise Ros2Error("actions and services map names to {name, type, timeout}")
+        out: dict[str, Any] = {}
+        for key, spec in table.items():
+            if not isinstance(spec, dict) or "type" not in spec:
+                raise Ros2Error(f"`{key}`: {{name, type, timeout}}")
+            timeout = spec.get("timeout")
+            if timeout is not None and (isinstance(timeout, bool)
+                                        or not isinstance(timeout, (int, float))
+                                        or not timeout > 0):
+                raise Ros2Error(f"`{key}`: timeout `{timeout}`: seconds > 0, or null")
+            out[str(key)] = {
+                "name": wire.resolve_name(str(spec.get("name") or key), self.namespace,
+                                          self.node),
+                "class": wire.message_class(str(spec["type"])),
+                "timeout": None if timeout is None else float(timeout)}
         return out
 
     def _check_topics(self) -> None:
@@ -266,6 +371,8 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self._writers = {n: DataWriter(self._dp, topic(s), qos=self._qos(s))
                          for n, s in self._pubs.items()}
         self._topics = topics
+        self._actions = {n: rpc.ActionClient(self._dp, n, s) for n, s in self._acts.items()}
+        self._services = {n: rpc.ServiceClient(self._dp, n, s) for n, s in self._srvs.items()}
         self._announce()
 
     def _qos(self, s: dict[str, Any]) -> Any:
@@ -282,9 +389,15 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             return gid_cls(data=list(entity.guid.bytes.ljust(size, b"\x00")))
 
         node_cls = wire.message_class("rmw_dds_common/msg/NodeEntitiesInfo")
+        rpcs: list[Any] = [e for c in self._clients()
+                           for e in c.entities()]
         node = node_cls(node_namespace=self.namespace, node_name=self.node,
-                        reader_gid_seq=[gid(r) for r in self._readers.values()],
-                        writer_gid_seq=[gid(w) for w in self._writers.values()])
+                        reader_gid_seq=[gid(r) for r in (*self._readers.values(),
+                                                         *[e for e in rpcs
+                                                           if isinstance(e, DataReader)])],
+                        writer_gid_seq=[gid(w) for w in (*self._writers.values(),
+                                                         *[e for e in rpcs
+                                                           if isinstance(e, DataWriter)])])
         info = info_cls(gid=gid(self._dp), node_entities_info_seq=[node])
         kind = wire.dds_type(info_cls)
         qos = ("reliable", "transient_local", 1)
@@ -320,6 +433,10 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             topics[n] = {"count": count, "age": age, "publishers": pubs, "dropped": dropped,
                          "cdr": data}
         self._snap = snap
+        with self._lock:
+            self._goal_snap = {n: (c.status, c.feedback, c.result)
+                               for n, c in self._actions.items()}
+            self._call_snap = {n: (c.status, c.response) for n, c in self._services.items()}
         return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers)}
 
     def views(self) -> dict[str, Any]:
@@ -339,6 +456,58 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         return {"node": self.node, "namespace": self.namespace, "domain": self.domain,
                 "distro": self.distro, "subscriptions": subs, "publications": pubs}
 
+    # -- actions and services, live ---------------------------------------------------
+    def _send_goal(self, name: str, goal: Any) -> None:
+        data = cdr.serialize(goal)
+        with self._lock:
+            client = self._actions[name]
+            replaced = client.send_goal(goal, time.monotonic())
+            client.poll(time.monotonic())
+        if replaced:
+            self._told("cancel", [name, "replaced"])
+        self._told("send_goal", [name, base64.b64encode(data).decode("ascii")])
+
+    def _cancel(self, name: str) -> None:
+        with self._lock:
+            self._actions[name].cancel()
+        self._told("cancel", [name])
+
+    def _call(self, name: str, request: Any) -> None:
+        data = cdr.serialize(request)
+        with self._lock:
+            client = self._services[name]
+            client.call(data, time.monotonic())
+            client.poll(time.monotonic())
+        self._told("call", [name, base64.b64encode(data).decode("ascii")])
+
+    def _clients(self) -> list[Any]:
+        """The action and service clients."""
+        return [*self._actions.values(), *self._services.values()]
+
+    def _told(self, call: str, args: list[Any]) -> None:
+        if self.on_command is not None:
+            with contextlib.suppress(Exception):  # a recording that has closed
+                self.on_command(call, args)
+
+    def _rpc_poll(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            for c in self._clients():
+                try:
+                    c.poll(now)
+                except cdr.CdrError as exc:
+                    self._say(f"a malformed answer of `{c.key}` dropped ({exc})")
+
+    def _cancel_at_stop(self) -> None:
+        """A goal still running when the component stops is cancelled (recorded); the
+        cancel request is given a second to reach the server."""
+        with self._lock:
+            sent = [n for n, c in self._actions.items() if c.running() and c.cancel_current()]
+        for n in sent:
+            self._told("cancel", [n, "stop"])
+            with contextlib.suppress(DDSException):
+                self._actions[n].cancel_ep.writer.wait_for_acks(duration(seconds=1))
+
     def dropped(self, name: str) -> int:
         """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""
         with self._lock:
@@ -348,6 +517,8 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         """Leave the graph (also run at exit): the reader thread stops, DDS entities go."""
         if self._closed:
             return
+        with contextlib.suppress(DDSException):
+            self._cancel_at_stop()
         self._closed = True
         self._stop.set(True)
         if self._thread is not threading.current_thread():
@@ -359,8 +530,10 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
     def _run(self) -> None:
         ws = WaitSet(self._dp)
         mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
-        conds = {n: ReadCondition(r, mask) for n, r in self._readers.items()}
-        for c in conds.values():
+        conds = [ReadCondition(r, mask) for r in self._readers.values()]
+        for client in self._clients():
+            conds += [ReadCondition(r, mask) for r in client.readers()]
+        for c in conds:
             ws.attach(c)
         ws.attach(self._stop)
         while not self._closed:
@@ -368,6 +541,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
                 ws.wait(duration(seconds=WAKE_S))
                 for n, reader in self._readers.items():
                     self._take(n, reader)
+                self._rpc_poll()
                 self._matched()
             except DDSException as exc:
                 if self._closed:

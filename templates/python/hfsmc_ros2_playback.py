@@ -46,6 +46,13 @@ class Ros2Fake(ros2.Ros2Queries):
         self.quiet = False
         self.on_command: Any = None  # the playback's (hfsmc_interfaces.hook)
         self.on_publish: Any = None
+        if settings.get("actions") or settings.get("services"):
+            raise ros2.Ros2Error("a model with ROS 2 actions or services does not replay yet "
+                                 "(docs/ros2.md)")
+        self._acts: dict[str, Any] = {}
+        self._srvs: dict[str, Any] = {}
+        self._goal_snap: dict[str, Any] = {}
+        self._call_snap: dict[str, Any] = {}
         self.node = wire.validate_node_name(str(settings.get("node") or name))
         self.namespace = wire.validate_namespace(str(settings.get("namespace") or "/"))
         self._subs = ros2.Ros2Node._endpoints(self, settings.get("subscribe") or {})  # type: ignore[arg-type]

@@ -105,12 +105,14 @@ def dds_qos(qos: tuple[str, str, int], user_data: bytes | None = None) -> Qos:
 
 
 def message_class(type_name: str) -> Any:
-    """The generated class of ``pkg/msg/Name`` (imported from ``pkg.msg``)."""
+    """The generated class of ``pkg/msg/Name`` (imported from ``pkg.msg``); also of a
+    service's or an action's message (``std_srvs/srv/Trigger_Request``) and of a service
+    or an action itself (``nav2_msgs/action/NavigateToPose``: rclpy's class)."""
     parts = type_name.split("/")
-    if len(parts) != 3 or parts[1] != "msg":
+    if len(parts) != 3 or parts[1] not in ("msg", "srv", "action"):
         raise Ros2Error(f"type `{type_name}`: pkg/msg/Name")
     try:
-        cls = getattr(importlib.import_module(f"{parts[0]}.msg"), parts[2])
+        cls = getattr(importlib.import_module(f"{parts[0]}.{parts[1]}"), parts[2])
     except (ImportError, AttributeError):
         raise Ros2Error(f"type `{type_name}` was not generated into this component "
                         "(rebuild it with hfsmc)") from None
@@ -120,12 +122,17 @@ def message_class(type_name: str) -> Any:
 _TYPES: dict[str, Any] = {}
 
 
-def dds_type(cls: Any) -> Any:
-    """The IDL struct under which raw CDR of ``cls`` goes through cyclonedds (see above)."""
-    known = _TYPES.get(cls._DDS)
+def dds_type(cls: Any, header: bool = False) -> Any:
+    """The IDL struct under which raw CDR of ``cls`` goes through cyclonedds (see above).
+    ``header``: a service's request or reply as rmw_cyclonedds_cpp writes it, the request
+    header (the client's 8-byte id, the sequence number) before the message's fields."""
+    key = cls._DDS + ("+header" if header else "")
+    known = _TYPES.get(key)
     if known is not None:
         return known
     fields = {name: _idl(spec) for name, spec in cls._FIELDS.items()}
+    if header:
+        fields = {"rmw_client_id_": T.uint64, "rmw_sequence_": T.int64, **fields}
     made: Any = make_idl_struct(f"{cls.__name__}_", cls._DDS, fields)
 
     def serialize(self: Any, *_: Any, **__: Any) -> bytes:
@@ -138,7 +145,7 @@ def dds_type(cls: Any) -> Any:
 
     made.serialize = serialize
     made.deserialize = classmethod(deserialize)
-    _TYPES[cls._DDS] = made
+    _TYPES[key] = made
     return made
 
 
@@ -163,5 +170,7 @@ def _idl(spec: str) -> Any:
         return T.bounded_str[int(m[1])]
     if spec in _PRIMITIVES:
         return _PRIMITIVES[spec]
+    if spec.count("/") == 2:  # a service's or an action's part, named whole
+        return dds_type(message_class(spec))
     pkg, name = spec.split("/")
     return dds_type(message_class(f"{pkg}/msg/{name}"))

@@ -27,13 +27,15 @@ from typing import Any
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
+from hfsmc.sim.ground.base import DiffDrive
+from hfsmc.sim.ground.navigate import Navigator, reset_odometry
 from hfsmc.sim.ground.sim import Bumper, GroundSim, Odometry, Reading, Scan
 
 SHIPPED = Path(__file__).resolve().parent.parent.parent / "ros2" / "msg"
 BUMPER_MSG = SHIPPED / "kobuki_ros_interfaces" / "msg" / "BumperEvent.msg"
 # A component's runtime files, written beside the messages as in a component folder.
 RUNTIME = ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_names.py",
-           "hfsmc_ros2_lockstep.py")
+           "hfsmc_ros2_lockstep.py", "hfsmc_ros2_rpc.py")
 DISCOVERY = "rmw_dds_common/msg/ParticipantEntitiesInfo"  # every node announces itself
 TYPES = {
     "cmd_vel": "geometry_msgs/msg/Twist",
@@ -42,6 +44,8 @@ TYPES = {
     "bumper": "kobuki_ros_interfaces/msg/BumperEvent",
     "clock": "rosgraph_msgs/msg/Clock",
 }
+NAVIGATE = ("navigate_to_pose", "nav2_msgs/action/NavigateToPose")  # each robot serves
+RESET = ("reset_odometry", "std_srvs/srv/Trigger")
 
 
 class NodeError(Exception):
@@ -54,7 +58,8 @@ class Messages:
     def __init__(self, distro: str) -> None:
         uses = [*TYPES.values(), DISCOVERY]
         ms = message_set(distro, [(t, Span("<sim>", 1, 1)) for t in uses],
-                         [MsgFile(BUMPER_MSG, str(BUMPER_MSG.name))])
+                         [MsgFile(BUMPER_MSG, str(BUMPER_MSG.name))],
+                         [(t, Span("<sim>", 1, 1)) for _, t in (NAVIGATE, RESET)])
         self.folder = Path(tempfile.mkdtemp(prefix="hfsmc-sim-msgs-"))
         runtime = files("hfsmc.templates").joinpath("python")
         made = {**python_message_files(ms),
@@ -68,6 +73,8 @@ class Messages:
         self.ros2 = importlib.import_module("hfsmc_ros2")
         wire = importlib.import_module("hfsmc_ros2_wire")
         self.cls = {k: wire.message_class(t) for k, t in TYPES.items()}
+        self.rpc = importlib.import_module("hfsmc_ros2_rpc")
+        self.navigate, self.trigger = (wire.message_class(t) for _, t in (NAVIGATE, RESET))
 
     def close(self) -> None:
         if str(self.folder) in sys.path:
@@ -88,6 +95,7 @@ class GroundNodes:
             self.msgs.close()
             raise NodeError(f"--domain: {e}") from None
         self.nodes: dict[str, Any] = {}
+        self.servers: dict[str, tuple[Navigator, Any]] = {}
         self._seen: dict[str, int] = {}
         self._published: dict[str, int] = {}  # resolved topic -> samples written
         self._base_in: dict[str, int] = {}  # lockstep counts from the component's hello
@@ -104,12 +112,25 @@ class GroundNodes:
                         "bumper": {"topic": "events/bumper", "type": TYPES["bumper"]},
                     }})
                 self._seen[r.name] = 0
+                self._serve(r)
             self.clock = self.msgs.ros2.Ros2Node("sim clock", {
                 "node": "hfsmc_sim", "namespace": "/", "domain": self.domain, "distro": distro,
                 "publish": {"clock": {"topic": "/clock", "type": TYPES["clock"]}}})
         except BaseException:
             self.close()
             raise
+
+    def _serve(self, r: DiffDrive) -> None:
+        """The robot's navigate_to_pose and reset_odometry, on its node's participant."""
+        node, wire = self.nodes[r.name], importlib.import_module("hfsmc_ros2_wire")
+        nav = Navigator(r, None, self.msgs.navigate)
+        name = wire.resolve_name(NAVIGATE[0], r.namespace, "diffdrive")
+        nav.server = self.msgs.rpc.ActionServer(node._dp, name, self.msgs.navigate,
+                                                nav.on_goal, nav.on_cancel)
+        reset = self.msgs.rpc.ServiceServer(
+            node._dp, wire.resolve_name(RESET[0], r.namespace, "diffdrive"), self.msgs.trigger,
+            reset_odometry(r, self.msgs.trigger))
+        self.servers[r.name] = (nav, reset)
 
     def topics(self) -> dict[str, str]:
         """Resolved topic name -> type, of every robot (for the start line and the docs)."""
@@ -124,6 +145,10 @@ class GroundNodes:
         """Apply every robot's latest cmd_vel, if one came since the last call."""
         for r in self.sim.robots:
             node = self.nodes[r.name]
+            nav, reset = self.servers[r.name]
+            nav.server.poll()
+            reset.poll()
+            nav.step(self.sim.t)
             node.snapshot()
             n = node.count("cmd_vel")
             if n != self._seen[r.name]:
