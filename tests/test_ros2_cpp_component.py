@@ -26,13 +26,7 @@ from tests.support import ROOT, free_port, hfsmc, interrupt
 MODELS = ROOT / "tests" / "ros2" / "models"
 STOP_AT_WALL = ROOT / "examples" / "stop_at_wall_cpp" / "stop_at_wall_cpp.yaml"
 ROOM = "walls: [[[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]]\nlaser: {range_max: 8}\n"
-LOOPBACK = ("<CycloneDDS><Domain Id=\"any\"><General><Interfaces>"
-            "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"
-            "<AllowMulticast>false</AllowMulticast></General>"
-            "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-            "<MaxAutoParticipantIndex>19</MaxAutoParticipantIndex>"
-            "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>")
-ENV = {**os.environ, "CYCLONEDDS_URI": LOOPBACK}
+ENV = dict(os.environ)  # DDS on loopback (tests/conftest.py)
 
 
 def twin(folder: Path, name: str, distro: str) -> Path:
