@@ -104,7 +104,7 @@ function tree() {
       if (sel && sel.kind === "state" && sel.path === path) span.classList.add("current");
       if (worst(problemsOf(path)) === "error") span.classList.add("bad");
       if (q && !path.toLowerCase().includes(q)) span.classList.add("hidden");
-      span.onclick = () => { open(owner); select({kind: "state", path}); };
+      span.onclick = () => { sel = {kind: "state", path}; open(owner); };
       li.appendChild(span);
       ul.appendChild(li);
       if (model.automata[path]) {
@@ -140,6 +140,7 @@ function canvas() {
   let maxX = 600, maxY = 400;
   const edges = el("g", {id: "edges"}, svg);
   const nodes = el("g", {id: "states"}, svg);
+  const labels = el("g", {id: "labels"}, svg);  // above the states: always readable, clickable
   const pairs = {};
   for (const name of names) {
     const path = prefix(cur) + name;
@@ -148,7 +149,7 @@ function canvas() {
       if (!names.includes(t.to)) return;
       const key = [name, t.to].sort().join("\u0000");
       const n = (pairs[key] = (pairs[key] || 0) + 1);
-      drawEdge(edges, path, i, t, center(path), center(prefix(cur) + t.to), n, name === t.to);
+      drawEdge(edges, labels, path, i, t, center(path), center(prefix(cur) + t.to), n, name === t.to);
     });
   }
   for (const name of names) {
@@ -188,11 +189,15 @@ function drawState(g0, path, s, x, y, initial) {
   });
 }
 
-function drawEdge(g0, state, i, t, a, b, n, self) {
+function drawEdge(g0, labels, state, i, t, a, b, n, self) {
   const g = el("g", {class: "edge", "data-state": state, "data-index": i}, g0);
+  const lg = el("g", {class: "edge", "data-state": state, "data-index": i}, labels);
   const bad = worst(problemsOf(state, i));
-  if (bad) g.classList.add(bad);
-  if (sel && sel.kind === "edge" && sel.state === state && sel.index === i) g.classList.add("selected");
+  const chosen = sel && sel.kind === "edge" && sel.state === state && sel.index === i;
+  for (const x of [g, lg]) {
+    if (bad) x.classList.add(bad);
+    if (chosen) x.classList.add("selected");
+  }
   let d, lx, ly;
   if (self) {
     const x = a[0] + W / 2 - 10 * n, y = a[1] - H / 2;
@@ -210,12 +215,14 @@ function drawEdge(g0, state, i, t, a, b, n, self) {
   el("path", {class: "line", d, "marker-end": "url(#arrow)"}, g);
   el("path", {class: "hit", d}, g);
   const guard = t.when ? `[${t.when}]` : t.after ? `after ${t.after}` : "";
-  const label = el("text", {x: lx + 4, y: ly}, g);
+  const label = el("text", {x: lx + 4, y: ly}, lg);
   label.textContent = `${i + 1}. ${t.name ? t.name + " " : ""}${guard}`.slice(0, 60);
   const tip = el("title", {}, g);
   tip.textContent = problemsOf(state, i).map((x) => `${x.code}: ${x.message}`).join("\n") ||
     `${baseName(state)} → ${t.to} ${guard}`;
-  g.addEventListener("mousedown", (ev) => { ev.stopPropagation(); select({kind: "edge", state, index: i}); });
+  for (const x of [g, lg]) {
+    x.addEventListener("mousedown", (ev) => { ev.stopPropagation(); select({kind: "edge", state, index: i}); });
+  }
 }
 
 function svgPoint(ev) {
@@ -230,12 +237,12 @@ function startDrag(ev, path, connecting) {
   ev.preventDefault();
   ev.stopPropagation();
   $("canvas").focus();
-  select({kind: "state", path});
+  sel = {kind: "state", path};  // drawn when the button is released (the shapes stay meanwhile)
   drag = {path, connecting, from: svgPoint(ev), moved: false, line: null};
   if (connecting) {
     const c = center(path);
     drag.line = el("path", {d: `M${c[0]},${c[1]}`, stroke: "#1a55c0", "stroke-dasharray": "4 3",
-      "marker-end": "url(#arrow)", id: "rubber"}, $("canvas"));
+      "marker-end": "url(#arrow)", id: "rubber", "pointer-events": "none"}, $("canvas"));
   }
 }
 
@@ -259,6 +266,7 @@ document.addEventListener("mouseup", (ev) => {
   if (!drag) return;
   const d = drag;
   drag = null;
+  if (!d.moved) marks();
   if (d.connecting) {
     d.line.remove();
     const g = ev.target.closest && ev.target.closest("g.state");
@@ -277,11 +285,25 @@ function open(path) {
 }
 function select(what) {
   sel = what;
-  render();
+  marks();
+}
+// The selection shown without drawing again (a double-click's two clicks hit the same shapes).
+function marks() {
+  for (const g of document.querySelectorAll("g.state")) {
+    g.classList.toggle("selected", !!sel && sel.kind === "state" && sel.path === g.dataset.path);
+  }
+  for (const g of document.querySelectorAll("g.edge")) {
+    g.classList.toggle("selected", !!sel && sel.kind === "edge" && sel.state === g.dataset.state &&
+      sel.index === Number(g.dataset.index));
+  }
+  for (const s of document.querySelectorAll("#tree span")) {
+    s.classList.toggle("current", !!sel && sel.kind === "state" && sel.path === s.dataset.path);
+  }
+  panel();
 }
 
 $("canvas").addEventListener("mousedown", (ev) => {
-  if (ev.target === $("canvas")) { sel = null; render(); }
+  if (ev.target === $("canvas")) select(null);
 });
 $("canvas").addEventListener("dblclick", (ev) => {
   if (ev.target.closest("g.state") || ev.target.closest("g.edge") || model.read_only) return;
