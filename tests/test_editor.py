@@ -66,7 +66,9 @@ class Page:
         self.until(lambda: driver.execute_script("return document.body.dataset.ready === '1'"))
 
     def until(self, what: Callable[[], object], timeout: float = 15) -> None:
-        assert wait_until(what, timeout), "the page did not get there"
+        if not wait_until(what, timeout):
+            self.shot("editor-failed")
+            raise AssertionError("the page did not get there (editor-failed.png shows it)")
 
     def css(self, selector: str) -> list[Any]:
         from selenium.webdriver.common.by import By

@@ -51,8 +51,8 @@ def structure(session: EditSession) -> dict[str, Any]:
 
 def _walk(body: dict[str, Any], owner: str, automata: dict[str, Any],
           states: dict[str, Any]) -> None:
-    kids = body.get("states") if isinstance(body.get("states"), dict) else {}
-    regions = body.get("regions") if isinstance(body.get("regions"), dict) else {}
+    kids: dict[Any, Any] = body["states"] if isinstance(body.get("states"), dict) else {}
+    regions: dict[Any, Any] = body["regions"] if isinstance(body.get("regions"), dict) else {}
     automata[owner] = {"states": [str(k) for k in kids] or [str(k) for k in regions],
                        "initial": _text(body.get("initial")), "regions": bool(regions)}
     prefix = owner + "/" if owner else ""
@@ -60,7 +60,8 @@ def _walk(body: dict[str, Any], owner: str, automata: dict[str, Any],
         for name, sub in group.items():
             sub = sub if isinstance(sub, dict) else {}
             path = prefix + str(name)
-            trans = sub.get("transitions") if isinstance(sub.get("transitions"), list) else []
+            trans: list[Any] = sub["transitions"] if isinstance(sub.get("transitions"), list) \
+                else []
             inner = isinstance(sub.get("states"), dict) or isinstance(sub.get("regions"), dict)
             states[path] = {
                 "name": str(name), "kind": kind, "parent": owner, "composite": inner,
@@ -88,21 +89,21 @@ def diagnostics(session: EditSession) -> list[dict[str, Any]]:
                 ranges.append((el.key.start, max(el.node.end, el.key.end), el.path, None))
                 node = tree.find((*el.doc_path, "transitions"))
                 if node is not None and node.kind == "seq":
-                    for i, item in enumerate(node.items):
-                        ranges.append((item.start, item.end, el.path, i))
+                    for n, t in enumerate(node.items):
+                        ranges.append((t.start, t.end, el.path, n))
     starts = [0, *(m.end() for m in re.finditer(r"\r\n|\r|\n", session.text))]
     here = os.path.normpath(session.path)
-    out = []
+    out: list[dict[str, Any]] = []
     for d in session.diagnostics:
-        item = {**d.as_dict(), "state": "", "transition": None}
+        item: dict[str, Any] = {**d.as_dict(), "state": "", "transition": None}
         if os.path.normpath(d.span.file) != here:
             item["other"] = True
         else:
             off = starts[min(max(d.span.line, 1), len(starts)) - 1] + d.span.col - 1
             best: tuple[int, str, int | None] | None = None
-            for s, e, path, i in ranges:
-                if s <= off <= e and (best is None or e - s < best[0]):
-                    best = (e - s, path, i)
+            for start, end, path, i in ranges:
+                if start <= off <= end and (best is None or end - start < best[0]):
+                    best = (end - start, path, i)
             if best is not None:
                 item["state"], item["transition"] = best[1], best[2]
         out.append(item)

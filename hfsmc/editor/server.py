@@ -48,7 +48,7 @@ def _arg(args: dict[str, Any], name: str, kind: type, optional: bool = False) ->
     value = args.get(name)
     if value is None and optional:
         return None
-    if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+    if not isinstance(value, kind) or (isinstance(value, bool) and kind is not bool):
         raise BadRequest(f"`{name}` must be a {kind.__name__}")
     if isinstance(value, str) and len(value) > WS_MESSAGE_LIMIT:
         raise BadRequest(f"`{name}` is too long")
@@ -97,7 +97,7 @@ class Editor:
     def handle(self, msg: dict[str, Any]) -> str | None:
         """Make what the page asks; a message for the page, or None."""
         op = msg.get("op")
-        args = msg.get("args") if isinstance(msg.get("args"), dict) else {}
+        args: dict[str, Any] = msg["args"] if isinstance(msg.get("args"), dict) else {}
         if op == "move":
             self.layout.move(_arg(args, "state", str), _number(args, "x"), _number(args, "y"))
             return None
@@ -243,8 +243,11 @@ async def _socket(request: web.Request) -> web.WebSocketResponse:
             except (BadRequest, EditError, ValueError, OSError) as e:
                 await ws.send_str(json.dumps({"type": "error", "message": str(e)}))
                 said = "error"
-                if isinstance(e, Conflict):
-                    editor.conflict = True
+            except Exception as e:  # a bug: said in one line, the server goes on
+                await ws.send_str(json.dumps({"type": "error", "message":
+                                              f"internal error: {type(e).__name__}: {e} "
+                                              "(please report it)"}))
+                said = "error"
             if said != "error":
                 await editor.tell_all(said)
     finally:

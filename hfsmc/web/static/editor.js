@@ -12,7 +12,7 @@ let sel = null;        // {kind: "state", path} | {kind: "edge", state, index}
 let ws = null;
 let drag = null;       // a state being moved or a transition being drawn
 const editors = {};    // field -> {view, key}
-let panelFor = "";     // what the side panel was built for
+let panelFor = null;   // what the side panel was built for
 
 function send(op, args) {
   if (ws && ws.readyState === 1) ws.send(JSON.stringify({op, args: args || {}}));
@@ -266,7 +266,7 @@ document.addEventListener("mouseup", (ev) => {
   if (!drag) return;
   const d = drag;
   drag = null;
-  if (!d.moved) marks();
+  marks();
   if (d.connecting) {
     d.line.remove();
     const g = ev.target.closest && ev.target.closest("g.state");
@@ -379,32 +379,58 @@ function panel() {
   if (key !== panelFor) {
     panelFor = key;
     box.textContent = "";
-    for (const k of Object.keys(editors)) { editors[k].view.destroy(); delete editors[k]; }
+    for (const k of Object.keys(editors)) {
+      if (editors[k].view) editors[k].view.destroy();
+      if (editors[k].pending) {  // typed just before another selection: sent now, not lost
+        clearTimeout(editors[k].pending);
+        editors[k].flush();
+      }
+      delete editors[k];
+    }
     if (!sel) {
       box.innerHTML = "<p>Select a state or an arrow to edit it.</p>";
       return;
     }
     const title = document.createElement("h3");
     box.appendChild(title);
-    if (sel.kind === "state") {
-      title.textContent = "State " + sel.path;
+    const at = sel;  // what the fields edit, even when sent after another selection
+    if (at.kind === "state") {
+      title.textContent = "State " + at.path;
       for (const f of ["entry", "during", "exit"]) field(box, f, true,
-        (v) => send("set_state_field", {state: sel.path, key: f, value: v}));
+        (v) => send("set_state_field", {state: at.path, key: f, value: v}));
     } else {
-      title.textContent = `Transition ${sel.index + 1} of ${sel.state}`;
+      title.textContent = `Transition ${at.index + 1} of ${at.state}`;
       for (const f of ["name", "to", "when", "after", "do"]) field(box, f, f === "when" || f === "do",
-        (v) => send("set_transition_field", {state: sel.state, index: sel.index, key: f, value: v}));
+        (v) => send("set_transition_field", {state: at.state, index: at.index, key: f, value: v}));
       const row = document.createElement("p");
       for (const [label, to] of [["Earlier", -1], ["Later", 1]]) {
         const b = document.createElement("button");
         b.textContent = label;
-        b.onclick = () => send("move_transition", {state: sel.state, index: sel.index, to: sel.index + to});
+        b.onclick = () => {
+          const n = model.states[at.state].transitions.length;
+          if (at.index + to < 0 || at.index + to >= n) return;
+          send("move_transition", {state: at.state, index: at.index, to: at.index + to});
+          sel = {kind: "edge", state: at.state, index: at.index + to};
+        };
         row.appendChild(b);
       }
       box.appendChild(row);
     }
   }
   if (!sel) return;
+  let here = $("here");
+  if (!here) {
+    here = document.createElement("ul");
+    here.id = "here";
+    box.appendChild(here);
+  }
+  here.textContent = "";
+  for (const d of sel.kind === "state" ? problemsOf(sel.path, null) : problemsOf(sel.state, sel.index)) {
+    const li = document.createElement("li");
+    li.className = d.severity;
+    li.textContent = `${d.code} line ${d.line}: ${d.message}` + (d.notes.length ? ` (${d.notes.join("; ")})` : "");
+    here.appendChild(li);
+  }
   const data = sel.kind === "state" ? model.states[sel.path] :
     model.states[sel.state].transitions[sel.index];
   for (const [f, ed] of Object.entries(editors)) {
@@ -430,7 +456,8 @@ function field(box, f, code, change) {
   const ed = {pending: null};
   const later = (v) => {
     clearTimeout(ed.pending);
-    ed.pending = setTimeout(() => { ed.pending = null; change(v); }, 300);
+    ed.flush = () => { ed.pending = null; change(v); };
+    ed.pending = setTimeout(ed.flush, 300);
   };
   if (code && window.CM) {
     const lang = model.language === "cpp" ? CM.cpp() : CM.python();
