@@ -226,12 +226,11 @@ def test_edit_in_the_page(server: Server, model: Path, browsers: Callable[..., A
 @needs_browser
 def test_conflict_from_disk(server: Server, model: Path, browsers: Callable[..., Any],
                             tmp_path: Path) -> None:
-    from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.keys import Keys
 
     page = Page(browsers(), server.url, tmp_path)
-    ActionChains(page.d).move_to_element_with_offset(page.css("#canvas")[0], 250, 150) \
-        .double_click().perform()
+    page.css("#canvas")[0].click()
+    page.keys("n")  # a state from the keyboard
     page.until(lambda: page.css("#inline")[0].is_displayed())
     page.keys("Mine", Keys.ENTER)
     page.until(lambda: page.has('g.state[data-path="Mine"]'))
@@ -239,7 +238,8 @@ def test_conflict_from_disk(server: Server, model: Path, browsers: Callable[...,
     model.write_text(theirs)
     page.until(lambda: page.css("#conflict")[0].is_displayed())
     page.chord("s")
-    page.until(lambda: "changed on disk" in page.css("#message")[0].text)
+    page.until(lambda: "not saved: follow_colors.yaml changed on disk"
+               in page.css("#message")[0].text)
     assert model.read_text() == theirs  # never overwritten
     page.shot("editor-conflict")
     page.css("#reload")[0].click()

@@ -159,9 +159,10 @@ class Editor:
             return READ_ONLY_XML
         try:
             self.session.save()
-        except Conflict as e:
+        except Conflict:
             self.conflict = True
-            return str(e).replace("save with force", "reload it (your edits are dropped)")
+            return (f"not saved: {self.path.name} changed on disk since it was read. Reload "
+                    "takes the disk's text (then Ctrl+Z gives your edits back)")
         self.conflict = False
         return f"saved {self.path.name}"
 

@@ -353,6 +353,17 @@ document.addEventListener("keydown", (ev) => {
     ask(r.left + r.width / 2, r.top + r.height / 2, baseName(path), (name) => {
       if (name !== baseName(path)) send("rename", {path, new: name});
     });
+  } else if (ev.key.toLowerCase() === "n" && !mod && !model.read_only) {
+    // a new state from the keyboard: below the lowest one, named in the box
+    ev.preventDefault();
+    const names = model.automata[cur].states;
+    const y = Math.max(40, ...names.map((n) => center(prefix(cur) + n)[1])) + 90;
+    const x = names.length ? center(prefix(cur) + names[names.length - 1])[0] : 120;
+    const r = $("canvas").getBoundingClientRect();
+    ask(r.left + 120, r.top + 60, "", (name) => {
+      send("add_state", {parent: cur, name});
+      send("move", {state: prefix(cur) + name, x, y});
+    });
   } else if (ev.key === "Backspace" && cur) { ev.preventDefault(); open(parentOf(cur)); }
   else if (ev.key === "Enter" && sel && sel.kind === "state" && model.automata[sel.path]) open(sel.path);
 });
