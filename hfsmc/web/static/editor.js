@@ -405,7 +405,9 @@ function panel() {
     const title = document.createElement("h3");
     box.appendChild(title);
     const at = sel;  // what the fields edit, even when sent after another selection
-    if (at.kind === "state") {
+    if (at.kind === "state" && model.states[at.path].kind === "region") {
+      title.textContent = "Region " + at.path + " (double-click it to see its states)";
+    } else if (at.kind === "state") {
       title.textContent = "State " + at.path;
       for (const f of ["entry", "during", "exit"]) field(box, f, true,
         (v) => send("set_state_field", {state: at.path, key: f, value: v}));
