@@ -50,11 +50,13 @@ from cyclonedds.util import duration
 
 if __package__:
     from . import hfsmc_ros2_cdr as cdr
+    from . import hfsmc_ros2intro as intro
     from . import hfsmc_ros2_rpc as rpc
     from . import hfsmc_ros2_wire as wire
     from .hfsmc_ros2_lockstep import Ros2Lockstep
 else:  # copied beside the generated component, where the modules are top level
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2intro as intro  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_rpc as rpc  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
     from hfsmc_ros2_lockstep import Ros2Lockstep  # type: ignore[import-not-found, no-redef]
@@ -288,6 +290,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self._goal_snap = {n: ("none", None, None) for n in self._acts}
         self._call_snap = {n: ("none", None) for n in self._srvs}
         self._check_topics()
+        self._introspect = settings.get("introspection") is True
         self.on_publish: Callable[[str, bytes], None] | None = None  # a recording's hook
         self.on_command: Callable[[str, list[Any]], None] | None = None  # the recording's
         self._lockstep_init()
@@ -373,6 +376,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self._topics = topics
         self._actions = {n: rpc.ActionClient(self._dp, n, s) for n, s in self._acts.items()}
         self._services = {n: rpc.ServiceClient(self._dp, n, s) for n, s in self._srvs.items()}
+        self._views = intro.writers(self, topic) if self._introspect else {}
         self._announce()
 
     def _qos(self, s: dict[str, Any]) -> Any:
@@ -396,6 +400,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
                                                          *[e for e in rpcs
                                                            if isinstance(e, DataReader)])],
                         writer_gid_seq=[gid(w) for w in (*self._writers.values(),
+                                                         *[v[1] for v in self._views.values()],
                                                          *[e for e in rpcs
                                                            if isinstance(e, DataWriter)])])
         info = info_cls(gid=gid(self._dp), node_entities_info_seq=[node])
@@ -507,6 +512,11 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             self._told("cancel", [n, "stop"])
             with contextlib.suppress(DDSException):
                 self._actions[n].cancel_ep.writer.wait_for_acks(duration(seconds=1))
+
+    def introspection(self) -> Any:
+        """With ``introspection: true``: the observer that publishes the automaton on
+        /fsm_viewer and ~/hfsm/status (SPEC 5.4); else None."""
+        return intro.Introspection(self, self._views) if self._views else None
 
     def dropped(self, name: str) -> int:
         """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""
