@@ -143,7 +143,7 @@ def test_yasmins_message_shows_the_structure_and_the_active_states(component: Pa
     assert both, statuses
     assert statuses[-1]["stop"]["reason"] == "final"
     assert [a["state"] for a in statuses[-1]["stop"]["states"]] == ["Done"]
-    assert [t["name"] for t in statuses[-1]["transitions"]][0] == "go"
+    assert statuses[-1]["transitions"][0]["name"] == "go"
 
 
 def test_introspection_is_off_unless_asked(component: Path, tmp_path: Path) -> None:

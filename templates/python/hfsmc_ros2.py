@@ -50,15 +50,15 @@ from cyclonedds.util import duration
 
 if __package__:
     from . import hfsmc_ros2_cdr as cdr
-    from . import hfsmc_ros2intro as intro
     from . import hfsmc_ros2_rpc as rpc
     from . import hfsmc_ros2_wire as wire
+    from . import hfsmc_ros2intro as intro
     from .hfsmc_ros2_lockstep import Ros2Lockstep
 else:  # copied beside the generated component, where the modules are top level
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
-    import hfsmc_ros2intro as intro  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_rpc as rpc  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2intro as intro  # type: ignore[import-not-found, no-redef]
     from hfsmc_ros2_lockstep import Ros2Lockstep  # type: ignore[import-not-found, no-redef]
 
 DISTROS = ("humble", "jazzy")
