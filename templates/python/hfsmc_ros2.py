@@ -52,13 +52,11 @@ if __package__:
     from . import hfsmc_ros2_cdr as cdr
     from . import hfsmc_ros2_rpc as rpc
     from . import hfsmc_ros2_wire as wire
-    from . import hfsmc_ros2intro as intro
     from .hfsmc_ros2_lockstep import Ros2Lockstep
 else:  # copied beside the generated component, where the modules are top level
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_rpc as rpc  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
-    import hfsmc_ros2intro as intro  # type: ignore[import-not-found, no-redef]
     from hfsmc_ros2_lockstep import Ros2Lockstep  # type: ignore[import-not-found, no-redef]
 
 DISTROS = ("humble", "jazzy")
@@ -267,6 +265,17 @@ class Ros2Queries:
         return name
 
 
+def _intro() -> Any:
+    """hfsmc_ros2intro, imported only by a node that publishes its automaton (the module
+    and the viewer's state it needs are copied beside every component, not beside the
+    simulator's nodes)."""
+    if __package__:
+        from . import hfsmc_ros2intro
+    else:
+        import hfsmc_ros2intro  # type: ignore[import-not-found, no-redef]
+    return hfsmc_ros2intro
+
+
 def _kind(msg: Any) -> str:
     t = getattr(type(msg), "_TYPE", None)
     return t if isinstance(t, str) else type(msg).__name__
@@ -376,7 +385,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self._topics = topics
         self._actions = {n: rpc.ActionClient(self._dp, n, s) for n, s in self._acts.items()}
         self._services = {n: rpc.ServiceClient(self._dp, n, s) for n, s in self._srvs.items()}
-        self._views = intro.writers(self, topic) if self._introspect else {}
+        self._views = _intro().writers(self, topic) if self._introspect else {}
         self._announce()
 
     def _qos(self, s: dict[str, Any]) -> Any:
@@ -516,7 +525,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
     def introspection(self) -> Any:
         """With ``introspection: true``: the observer that publishes the automaton on
         /fsm_viewer and ~/hfsm/status (SPEC 5.4); else None."""
-        return intro.Introspection(self, self._views) if self._views else None
+        return _intro().Introspection(self, self._views) if self._views else None
 
     def dropped(self, name: str) -> int:
         """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""
