@@ -31,7 +31,7 @@ def scenario(tmp: Path, name: str) -> dict[str, Any]:
     if not out.exists():
         generate(ms, out)
         for f in ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_lockstep.py",
-                  "hfsmc_ros2_rpc.py"):
+                  "hfsmc_ros2_rpc.py", "hfsmc_ros2_names.py"):
             (out / f).write_text((RUNTIME / f).read_text())
     with ros2_domain() as dom:
         run = subprocess.run([sys.executable, str(SCRIPT), str(dom), name], cwd=out,
