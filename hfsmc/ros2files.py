@@ -41,6 +41,7 @@ OTHER_KEYS = ("url", "options", "python", "cpp")
 RUNTIME_TYPES = ("rmw_dds_common/msg/ParticipantEntitiesInfo",)
 # What `introspection: true` publishes (SPEC 5.4), and the shipped files of yasmin_msgs.
 INTROSPECTION_TYPES = ("yasmin_msgs/msg/StateMachine", "std_msgs/msg/String")
+INTROSPECTION_TOPICS = ("/fsm_viewer", "~/hfsm/status")  # templates/python/hfsmc_ros2intro.py
 YASMIN_MSGS = tuple(SHIPPED / "yasmin_msgs" / "msg" / f"{n}.msg"
                     for n in ("Transition", "State", "StateMachine"))
 _QOS_KEYS = ("reliability", "durability", "depth")
@@ -164,6 +165,11 @@ def _check_topics(s: Ros2Settings, node: str, ns_ok: bool, diags: Diagnostics) -
             diags.error("E313", str(e), t.topic_span, "ROS 2 names: parts of letters, digits "
                         "and `_`, not starting with a digit, no `__`; `~/x` is below the node")
             continue
+        if s.introspection and full in (INTROSPECTION_TOPICS[0],
+                                        resolve_name(INTROSPECTION_TOPICS[1], s.namespace or "/"
+                                                     if ns_ok else "/", node)):
+            diags.error("E314", f"topic {full} is the introspection's (`introspection: "
+                        "true`): the model may not subscribe or publish it", t.topic_span)
         other = seen.setdefault(full, t)
         if ros2_type_name(other.type) != ros2_type_name(t.type):
             diags.error("E314", f"topic {full} is used with two types: {other.type} "

@@ -207,3 +207,42 @@ def test_the_key_in_yaml_and_xml_and_its_errors(tmp_path: Path) -> None:
     assert bad.returncode == 1
     assert "cpp.yaml:10:20: error[E312]: `introspection` of a ros2 interface is not " \
         "supported in C++ models yet" in bad.stderr
+
+
+CLASH = """\
+hfsm: 1
+name: clash
+interfaces:
+  robot:
+    type: ros2
+    introspection: true
+    publish:
+      v: {topic: TOPIC, type: std_msgs/msg/String}
+initial: A
+states:
+  A: {transitions: [{to: B, after: 1s}]}
+  B: {final: true}
+"""
+
+
+def test_the_introspections_topics_are_its_own(tmp_path: Path) -> None:
+    for topic, col in (("/fsm_viewer", 18), ("~/hfsm/status", 18)):
+        (tmp_path / "clash.yaml").write_text(CLASH.replace("TOPIC", topic))
+        bad = hfsmc("check", str(tmp_path / "clash.yaml"))
+        assert bad.returncode == 1
+        assert f"clash.yaml:8:{col}: error[E314]: topic " in bad.stderr, bad.stderr
+    # a configuration file that renames a topic onto one of them: refused at start
+    (tmp_path / "clash.yaml").write_text(CLASH.replace("TOPIC", "/other"))
+    out = tmp_path / "out"
+    assert hfsmc("build", str(tmp_path / "clash.yaml"), "-o", str(out)).returncode == 0
+    (tmp_path / "rename.yaml").write_text(json.dumps(
+        {"interfaces": {"robot": {"publish": {"v": {"topic": "/fsm_viewer"}}}}}))
+    with ros2_domain() as dom:
+        run = subprocess.run([sys.executable, str(out / "clash.py"), "--config",
+                              str(tmp_path / "rename.yaml"), "--until", "1s"],
+                             capture_output=True, text=True, timeout=60,
+                             env={**os.environ, "ROS_DOMAIN_ID": str(dom)})
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines() == [
+        "robot: ros2: topic /fsm_viewer is the introspection's (yasmin_msgs/msg/StateMachine): "
+        "the model may not subscribe or publish it"]

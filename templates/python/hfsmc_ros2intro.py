@@ -45,11 +45,15 @@ def writers(node: Any, topic: Any) -> dict[str, tuple[Any, Any]]:
     """The node's two writers (``topic`` makes the DDS topic of a settings dict, as the
     node's own publications do): key -> (message class, DataWriter)."""
     out: dict[str, tuple[Any, Any]] = {}
+    used = {s["topic"] for s in (*node._subs.values(), *node._pubs.values())}
     for key, name, type_name in (("machine", FSM_VIEWER, MACHINE_TYPE),
                                  ("status", STATUS, STATUS_TYPE)):
         cls = wire.message_class(type_name)
         s = {"topic": wire.resolve_name(name, node.namespace, node.node), "class": cls,
              "qos": wire.qos_of("default")}
+        if s["topic"] in used:  # one topic, two writers of the node: the views' own
+            raise wire.Ros2Error(f"topic {s['topic']} is the introspection's ({type_name}): "
+                                 "the model may not subscribe or publish it")
         out[key] = (cls, DataWriter(node._dp, topic(s), qos=node._qos(s)))
     return out
 
