@@ -120,3 +120,53 @@ def test_a_replay_that_waits_on_a_status_the_recording_lacks_is_no_evidence(
     done = _hfsmc("replay", str(mcap), "--model", str(tmp_path / "nav.yaml"))
     assert "goal_status" in done.stdout + done.stderr, done.stdout + done.stderr
     assert "dock" in done.stdout + done.stderr
+
+
+def _playback(component: Path, folder: Path, rows: list[dict[str, Any]]
+              ) -> subprocess.CompletedProcess[str]:
+    folder.mkdir()
+    (folder / "inputs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return subprocess.run([sys.executable, str(component), "--playback", str(folder),
+                           "--trace", str(folder / "trace.jsonl"), "--until", "3s"],
+                          capture_output=True, text=True, timeout=60)
+
+
+def test_a_script_answers_goals_and_calls_at_its_instants_and_bad_ones_are_refused(
+        tmp_path: Path) -> None:
+    (tmp_path / "nav.yaml").write_text(NAV)
+    component = build(tmp_path, tmp_path / "nav.yaml")
+    store = rosbags_store("jazzy")
+    result = base64.b64encode(store.serialize_cdr(
+        store.types["nav2_msgs/action/NavigateToPose_Result"](error_code=0, error_msg=""),
+        "nav2_msgs/action/NavigateToPose_Result")).decode()
+
+    def row(t: int, **values: Any) -> dict[str, Any]:
+        return {"t": t, "kind": "snapshot", "interface": "robot", "values": values}
+
+    good = [row(0, calls={"reset": {"status": "none"}}, goals={"navigate": {"status": "none"}}),
+            row(500_000, calls={"reset": {"status": "done"}}),
+            row(1_000_000, goals={"navigate": {"status": "executing"}}),
+            row(2_000_000, goals={"navigate": {"status": "succeeded", "result": result}})]
+    run = _playback(component, tmp_path / "good", good)
+    assert run.returncode == 0, run.stderr
+    trace = [json.loads(line)
+             for line in (tmp_path / "good" / "trace.jsonl").read_text().splitlines()]
+    fired = [(r["t"], r["to"]) for r in trace if r["ev"] == "fire"]
+    assert fired == [(500, "Go"), (2000, "Done")]  # at the instants the script says
+    commands = [json.loads(line)
+                for line in (tmp_path / "good" / "commands.jsonl").read_text().splitlines()]
+    assert [(c["t"], c["call"], c["args"][0]) for c in commands] == [
+        (0, "call", "reset"), (500_000, "send_goal", "navigate")]
+    for name, bad, said in [
+            ("status", {"goals": {"navigate": {"status": "flying"}}},
+             "`goals.navigate`: {status, feedback, result} with a status among none, "),
+            ("bytes", {"goals": {"navigate": {"status": "executing", "feedback": "AAEA"}}},
+             "`navigate`'s feedback is no nav2_msgs/action/NavigateToPose_Feedback: "),
+            ("name", {"calls": {"rest": {"status": "done"}}}, "no service `rest` (reset)"),
+            ("field", {"calls": {"reset": {"status": "done", "answer": None}}},
+             "`calls.reset` has no field `answer`")]:
+        run = _playback(component, tmp_path / name, [row(0, **bad)])
+        assert run.returncode == 2, (name, run.stderr)
+        lines = run.stderr.strip().splitlines()
+        assert len(lines) == 1 and "inputs.jsonl: t=0: interface `robot`: " in lines[0] \
+            and said in lines[0], (name, lines)
