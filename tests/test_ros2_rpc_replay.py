@@ -157,14 +157,15 @@ def test_a_script_answers_goals_and_calls_at_its_instants_and_bad_ones_are_refus
                 for line in (tmp_path / "good" / "commands.jsonl").read_text().splitlines()]
     assert [(c["t"], c["call"], c["args"][0]) for c in commands] == [
         (0, "call", "reset"), (500_000, "send_goal", "navigate")]
-    for name, bad, said in [
+    cases: list[tuple[str, dict[str, Any], str]] = [
             ("status", {"goals": {"navigate": {"status": "flying"}}},
              "`goals.navigate`: {status, feedback, result} with a status among none, "),
             ("bytes", {"goals": {"navigate": {"status": "executing", "feedback": "AAEA"}}},
              "`navigate`'s feedback is no nav2_msgs/action/NavigateToPose_Feedback: "),
             ("name", {"calls": {"rest": {"status": "done"}}}, "no service `rest` (reset)"),
             ("field", {"calls": {"reset": {"status": "done", "answer": None}}},
-             "`calls.reset` has no field `answer`")]:
+             "`calls.reset` has no field `answer`")]
+    for name, bad, said in cases:
         run = _playback(component, tmp_path / name, [row(0, **bad)])
         assert run.returncode == 2, (name, run.stderr)
         lines = run.stderr.strip().splitlines()
