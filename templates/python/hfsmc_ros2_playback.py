@@ -28,11 +28,13 @@ if __package__:
     from . import hfsmc_ros2 as ros2
     from . import hfsmc_ros2_cdr as cdr
     from . import hfsmc_ros2_rpc as rpc
+    from . import hfsmc_ros2_servers as servers
     from . import hfsmc_ros2_wire as wire
 else:  # beside the generated component
     import hfsmc_ros2 as ros2  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_rpc as rpc  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2_servers as servers  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
 
 _FIELDS = ("count", "age", "publishers", "dropped", "cdr")
@@ -59,6 +61,7 @@ class Ros2Fake(ros2.Ros2Queries):
             n: {"status": "none", "response": None} for n in self._srvs}
         self._goal_snap = {n: ("none", None, None) for n in self._acts}
         self._call_snap = {n: ("none", None) for n in self._srvs}
+        self._servers = servers.Scripted(self._acts, self._srvs)  # a scenario's
         self._subs = ros2.Ros2Node._endpoints(self, settings.get("subscribe") or {})  # type: ignore[arg-type]
         self._pubs = ros2.Ros2Node._endpoints(self, settings.get("publish") or {})  # type: ignore[arg-type]
         ros2.Ros2Node._check_topics(self)  # type: ignore[arg-type]
@@ -79,10 +82,12 @@ class Ros2Fake(ros2.Ros2Queries):
         are left out: another model than the recorded one can be replayed)."""
         if not isinstance(values, dict):
             raise ValueError("`values` must be a mapping")
-        odd = [k for k in values if k not in ("subscriptions", "subscribers", "goals", "calls")]
+        known = ("subscriptions", "subscribers", "goals", "calls", *(() if recorded else
+                                                                      ("servers",)))
+        odd = [k for k in values if k not in known]
         if odd:
             raise ValueError(f"the ros2 interface `{self.name}` has no snapshot field "
-                             f"`{odd[0]}` (subscriptions, subscribers, goals, calls)")
+                             f"`{odd[0]}` ({', '.join(known)})")
         subs: dict[str, dict[str, Any]] = {}
         for n, v in _mapping(values.get("subscriptions"), "subscriptions").items():
             if recorded and n not in self._subs:
@@ -109,8 +114,11 @@ class Ros2Fake(ros2.Ros2Queries):
                 continue
             self._known(n, self._pubs, "publication")
             pubs[n] = _count(k, f"`{n}`'s subscribers")
-        return {"subscriptions": subs, "subscribers": pubs,
-                **rpc.from_recorded(values, self._acts, self._srvs, recorded)}
+        out = {"subscriptions": subs, "subscribers": pubs,
+               **rpc.from_recorded(values, self._acts, self._srvs, recorded)}
+        if "servers" in values:
+            out["servers"] = servers.convert(values["servers"], self._acts, self._srvs)
+        return out
 
     def _decode(self, n: str, text: Any) -> tuple[Any, bytes | None]:
         if text is None:
@@ -144,6 +152,7 @@ class Ros2Fake(ros2.Ros2Queries):
             self._goals[n].update(v)
         for n, v in values.get("calls", {}).items():
             self._calls[n].update(v)
+        self._servers.holding.update(values.get("servers", {}))
 
     def snapshot(self) -> dict[str, Any]:
         now = self.playback.t if self.playback is not None else 0
@@ -162,9 +171,11 @@ class Ros2Fake(ros2.Ros2Queries):
                          "dropped": s["dropped"], "cdr": s["cdr"]}
         self._snap = snap
         self._snap_subscribers = dict(self._given_subscribers)
-        self._goal_snap = {n: (g["status"], g["feedback"], g["result"])
+        scripted = self._servers
+        self._goal_snap = {n: scripted.goal(n, now) or (g["status"], g["feedback"], g["result"])
                            for n, g in self._goals.items()}
-        self._call_snap = {n: (c["status"], c["response"]) for n, c in self._calls.items()}
+        self._call_snap = {n: scripted.call(n, now) or (c["status"], c["response"])
+                           for n, c in self._calls.items()}
         return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers),
                 **rpc.snapshot_values(self._goal_snap, self._call_snap)}
 
@@ -220,15 +231,23 @@ class Ros2Fake(ros2.Ros2Queries):
 
     # -- commands: told, as the live node tells the recording, and sent nowhere --------
     def _send_goal(self, name: str, goal: Any, running: bool) -> None:
+        if self._servers.scripted(name):
+            self._servers.send(name, self._now())
         if running:
             self._tell("cancel", [name, "replaced"])
         self._tell("send_goal", [name, base64.b64encode(cdr.serialize(goal)).decode("ascii")])
 
     def _cancel(self, name: str) -> None:
+        self._servers.cancel(name, self._now())
         self._tell("cancel", [name])
 
     def _call(self, name: str, request: Any) -> None:
+        if self._servers.scripted(name):
+            self._servers.send(name, self._now())
         self._tell("call", [name, base64.b64encode(cdr.serialize(request)).decode("ascii")])
+
+    def _now(self) -> int:
+        return int(self.playback.t) if self.playback is not None else 0
 
     def _tell(self, call: str, args: list[Any]) -> None:
         if self.on_command is not None:
@@ -282,6 +301,7 @@ def fake(name: str, settings: dict[str, Any], playback: Any,
     except ros2.Ros2Error as e:
         raise ValueError(f"interface `{name}`: {e}") from None
     recorded = bool(getattr(playback, "recorded", False))
+    made._servers.every = not recorded  # a scenario's: no server unless it scripts one
     out = []
     for t, values, missing in rows:
         try:
