@@ -28,6 +28,7 @@ from hfsmc.frontend.source import Document, PathKey
 from hfsmc.frontend.yaml import load_yaml
 from hfsmc.ir import Model
 from hfsmc.scenario_ros2 import RecordedTopic, Topics, Written, recorded_topic, written
+from hfsmc.scenario_rpc import check_server, rpc
 
 Language = Literal["python", "cpp"]
 LANGUAGES: tuple[Language, ...] = ("python", "cpp")
@@ -462,7 +463,8 @@ class _Reader:
             self.error("E190", f"unknown input `{key}`", self.key_at(path), *([note] if note else []),
                        f"a mavlink interface takes: {', '.join(MAVLINK_FIELDS)}; a camera: "
                        f"{', '.join(CAMERA_FIELDS)}; a ros2 interface: its subscriptions, each "
-                       "a message (`scan: {range_max: 12.0}`), and `rate` (and every entry "
+                       "a message (`scan: {range_max: 12.0}`), `rate`, and its actions and "
+                       "services, each a server (`navigate: {after: 2s}`) (and every entry "
                        "at/from/to)")
             return None
         span = self.at(path)
@@ -767,7 +769,11 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
                                 "arrives: docs/ros2-cpp.md)", e.interface_span,
                                 "run this scenario with the Python model (`languages: python`)")
                 continue
-            topics.check_settings(e.interface, e.settings, diags)
+            servers = [s for s in e.settings if rpc(topics, e.interface, s.field) is not None]
+            for s in servers:  # an action's or a service's scripted server
+                check_server(topics, e.interface, s.field, s.value, diags)
+            topics.check_settings(e.interface, [s for s in e.settings if s not in servers],
+                                  diags)
             continue
         fields = FIELDS.get(iface.type)
         if fields is None:

@@ -21,6 +21,7 @@ from typing import Any
 from hfsmc.errors import Diagnostics
 from hfsmc.scenario import Entry, Ramp, Scenario, ScenarioError, Setting
 from hfsmc.scenario_ros2 import Topics, topic_rows
+from hfsmc.scenario_rpc import server_rows
 
 DEFAULT_RATE = 10.0  # frames per second of a scripted camera
 
@@ -242,7 +243,8 @@ def write_playback(sc: Scenario, types: dict[str, str], step: int, folder: Path,
     frames = _write_frames(sc, types, folder)
     items = list(snapshots(sc, types, step, frames, _renderer(sc, folder)))
     if topics is not None:
-        items = sorted(items + topic_rows(sc.inputs, sc.until_us, topics), key=lambda i: i["t"])
+        items = sorted(items + topic_rows(sc.inputs, sc.until_us, topics)
+                       + server_rows(sc.inputs, sc.until_us, topics), key=lambda i: i["t"])
     with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
         for item in items:
             f.write(json.dumps(item, separators=(",", ":")) + "\n")

@@ -34,7 +34,8 @@ INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py", "hfs
                    "camera": ("hfsmc_camera.py",), "driver": ("hfsmc_driver.py",),
                    "ros2": ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_names.py",
                             "hfsmc_ros2_cdr.py", "hfsmc_ros2_playback.py",
-                            "hfsmc_ros2_lockstep.py", "hfsmc_ros2_rpc.py")}
+                            "hfsmc_ros2_lockstep.py", "hfsmc_ros2_rpc.py",
+                            "hfsmc_ros2intro.py", "hfsmc_ros2_servers.py")}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
 _TRY_MARK = re.compile(r"^\s*try:  # s(\d+)$")
