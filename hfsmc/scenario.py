@@ -12,11 +12,12 @@ collected before :class:`ScenarioError` is raised.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -85,11 +86,11 @@ class Setting:
     key_span: Span
     # The value as written, with its positions: a user driver's field (its type is known
     # only with the model: hfsmc/scenario_driver.py); `spanned`: in a from/to entry.
-    raw: Written | None = field(default=None, compare=False)
+    raw: Written | None = dataclasses.field(default=None, compare=False)
     spanned: bool = False
     # What reading it as a built-in interface's input found wrong: said unless the
     # interface turns out to be a user driver's, whose fields are its own.
-    held: tuple[Diagnostic, ...] = field(default=(), compare=False)
+    held: tuple[Diagnostic, ...] = dataclasses.field(default=(), compare=False)
 
 
 @dataclass(frozen=True, slots=True)

@@ -39,7 +39,7 @@ from hfsmc.ir import Model
 
 # The component's own modules, shipped as the data package hfsmc.templates (see hfsmc/commands/view.py).
 from hfsmc.templates.python import hfsmc_driverview as driverview  # type: ignore[import-not-found]
-from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
+from hfsmc.templates.python import hfsmc_monitor as monitor
 from hfsmc.templates.python import hfsmc_viewstate as viewstate
 from hfsmc.web.picture import svg_of
 from hfsmc.web.ros2 import Trail, WorldMap, odometry, ros2_record, scan_record, world_message
