@@ -68,10 +68,17 @@ def _scalar(default: Any, w: Written, what: str, diags: Diagnostics) -> Any:
         ok = isinstance(v, bool)
     elif isinstance(default, int):
         ok = isinstance(v, int) and not isinstance(v, bool)
+        if ok and not -(1 << 63) <= v < 1 << 63:  # what a C++ driver's long long holds
+            diags.error("E191", f"{what}: {v} is out of the range of a 64-bit integer", w.span)
+            return None
     elif isinstance(default, float):
         ok = isinstance(v, (int, float)) and not isinstance(v, bool)
         if ok:
-            return float(v)
+            try:
+                return float(v)
+            except OverflowError:
+                diags.error("E191", f"{what}: {v} is beyond what a float holds", w.span)
+                return None
     elif isinstance(default, str):
         ok = isinstance(v, str)
     elif isinstance(default, (tuple, list)):

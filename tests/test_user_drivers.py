@@ -247,12 +247,15 @@ def test_a_drivers_field_may_bear_a_built_in_inputs_name(tmp_path: Path) -> None
     bad = _scenario(tmp_path, """\
   arm:
     - {at: 0s, position: [0, 0, 1], mode: GUIDED, joints: [0.5, true]}
-""", "  - stop: until\n", model)
+    - {at: 1s, mode: 9223372036854775808, joints: [%s]}
+""" % ("9" * 400), "  - stop: until\n", model)
     assert _problems(bad) == [
         "5:26: E191 `position` must be a number (.nan and .inf are numbers too), not a list",
         "5:43: E191 `mode` must be an integer, not a string (`GUIDED`)",
         "5:65: E191 an item of `joints` must be a number (.nan and .inf are numbers too), "
         "not a boolean",
+        "6:22: E191 `mode`: 9223372036854775808 is out of the range of a 64-bit integer",
+        f"6:54: E191 an item of `joints`: {'9' * 400} is beyond what a float holds",
     ]
 
 
