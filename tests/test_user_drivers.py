@@ -255,7 +255,7 @@ def test_a_drivers_field_may_bear_a_built_in_inputs_name(tmp_path: Path) -> None
         "5:65: E191 an item of `joints` must be a number (.nan and .inf are numbers too), "
         "not a boolean",
         "6:22: E191 `mode`: 9223372036854775808 is out of the range of a 64-bit integer",
-        f"6:54: E191 an item of `joints`: {'9' * 400} is beyond what a float holds",
+        f"6:52: E191 an item of `joints`: {'9' * 400} is beyond what a float holds",
     ]
 
 
