@@ -48,21 +48,25 @@ def test_values_are_sent_as_numbers_booleans_or_short_text() -> None:
 
 # -- a running gadget ------------------------------------------------------------------------
 class Run:
-    """gadget_sim.py and udp_gadget with --monitor, on loopback."""
+    """gadget_sim.py and udp_gadget (Python) or udp_gadget_cpp with --monitor, on loopback."""
 
-    def __init__(self, tmp: Path) -> None:
+    def __init__(self, tmp: Path, language: str) -> None:
         self.tmp = tmp
         self.procs: list[subprocess.Popen[bytes]] = []
-        out = subprocess.run([sys.executable, "-m", "hfsmc", "build",
-                              str(GADGET / "udp_gadget.yaml"), "-o", str(tmp / "g")],
-                             capture_output=True, text=True, timeout=120, cwd=ROOT)
+        self.model = GADGET / ("udp_gadget.yaml" if language == "python" else "udp_gadget_cpp.yaml")
+        build = ["-t", "cpp", "--compile"] if language == "cpp" else []
+        out = subprocess.run([sys.executable, "-m", "hfsmc", "build", *build, str(self.model),
+                              "-o", str(tmp / "g")],
+                             capture_output=True, text=True, timeout=280, cwd=ROOT)
         assert out.returncode == 0, out.stderr
+        component = [sys.executable, str(tmp / "g/udp_gadget.py")] if language == "python" \
+            else [str(tmp / "g/build/udp_gadget_cpp")]
         udp = free_port(socket.SOCK_DGRAM)
         self.start("sim", [sys.executable, str(GADGET / "gadget_sim.py"), "--port", str(udp),
                            "--period", "2", "--for", "300"])
         (tmp / "wire.yaml").write_text(json.dumps(
             {"interfaces": {"gadget": {"url": f"udp:127.0.0.1:{udp}"}}}))
-        self.start("component", [sys.executable, str(tmp / "g/udp_gadget.py"), "--config",
+        self.start("component", [*component, "--config",
                                  str(tmp / "wire.yaml"), "--monitor", "0", "--until", "300s"])
         deadline = time.monotonic() + 20
         while not (m := re.search(r"monitor: listening on 127\.0\.0\.1:(\d+)",
@@ -87,9 +91,16 @@ class Run:
                 p.wait(5)
 
 
-@pytest.fixture(scope="module")
-def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
-    r = Run(tmp_path_factory.mktemp("driverviews"))
+@pytest.fixture(scope="module", params=["python", "cpp"])
+def run(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
+    if request.param == "cpp":
+        from tests.cppbuild import CppBuildError, need_toolchain
+
+        try:
+            need_toolchain()
+        except CppBuildError as e:
+            pytest.fail(str(e))
+    r = Run(tmp_path_factory.mktemp("driverviews"), request.param)
     try:
         yield r
     finally:
@@ -125,7 +136,7 @@ def test_the_terminal_view_shows_the_drivers_table(run: Run, tmux: Callable[...,
             r"led\s+(true|false)")
     screen = t.wait(lambda s: all(re.search(r, s) for r in rows), timeout=30)
     assert re.search(r"● (Clear|Near)", screen), screen
-    (tmp_path / "view-udp_gadget.txt").write_text(screen)
+    (tmp_path / f"view-{run.model.stem}.txt").write_text(screen)
 
 
 DRIVER_JS = """
@@ -143,7 +154,7 @@ return {
 def test_the_web_view_shows_the_drivers_table(run: Run, browsers: Callable[..., Any],
                                                tmp_path: Path) -> None:
     web = Process([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{run.port}",
-                   "--model", str(GADGET / "udp_gadget.yaml")], tmp_path, "web")
+                   "--model", str(run.model)], tmp_path, "web")
     try:
         url = web.wait_for(WEB_URL, where="out").group(1)
         driver = browsers()
@@ -160,6 +171,6 @@ def test_the_web_view_shows_the_drivers_table(run: Run, browsers: Callable[..., 
         rows = dict(s["rows"])
         assert list(rows) == ["distance", "age", "count", "led"], s
         assert 0.0 < float(rows["distance"]) < 3.0 and rows["led"] in ("true", "false"), s
-        screenshot(driver, "web-udp_gadget", tmp_path)
+        screenshot(driver, f"web-{run.model.stem}", tmp_path)
     finally:
         web.kill(signal.SIGINT)
