@@ -274,3 +274,19 @@ def test_the_gadgets_scenarios_fail_when_the_model_does_otherwise(tmp_path: Path
                      r"and 2\.75 s\n  got: entered 0 time", r.stdout), r.stdout
     assert re.search(r"expected command gadget\.beep\(100\) 1 time\(s\)\n  got: sent 0 "
                      r"time", r.stdout), r.stdout
+
+
+def test_a_span_gives_way_to_what_held_before_or_to_the_declared_value(tmp_path: Path) -> None:
+    from hfsmc.scenario import load_scenario
+    from hfsmc.scenario_inputs import snapshots
+
+    sc = load_scenario(str(_scenario(tmp_path, """\
+  gadget:
+    - {at: 0s, distance: 2.0}
+    - {from: 100ms, to: 200ms, distance: 0.3, led: true}
+""")))
+    defaults = dict(read_python_driver((GADGET / "drivers/gadget.py").read_text()).snapshot)
+    got = [(e["t"] // 1000, e["values"]) for e in snapshots(
+        sc, {"gadget": "driver"}, 50_000, {}, drivers={"gadget": defaults})]
+    assert got == [(0, {"distance": 2.0}), (100, {"distance": 0.3, "led": True}),
+                   (200, {"distance": 2.0, "led": False})]  # led: never set before, its default
