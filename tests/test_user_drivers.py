@@ -189,14 +189,16 @@ def _problems(path: Path) -> list[str]:
     return [f"{d.span.line}:{d.span.col}: {d.code} {d.message}" for d in diags.sorted()]
 
 
-def test_a_scenario_scripts_a_drivers_fields_each_of_its_type(tmp_path: Path) -> None:
+@pytest.mark.parametrize("model", ["udp_gadget.yaml", "udp_gadget_cpp.yaml"])
+def test_a_scenario_scripts_a_drivers_fields_each_of_its_type(tmp_path: Path, model: str) -> None:
+    """Checked against the declaration of the model's language (gadget.py, gadget.hpp)."""
     path = _scenario(tmp_path, """\
   gadget:
     - {at: 0s, distanse: 2.0, count: 1.5, led: 1}
     - {at: 1s, distance: fast, mode: 3}
     - {at: 2s, distance: {ramp: [0, 1]}}
     - {from: 2s, to: 3s, count: {ramp: [0, 9]}, distance: {ramp: [0, x]}}
-""", "  - command: gadget.blink\n  - command: gadget.led\n    args: [true]\n")
+""", "  - command: gadget.blink\n  - command: gadget.led\n    args: [true]\n", GADGET / model)
     assert _problems(path) == [
         "5:16: E195 `distanse` is not a snapshot field of the gadget driver (`gadget`)",
         "5:38: E191 `count` must be an integer, not a number (`1.5`)",
