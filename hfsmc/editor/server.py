@@ -9,7 +9,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import signal
 import socket
 import sys
 from importlib import resources
@@ -22,7 +21,7 @@ from hfsmc.edit.session import Conflict, EditSession
 from hfsmc.edit.text import EditError
 from hfsmc.editor.model import SNIPPETS, Layout, diagnostics, structure
 from hfsmc.frontend import is_xml
-from hfsmc.web.server import url_of
+from hfsmc.web.server import release_signals, stop_on_signals, url_of
 from hfsmc.web.trust import Trust, guard, headers, loopback_only
 
 WS_MESSAGE_LIMIT = 1 << 20  # a snippet is text a person typed: 1 MiB is plenty
@@ -262,10 +261,7 @@ async def serve(sock: socket.socket, editor: Editor, trust: Trust, out: TextIO |
     out = out if out is not None else sys.stdout
     log = log if log is not None else sys.stderr
     stop = stop if stop is not None else asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-            loop.add_signal_handler(sig, stop.set)
+    stop_on_signals(stop)
     runner = web.AppRunner(make_app(editor, trust, log), access_log=None, handle_signals=False)
     await runner.setup()
     watching = asyncio.create_task(editor.watch())
@@ -286,3 +282,4 @@ async def serve(sock: socket.socket, editor: Editor, trust: Trust, out: TextIO |
             with contextlib.suppress(Exception):
                 await ws.close()
         await runner.cleanup()
+        release_signals()
