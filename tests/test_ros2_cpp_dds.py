@@ -73,8 +73,8 @@ def started() -> Iterator[list[subprocess.Popen[str]]]:
 
 
 def _start(procs: list[subprocess.Popen[str]], *args: object) -> subprocess.Popen[str]:
-    p = subprocess.Popen([str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True)
+    p = subprocess.Popen([str(a) for a in args], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
     procs.append(p)
     return p
 
@@ -86,8 +86,15 @@ def test_fast_dds_scan_in_twist_out(builds: dict[str, Path], domain: int,
     build = builds["jazzy"]
     comp = _start(started, build / "component", "bump", "/", "jazzy", domain, 60, 5)
     peer = _start(started, build / "fastdds_peer", domain, 60, 3)
-    peer_out, peer_err = peer.communicate(timeout=90)
+    seen = []  # the peer sends once the component's reader has matched its writer
+    for line in comp.stdout or ():  # the component ends itself after 60 s at most
+        seen.append(line)
+        if line.startswith("publishers 1"):
+            break
+    assert seen and seen[-1].startswith("publishers 1"), seen
+    peer_out, peer_err = peer.communicate("go\n", timeout=90)
     comp_out, comp_err = comp.communicate(timeout=90)
+    comp_out = "".join(seen) + comp_out
     assert peer.returncode == 0, (peer_out, peer_err, comp_out, comp_err)
     assert comp.returncode == 0, comp_err
     assert "started /scan /cmd_vel" in comp_out

@@ -35,6 +35,7 @@ class Synced(Protocol):
 
     def lockstep_sent(self) -> int: ...
     def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None: ...
+    def close(self) -> None: ...  # stop reading (closing twice is nothing)
 
 
 def parse(text: str) -> tuple[str, int]:
@@ -129,6 +130,8 @@ class SimClock:
         """Say goodbye (the simulator stops or goes on in real time, as it was told)."""
         if self.sock is None:
             return
+        for d in self.drivers:  # no reader outlives the clock: none sees the streams end
+            d.close()
         if self.gone is None:
             with contextlib.suppress(SimGone):
                 self._send({"bye": why})

@@ -43,12 +43,18 @@ int main(int argc, char** argv) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
   long seen = 0;
   int subscribers = -1;
+  int publishers = 0;
   while (std::chrono::steady_clock::now() < end && seen < want) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     node.take_snapshot();
     if (node.subscribers("cmd_vel") != subscribers) {
       subscribers = node.subscribers("cmd_vel");
       std::printf("subscribers %d\n", subscribers);
+    }
+    if (node.publishers("scan") != publishers) {  // its reader has matched a writer
+      publishers = node.publishers("scan");
+      std::printf("publishers %d\n", publishers);
+      std::fflush(stdout);
     }
     const auto* scan = node.get<sensor_msgs::msg::LaserScan>("scan");
     if (node.count("scan") == seen || scan == nullptr) continue;

@@ -5,7 +5,9 @@
 // those against rosbags is test_ros2_cpp_cdr.py), first one malformed sample, then a scan every
 // 100 ms (stamp.sec = its number, frame_id "fastdds", ranges {0.5 + n, 2, 3}); it reads
 // geometry_msgs/Twist on rt/cmd_vel and prints each. It exits 0 after WANT twists, 3 after
-// SECONDS without them.
+// SECONDS without them. It sends nothing before a line on stdin says the reader on the other
+// side has matched it: a sample written before that is lost to a volatile reader, and which
+// one is lost would depend on the machine's load.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -112,6 +114,8 @@ int main(int argc, char** argv) {
   int got = 0;
   int n = 0;
   bool malformed_sent = false;
+  char go[16];
+  if (std::fgets(go, sizeof go, stdin) == nullptr) return 4;  // the test never said go
   auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
   while (std::chrono::steady_clock::now() < end && got < want) {
     PublicationMatchedStatus st;

@@ -96,6 +96,7 @@ class Camera : public Feed, public Source, public simclock::Synced {
   // -- simclock::Synced: lockstep with `hfsmc sim` (--clock sim) --------------------------
   long long lockstep_sent() const override { return 0; }
   std::string lockstep_sync(long long t_us, const simclock::Step& step) override;
+  void lockstep_end() override { close(); }
 
   /// Stop the grabber (also done by the destructor); waits 1 s at most.
   void close();

@@ -61,6 +61,8 @@ public:
     virtual std::string lockstep_started(const std::string& /*hello*/) { return std::string(); }
     // and the samples published on each topic since connecting, for `next`.
     virtual void lockstep_counts(std::map<std::string, long long>& /*published*/) const {}
+    // The run is over: stop reading before the simulator hears goodbye and ends its streams.
+    virtual void lockstep_end() {}
 };
 
 // The members of an object member `"key":{"a":1,"b":2}` of flat numbers (topic counts).
@@ -247,6 +249,7 @@ public:
     // Say goodbye (the simulator stops or goes on in real time, as it was told).
     void close(const std::string& why) {
         if (fd_ < 0) return;
+        for (Synced* d : drivers_) d->lockstep_end();
         if (gone_.empty()) {
             try {
                 send("{\"bye\":" + json_text(why) + "}");
