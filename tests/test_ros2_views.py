@@ -1,7 +1,8 @@
 """A ros2 interface in the live views (docs/web.md "ROS 2 topics and the map",
 schemas/monitor.md minor version 3): the monitor's ros2 and scan messages, the terminal
 view's rows and the web view's map, against a real bump_and_go driving in the real
-ground-robot simulator."""
+ground-robot simulator, in Python and in C++ (examples/bump_and_go_cpp: its monitor,
+templates/cpp/hfsmc/monitor.hpp, and hfsmc/ros2view.hpp are the twins of the Python ones)."""
 
 from __future__ import annotations
 
@@ -29,6 +30,8 @@ from tests.support import WEB_URL, Client, Process, Tmux, needs_browser, screens
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "bump_and_go"
+MODELS = {"python": EXAMPLE / "bump_and_go.yaml",
+          "cpp": ROOT / "examples" / "bump_and_go_cpp" / "bump_and_go_cpp.yaml"}
 START = (1.0, 1.0)  # tb2's start in examples/bump_and_go/world.yaml (yaw 0)
 
 
@@ -98,22 +101,24 @@ def test_the_trail_keeps_a_point_every_2_cm_and_the_latest_points() -> None:
 
 # -- the real thing: bump_and_go in the simulator --------------------------------------------
 class Run:
-    """The simulator, bump_and_go with --monitor, and their files."""
+    """The simulator, bump_and_go (Python or C++) with --monitor, and their files."""
 
-    def __init__(self, tmp: Path, domain: int) -> None:
+    def __init__(self, tmp: Path, domain: int, lang: str) -> None:
         self.tmp = tmp
         self.domain = domain
+        self.model = MODELS[lang]
         self.procs: list[subprocess.Popen[bytes]] = []
-        out = subprocess.run([sys.executable, "-m", "hfsmc", "build",
-                              str(EXAMPLE / "bump_and_go.yaml"), "-o", str(tmp / "bg")],
-                             capture_output=True, text=True, timeout=120, cwd=ROOT)
+        out = subprocess.run([sys.executable, "-m", "hfsmc", "build", str(self.model), "-o",
+                              str(tmp / "bg"), *(["-t", "cpp", "--compile"] if lang == "cpp" else [])],
+                             capture_output=True, text=True, timeout=600, cwd=ROOT)
         assert out.returncode == 0, out.stderr
+        component = ([str(tmp / "bg" / "build" / "bump_and_go_cpp")] if lang == "cpp"
+                     else [sys.executable, str(tmp / "bg" / "bump_and_go.py")])
         self.truth = tmp / "truth.json"
         self.start("sim", [sys.executable, "-m", "hfsmc", "sim", "--robot", "diffdrive", "--world",
                            str(EXAMPLE / "world.yaml"), "--domain", str(domain), "--truth",
                            str(self.truth)])
-        self.start("component", [sys.executable, str(tmp / "bg" / "bump_and_go.py"), "--monitor",
-                                 "0", "--until", "600s"])
+        self.start("component", [*component, "--monitor", "0", "--until", "600s"])
         deadline = time.monotonic() + 20
         while not (m := re.search(r"monitor: listening on 127\.0\.0\.1:(\d+)",
                                   (tmp / "component.err").read_text())):
@@ -147,11 +152,11 @@ def _env() -> dict[str, str]:
     return dict(os.environ)
 
 
-@pytest.fixture(scope="module")
-def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
-    tmp = tmp_path_factory.mktemp("ros2views")
+@pytest.fixture(scope="module", params=["python", "cpp"])
+def run(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
+    tmp = tmp_path_factory.mktemp(f"ros2views-{request.param}")
     with ros2_domain() as dom:
-        r = Run(tmp, dom)
+        r = Run(tmp, dom, request.param)
         try:
             yield r
         finally:
@@ -221,7 +226,7 @@ def test_the_terminal_view_shows_the_topics(run: Run, tmux: Callable[..., Tmux],
     assert "bump_and_go" in screen and re.search(r"● (Go|Back|Turn)", screen), screen
     folder = Path(os.environ.get("HFSMC_SCREENSHOTS") or tmp_path)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "view-bump_and_go.txt").write_text(screen)
+    (folder / f"view-{run.model.stem}.txt").write_text(screen)
 
 
 MAP_JS = """
@@ -241,7 +246,7 @@ return {
 def test_the_web_view_draws_the_robot_on_its_map(run: Run, browsers: Callable[..., Any],
                                                   tmp_path: Path) -> None:
     web = Process([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{run.port}",
-                   "--model", str(EXAMPLE / "bump_and_go.yaml"), "--world",
+                   "--model", str(run.model), "--world",
                    str(EXAMPLE / "world.yaml")], tmp_path, "web")
     try:
         url = web.wait_for(WEB_URL, where="out").group(1)
@@ -267,7 +272,8 @@ def test_the_web_view_draws_the_robot_on_its_map(run: Run, browsers: Callable[..
         # simulated second: the robot moves at most 0.7 m/s meanwhile).
         tx, ty = run.odom_truth()
         assert math.hypot(float(m["x"]) - tx, float(m["y"]) - ty) < 1.0, (m, tx, ty)
-        screenshot(driver, "web-ground-robot", tmp_path)
+        screenshot(driver, "web-ground-robot" if run.model.stem == "bump_and_go"
+                   else "web-ground-robot-cpp", tmp_path)
     finally:
         web.kill(signal.SIGINT)
 
