@@ -759,14 +759,6 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
                         *([note] if note else []))
             continue
         if iface.type == "ros2" and topics is not None:
-            if model.language == "cpp":
-                if e.interface not in said:
-                    said.add(e.interface)
-                    diags.error("E195", f"`{e.interface}`: a C++ component's ros2 interface "
-                                "reads no scripted messages yet (with --playback nothing "
-                                "arrives: docs/ros2-cpp.md)", e.interface_span,
-                                "run this scenario with the Python model (`languages: python`)")
-                continue
             topics.check_settings(e.interface, e.settings, diags)
             continue
         fields = FIELDS.get(iface.type)
