@@ -21,8 +21,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hfsmc.templates.python.hfsmc_ros2view import Rates  # type: ignore[import-not-found]
-from hfsmc.templates.python.hfsmc_view import ros2_rows  # type: ignore[import-not-found]
+from hfsmc.templates.python.hfsmc_ros2view import (  # type: ignore[import-not-found]
+    Rates,
+    ros2_rows,
+)
 
 from hfsmc.web.ros2 import Trail, WorldMap, world_message
 from tests.ros2_support import ros2_domain
