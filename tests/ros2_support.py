@@ -1,12 +1,15 @@
-"""What the ROS 2 tests share: generated message packages loaded in this process, and
-hypothesis strategies that draw a message as ours and as rosbags' (tests/test_ros2_*.py)."""
+"""What the ROS 2 tests share: a domain of their own, generated message packages loaded in
+this process, hypothesis strategies that draw a message as ours and as rosbags', and a
+built Python component run against the simulated ground robot (tests/test_ros2_*.py)."""
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
 import importlib
+import json
 import os
+import subprocess
 import sys
 import tempfile
 from array import array
@@ -20,8 +23,10 @@ from hypothesis import strategies as st
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import FieldType, MessageSet, MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
+from tests.support import ROOT, hfsmc, interrupt
 
 AT = Span("test.yaml", 1, 1)
+STOP_AT_WALL = ROOT / "examples" / "stop_at_wall" / "stop_at_wall.yaml"
 DOMAINS = range(20, 233)  # ROS_DOMAIN_ID values the tests use (0, ROS 2's default, never)
 
 
@@ -214,3 +219,37 @@ def theirs(ms: MessageSet, store: Any, name: str, data: dict[str, Any]) -> Any:
             v = v - 256 if v > 127 else v
         kwargs[normalize_fieldname(f.name)] = v
     return store.types[name](**kwargs)
+
+
+# -- a built component against the simulated ground robot --------------------------------
+def build_component(tmp: Path, model: Path = STOP_AT_WALL) -> Path:
+    """`hfsmc build MODEL` (Python) into TMP/component: its executable."""
+    out = tmp / "component"
+    result = hfsmc("build", str(model), "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    return out / f"{model.stem}.py"
+
+
+def run_against_sim(tmp: Path, world: str, domain: int, component: Path, *args: str,
+                    env: dict[str, str] | None = None) -> tuple[subprocess.CompletedProcess[str],
+                                                                dict[str, object]]:
+    """Start the simulator on ``domain``, run the component until it stops by itself
+    (bounded), stop the simulator: the component's run and the truth of the robots."""
+    (tmp / "world.yaml").write_text(world)
+    sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--robot", "diffdrive",
+                            "--world", str(tmp / "world.yaml"), "--domain", str(domain),
+                            "--truth", str(tmp / "truth.json")],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        run = subprocess.run([sys.executable, str(component), "--until", "40s", *args],
+                             capture_output=True, text=True, timeout=90,
+                             env={**os.environ, **(env or {})})
+    finally:
+        status = interrupt(sim, timeout=30)
+        assert sim.stderr is not None
+        err = sim.stderr.read().decode()
+        sim.stderr.close()
+    assert status == 0, err
+    truth = json.loads((tmp / "truth.json").read_text())["robots"]
+    assert isinstance(truth, dict)
+    return run, truth

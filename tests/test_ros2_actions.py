@@ -13,11 +13,11 @@ from typing import Any
 
 import pytest
 
+from hfsmc.emit.python import INTERFACE_FILES
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import message_set, rosbags_store
-from tests.ros2_support import generate, ros2_domain
+from tests.ros2_support import build_component, generate, ros2_domain, run_against_sim
 from tests.support import hfsmc
-from tests.test_ros2_model import build, run_against_sim
 
 RUNTIME = Path(__file__).resolve().parent.parent / "templates" / "python"
 SCRIPT = Path(__file__).resolve().parent / "ros2" / "action_statuses.py"
@@ -30,8 +30,7 @@ def scenario(tmp: Path, name: str) -> dict[str, Any]:
     out = tmp / "gen"
     if not out.exists():
         generate(ms, out)
-        for f in ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_lockstep.py",
-                  "hfsmc_ros2_rpc.py"):
+        for f in INTERFACE_FILES["ros2"]:  # what a component gets beside it
             (out / f).write_text((RUNTIME / f).read_text())
     with ros2_domain() as dom:
         run = subprocess.run([sys.executable, str(SCRIPT), str(dom), name], cwd=out,
@@ -132,7 +131,7 @@ ROOM = "name: room\nseed: 1\nwalls:\n  - [[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]
 def test_a_model_sends_a_navigate_to_pose_goal_and_the_robot_reaches_the_pose(
         tmp_path: Path) -> None:
     (tmp_path / "nav.yaml").write_text(NAV)
-    component = build(tmp_path, tmp_path / "nav.yaml")
+    component = build_component(tmp_path, tmp_path / "nav.yaml")
     with ros2_domain() as dom:
         run, truth = run_against_sim(tmp_path, ROOM + "robots: [{name: tb, x: 1, y: 2}]\n",
                                      dom, component, env={"ROS_DOMAIN_ID": str(dom)})
