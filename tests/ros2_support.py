@@ -253,3 +253,18 @@ def run_against_sim(tmp: Path, world: str, domain: int, component: Path, *args: 
     truth = json.loads((tmp / "truth.json").read_text())["robots"]
     assert isinstance(truth, dict)
     return run, truth
+
+
+def build_ddsinspect(out: Path) -> Path:
+    """tests/ros2/ddsinspect.cpp, what a ROS 2 tool on Cyclone DDS sees of a domain, built
+    against Debian's Cyclone DDS 0.10 (ROS 2's DDS) into ``out``: its executable."""
+    exe = out / "ddsinspect"
+    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "CycloneDDS"], check=True,
+                           capture_output=True, text=True).stdout.split()
+    cpp = ROOT / "templates" / "cpp"
+    made = subprocess.run(["g++", "-std=c++17", "-Wall", "-Wextra", "-Werror", "-O1", "-I", str(cpp),
+                           str(ROOT / "tests" / "ros2" / "ddsinspect.cpp"),
+                           str(cpp / "hfsmc_ros2_wire.cpp"), "-o", str(exe), *flags],
+                          capture_output=True, text=True, timeout=300)
+    assert made.returncode == 0, made.stderr
+    return exe
