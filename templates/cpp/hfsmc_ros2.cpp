@@ -381,7 +381,11 @@ std::vector<Node::View> Node::views() const {
   std::vector<View> out;
   for (const auto& ep : endpoints_) {
     Endpoint& e = *ep;
-    View v{e.key, e.topic, e.ros_type, e.publication};
+    View v;
+    v.key = e.key;
+    v.topic = e.topic;
+    v.type = e.ros_type;
+    v.publication = e.publication;
     v.matched = e.matched.load();
     if (e.publication) {
       v.count = e.sent.load();
