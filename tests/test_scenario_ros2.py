@@ -27,6 +27,7 @@ from tests.support import ROOT
 
 WALL = ROOT / "examples/stop_at_wall/stop_at_wall.yaml"
 BUMP = ROOT / "examples/bump_and_go/bump_and_go.yaml"
+BUMP_CPP = ROOT / "examples/bump_and_go_cpp/bump_and_go_cpp.yaml"
 SCAN = ("angle_min: -3.1416, angle_max: 3.1416, angle_increment: 0.017453, range_max: 12.0")
 
 
@@ -76,6 +77,18 @@ def test_the_examples_pass_and_a_wrong_expectation_names_the_publish(tmp_path: P
     assert (f"{bad}:28:5: expected robot.cmd_vel published with linear.x=0, angular.z=0 1 "
             "time(s) by 2 s\n  got: published 0 time(s) in that window, not 1") in out, out
     assert "1 failed" in out
+    # The C++ twin is held to its expectations as well: backing off forwards never happens.
+    twin = (ROOT / "examples/bump_and_go_cpp/tests/obstacle_ahead.yaml").read_text("utf-8")
+    twin = twin.replace("model: ../bump_and_go_cpp.yaml", f"model: {BUMP_CPP}")
+    twin = twin.replace("fields: {linear: {x: {below: 0}}, angular: {z: 0}}",
+                        "fields: {linear: {x: {above: 0}}, angular: {z: 0}}")
+    bad = tmp_path / "wrong_cpp.yaml"
+    bad.write_text(twin, encoding="utf-8")
+    r = hfsmc_test(str(bad), cache=tmp_path / "cache")
+    assert r.returncode == 1 and f"{bad}::cpp FAILED" in r.stdout, r.stdout + r.stderr
+    assert (f"{bad}:36:5: expected robot.cmd_vel published with linear.x={{above: 0}}, "
+            "angular.z=0 20 time(s) between 3 s and 3.95 s\n  got: published 0 time(s) in "
+            "that window, not 20") in r.stdout, r.stdout
 
 
 def test_messages_are_rosbags_cdr_at_their_rate_and_a_span_gives_way(tmp_path: Path) -> None:
