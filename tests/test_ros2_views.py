@@ -20,11 +20,15 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from hfsmc.templates.python.hfsmc_ros2view import (  # type: ignore[import-not-found]
     Rates,
+    pose_of,
     ros2_rows,
+    scan_message,
 )
+from rosbags.typesys import Stores, get_typestore
 
 from hfsmc.web.ros2 import Trail, WorldMap, world_message
 from tests.ros2_support import ros2_domain
@@ -99,6 +103,87 @@ def test_the_trail_keeps_a_point_every_2_cm_and_the_latest_points() -> None:
     for k in range(5000):
         t.add(k * 0.1, 0)
     assert len(t.points) == 4000 and t.points[-1] == [499.9, 0.0]
+
+
+def _odometry(t: Any, x: float, y: float, yaw: float, v: float, w: float, sec: int, nsec: int,
+              frame: str = "odom") -> Any:
+    q = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+    vec = t["geometry_msgs/msg/Vector3"]
+    return t["nav_msgs/msg/Odometry"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                        frame_id=frame),
+        child_frame_id="base_footprint",
+        pose=t["geometry_msgs/msg/PoseWithCovariance"](
+            pose=t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                                             orientation=q),
+            covariance=np.arange(36, dtype=np.float64)),
+        twist=t["geometry_msgs/msg/TwistWithCovariance"](
+            twist=t["geometry_msgs/msg/Twist"](linear=vec(x=v, y=0.0, z=0.0),
+                                               angular=vec(x=0.0, y=0.0, z=w)),
+            covariance=np.zeros(36, dtype=np.float64)))
+
+
+def _scan(t: Any, ranges: list[float], sec: int, nsec: int, frame: str = "base_scan") -> Any:
+    n = len(ranges)
+    return t["sensor_msgs/msg/LaserScan"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                        frame_id=frame),
+        angle_min=-math.pi, angle_max=math.pi, angle_increment=2 * math.pi / max(n, 1),
+        time_increment=0.0, scan_time=0.1, range_min=0.12, range_max=3.5,
+        ranges=np.array(ranges, dtype=np.float32), intensities=np.array([], dtype=np.float32))
+
+
+def test_the_cpp_monitor_shows_a_ros2_interface_as_the_python_one(tmp_path: Path) -> None:
+    """hfsmc/ros2view.hpp against hfsmc_ros2view.py on the same samples (rosbags' CDR):
+    the odometry's pose, the scan message with its rays and the pose taken back to its
+    stamp, every k-th ray of a long scan, a frame cut at 64 characters, the rates."""
+    cpp = ROOT / "templates" / "cpp"
+    exe = tmp_path / "ros2view_check"
+    made = subprocess.run(["g++", "-std=c++17", "-Wall", "-Wextra", "-Werror", "-O1", "-I", str(cpp),
+                           str(ROOT / "tests" / "ros2_cpp" / "ros2view_check.cpp"),
+                           str(cpp / "hfsmc_json.cpp"), "-o", str(exe)],
+                          capture_output=True, text=True, timeout=300)
+    assert made.returncode == 0, made.stderr
+    store = get_typestore(Stores.ROS2_JAZZY)
+    t = store.types
+
+    def cdr(msg: Any) -> str:
+        return bytes(store.serialize_cdr(msg, msg.__msgtype__)).hex()
+
+    def wire(msg: Any) -> Any:  # as a component holds it: decoded from the sample's bytes
+        return store.deserialize_cdr(bytes.fromhex(cdr(msg)), msg.__msgtype__)
+
+    odoms = [_odometry(t, 1.23456, -0.5, 0.7, 0.35, 1.0, 10, 500_000_000),
+             _odometry(t, -3.0, 2.0625, -2.9, -0.1, -0.8, 11, 0, frame="ödom/" + "é" * 70)]
+    ranges = [0.05, 0.12, 1.0625, 2.5, 3.5, 3.6, float("inf"), float("nan"), -1.0]
+    scans = [_scan(t, [ranges[i % len(ranges)] + (i % 7) * 0.0101 for i in range(360)], 10, 450_000_000),
+             _scan(t, [1.0 + i * 0.001 for i in range(2000)], 10, 0),  # every 2nd ray
+             _scan(t, [], 3, 0), _scan(t, [1.0], 10, 0, frame="ß" * 80)]
+    odoms, scans = [wire(o) for o in odoms], [wire(sc) for sc in scans]
+    feed = [f"pose {cdr(o)}" for o in odoms]
+    want: list[Any] = [pose_of(o) for o in odoms]
+    for i, sc in enumerate(scans):
+        feed.append(f"scan {i} {cdr(sc)}")
+        want.append(scan_message("robot", "scan", i, sc))
+        for o in odoms:
+            feed.append(f"scan {i} {cdr(sc)} {cdr(o)}")
+            want.append(scan_message("robot", "scan", i, sc, o))
+    rates = Rates()
+    for now, count in ((100.0, 0), (100.1, 1), (100.5, 5), (101.0, 17), (102.7, 40), (104.0, 60),
+                       (104.5, 3), (105.0, 9)):
+        feed.append(f"rate s/scan {now!r} {count}")
+        want.append(rates.rate("s/scan", now, count))
+    feed.append("pose 0001000000")  # not an odometry: no pose, never a crash
+    want.append(None)
+    out = subprocess.run([str(exe)], input="\n".join(feed) + "\n", capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    got = [json.loads(line) for line in out.stdout.splitlines()]
+    assert len(got) == len(want)
+    for g, w, f in zip(got, want, feed, strict=True):
+        assert g == w, f[:40]
+    assert len(got[2]["ranges"]) == 360 and len(got[5]["ranges"]) == 1000
+    assert got[1]["frame"] == "ödom/" + "é" * 59
 
 
 # -- the real thing: bump_and_go in the simulator --------------------------------------------

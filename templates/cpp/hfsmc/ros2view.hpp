@@ -40,28 +40,32 @@ class Rates {
     while (seen.size() > 2 && now - seen[1].first >= RATE_WINDOW_S) seen.pop_front();
     const auto [t0, c0] = seen.front();
     if (now - t0 < 0.2) return std::numeric_limits<double>::quiet_NaN();
-    return std::round(static_cast<double>(count - c0) / (now - t0) * 10.0) / 10.0;
+    return std::nearbyint(static_cast<double>(count - c0) / (now - t0) * 10.0) / 10.0;
   }
 
  private:
   std::map<std::string, std::deque<std::pair<double, long>>> seen_;
 };
 
-/// `x` rounded to `digits` decimals as JSON (Python's round() then json.dumps), `null`
-/// when it is not finite.
-inline std::string num(double x, int digits = 3) {
-  if (!std::isfinite(x)) return "null";
+/// `x` rounded to `digits` decimals (Python's round(): ties to even).
+inline double rounded(double x, int digits) {
   const double scale = std::pow(10.0, digits);
-  const double r = std::round(x * scale) / scale;
-  return std::isfinite(r) ? float_repr(r == 0.0 ? 0.0 : r) : "null";
+  return std::nearbyint(x * scale) / scale;
 }
 
-/// At most 64 bytes of `s`, never cutting a UTF-8 character.
+/// `x` rounded to `digits` decimals as JSON (as json.dumps writes it), `null` when it is
+/// not finite.
+inline std::string num(double x, int digits = 3) {
+  const double r = std::isfinite(x) ? rounded(x, digits) : x;
+  return std::isfinite(r) ? float_repr(r) : "null";
+}
+
+/// The first 64 characters of the UTF-8 text `s` (Python's `str(s)[:64]`).
 inline std::string head64(const std::string& s) {
-  if (s.size() <= 64) return s;
-  std::size_t n = 64;
-  while (n > 0 && (static_cast<unsigned char>(s[n]) & 0xC0) == 0x80) --n;
-  return s.substr(0, n);
+  std::size_t chars = 0;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    if ((static_cast<unsigned char>(s[i]) & 0xC0) != 0x80 && chars++ == 64) return s.substr(0, i);
+  return s;
 }
 
 struct Header {
@@ -112,15 +116,16 @@ inline std::string pose_json(const Pose& p) {
 
 /// The odometry's pose taken back (or on) to `stamp` with its own twist, so that a scan
 /// is drawn where the robot was when it was taken; stamps more than 1 s apart (a
-/// publisher without a clock) are taken as equal.
+/// publisher without a clock) are taken as equal. From the pose as sent (rounded), as
+/// hfsmc_ros2view.pose_at computes it.
 inline Pose pose_at(Pose p, double stamp) {
   double dt = p.stamp - stamp;
   if (!std::isfinite(dt) || std::abs(dt) > 1.0) dt = 0.0;
-  const double yaw = std::isfinite(p.yaw) ? p.yaw : 0.0, v = std::isfinite(p.v) ? p.v : 0.0,
-               w = std::isfinite(p.w) ? p.w : 0.0;
+  const auto sent = [](double x, int digits) { return std::isfinite(x) ? rounded(x, digits) : 0.0; };
+  const double yaw = sent(p.yaw, 4), v = sent(p.v, 3), w = sent(p.w, 3);
   const double back = yaw - w * dt, mid = (yaw + back) / 2;
-  p.x -= v * std::cos(mid) * dt;
-  p.y -= v * std::sin(mid) * dt;
+  p.x = rounded(p.x, 3) - v * std::cos(mid) * dt;
+  p.y = rounded(p.y, 3) - v * std::sin(mid) * dt;
   p.yaw = back;
   return p;
 }
