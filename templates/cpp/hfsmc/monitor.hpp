@@ -39,57 +39,12 @@
 #include <utility>
 #include <vector>
 
+#include "address.hpp"
 #include "json.hpp"
 #include "observer.hpp"
 #include "viewstate.hpp"
 
 namespace hfsmc {
-
-// `PORT`, `HOST:PORT` or `[IPV6]:PORT` as (host, port); std::invalid_argument if neither.
-inline std::pair<std::string, int> parse_monitor_address(const std::string& raw) {
-    const char* space = " \t\n\r\f\v";
-    std::size_t b = raw.find_first_not_of(space);
-    std::string text = b == std::string::npos ? "" : raw.substr(b, raw.find_last_not_of(space) - b + 1);
-    auto bad = [&](const std::string& why) {
-        // The address as Python's repr() shows it (the usual case: no quotes inside).
-        bool dq = text.find('\'') != std::string::npos && text.find('"') == std::string::npos;
-        std::string q = dq ? "\"" : "'", shown = q;
-        for (unsigned char c : text) {
-            if (c == '\\' || (!dq && c == '\'')) shown += '\\', shown += static_cast<char>(c);
-            else if (c < 32 || c == 127) {
-                char buf[8];
-                std::snprintf(buf, sizeof buf, "\\x%02x", c);
-                shown += c == '\n' ? "\\n" : c == '\t' ? "\\t" : c == '\r' ? "\\r" : buf;
-            } else shown += static_cast<char>(c);
-        }
-        return std::invalid_argument("bad address " + shown + q + ": " + why);
-    };
-    std::string host = "127.0.0.1", port = text;
-    if (!text.empty() && text[0] == '[') {
-        std::size_t end = text.find(']');
-        if (end == std::string::npos || text.compare(end + 1, 1, ":") != 0) throw bad("expected [HOST]:PORT");
-        host = text.substr(1, end - 1);
-        port = text.substr(end + 2);
-    } else if (text.find(':') != std::string::npos) {
-        if (text.find(':') != text.rfind(':')) {
-            throw bad("write an IPv6 address in brackets, [::1]:PORT");
-        }
-        std::size_t colon = text.rfind(':');
-        host = colon ? text.substr(0, colon) : "127.0.0.1";
-        port = text.substr(colon + 1);
-    }
-    bool digits = !port.empty() && port.size() <= 5 &&
-                  port.find_first_not_of("0123456789") == std::string::npos;
-    if (!digits || std::stoi(port) > 65535) {
-        throw bad("expected [HOST:]PORT with a port from 0 to 65535");
-    }
-    return {host, std::stoi(port)};
-}
-
-inline std::string format_monitor_address(const std::string& host, int port) {
-    return host.find(':') != std::string::npos ? "[" + host + "]:" + std::to_string(port)
-                                               : host + ":" + std::to_string(port);
-}
 
 class MonitorServer : public Observer {
 public:
