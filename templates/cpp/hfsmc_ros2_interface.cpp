@@ -312,7 +312,8 @@ void Interface::feed_scans(long long t_ms,
 // -- Source ---------------------------------------------------------------------------------
 // The settings in force, as the Python runtime records them (its `connect` settings): each
 // topic as written (unresolved) with its QoS, a profile's name or {reliability, durability,
-// depth}; the domain as set (null: $ROS_DOMAIN_ID, else 0).
+// depth}; the domain as set (null: $ROS_DOMAIN_ID, else 0); no actions nor services (empty,
+// as Python writes a model without them).
 std::string Interface::source_config() const {
   std::string subs, pubs;
   for (std::size_t k = 0; k < decls_.size(); ++k) {
@@ -341,7 +342,7 @@ std::string Interface::source_config() const {
          ",\"namespace\":" + json_string(options_.ns) + ",\"domain\":" +
          (domain_given_ < 0 ? std::string("null") : std::to_string(domain_given_)) +
          ",\"distro\":" + json_string(options_.distro) + ",\"subscribe\":{" + subs + "},\"publish\":{" + pubs +
-         "}}}";
+         "},\"actions\":{},\"services\":{}}}";  // no actions nor services in C++ yet
 }
 
 void Interface::take_snapshot(long long t_us) {
