@@ -274,10 +274,10 @@ class ExpectationReader(ReaderBase):
         args = None
         if "args" in m and kind == "command":
             a = m["args"]
-            if isinstance(a, list) and all(number(x) is not None or isinstance(x, str) for x in a):
+            if isinstance(a, list) and all(isinstance(x, (int, float, str)) for x in a):
                 args = tuple(a)
             else:
-                self.error("E191", "`args` must be a list of numbers and strings",
+                self.error("E191", "`args` must be a list of numbers, strings and booleans",
                            self.at((*path, "args")))
         return Expectation(kind, subject, self.key_at(kpath), self.at(kpath), after, before, times.get("at"),
                            count, args, at_least, fields, msg_type)

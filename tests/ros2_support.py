@@ -23,11 +23,16 @@ from hypothesis import strategies as st
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import FieldType, MessageSet, MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
+from tests.conftest import LOOPBACK_DDS
 from tests.support import ROOT, hfsmc, interrupt
 
 AT = Span("test.yaml", 1, 1)
 STOP_AT_WALL = ROOT / "examples" / "stop_at_wall" / "stop_at_wall.yaml"
-DOMAINS = range(20, 233)  # ROS_DOMAIN_ID values the tests use (0, ROS 2's default, never)
+# DDS in the tests stays on the loopback interface (multicast discovery on `lo`): other
+# machines and interfaces never see them. tests/conftest.py sets it for the whole run.
+LOOPBACK = LOOPBACK_DDS
+DOMAINS = range(10, 102)  # ROS_DOMAIN_ID values the tests use: not 0 (ROS 2's default), and
+# none above 101, whose ports (7400 + 250 * id and up) fall in the kernel's ephemeral range
 
 
 @contextlib.contextmanager
@@ -228,6 +233,42 @@ def build_component(tmp: Path, model: Path = STOP_AT_WALL) -> Path:
     result = hfsmc("build", str(model), "-o", str(out))
     assert result.returncode == 0, result.stderr
     return out / f"{model.stem}.py"
+
+
+# A model that resets odometry (a service) and sends a NavigateToPose goal (an action),
+# and the room it drives in (tests/test_ros2_actions.py, tests/test_ros2_rpc_replay.py).
+NAV = """\
+hfsm: 1
+name: nav
+imports:
+  - from nav2_msgs.action import NavigateToPose
+  - from std_srvs.srv import Trigger
+interfaces:
+  robot:
+    type: ros2
+    actions:
+      navigate: {name: navigate_to_pose, type: nav2_msgs/action/NavigateToPose, timeout: 60s}
+    services:
+      reset: {name: reset_odometry, type: std_srvs/srv/Trigger}
+initial: Reset
+states:
+  Reset:
+    entry: robot.call("reset", Trigger.Request())
+    transitions:
+      - {to: Go, when: robot.call_status("reset") == "done"}
+  Go:
+    entry: |
+      goal = NavigateToPose.Goal()
+      goal.pose.header.frame_id = "odom"
+      goal.pose.pose.position.x = 2.0
+      goal.pose.pose.position.y = 1.0
+      robot.send_goal("navigate", goal)
+    transitions:
+      - {to: Done, when: robot.goal_status("navigate") == "succeeded"}
+  Done:
+    final: true
+"""
+ROOM = "name: room\nseed: 1\nwalls:\n  - [[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]\n"
 
 
 def run_against_sim(tmp: Path, world: str, domain: int, component: Path, *args: str,

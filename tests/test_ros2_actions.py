@@ -5,6 +5,7 @@ rmw_cyclonedds_cpp's request header, the simulator's navigate_to_pose, bad input
 from __future__ import annotations
 
 import json
+import os
 import struct
 import subprocess
 import sys
@@ -16,7 +17,7 @@ import pytest
 from hfsmc.emit.python import INTERFACE_FILES
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import message_set, rosbags_store
-from tests.ros2_support import build_component, generate, ros2_domain, run_against_sim
+from tests.ros2_support import NAV, ROOM, build_component, generate, ros2_domain, run_against_sim
 from tests.support import hfsmc
 
 RUNTIME = Path(__file__).resolve().parent.parent / "templates" / "python"
@@ -35,7 +36,8 @@ def scenario(tmp: Path, name: str) -> dict[str, Any]:
     with ros2_domain() as dom:
         run = subprocess.run([sys.executable, str(SCRIPT), str(dom), name], cwd=out,
                              capture_output=True, text=True, timeout=60,
-                             env={"PYTHONPATH": str(out), "PATH": "/usr/bin:/bin"})
+                             env={"PYTHONPATH": str(out), "PATH": "/usr/bin:/bin",
+                                  "CYCLONEDDS_URI": os.environ["CYCLONEDDS_URI"]})
     assert run.returncode == 0, run.stderr
     return dict(json.loads(run.stdout.strip().splitlines()[-1]))
 
@@ -92,40 +94,6 @@ def test_every_end_of_a_goal(tmp_path: Path, name: str, last: str) -> None:
         assert "no_server" in goals and statuses(r["seen"], 1)[-1] == "timeout"
     if name == "abort":
         assert r["result"] == [9000, ""]
-
-
-NAV = """\
-hfsm: 1
-name: nav
-imports:
-  - from nav2_msgs.action import NavigateToPose
-  - from std_srvs.srv import Trigger
-interfaces:
-  robot:
-    type: ros2
-    actions:
-      navigate: {name: navigate_to_pose, type: nav2_msgs/action/NavigateToPose, timeout: 60s}
-    services:
-      reset: {name: reset_odometry, type: std_srvs/srv/Trigger}
-initial: Reset
-states:
-  Reset:
-    entry: robot.call("reset", Trigger.Request())
-    transitions:
-      - {to: Go, when: robot.call_status("reset") == "done"}
-  Go:
-    entry: |
-      goal = NavigateToPose.Goal()
-      goal.pose.header.frame_id = "odom"
-      goal.pose.pose.position.x = 2.0
-      goal.pose.pose.position.y = 1.0
-      robot.send_goal("navigate", goal)
-    transitions:
-      - {to: Done, when: robot.goal_status("navigate") == "succeeded"}
-  Done:
-    final: true
-"""
-ROOM = "name: room\nseed: 1\nwalls:\n  - [[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]\n"
 
 
 def test_a_model_sends_a_navigate_to_pose_goal_and_the_robot_reaches_the_pose(

@@ -11,6 +11,7 @@
 // Minor version 3: a `ros2` interface (ros2_interface.hpp) is a feed too: its `ros2`
 // message to every client, its laser scans (`scan`) only to the clients that asked with
 // {"type":"subscribe","scans":true}, each new scan made once whatever the clients ask.
+// Minor version 4: a user driver's snapshot (driver.hpp), to every client.
 #pragma once
 
 #include <arpa/inet.h>
@@ -49,8 +50,9 @@ namespace hfsmc {
 class MonitorServer : public Observer {
 public:
     static constexpr int PROTOCOL = 1;
-    // 1: feeds in hello, vehicle and frame messages; 2: sim_rate; 3: ros2 feeds, ros2 and scan
-    static constexpr int MINOR = 3;
+    // 1: feeds in hello, vehicle and frame messages; 2: sim_rate; 3: ros2 feeds, ros2 and
+    // scan; 4: driver feeds and messages
+    static constexpr int MINOR = 4;
     static constexpr int FEED_EVERY_MS = 250;  // vehicle records, frames, ros2 topics: at most 4 a second
     static constexpr std::size_t FRAME_BACKLOG = 1 << 18;  // more unsent bytes: no new frame
     static constexpr std::size_t REQUEST_LIMIT = 1024;  // a longer request line is ignored
@@ -400,24 +402,28 @@ private:
     }
 
     std::string feeds_json() {
-        std::string vehicle, camera, ros2;
+        std::string vehicle, camera, ros2, driver;
         std::lock_guard<std::mutex> lock(feeds_mutex());
         for (Feed* f : feeds()) {
             const bool is_camera = std::strcmp(f->feed_kind(), "camera") == 0;
             const bool is_ros2 = std::strcmp(f->feed_kind(), "ros2") == 0;
-            std::string& list = is_camera ? camera : is_ros2 ? ros2 : vehicle;
+            const bool is_driver = std::strcmp(f->feed_kind(), "driver") == 0;
+            std::string& list = is_camera ? camera : is_ros2 ? ros2 : is_driver ? driver : vehicle;
             list += (list.empty() ? "" : ",") + json_string(f->feed_name());
             has_feeds_ = true;
             has_cameras_ = has_cameras_ || is_camera;
             has_ros2_ = has_ros2_ || is_ros2;
         }
-        return "{\"vehicle\":[" + vehicle + "],\"camera\":[" + camera + "],\"ros2\":[" + ros2 + "]}";
+        return "{\"vehicle\":[" + vehicle + "],\"camera\":[" + camera + "],\"ros2\":[" + ros2 +
+               "],\"driver\":[" + driver + "]}";
     }
 
     std::string hello_json() {
         const Structure& s = structure_;
+        const std::string feeds = feeds_json();
         std::string o = "{\"type\":\"hello\",\"protocol\":" + std::to_string(PROTOCOL) +
-                        ",\"minor\":" + std::to_string(MINOR) + ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
+                        ",\"minor\":" + std::to_string(MINOR) +
+                        ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
         for (const auto& a : s.automata) {
             if (o.back() != '[') o += ',';
             o += "{\"owner\":" + json_string(a.owner) + ",\"region\":" +
@@ -445,7 +451,7 @@ private:
             o += json_string(v);
         }
         return o + "],\"parameters\":" + ViewState::values_json(s.parameters) +
-               "},\"feeds\":" + feeds_json() + "}\n";
+               "},\"feeds\":" + feeds + "}\n";
     }
 
     void send_all(const std::string& data) {
