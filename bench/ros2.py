@@ -12,7 +12,7 @@ ROS 2 domain no test holds meanwhile:
    1 ms instant) and to the sample's arrival in the interface (its age subtracted: the
    middleware's part, comparable to the bare pair's), Python -> Python and C++ -> C++;
 2. **CPU** of a bump-and-go component (examples/bump_and_go, and its C++ twin
-   bench/models/bump_and_go.cpp.yaml) fed by a steady feeder process (a 360-ray
+   examples/bump_and_go_cpp) fed by a steady feeder process (a 360-ray
    LaserScan at 10 Hz, Odometry at 50 Hz, its cmd_vel read back: 20 Hz), its user +
    system time from /proc/PID/stat over a fixed window after a warm-up;
 3. **the snapshot** of an interface with 10 subscriptions, each holding a message
@@ -208,7 +208,7 @@ def build_all(langs: tuple[str, ...], log: Callable[[str], None]) -> Programs:
     py["bump_and_go"] = build_python(EXAMPLES / "bump_and_go" / "bump_and_go.yaml",
                                      WORK / "py_bump_and_go")
     if "C++" in langs:
-        cpp["bump_and_go"] = build_cpp(MODELS / "bump_and_go.cpp.yaml",
+        cpp["bump_and_go"] = build_cpp(EXAMPLES / "bump_and_go_cpp" / "bump_and_go_cpp.yaml",
                                        WORK / "cpp_bump_and_go").exe
     log(f"built {len(py)} Python and {len(cpp)} C++ components in "
         f"{time.monotonic() - t0:.0f} s")

@@ -7,14 +7,15 @@ model front end does, so every value keeps its file:line:col) and checks its
 shape; :func:`check_against_model` then checks its names against the compiled
 model (states, parameters, interfaces, commands).  Every mistake is a
 :class:`~hfsmc.errors.Diagnostic` with a code E190-E199; all of them are
-collected before :class:`ScenarioError` is raised.
+collected before :class:`ScenarioError` is raised. What a scenario expects, and the
+reading of its ``expect:`` list, is hfsmc/scenario_expect.py; its ROS 2 topics,
+hfsmc/scenario_ros2.py.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,13 +23,20 @@ from pathlib import Path
 from typing import Any, Literal
 
 from hfsmc.drivers import driver
-from hfsmc.durations import has_unit, parse_us
 from hfsmc.errors import Diagnostic, Diagnostics, HfsmcError, Span, did_you_mean
 from hfsmc.frontend import read_text
-from hfsmc.frontend.source import Document, PathKey
+from hfsmc.frontend.source import PathKey
 from hfsmc.frontend.yaml import load_yaml
 from hfsmc.ir import Interface, Model
 from hfsmc.scenario_driver import Ramp, check_settings
+from hfsmc.scenario_expect import (
+    Expectation,
+    ExpectationReader,
+    display_path,
+    kind_of,
+    number,
+    secs,
+)
 from hfsmc.scenario_ros2 import RecordedTopic, Topics, Written, recorded_topic, written
 from hfsmc.scenario_rpc import check_server, rpc
 
@@ -49,26 +57,10 @@ FIELDS = {"mavlink": MAVLINK_FIELDS, "camera": CAMERA_FIELDS}
 RAMPABLE = frozenset({"number", "vector"})
 ACK_OUTCOMES = ("accepted", "denied", "temporarily_rejected", "unsupported", "failed",
                 "cancelled", "pending", "timeout", "not_sent")
-STOP_REASONS = ("final", "until", "shutdown", "sigint", "sigterm", "error", "timeout",
-                "time_limit")
 DEFAULT_UNTIL_US = 600_000_000  # 10 min of virtual time
 
 TOP_KEYS = ("name", "description", "model", "languages", "parameters", "until", "time_limit",
             "inputs", "expect")
-# An expectation is one mapping: one of these kinds, and the modifiers it takes.
-_WINDOW = ("after", "before", "between")
-KINDS: dict[str, tuple[str, ...]] = {
-    "entered": (*_WINDOW, "count", "at_least"),
-    "not_entered": _WINDOW,
-    "active": ("at",),
-    "stop": _WINDOW,
-    "log": (*_WINDOW, "count", "at_least"),
-    "log_matches": (*_WINDOW, "count", "at_least"),
-    "command": ("args", *_WINDOW, "count", "at_least"),
-    "published": ("fields", "type", *_WINDOW, "count", "at_least"),
-    "error": (*_WINDOW, "count", "at_least"),
-    "trace": (),
-}
 ENTRY_KEYS = ("at", "from", "to")
 
 
@@ -104,82 +96,6 @@ class Entry:
     settings: tuple[Setting, ...]
     span: Span
     interface_span: Span  # the interface's name under `inputs`
-
-
-@dataclass(frozen=True, slots=True)
-class Expectation:
-    kind: str
-    subject: str  # state path, text, regex, `drone.land`, stop reason, trace file (resolved)
-    span: Span  # the expectation's kind key (`entered:`)
-    subject_span: Span  # the value after it
-    after_us: int | None = None
-    before_us: int | None = None
-    at_us: int | None = None
-    count: int | None = None
-    args: tuple[Any, ...] | None = None
-    at_least: int | None = None
-    fields: Written | None = None  # published: the fields the message must have
-    msg_type: str | None = None  # published: the type it must be (`type:`)
-
-    def describe(self) -> str:
-        """The expectation in words, as the failure report says it."""
-        what = {
-            "entered": f"`{self.subject}` entered",
-            "not_entered": f"`{self.subject}` never entered",
-            "active": f"`{self.subject}` active",
-            "stop": f"the run stops ({self.subject})",
-            "log": f"a log line containing {self.subject!r}",
-            "log_matches": f"a log line matching /{self.subject}/",
-            "command": f"command {self.subject}"
-                       + (f"({', '.join(_show(a) for a in self.args)})" if self.args is not None else ""),
-            "published": f"{self.subject} published"
-                         + (f" with {_written_words(self.fields)}" if self.fields is not None else ""),
-            "error": f"an error in a snippet ({self.subject})",
-            "trace": f"the trace equal to {self.subject}",
-        }[self.kind]
-        return what + window_words(self)
-
-
-def window_words(e: Expectation) -> str:
-    parts = []
-    if e.count is not None:
-        parts.append(f" {e.count} time(s)")
-    if e.at_least is not None:
-        parts.append(f" at least {e.at_least} time(s)")
-    if e.at_us is not None:
-        parts.append(f" at {_secs(e.at_us)}")
-    if e.after_us is not None and e.before_us is not None:
-        parts.append(f" between {_secs(e.after_us)} and {_secs(e.before_us)}")
-    elif e.after_us is not None:
-        parts.append(f" at or after {_secs(e.after_us)}")
-    elif e.before_us is not None:
-        parts.append(f" by {_secs(e.before_us)}")
-    return "".join(parts)
-
-
-def _secs(us: int) -> str:
-    return f"{us / 1e6:g} s"
-
-
-def _written_words(w: Written) -> str:
-    """An expectation's fields as written: `linear.x=0, angular.z={not: 0}`."""
-    def flat(v: Written, prefix: str) -> list[str]:
-        if isinstance(v.value, dict) and not (set(v.value) & {"above", "below", "not"}):
-            return [p for k, x in v.value.items() for p in flat(x, f"{prefix}{k}.")]
-        return [f"{prefix[:-1]}={_plain(v)}"]
-    return ", ".join(flat(w, "")) or "any fields"
-
-
-def _plain(w: Written) -> str:
-    if isinstance(w.value, dict):
-        return "{" + ", ".join(f"{k}: {_plain(x)}" for k, x in w.value.items()) + "}"
-    if isinstance(w.value, list):
-        return "[" + ", ".join(_plain(x) for x in w.value) + "]"
-    return _show(w.value)
-
-
-def _show(v: Any) -> str:
-    return f"{v!r}" if isinstance(v, str) else str(v)
 
 
 @dataclass(frozen=True, slots=True)
@@ -240,47 +156,7 @@ def read_scenario(path: str, diags: Diagnostics) -> Scenario | None:
     return _Reader(doc, diags, Path(path).parent).scenario()
 
 
-class _Reader:
-    def __init__(self, doc: Document, diags: Diagnostics, folder: Path) -> None:
-        self.doc = doc
-        self.diags = diags
-        self.folder = folder
-
-    # -- helpers
-
-    def at(self, path: PathKey) -> Span:
-        return self.doc.span(path)
-
-    def key_at(self, path: PathKey) -> Span:
-        return self.doc.key_span(path)
-
-    def error(self, code: str, message: str, span: Span, *notes: str) -> None:
-        self.diags.error(code, message, span, *notes)
-
-    def keys(self, value: dict[str, Any], path: PathKey, allowed: tuple[str, ...], what: str) -> None:
-        for k in value:
-            if k not in allowed:
-                note = did_you_mean(k, allowed)
-                self.error("E190", f"unknown key `{k}` in {what}", self.key_at((*path, k)),
-                           *([note] if note else []), f"{what} takes: {', '.join(allowed)}")
-
-    def mapping(self, value: Any, path: PathKey, what: str) -> dict[str, Any] | None:
-        if isinstance(value, dict):
-            return value
-        self.error("E191", f"{what} must be a mapping, not {_kind(value)}", self.at(path))
-        return None
-
-    def duration(self, value: Any, path: PathKey, what: str) -> int | None:
-        us = parse_us(value)
-        if us is None or isinstance(value, (int, float)) or not has_unit(value):
-            hint = "write a time with its unit: `30s`, `500ms`, `1.5m`"
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                self.error("E193", f"{what}: a bare number ({value}) has no unit", self.at(path), hint)
-            else:
-                self.error("E193", f"{what}: `{value}` is not a time", self.at(path), hint)
-            return None
-        return us
-
+class _Reader(ExpectationReader):
     # -- the document
 
     def scenario(self) -> Scenario | None:
@@ -288,7 +164,7 @@ class _Reader:
         self.keys(data, (), TOP_KEYS, "a scenario")
         name = data.get("name", Path(self.doc.file).stem)
         if not isinstance(name, str):
-            self.error("E191", f"`name` must be a string, not {_kind(name)}", self.at(("name",)))
+            self.error("E191", f"`name` must be a string, not {kind_of(name)}", self.at(("name",)))
             name = Path(self.doc.file).stem
         if "description" in data and not isinstance(data["description"], str):
             self.error("E191", "`description` must be a string", self.at(("description",)))
@@ -334,7 +210,7 @@ class _Reader:
                 self.error("E192", "`model` names no model", self.at(("model",)))
         else:
             self.error("E191", f"`model` must be a path or a mapping language: path, not "
-                       f"{_kind(value)}", self.at(("model",)))
+                       f"{kind_of(value)}", self.at(("model",)))
         refs = []
         for lang, rel, path in written:
             file = self.folder / rel
@@ -351,7 +227,7 @@ class _Reader:
                 self.error("E194", f"`{rel}` is a model of language `{_model_language(file)}`, "
                            f"given as `{lang}`", span)
                 continue
-            refs.append(ModelRef(found, _display(file), span))
+            refs.append(ModelRef(found, display_path(file), span))
         if not refs:
             return None
         return tuple(refs)
@@ -391,7 +267,7 @@ class _Reader:
                 out.append(Override(name, v, self.key_at(path)))
             else:
                 self.error("E196", f"parameter `{name}`: only bool, int, float and str parameters "
-                           f"can be set, not {_kind(v)}", self.at(path))
+                           f"can be set, not {kind_of(v)}", self.at(path))
         return tuple(out)
 
     # -- inputs
@@ -431,14 +307,14 @@ class _Reader:
         if "to" in m:
             end = self.duration(m["to"], (*path, "to"), "`to`")
             if end is not None and start is not None and end <= start:
-                self.error("E193", f"`to` ({_secs(end)}) must come after `from` "
-                           f"({_secs(start)})", self.at((*path, "to")))
+                self.error("E193", f"`to` ({secs(end)}) must come after `from` "
+                           f"({secs(start)})", self.at((*path, "to")))
                 return None
         if start is None:
             return None
         if start > until:
-            self.error("E193", f"the entry starts at {_secs(start)}, after `until` "
-                       f"({_secs(until)}): it would never be seen", self.at(path))
+            self.error("E193", f"the entry starts at {secs(start)}, after `until` "
+                       f"({secs(until)}): it would never be seen", self.at(path))
         settings = []
         for key, v in m.items():
             if key in ENTRY_KEYS:
@@ -510,7 +386,7 @@ class _Reader:
                 return v
             bad = "an integer"
         elif kind == "number":
-            num = _number(v)
+            num = number(v)
             if num is not None:
                 if key == "rate" and not (math.isfinite(num) and num > 0):
                     self.error("E193", "`rate` (frames per second) must be above 0", span)
@@ -522,14 +398,14 @@ class _Reader:
                 return v
             bad = "a string"
         elif kind == "vector":
-            if isinstance(v, list) and len(v) == 3 and all(_number(x) is not None for x in v):
-                return tuple(float(_number(x)) for x in v)  # type: ignore[arg-type]
+            if isinstance(v, list) and len(v) == 3 and all(number(x) is not None for x in v):
+                return tuple(float(number(x)) for x in v)  # type: ignore[arg-type]
             bad = "[north, east, down] (three numbers, m or m/s)"
         elif kind == "acks":
             return self.acks(v, path)
         elif kind in ("image", "world"):
             return self.image(v, path, kind)
-        self.error("E191", f"`{key}` must be {bad}, not {_kind(v)}", span)
+        self.error("E191", f"`{key}` must be {bad}, not {kind_of(v)}", span)
         return None
 
     def acks(self, v: Any, path: PathKey) -> Scalar:
@@ -558,171 +434,14 @@ class _Reader:
         what = "an image" if kind == "image" else "a world file (hfsmc sim --world)"
         if not isinstance(v, str):
             self.error("E191", f"`{kind}` must be {what} (or null: no more frames), not "
-                       f"{_kind(v)}", self.at(path))
+                       f"{kind_of(v)}", self.at(path))
             return None
         file = self.folder / v
         if not file.is_file():
             self.error("E198", f"the {kind} file `{v}` does not exist (read relative to the "
                        "scenario's folder)", self.at(path))
             return None
-        return _display(file)
-
-    # -- expectations
-
-    def expectations(self, data: dict[str, Any], until: int) -> tuple[Expectation, ...]:
-        if "expect" not in data:
-            return ()
-        value = data["expect"]
-        if not isinstance(value, list):
-            self.error("E191", "`expect` must be a list of expectations "
-                       "(`- entered: Mission`)", self.at(("expect",)))
-            return ()
-        out = []
-        for i, item in enumerate(value):
-            e = self.expectation(item, ("expect", i), until)
-            if e is not None:
-                out.append(e)
-        return tuple(out)
-
-    def expectation(self, item: Any, path: PathKey, until: int) -> Expectation | None:
-        m = self.mapping(item, path, "an expectation")
-        if m is None:
-            return None
-        kinds = [k for k in m if k in KINDS]
-        if len(kinds) != 1:
-            unknown = [k for k in m if k not in KINDS and k not in _MODIFIERS]
-            if unknown and not kinds:
-                note = did_you_mean(unknown[0], KINDS)
-                self.error("E190", f"unknown expectation `{unknown[0]}`",
-                           self.key_at((*path, unknown[0])), *([note] if note else []),
-                           f"expectations: {', '.join(KINDS)}")
-            else:
-                self.error("E193", "an expectation has exactly one of: " + ", ".join(KINDS)
-                           + (f" (this one has {', '.join(kinds)})" if kinds else ""), self.at(path))
-            return None
-        kind = kinds[0]
-        self.keys(m, path, (kind, *KINDS[kind]), f"a `{kind}` expectation")
-        kpath = (*path, kind)
-        subject = self.subject(kind, m[kind], kpath)
-        if subject is None:
-            return None
-        times: dict[str, int | None] = {}
-        for mod in ("after", "before", "at"):
-            if mod in m and mod in KINDS[kind]:
-                times[mod] = self.duration(m[mod], (*path, mod), f"`{mod}`")
-        if "between" in m and "after" in KINDS[kind]:
-            b = m["between"]
-            if "after" in m or "before" in m:
-                self.error("E193", "`between` replaces `after` and `before`: write one or the "
-                           "other", self.key_at((*path, "between")))
-            elif not isinstance(b, list) or len(b) != 2:
-                self.error("E191", "`between` takes [FROM, TO]", self.at((*path, "between")))
-            else:
-                times["after"] = self.duration(b[0], (*path, "between", 0), "`between`")
-                times["before"] = self.duration(b[1], (*path, "between", 1), "`between`")
-        after, before = times.get("after"), times.get("before")
-        if after is not None and before is not None and after > before:
-            self.error("E193", f"the window's start ({_secs(after)}) is later than its end "
-                       f"({_secs(before)})", self.at((*path, "between" if "between" in m else "after")))
-        for mod, us in times.items():
-            if us is not None and us > until and not (kind == "not_entered" or mod == "before"):
-                where = (*path, mod) if mod in m else (*path, "between", 0)
-                self.error("E193", f"{_secs(us)} is after `until` ({_secs(until)}): "
-                           "the run never gets there", self.at(where))
-        if kind == "active" and "at" not in m:
-            self.error("E192", "`active` needs `at: TIME`", self.key_at(kpath))
-        count = None
-        if "count" in m and "count" in KINDS[kind]:
-            c = m["count"]
-            if isinstance(c, int) and not isinstance(c, bool) and c >= 0:
-                count = c
-            else:
-                self.error("E191", "`count` must be a whole number (0: never)", self.at((*path, "count")))
-        at_least = None
-        if "at_least" in m and "at_least" in KINDS[kind]:
-            c = m["at_least"]
-            if "count" in m:
-                self.error("E193", "`count` (exactly) or `at_least`: write one or the other",
-                           self.key_at((*path, "at_least")))
-            elif isinstance(c, int) and not isinstance(c, bool) and c >= 1:
-                at_least = c
-            else:
-                self.error("E191", "`at_least` must be a whole number from 1 (`count: 0`: "
-                           "never)", self.at((*path, "at_least")))
-        fields = written(self.doc, (*path, "fields")) if "fields" in m and kind == "published" \
-            else None
-        msg_type = None
-        if "type" in m and kind == "published":
-            if isinstance(m["type"], str):
-                msg_type = m["type"]
-            else:
-                self.error("E191", "`type` must be a message type (`geometry_msgs/msg/Twist`)",
-                           self.at((*path, "type")))
-        args = None
-        if "args" in m and kind == "command":
-            a = m["args"]
-            if isinstance(a, list) and all(isinstance(x, (int, float, str)) for x in a):
-                args = tuple(a)
-            else:
-                self.error("E191", "`args` must be a list of numbers, strings and booleans",
-                           self.at((*path, "args")))
-        return Expectation(kind, subject, self.key_at(kpath), self.at(kpath), after, before, times.get("at"),
-                           count, args, at_least, fields, msg_type)
-
-    def subject(self, kind: str, v: Any, path: PathKey) -> str | None:
-        span = self.at(path)
-        if kind == "trace":
-            if not isinstance(v, str) or not (self.folder / v).is_file():
-                self.error("E198", f"the trace file `{v}` does not exist (read relative to the "
-                           "scenario's folder)", span)
-                return None
-            return _display(self.folder / v)
-        if kind == "stop":
-            if v == "any" or v in STOP_REASONS:
-                return str(v)
-            note = did_you_mean(str(v), STOP_REASONS)
-            self.error("E193", f"`{v}` is not a stop reason", span, *([note] if note else []),
-                       f"reasons: any, {', '.join(STOP_REASONS)}")
-            return None
-        if not isinstance(v, str) or not v:
-            self.error("E191", f"`{kind}` must be a non-empty string, not {_kind(v)}", span)
-            return None
-        if kind == "log_matches":
-            try:
-                re.compile(v)
-            except re.error as e:
-                self.error("E193", f"not a regular expression: {e}", span)
-                return None
-        if kind in ("command", "published") and not re.fullmatch(r"[A-Za-z_]\w*\.[A-Za-z_]\w*", v):
-            self.error("E193", f"`{v}`: write INTERFACE.COMMAND (`drone.land`)" if kind == "command"
-                       else f"`{v}`: write INTERFACE.PUBLICATION (`robot.cmd_vel`)", span)
-            return None
-        return v
-
-
-_MODIFIERS = frozenset(m for mods in KINDS.values() for m in mods)
-
-
-def _number(v: Any) -> float | None:
-    if isinstance(v, bool):
-        return None
-    if isinstance(v, (int, float)):
-        return float(v)
-    return None
-
-
-def _kind(v: Any) -> str:
-    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean", int: "a number",
-            float: "a number", type(None): "null"}.get(type(v), type(v).__name__)
-
-
-def _display(file: Path) -> str:
-    """A file the scenario names, as messages and builds name it: without `..` steps, relative
-    to the current folder when inside it (one model is one component, however reached)."""
-    absolute = Path(os.path.abspath(file))
-    if absolute.is_relative_to(Path.cwd()):
-        return str(absolute.relative_to(Path.cwd()))
-    return str(absolute)
+        return display_path(file)
 
 
 def _model_language(file: Path) -> Language | None:
@@ -775,14 +494,6 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
                         *([note] if note else []))
             continue
         if iface.type == "ros2" and topics is not None:
-            if model.language == "cpp":
-                if e.interface not in said:
-                    said.add(e.interface)
-                    diags.error("E195", f"`{e.interface}`: a C++ component's ros2 interface "
-                                "reads no scripted messages yet (with --playback nothing "
-                                "arrives: docs/ros2-cpp.md)", e.interface_span,
-                                "run this scenario with the Python model (`languages: python`)")
-                continue
             servers = [s for s in settings if rpc(topics, e.interface, s.field) is not None]
             for s in servers:  # an action's or a service's scripted server
                 check_server(topics, e.interface, s.field, s.value, diags)

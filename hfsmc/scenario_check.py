@@ -16,7 +16,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from hfsmc.scenario import Expectation, Scenario
+from hfsmc.scenario import Scenario
+from hfsmc.scenario_expect import Expectation
 from hfsmc.scenario_ros2 import Topics, describe, matches
 
 

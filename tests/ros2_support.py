@@ -1,12 +1,15 @@
-"""What the ROS 2 tests share: generated message packages loaded in this process, and
-hypothesis strategies that draw a message as ours and as rosbags' (tests/test_ros2_*.py)."""
+"""What the ROS 2 tests share: a domain of their own, generated message packages loaded in
+this process, hypothesis strategies that draw a message as ours and as rosbags', and a
+built Python component run against the simulated ground robot (tests/test_ros2_*.py)."""
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
 import importlib
+import json
 import os
+import subprocess
 import sys
 import tempfile
 from array import array
@@ -21,8 +24,10 @@ from hfsmc.errors import Span
 from hfsmc.ros2.definitions import FieldType, MessageSet, MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
 from tests.conftest import LOOPBACK_DDS
+from tests.support import ROOT, hfsmc, interrupt
 
 AT = Span("test.yaml", 1, 1)
+STOP_AT_WALL = ROOT / "examples" / "stop_at_wall" / "stop_at_wall.yaml"
 # DDS in the tests stays on the loopback interface (multicast discovery on `lo`): other
 # machines and interfaces never see them. tests/conftest.py sets it for the whole run.
 LOOPBACK = LOOPBACK_DDS
@@ -219,3 +224,88 @@ def theirs(ms: MessageSet, store: Any, name: str, data: dict[str, Any]) -> Any:
             v = v - 256 if v > 127 else v
         kwargs[normalize_fieldname(f.name)] = v
     return store.types[name](**kwargs)
+
+
+# -- a built component against the simulated ground robot --------------------------------
+def build_component(tmp: Path, model: Path = STOP_AT_WALL) -> Path:
+    """`hfsmc build MODEL` (Python) into TMP/component: its executable."""
+    out = tmp / "component"
+    result = hfsmc("build", str(model), "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    return out / f"{model.stem}.py"
+
+
+# A model that resets odometry (a service) and sends a NavigateToPose goal (an action),
+# and the room it drives in (tests/test_ros2_actions.py, tests/test_ros2_rpc_replay.py).
+NAV = """\
+hfsm: 1
+name: nav
+imports:
+  - from nav2_msgs.action import NavigateToPose
+  - from std_srvs.srv import Trigger
+interfaces:
+  robot:
+    type: ros2
+    actions:
+      navigate: {name: navigate_to_pose, type: nav2_msgs/action/NavigateToPose, timeout: 60s}
+    services:
+      reset: {name: reset_odometry, type: std_srvs/srv/Trigger}
+initial: Reset
+states:
+  Reset:
+    entry: robot.call("reset", Trigger.Request())
+    transitions:
+      - {to: Go, when: robot.call_status("reset") == "done"}
+  Go:
+    entry: |
+      goal = NavigateToPose.Goal()
+      goal.pose.header.frame_id = "odom"
+      goal.pose.pose.position.x = 2.0
+      goal.pose.pose.position.y = 1.0
+      robot.send_goal("navigate", goal)
+    transitions:
+      - {to: Done, when: robot.goal_status("navigate") == "succeeded"}
+  Done:
+    final: true
+"""
+ROOM = "name: room\nseed: 1\nwalls:\n  - [[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]\n"
+
+
+def run_against_sim(tmp: Path, world: str, domain: int, component: Path, *args: str,
+                    env: dict[str, str] | None = None) -> tuple[subprocess.CompletedProcess[str],
+                                                                dict[str, object]]:
+    """Start the simulator on ``domain``, run the component until it stops by itself
+    (bounded), stop the simulator: the component's run and the truth of the robots."""
+    (tmp / "world.yaml").write_text(world)
+    sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--robot", "diffdrive",
+                            "--world", str(tmp / "world.yaml"), "--domain", str(domain),
+                            "--truth", str(tmp / "truth.json")],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        run = subprocess.run([sys.executable, str(component), "--until", "40s", *args],
+                             capture_output=True, text=True, timeout=90,
+                             env={**os.environ, **(env or {})})
+    finally:
+        status = interrupt(sim, timeout=30)
+        assert sim.stderr is not None
+        err = sim.stderr.read().decode()
+        sim.stderr.close()
+    assert status == 0, err
+    truth = json.loads((tmp / "truth.json").read_text())["robots"]
+    assert isinstance(truth, dict)
+    return run, truth
+
+
+def build_ddsinspect(out: Path) -> Path:
+    """tests/ros2/ddsinspect.cpp, what a ROS 2 tool on Cyclone DDS sees of a domain, built
+    against Debian's Cyclone DDS 0.10 (ROS 2's DDS) into ``out``: its executable."""
+    exe = out / "ddsinspect"
+    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "CycloneDDS"], check=True,
+                           capture_output=True, text=True).stdout.split()
+    cpp = ROOT / "templates" / "cpp"
+    made = subprocess.run(["g++", "-std=c++17", "-Wall", "-Wextra", "-Werror", "-O1", "-I", str(cpp),
+                           str(ROOT / "tests" / "ros2" / "ddsinspect.cpp"),
+                           str(cpp / "hfsmc_ros2_wire.cpp"), "-o", str(exe), *flags],
+                          capture_output=True, text=True, timeout=300)
+    assert made.returncode == 0, made.stderr
+    return exe

@@ -192,8 +192,8 @@ def test_raw_client_gets_the_protocol_of_the_python_monitor(build: tuple[Path, d
     r.release()
     rest = c.until_bye()
     r.finish()
-    assert hello == {"type": "hello", "protocol": 1, "minor": 2, "structure": STRUCTURE,
-                     "feeds": {"vehicle": [], "camera": []}}
+    assert hello == {"type": "hello", "protocol": 1, "minor": 4, "structure": STRUCTURE,
+                     "feeds": {"vehicle": [], "camera": [], "ros2": [], "driver": []}}
     assert snapshot is not None and snapshot["type"] == "snapshot"
     assert rest[-1] == {"type": "bye", "reason": "error"}
     # What followed the snapshot is the tail of the run, and the snapshot is the Python
@@ -472,8 +472,9 @@ def test_feeds_go_to_every_client_and_frames_only_to_those_that_subscribe(
         for msgs in (got, other):
             for m in msgs:
                 MONITOR_VALIDATOR.validate(m)
-            assert msgs[0] == {"type": "hello", "protocol": 1, "minor": 2, "structure": STRUCTURE,
-                               "feeds": {"vehicle": ["drone"], "camera": ["camera"]}}
+            assert msgs[0] == {"type": "hello", "protocol": 1, "minor": 4, "structure": STRUCTURE,
+                               "feeds": {"vehicle": ["drone"], "camera": ["camera"], "ros2": [],
+                                         "driver": []}}
         # About 4 a second (a subscription sends at once): 1.2 s for one, 2.4 s for the other.
         assert 3 <= [m["type"] for m in got].count("vehicle") <= 8, got
         assert 6 <= [m["type"] for m in other].count("vehicle") <= 13, other

@@ -17,9 +17,8 @@ import pytest
 from hfsmc.emit.python import INTERFACE_FILES
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import message_set, rosbags_store
-from tests.ros2_support import generate, ros2_domain
+from tests.ros2_support import NAV, ROOM, build_component, generate, ros2_domain, run_against_sim
 from tests.support import hfsmc
-from tests.test_ros2_model import build, run_against_sim
 
 RUNTIME = Path(__file__).resolve().parent.parent / "templates" / "python"
 SCRIPT = Path(__file__).resolve().parent / "ros2" / "action_statuses.py"
@@ -97,44 +96,10 @@ def test_every_end_of_a_goal(tmp_path: Path, name: str, last: str) -> None:
         assert r["result"] == [9000, ""]
 
 
-NAV = """\
-hfsm: 1
-name: nav
-imports:
-  - from nav2_msgs.action import NavigateToPose
-  - from std_srvs.srv import Trigger
-interfaces:
-  robot:
-    type: ros2
-    actions:
-      navigate: {name: navigate_to_pose, type: nav2_msgs/action/NavigateToPose, timeout: 60s}
-    services:
-      reset: {name: reset_odometry, type: std_srvs/srv/Trigger}
-initial: Reset
-states:
-  Reset:
-    entry: robot.call("reset", Trigger.Request())
-    transitions:
-      - {to: Go, when: robot.call_status("reset") == "done"}
-  Go:
-    entry: |
-      goal = NavigateToPose.Goal()
-      goal.pose.header.frame_id = "odom"
-      goal.pose.pose.position.x = 2.0
-      goal.pose.pose.position.y = 1.0
-      robot.send_goal("navigate", goal)
-    transitions:
-      - {to: Done, when: robot.goal_status("navigate") == "succeeded"}
-  Done:
-    final: true
-"""
-ROOM = "name: room\nseed: 1\nwalls:\n  - [[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]\n"
-
-
 def test_a_model_sends_a_navigate_to_pose_goal_and_the_robot_reaches_the_pose(
         tmp_path: Path) -> None:
     (tmp_path / "nav.yaml").write_text(NAV)
-    component = build(tmp_path, tmp_path / "nav.yaml")
+    component = build_component(tmp_path, tmp_path / "nav.yaml")
     with ros2_domain() as dom:
         run, truth = run_against_sim(tmp_path, ROOM + "robots: [{name: tb, x: 1, y: 2}]\n",
                                      dom, component, env={"ROS_DOMAIN_ID": str(dom)})

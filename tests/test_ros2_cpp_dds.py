@@ -7,6 +7,7 @@ on eProsima Fast DDS 2.9, is seen from the DDS built-in topics as a ROS 2 node w
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import re
@@ -22,7 +23,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from hfsmc.ros2.cpp_messages import RUNTIME_TYPES, cpp_message_files
 from hfsmc.ros2.definitions import message_set
-from tests.ros2_support import AT, LOOPBACK
+from tests.ros2_support import AT, LOOPBACK, build_ddsinspect
 from tests.support import ROOT
 
 HERE = Path(__file__).resolve().parent / "ros2_cpp"
@@ -36,7 +37,7 @@ def _build(out: Path, distro: str, fastdds: bool) -> Path:
         path = out / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
-    for name in ("component.cpp", "fastdds_peer.cpp", "probe.cpp", "CMakeLists.txt"):
+    for name in ("component.cpp", "fastdds_peer.cpp", "CMakeLists.txt"):
         shutil.copy(HERE / name, out / name)
     build = out / "build"
     subprocess.run(["cmake", "-S", str(out), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
@@ -52,6 +53,12 @@ def _build(out: Path, distro: str, fastdds: bool) -> Path:
 def builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("ros2cpp")
     return {d: _build(root / d, d, fastdds=d == "jazzy") for d in STORES}
+
+
+@pytest.fixture(scope="module")
+def inspector(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """tests/ros2/ddsinspect.cpp: what a ROS 2 tool on Cyclone DDS sees of the domain."""
+    return build_ddsinspect(tmp_path_factory.mktemp("ddsinspect"))
 
 
 @pytest.fixture
@@ -128,44 +135,45 @@ def test_start_errors_are_one_line(builds: dict[str, Path], domain: int) -> None
 
 
 @pytest.mark.parametrize("distro", sorted(STORES))
-def test_discovery_as_a_ros2_node(builds: dict[str, Path], domain: int, distro: str,
-                                  started: list[subprocess.Popen[str]]) -> None:
-    """From the built-in topics (a plain Cyclone participant, tests/ros2_cpp/probe.cpp): the
+def test_discovery_as_a_ros2_node(builds: dict[str, Path], inspector: Path, domain: int,
+                                  distro: str, started: list[subprocess.Popen[str]]) -> None:
+    """From the built-in topics (a plain Cyclone participant, tests/ros2/ddsinspect.cpp): the
     participant's `enclave=/;`, `rt/` topics with ROS 2 type names and QoS, jazzy's type
     hashes (rosbags' RIHS01) and none on humble; from ros_discovery_info, decoded by rosbags:
     the node /tb2/bump with its reader and writer, its Gid 24 bytes on humble, 16 on jazzy."""
     store = get_typestore(STORES[distro])
     _start(started, builds[distro] / "component", "bump", "/tb2", distro, domain, 30, 1000)
-    probe = _start(started, builds[distro] / "probe", domain, 6)
+    probe = _start(started, inspector, domain, 20, "rt/tb2/scan", "rt/tb2/cmd_vel")
     out, err = probe.communicate(timeout=60)
-    assert probe.returncode == 0, err
-    ours = re.findall(r"^participant (\w+) userdata=enclave=/;$", out, re.M)
+    assert probe.returncode == 0, out + err
+    seen = [json.loads(line) for line in out.splitlines()]
+    self = seen[0]["key"]  # the inspector's own participant
+    ours = [p["key"] for p in seen if p["kind"] == "participant" and p["key"] != self]
     assert len(ours) == 1, out
-    endpoints = {}
-    for kind, key, part, topic, type_name, rel, tl, depth, user in re.findall(
-            r"^(publication|subscription) (\w+) participant=(\w+) topic=(\S+) type=(\S+) "
-            r"reliable=(\d) transient=(\d) depth=(-?\d+) userdata=(\S+)$", out, re.M):
-        if part == ours[0]:
-            endpoints[topic] = (kind, key, type_name, rel + tl + depth, user)
+    assert [bytes.fromhex(p["user_data"]) for p in seen if p.get("key") == ours[0]] == [b"enclave=/;"]
+    endpoints = {e["topic"]: e for e in seen if e.get("participant") == ours[0]}
     cmd, scan = endpoints["rt/tb2/cmd_vel"], endpoints["rt/tb2/scan"]
     info = endpoints["ros_discovery_info"]
-    assert (cmd[0], cmd[2], cmd[3]) == ("publication", "geometry_msgs::msg::dds_::Twist_", "1010")
-    assert (scan[0], scan[2], scan[3]) == ("subscription", "sensor_msgs::msg::dds_::LaserScan_", "005")
-    assert (info[0], info[2], info[3]) == ("publication", "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_",
-                          "111")
+    def kind(e: dict[str, Any]) -> tuple[str, str, bool, bool, int, list[int]]:
+        return (e["kind"], e["type"], e["reliable"], e["transient_local"], e["depth"],
+                e["representation"])
+    assert kind(cmd) == ("publication", "geometry_msgs::msg::dds_::Twist_", True, False, 10, [0])
+    assert kind(scan) == ("subscription", "sensor_msgs::msg::dds_::LaserScan_", False, False, 5, [0])
+    assert kind(info) == ("publication", "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_",
+                          True, True, 1, [0])
     for endpoint, ros_type in ((cmd, TYPES[1]), (scan, TYPES[0]),
                                (info, "rmw_dds_common/msg/ParticipantEntitiesInfo")):
-        hashed = f"typehash={store.hash_rihs01(ros_type)};"
-        assert endpoint[4] == (hashed if distro == "jazzy" else "-")
+        hashed = f"typehash={store.hash_rihs01(ros_type)};".encode()
+        assert bytes.fromhex(endpoint["user_data"]) == (hashed if distro == "jazzy" else b"")
 
-    announced: list[Any] = [store.deserialize_cdr(bytes.fromhex(h),
-                                       "rmw_dds_common/msg/ParticipantEntitiesInfo")
-                 for h in re.findall(r"^discovery (\w+)$", out, re.M)]
+    announced: list[Any] = [store.deserialize_cdr(bytes.fromhex(d["cdr"]),
+                                                  "rmw_dds_common/msg/ParticipantEntitiesInfo")
+                            for d in seen if d["kind"] == "discovery"]
     msg = next(m for m in announced if bytes(m.gid.data[:16]).hex() == ours[0])
     assert len(msg.gid.data) == (24 if distro == "humble" else 16)
     node = msg.node_entities_info_seq[0]
     assert (node.node_namespace, node.node_name) == ("/tb2", "bump")
-    assert [bytes(g.data[:16]).hex() for g in node.writer_gid_seq] == [cmd[1]]
-    assert [bytes(g.data[:16]).hex() for g in node.reader_gid_seq] == [scan[1]]
+    assert [bytes(g.data[:16]).hex() for g in node.writer_gid_seq] == [cmd["key"]]
+    assert [bytes(g.data[:16]).hex() for g in node.reader_gid_seq] == [scan["key"]]
     if distro == "humble":
         assert all(bytes(g.data[16:]) == bytes(8) for g in [msg.gid, *node.writer_gid_seq])

@@ -17,8 +17,8 @@ import pytest
 
 from hfsmc.pipeline import compile_file
 from hfsmc.ros2 import names
-from tests.ros2_support import ros2_domain
-from tests.support import ROOT, hfsmc, interrupt
+from tests.ros2_support import build_component, ros2_domain, run_against_sim
+from tests.support import ROOT, hfsmc
 
 EXAMPLE = ROOT / "examples" / "stop_at_wall" / "stop_at_wall.yaml"
 ROOM = "walls: [[[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]]\nlaser: {range_max: 8}\n"
@@ -115,40 +115,8 @@ def test_check_applies_the_runtimes_name_rules() -> None:
 # built components on DDS (loopback), against the simulated ground robot
 
 
-def build(tmp: Path, model: Path = EXAMPLE) -> Path:
-    out = tmp / "component"
-    result = hfsmc("build", str(model), "-o", str(out))
-    assert result.returncode == 0, result.stderr
-    return out / f"{model.stem}.py"
-
-
-def run_against_sim(tmp: Path, world: str, domain: int, component: Path, *args: str,
-                    env: dict[str, str] | None = None) -> tuple[subprocess.CompletedProcess[str],
-                                                                dict[str, object]]:
-    """Start the simulator on ``domain``, run the component until it stops by itself
-    (bounded), stop the simulator: the component's run and the truth of the robots."""
-    (tmp / "world.yaml").write_text(world)
-    sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--robot", "diffdrive",
-                            "--world", str(tmp / "world.yaml"), "--domain", str(domain),
-                            "--truth", str(tmp / "truth.json")],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    try:
-        run = subprocess.run([sys.executable, str(component), "--until", "40s", *args],
-                             capture_output=True, text=True, timeout=90,
-                             env={**os.environ, **(env or {})})
-    finally:
-        status = interrupt(sim, timeout=30)
-        assert sim.stderr is not None
-        err = sim.stderr.read().decode()
-        sim.stderr.close()
-    assert status == 0, err
-    truth = json.loads((tmp / "truth.json").read_text())["robots"]
-    assert isinstance(truth, dict)
-    return run, truth
-
-
 def test_a_component_drives_the_robot_until_the_scan_sees_the_wall(tmp_path: Path) -> None:
-    component = build(tmp_path)
+    component = build_component(tmp_path)
     with ros2_domain() as dom:
         run, truth = run_against_sim(tmp_path, ROOM + "robots: [{name: tb, x: 3, y: 2}]\n",
                                      dom, component, env={"ROS_DOMAIN_ID": str(dom)})
@@ -169,7 +137,7 @@ def test_the_configuration_changes_domain_namespace_and_topic_without_a_rebuild(
     # Built for another topic name, namespace and domain than the robot's.
     model.write_text(EXAMPLE.read_text().replace("topic: scan", "topic: laser")
                      .replace("namespace: /\n", "namespace: /other\n    domain: 3\n"))
-    component = build(tmp_path, model)
+    component = build_component(tmp_path, model)
     before = component.read_bytes(), (component.parent / "stop_at_wall.yaml").read_bytes()
     with ros2_domain() as dom:
         config = tmp_path / "robot_a.yaml"
@@ -197,7 +165,7 @@ def test_the_configuration_changes_domain_namespace_and_topic_without_a_rebuild(
 ])
 def test_the_configuration_may_not_change_what_needs_a_rebuild(
         tmp_path: Path, setting: dict[str, object], said: str) -> None:
-    component = build(tmp_path)
+    component = build_component(tmp_path)
     config = tmp_path / "bad.yaml"
     config.write_text(json.dumps({"interfaces": {"robot": setting}}))
     run = subprocess.run([sys.executable, str(component), "--config", str(config),
@@ -216,7 +184,7 @@ def test_a_message_of_the_wrong_type_is_reported_at_the_snippets_line(tmp_path: 
         "initial: A\nstates:\n  A:\n    entry: |\n      log('publishing')\n"
         "      robot.publish('cmd_vel', Vector3(x=1.0))\n    transitions: [{to: B, after: 1s}]\n"
         "  B: {final: true}\n")
-    component = build(tmp_path, model)
+    component = build_component(tmp_path, model)
     with ros2_domain() as dom:
         run = subprocess.run([sys.executable, str(component), "--until", "5s"],
                              capture_output=True, text=True, timeout=60,

@@ -18,9 +18,7 @@ from typing import Any
 import pytest
 
 from hfsmc.ros2.definitions import rosbags_store
-from tests.ros2_support import ros2_domain
-from tests.test_ros2_actions import NAV, ROOM
-from tests.test_ros2_model import build, run_against_sim
+from tests.ros2_support import NAV, ROOM, build_component, ros2_domain, run_against_sim
 
 
 def _hfsmc(*args: str) -> subprocess.CompletedProcess[str]:
@@ -33,7 +31,7 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """(the model, run.mcap): nav driven to its pose in the simulator, recorded."""
     tmp = tmp_path_factory.mktemp("rpcreplay")
     (tmp / "nav.yaml").write_text(NAV)
-    component = build(tmp, tmp / "nav.yaml")
+    component = build_component(tmp, tmp / "nav.yaml")
     with ros2_domain() as dom:
         run, truth = run_against_sim(tmp, ROOM + "robots: [{name: tb, x: 1, y: 2}]\n", dom,
                                      component, "--record", str(tmp / "run.mcap"),
@@ -134,7 +132,7 @@ def _playback(component: Path, folder: Path, rows: list[dict[str, Any]]
 def test_a_script_answers_goals_and_calls_at_its_instants_and_bad_ones_are_refused(
         tmp_path: Path) -> None:
     (tmp_path / "nav.yaml").write_text(NAV)
-    component = build(tmp_path, tmp_path / "nav.yaml")
+    component = build_component(tmp_path, tmp_path / "nav.yaml")
     store = rosbags_store("jazzy")
     result = base64.b64encode(store.serialize_cdr(
         store.types["nav2_msgs/action/NavigateToPose_Result"](error_code=0, error_msg=""),

@@ -1,7 +1,8 @@
 """A ros2 interface in the live views (docs/web.md "ROS 2 topics and the map",
 schemas/monitor.md minor version 3): the monitor's ros2 and scan messages, the terminal
 view's rows and the web view's map, against a real bump_and_go driving in the real
-ground-robot simulator."""
+ground-robot simulator, in Python and in C++ (examples/bump_and_go_cpp: its monitor,
+templates/cpp/hfsmc/monitor.hpp, and hfsmc/ros2view.hpp are the twins of the Python ones)."""
 
 from __future__ import annotations
 
@@ -19,9 +20,15 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
-from hfsmc.templates.python.hfsmc_ros2view import Rates  # type: ignore[import-not-found]
-from hfsmc.templates.python.hfsmc_view import ros2_rows  # type: ignore[import-not-found]
+from hfsmc.templates.python.hfsmc_ros2view import (  # type: ignore[import-not-found]
+    Rates,
+    pose_of,
+    ros2_rows,
+    scan_message,
+)
+from rosbags.typesys import Stores, get_typestore
 
 from hfsmc.web.ros2 import Trail, WorldMap, world_message
 from tests.ros2_support import ros2_domain
@@ -29,6 +36,8 @@ from tests.support import WEB_URL, Client, Process, Tmux, needs_browser, screens
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "bump_and_go"
+MODELS = {"python": EXAMPLE / "bump_and_go.yaml",
+          "cpp": ROOT / "examples" / "bump_and_go_cpp" / "bump_and_go_cpp.yaml"}
 START = (1.0, 1.0)  # tb2's start in examples/bump_and_go/world.yaml (yaw 0)
 
 
@@ -96,24 +105,107 @@ def test_the_trail_keeps_a_point_every_2_cm_and_the_latest_points() -> None:
     assert len(t.points) == 4000 and t.points[-1] == [499.9, 0.0]
 
 
+def _odometry(t: Any, x: float, y: float, yaw: float, v: float, w: float, sec: int, nsec: int,
+              frame: str = "odom") -> Any:
+    q = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+    vec = t["geometry_msgs/msg/Vector3"]
+    return t["nav_msgs/msg/Odometry"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                        frame_id=frame),
+        child_frame_id="base_footprint",
+        pose=t["geometry_msgs/msg/PoseWithCovariance"](
+            pose=t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                                             orientation=q),
+            covariance=np.arange(36, dtype=np.float64)),
+        twist=t["geometry_msgs/msg/TwistWithCovariance"](
+            twist=t["geometry_msgs/msg/Twist"](linear=vec(x=v, y=0.0, z=0.0),
+                                               angular=vec(x=0.0, y=0.0, z=w)),
+            covariance=np.zeros(36, dtype=np.float64)))
+
+
+def _scan(t: Any, ranges: list[float], sec: int, nsec: int, frame: str = "base_scan") -> Any:
+    n = len(ranges)
+    return t["sensor_msgs/msg/LaserScan"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                        frame_id=frame),
+        angle_min=-math.pi, angle_max=math.pi, angle_increment=2 * math.pi / max(n, 1),
+        time_increment=0.0, scan_time=0.1, range_min=0.12, range_max=3.5,
+        ranges=np.array(ranges, dtype=np.float32), intensities=np.array([], dtype=np.float32))
+
+
+def test_the_cpp_monitor_shows_a_ros2_interface_as_the_python_one(tmp_path: Path) -> None:
+    """hfsmc/ros2view.hpp against hfsmc_ros2view.py on the same samples (rosbags' CDR):
+    the odometry's pose, the scan message with its rays and the pose taken back to its
+    stamp, every k-th ray of a long scan, a frame cut at 64 characters, the rates."""
+    cpp = ROOT / "templates" / "cpp"
+    exe = tmp_path / "ros2view_check"
+    made = subprocess.run(["g++", "-std=c++17", "-Wall", "-Wextra", "-Werror", "-O1", "-I", str(cpp),
+                           str(ROOT / "tests" / "ros2_cpp" / "ros2view_check.cpp"),
+                           str(cpp / "hfsmc_json.cpp"), "-o", str(exe)],
+                          capture_output=True, text=True, timeout=300)
+    assert made.returncode == 0, made.stderr
+    store = get_typestore(Stores.ROS2_JAZZY)
+    t = store.types
+
+    def cdr(msg: Any) -> str:
+        return bytes(store.serialize_cdr(msg, msg.__msgtype__)).hex()
+
+    def wire(msg: Any) -> Any:  # as a component holds it: decoded from the sample's bytes
+        return store.deserialize_cdr(bytes.fromhex(cdr(msg)), msg.__msgtype__)
+
+    odoms = [_odometry(t, 1.23456, -0.5, 0.7, 0.35, 1.0, 10, 500_000_000),
+             _odometry(t, -3.0, 2.0625, -2.9, -0.1, -0.8, 11, 0, frame="ödom/" + "é" * 70)]
+    ranges = [0.05, 0.12, 1.0625, 2.5, 3.5, 3.6, float("inf"), float("nan"), -1.0]
+    scans = [_scan(t, [ranges[i % len(ranges)] + (i % 7) * 0.0101 for i in range(360)], 10, 450_000_000),
+             _scan(t, [1.0 + i * 0.001 for i in range(2000)], 10, 0),  # every 2nd ray
+             _scan(t, [], 3, 0), _scan(t, [1.0], 10, 0, frame="ß" * 80)]
+    odoms, scans = [wire(o) for o in odoms], [wire(sc) for sc in scans]
+    feed = [f"pose {cdr(o)}" for o in odoms]
+    want: list[Any] = [pose_of(o) for o in odoms]
+    for i, sc in enumerate(scans):
+        feed.append(f"scan {i} {cdr(sc)}")
+        want.append(scan_message("robot", "scan", i, sc))
+        for o in odoms:
+            feed.append(f"scan {i} {cdr(sc)} {cdr(o)}")
+            want.append(scan_message("robot", "scan", i, sc, o))
+    rates = Rates()
+    for now, count in ((100.0, 0), (100.1, 1), (100.5, 5), (101.0, 17), (102.7, 40), (104.0, 60),
+                       (104.5, 3), (105.0, 9)):
+        feed.append(f"rate s/scan {now!r} {count}")
+        want.append(rates.rate("s/scan", now, count))
+    feed.append("pose 0001000000")  # not an odometry: no pose, never a crash
+    want.append(None)
+    out = subprocess.run([str(exe)], input="\n".join(feed) + "\n", capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    got = [json.loads(line) for line in out.stdout.splitlines()]
+    assert len(got) == len(want)
+    for g, w, f in zip(got, want, feed, strict=True):
+        assert g == w, f[:40]
+    assert len(got[2]["ranges"]) == 360 and len(got[5]["ranges"]) == 1000
+    assert got[1]["frame"] == "ödom/" + "é" * 59
+
+
 # -- the real thing: bump_and_go in the simulator --------------------------------------------
 class Run:
-    """The simulator, bump_and_go with --monitor, and their files."""
+    """The simulator, bump_and_go (Python or C++) with --monitor, and their files."""
 
-    def __init__(self, tmp: Path, domain: int) -> None:
+    def __init__(self, tmp: Path, domain: int, lang: str) -> None:
         self.tmp = tmp
         self.domain = domain
+        self.model = MODELS[lang]
         self.procs: list[subprocess.Popen[bytes]] = []
-        out = subprocess.run([sys.executable, "-m", "hfsmc", "build",
-                              str(EXAMPLE / "bump_and_go.yaml"), "-o", str(tmp / "bg")],
-                             capture_output=True, text=True, timeout=120, cwd=ROOT)
+        out = subprocess.run([sys.executable, "-m", "hfsmc", "build", str(self.model), "-o",
+                              str(tmp / "bg"), *(["-t", "cpp", "--compile"] if lang == "cpp" else [])],
+                             capture_output=True, text=True, timeout=600, cwd=ROOT)
         assert out.returncode == 0, out.stderr
+        component = ([str(tmp / "bg" / "build" / "bump_and_go_cpp")] if lang == "cpp"
+                     else [sys.executable, str(tmp / "bg" / "bump_and_go.py")])
         self.truth = tmp / "truth.json"
         self.start("sim", [sys.executable, "-m", "hfsmc", "sim", "--robot", "diffdrive", "--world",
                            str(EXAMPLE / "world.yaml"), "--domain", str(domain), "--truth",
                            str(self.truth)])
-        self.start("component", [sys.executable, str(tmp / "bg" / "bump_and_go.py"), "--monitor",
-                                 "0", "--until", "600s"])
+        self.start("component", [*component, "--monitor", "0", "--until", "600s"])
         deadline = time.monotonic() + 20
         while not (m := re.search(r"monitor: listening on 127\.0\.0\.1:(\d+)",
                                   (tmp / "component.err").read_text())):
@@ -147,11 +239,11 @@ def _env() -> dict[str, str]:
     return dict(os.environ)
 
 
-@pytest.fixture(scope="module")
-def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
-    tmp = tmp_path_factory.mktemp("ros2views")
+@pytest.fixture(scope="module", params=["python", "cpp"])
+def run(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
+    tmp = tmp_path_factory.mktemp(f"ros2views-{request.param}")
     with ros2_domain() as dom:
-        r = Run(tmp, dom)
+        r = Run(tmp, dom, request.param)
         try:
             yield r
         finally:
@@ -221,7 +313,7 @@ def test_the_terminal_view_shows_the_topics(run: Run, tmux: Callable[..., Tmux],
     assert "bump_and_go" in screen and re.search(r"● (Go|Back|Turn)", screen), screen
     folder = Path(os.environ.get("HFSMC_SCREENSHOTS") or tmp_path)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "view-bump_and_go.txt").write_text(screen)
+    (folder / f"view-{run.model.stem}.txt").write_text(screen)
 
 
 MAP_JS = """
@@ -241,7 +333,7 @@ return {
 def test_the_web_view_draws_the_robot_on_its_map(run: Run, browsers: Callable[..., Any],
                                                   tmp_path: Path) -> None:
     web = Process([sys.executable, "-m", "hfsmc", "view", "--web", "0", f"127.0.0.1:{run.port}",
-                   "--model", str(EXAMPLE / "bump_and_go.yaml"), "--world",
+                   "--model", str(run.model), "--world",
                    str(EXAMPLE / "world.yaml")], tmp_path, "web")
     try:
         url = web.wait_for(WEB_URL, where="out").group(1)
@@ -267,7 +359,8 @@ def test_the_web_view_draws_the_robot_on_its_map(run: Run, browsers: Callable[..
         # simulated second: the robot moves at most 0.7 m/s meanwhile).
         tx, ty = run.odom_truth()
         assert math.hypot(float(m["x"]) - tx, float(m["y"]) - ty) < 1.0, (m, tx, ty)
-        screenshot(driver, "web-ground-robot", tmp_path)
+        screenshot(driver, "web-ground-robot" if run.model.stem == "bump_and_go"
+                   else "web-ground-robot-cpp", tmp_path)
     finally:
         web.kill(signal.SIGINT)
 

@@ -18,7 +18,7 @@ import pytest
 
 from hfsmc.emit.python import INTERFACE_FILES
 from hfsmc.ros2.definitions import DISTROS, typestore
-from tests.ros2_support import build, ros2_domain
+from tests.ros2_support import build, build_ddsinspect, ros2_domain
 from tests.support import ROOT
 
 RUNTIME = ROOT / "templates" / "python"
@@ -43,13 +43,8 @@ def folder(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
 
 @pytest.fixture(scope="module")
 def inspector(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """tests/ros2/ddsinspect.c built against Debian's Cyclone DDS (ROS 2's DDS)."""
-    exe = tmp_path_factory.mktemp("ddsinspect") / "ddsinspect"
-    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "CycloneDDS"], check=True,
-                           capture_output=True, text=True).stdout.split()
-    subprocess.run(["gcc", "-Wall", "-Werror", "-O1", str(HERE / "ddsinspect.c"), "-o", str(exe),
-                    *flags], check=True, capture_output=True, text=True, timeout=120)
-    return exe
+    """tests/ros2/ddsinspect.cpp built against Debian's Cyclone DDS (ROS 2's DDS)."""
+    return build_ddsinspect(tmp_path_factory.mktemp("ddsinspect"))
 
 
 class Peers:
@@ -137,10 +132,12 @@ def test_discovery_as_ros2_sees_it(peers: Peers, inspector: Path) -> None:
                            capture_output=True, text=True, timeout=60)
     assert found.returncode == 0, found.stdout + found.stderr
     seen = [json.loads(x) for x in found.stdout.splitlines()]
-    ours = [p for p in seen if p["kind"] == "participant" and p["user_data"]]
+    self = seen[0]["key"]  # the inspector's own participant
+    ours = [p for p in seen if p["kind"] == "participant" and p["key"] != self]
     assert len(ours) == 2
     assert {bytes.fromhex(p["user_data"]) for p in ours} == {b"enclave=/;"}
-    ends = {(e["kind"], e["topic"], e["participant"]): e for e in seen if "topic" in e}
+    ends = {(e["kind"], e["topic"], e["participant"]): e for e in seen
+            if "topic" in e and e["participant"] != self}
     store = typestore(peers.distro)
     want = {
         "rt/tb2/scan": ("sensor_msgs::msg::dds_::LaserScan_", "sensor_msgs/msg/LaserScan",

@@ -27,7 +27,7 @@ FOLLOW = ROOT / "examples/follow_colors/follow_colors.yaml"
 FOLLOW_TESTS = ROOT / "examples/follow_colors/tests"
 MONITOR_TESTS = ROOT / "examples/monitor_area/tests"
 LIB_TESTS = ROOT / "examples/lib/tests"  # the library's behaviours alone (land through a lost link)
-# Ground robots on ROS 2: Python only (tests/test_scenario_ros2.py)
+# Ground robots on ROS 2: Python models (their C++ twin: tests/test_scenario_ros2.py)
 ROS2_TESTS = [ROOT / "examples/bump_and_go/tests", ROOT / "examples/stop_at_wall/tests"]
 GADGET_TESTS = ROOT / "examples/udp_gadget/tests"  # a user's driver (docs/drivers.md)
 EXAMPLES = (sorted(FOLLOW_TESTS.glob("*.yaml")) + sorted(MONITOR_TESTS.glob("*.yaml"))

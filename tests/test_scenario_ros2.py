@@ -27,6 +27,7 @@ from tests.support import ROOT
 
 WALL = ROOT / "examples/stop_at_wall/stop_at_wall.yaml"
 BUMP = ROOT / "examples/bump_and_go/bump_and_go.yaml"
+BUMP_CPP = ROOT / "examples/bump_and_go_cpp/bump_and_go_cpp.yaml"
 SCAN = ("angle_min: -3.1416, angle_max: 3.1416, angle_increment: 0.017453, range_max: 12.0")
 
 
@@ -51,10 +52,13 @@ def problems(folder: Path, text: str, model: Path = WALL) -> list[str]:
 
 def test_the_examples_pass_and_a_wrong_expectation_names_the_publish(tmp_path: Path) -> None:
     r = hfsmc_test(str(ROOT / "examples/stop_at_wall"), str(ROOT / "examples/bump_and_go"),
-                   cache=tmp_path / "cache")
+                   str(ROOT / "examples/bump_and_go_cpp"), cache=tmp_path / "cache")
     assert r.returncode == 0, r.stdout + r.stderr
     assert "examples/stop_at_wall/tests/wall_ahead.yaml::python PASSED" in r.stdout
     assert "examples/bump_and_go/tests/obstacle_ahead.yaml::python PASSED" in r.stdout
+    # The same scenario against the C++ twin: its ros2 interface's playback fake
+    # (hfsmc_ros2_playback.cpp) delivers the scripted scans and odometry.
+    assert "examples/bump_and_go_cpp/tests/obstacle_ahead.yaml::cpp PASSED" in r.stdout
     # The same wall, but a test that wants the robot to go on at 0.5 m/s and to stop by 2 s.
     wrong = (ROOT / "examples/stop_at_wall/tests/wall_ahead.yaml").read_text("utf-8")
     wrong = wrong.replace("model: ../stop_at_wall.yaml", f"model: {WALL}")
@@ -73,6 +77,18 @@ def test_the_examples_pass_and_a_wrong_expectation_names_the_publish(tmp_path: P
     assert (f"{bad}:28:5: expected robot.cmd_vel published with linear.x=0, angular.z=0 1 "
             "time(s) by 2 s\n  got: published 0 time(s) in that window, not 1") in out, out
     assert "1 failed" in out
+    # The C++ twin is held to its expectations as well: backing off forwards never happens.
+    twin = (ROOT / "examples/bump_and_go_cpp/tests/obstacle_ahead.yaml").read_text("utf-8")
+    twin = twin.replace("model: ../bump_and_go_cpp.yaml", f"model: {BUMP_CPP}")
+    twin = twin.replace("fields: {linear: {x: {below: 0}}, angular: {z: 0}}",
+                        "fields: {linear: {x: {above: 0}}, angular: {z: 0}}")
+    bad = tmp_path / "wrong_cpp.yaml"
+    bad.write_text(twin, encoding="utf-8")
+    r = hfsmc_test(str(bad), cache=tmp_path / "cache")
+    assert r.returncode == 1 and f"{bad}::cpp FAILED" in r.stdout, r.stdout + r.stderr
+    assert (f"{bad}:36:5: expected robot.cmd_vel published with linear.x={{above: 0}}, "
+            "angular.z=0 20 time(s) between 3 s and 3.95 s\n  got: published 0 time(s) in "
+            "that window, not 20") in r.stdout, r.stdout
 
 
 def test_messages_are_rosbags_cdr_at_their_rate_and_a_span_gives_way(tmp_path: Path) -> None:
@@ -277,13 +293,14 @@ def _imu_zero(store: Any) -> bytes:
 
 
 @pytest.mark.parametrize("where", ["python", "cpp"])
-def test_a_cpp_model_is_refused_scripted_topics(tmp_path: Path, where: str) -> None:
-    """C++ components read no scripted ros2 messages yet: said at the interface, never a run
-    in which nothing arrives; the Python model takes the same inputs."""
+def test_a_cpp_model_takes_the_scripted_topics_of_the_python_one(tmp_path: Path, where: str) -> None:
+    """The C++ interface's playback fake reads scripted messages (E195 no longer refuses
+    them): the same inputs are checked the same way against either twin."""
     model = ROOT / ("examples/stop_at_wall_cpp/stop_at_wall_cpp.yaml" if where == "cpp" else
                     "examples/stop_at_wall/stop_at_wall.yaml")
     got = problems(tmp_path, "model: {model}\ninputs:\n  robot:\n    - {{at: 0s, scan: {{}}}}\n",
                    model)
-    assert got == ([] if where == "python" else [
-        "3:3: E195 `robot`: a C++ component's ros2 interface reads no scripted messages yet "
-        "(with --playback nothing arrives: docs/ros2-cpp.md)"])
+    assert got == []
+    bad = problems(tmp_path, "model: {model}\ninputs:\n  robot:\n"
+                   "    - {{at: 0s, scan: {{angle_mn: 1}}}}\n    - {{at: 0s, cmd_vel: {{}}}}\n", model)
+    assert [b.split(" ")[:2] for b in bad] == [["4:23:", "E190"], ["5:16:", "E195"]], bad

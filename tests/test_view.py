@@ -376,7 +376,7 @@ def test_the_autofocus_line_says_when_keys_are_not_read() -> None:
 def test_keys_are_not_read_from_a_stdin_that_is_not_a_terminal(
         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(sys, "stdin", io.StringIO(""))
-    keys = hfsmc_view._Keys(lambda item: None)
+    keys = importlib.import_module("hfsmc.templates.python.hfsmc_terminal").Keys(lambda item: None)
     keys.start()
     assert keys.why == "stdin is not a terminal"
     keys.stop()

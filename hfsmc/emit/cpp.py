@@ -32,14 +32,15 @@ from hfsmc.ir import Code, Model, Value
 from hfsmc.ros2files import model_distro
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
-                 "viewstate.hpp", "monitor.hpp", "mcap.hpp", "record.hpp", "playback.hpp",
-                 "jsonread.hpp", "jsonvalue.hpp", "simclock.hpp", "helpers.hpp")
+                 "viewstate.hpp", "address.hpp", "monitor.hpp", "mcap.hpp", "record.hpp",
+                 "playback.hpp", "jsonread.hpp", "jsonvalue.hpp", "simclock.hpp", "helpers.hpp")
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp"), "camera": ("camera.hpp",),
                    "driver": ("driver.hpp",),
-                   "ros2": ("ros2_interface.hpp", "ros2.hpp", "cdr.hpp", "ros2_wire.hpp")}
+                   "ros2": ("ros2_interface.hpp", "ros2.hpp", "cdr.hpp", "ros2_wire.hpp",
+                            "ros2view.hpp")}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera, hfsmc_ros2): src/, beside
 # the runtime's; the library's first file names it.
 INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_mission.cpp", "hfsmc_px4.cpp"),

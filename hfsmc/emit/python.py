@@ -27,8 +27,8 @@ from hfsmc.ros2.python_messages import python_message_files
 from hfsmc.ros2files import used_messages
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py",
-                 "hfsmc_monitor.py", "hfsmc_ros2view.py", "hfsmc_driverview.py", "hfsmc_record.py",
-                 "hfsmc_playback.py", "hfsmc_simclock.py", "hfsmc_helpers.py")
+                 "hfsmc_terminal.py", "hfsmc_monitor.py", "hfsmc_ros2view.py", "hfsmc_driverview.py",
+                 "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py", "hfsmc_helpers.py")
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py",
                                "hfsmc_mavlink_reader.py", "hfsmc_mission.py", "hfsmc_px4.py"),
                    "camera": ("hfsmc_camera.py",), "driver": ("hfsmc_driver.py",),

@@ -29,6 +29,7 @@ struct Node::Endpoint {
   long received = 0;
   long bad = 0;
   bool warned = false;
+  mutable std::atomic<long> sent{0};  // a publication's samples sent (the monitor's thread reads it)
   // This instant's snapshot: the automaton's thread only.
   std::shared_ptr<const void> snap;
   std::shared_ptr<const std::vector<std::uint8_t>> snap_bytes;
@@ -364,6 +365,7 @@ void Node::send(const Endpoint& e, const std::vector<std::uint8_t>& cdr) const {
   if (e.entity <= 0) throw std::logic_error("hfsmc::ros2: publish before start()");
   wire::Raw raw{cdr};
   dds_return_t rc = dds_write(e.entity, &raw);
+  ++e.sent;
   if (rc != DDS_RETCODE_OK)
     std::fprintf(stderr, "hfsmc: ros2: %s not sent: %s\n", e.topic.c_str(), dds_strretcode(rc));
 }
@@ -372,6 +374,31 @@ void Node::publish_bytes(const std::string& key, const std::vector<std::uint8_t>
   const Endpoint& e = find(key);
   if (!e.publication) throw std::logic_error("hfsmc::ros2: '" + key + "' is a subscription");
   send(e, cdr);
+}
+
+std::vector<Node::View> Node::views() const {
+  const Clock::time_point now = Clock::now();
+  std::vector<View> out;
+  for (const auto& ep : endpoints_) {
+    Endpoint& e = *ep;
+    View v;
+    v.key = e.key;
+    v.topic = e.topic;
+    v.type = e.ros_type;
+    v.publication = e.publication;
+    v.matched = e.matched.load();
+    if (e.publication) {
+      v.count = e.sent.load();
+    } else {
+      std::lock_guard<std::mutex> lock(e.mu);
+      v.count = e.received;
+      v.dropped = e.bad;
+      v.bytes = e.latest_bytes;
+      if (e.received) v.age = std::chrono::duration<double>(now - e.at).count();
+    }
+    out.push_back(std::move(v));
+  }
+  return out;
 }
 
 }  // namespace ros2

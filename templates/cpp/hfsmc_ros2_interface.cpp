@@ -105,6 +105,7 @@ Interface::Interface(std::string name, const char* distro, const char* node, con
 }
 
 Interface::~Interface() {
+  if (feeding_) unregister_feed(this);
   if (sim_ != nullptr && simclock::current() == sim_) sim_->remove(this);
   unregister_source(this);
 }
@@ -201,7 +202,11 @@ const Interface::Decl& Interface::subscribed(const std::string& key, const char*
 }
 
 void Interface::start() {
-  if (node_) guard([&] { node_->start(); });
+  if (node_) {
+    guard([&] { node_->start(); });
+    register_feed(this);
+    feeding_ = true;
+  }
   if (inputs_ != nullptr) read_script();
 }
 
@@ -245,10 +250,70 @@ void Interface::send_bytes(const Decl& d, const std::vector<std::uint8_t>& cdr) 
   if (node_) node_->publish_bytes(d.key, cdr);
 }
 
+// -- Feed: the live views (docs/web.md "ROS 2 topics and the map") ---------------------------
+// As hfsmc_ros2view.ros2_message: the node, and each topic's rate, age, count and matched
+// endpoints as the node holds them now; an odometry subscription's latest pose.
+std::string Interface::feed_message(long long t_ms) {
+  using ros2view::num;
+  const double now =
+      std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  std::string subs, pubs;
+  for (const Node::View& v : node_->views()) {
+    const double rate = rates_.rate((v.publication ? "p/" : "s/") + v.key, now, v.count);
+    std::string e = "{\"name\":" + json_string(v.key) + ",\"topic\":" + json_string(v.topic) +
+                    ",\"type\":" + json_string(v.type);
+    const std::string r = ",\"rate\":" + (std::isnan(rate) ? std::string("null") : num(rate, 1));
+    if (v.publication) {
+      e += ",\"count\":" + std::to_string(v.count) + r + ",\"subscribers\":" +
+           std::to_string(v.matched) + "}";
+      pubs += (pubs.empty() ? "" : ",") + e;
+      continue;
+    }
+    e += r + ",\"age\":" + (v.age < 0 ? std::string("null") : num(v.age)) + ",\"count\":" +
+         std::to_string(v.count) + ",\"publishers\":" + std::to_string(v.matched) +
+         ",\"dropped\":" + std::to_string(v.dropped);
+    ros2view::Pose pose;
+    if (v.type == ros2view::ODOMETRY && v.bytes && ros2view::odometry_pose(*v.bytes, pose))
+      e += ",\"pose\":" + ros2view::pose_json(pose);
+    subs += (subs.empty() ? "" : ",") + e + "}";
+  }
+  return "{\"type\":\"ros2\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
+         ",\"node\":" + json_string(options_.node) + ",\"namespace\":" + json_string(options_.ns) +
+         ",\"domain\":" + std::to_string(options_.domain) + ",\"distro\":" +
+         json_string(options_.distro) + ",\"subscriptions\":[" + subs + "],\"publications\":[" +
+         pubs + "]}";
+}
+
+// Each LaserScan subscription's latest scan, made once per new scan, drawn from the pose of
+// the first odometry subscription taken back to the scan's stamp.
+void Interface::feed_scans(long long t_ms,
+                           std::map<std::string, std::pair<long, std::string>>& scans) {
+  const std::vector<Node::View> views = node_->views();
+  ros2view::Pose odom;
+  bool has_odom = false;
+  for (const Node::View& v : views) {
+    if (!v.publication && v.type == ros2view::ODOMETRY && v.bytes &&
+        ros2view::odometry_pose(*v.bytes, odom)) {
+      has_odom = true;
+      break;
+    }
+  }
+  for (const Node::View& v : views) {
+    if (v.publication || v.type != ros2view::LASER_SCAN || !v.bytes) continue;
+    const std::string key = name_ + "/" + v.key;
+    auto it = scans.find(key);
+    if (it != scans.end() && it->second.first == v.count) continue;
+    std::string line =
+        ros2view::scan_message(name_, v.key, t_ms, *v.bytes, has_odom ? &odom : nullptr);
+    if (!line.empty()) scans[key] = {v.count, std::move(line)};
+  }
+}
+
 // -- Source ---------------------------------------------------------------------------------
 // The settings in force, as the Python runtime records them (its `connect` settings): each
 // topic as written (unresolved) with its QoS, a profile's name or {reliability, durability,
-// depth}; the domain as set (null: $ROS_DOMAIN_ID, else 0).
+// depth}; the domain as set (null: $ROS_DOMAIN_ID, else 0); no actions nor services (empty,
+// as Python writes a model without them).
 std::string Interface::source_config() const {
   std::string subs, pubs;
   for (std::size_t k = 0; k < decls_.size(); ++k) {
@@ -277,7 +342,7 @@ std::string Interface::source_config() const {
          ",\"namespace\":" + json_string(options_.ns) + ",\"domain\":" +
          (domain_given_ < 0 ? std::string("null") : std::to_string(domain_given_)) +
          ",\"distro\":" + json_string(options_.distro) + ",\"subscribe\":{" + subs + "},\"publish\":{" + pubs +
-         "}}}";
+         "},\"actions\":{},\"services\":{}}}";  // no actions nor services in C++ yet
 }
 
 void Interface::take_snapshot(long long t_us) {

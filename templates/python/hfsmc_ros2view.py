@@ -4,7 +4,8 @@ Copied beside every generated Python component and imported by ``hfsmc view``: s
 library only. The monitor and ``--display`` call ``ros2_message`` about 4 times a second
 with what the interface's node holds (``Ros2Node.views()``, never the instant's
 snapshot), and ``scan_message`` for a LaserScan subscription's new scan (only for viewers
-that asked for scans). ``Rates`` turns the counts into rates over the last seconds.
+that asked for scans). ``Rates`` turns the counts into rates over the last seconds, and
+``ros2_rows`` a ``ros2`` message into the terminal view's rows (``hfsmc_view``).
 """
 
 from __future__ import annotations
@@ -13,10 +14,16 @@ import math
 from collections import deque
 from typing import Any
 
+if __package__:
+    from .hfsmc_viewstate import clean
+else:  # copied beside the generated component, where the modules are top level
+    from hfsmc_viewstate import clean  # type: ignore[import-not-found, no-redef]
+
 RATE_WINDOW_S = 2.0  # a rate is the messages of about the last 2 s per second
 ODOMETRY = "nav_msgs/msg/Odometry"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 MAX_RAYS = 1440  # a scan with more rays is sent every k-th ray (a view needs no more)
+STALE_S = 2.0  # a topic whose latest message is older is shown yellow
 
 
 class Rates:
@@ -150,3 +157,37 @@ def scan_message(name: str, subscription: str, t_ms: int, msg: Any, odom: Any = 
     if pose is not None:
         out["pose"] = pose
     return out if out["angle_min"] is not None and out["angle_increment"] is not None else None
+
+
+def _rate(x: object) -> str:
+    return f"{x:.1f} Hz" if isinstance(x, int | float) and not isinstance(x, bool) else "– Hz"
+
+
+def ros2_rows(msg: dict[str, Any]) -> list[tuple[list[str], str]]:
+    """A ``ros2`` message as the terminal view's rows: (cells, style), the node first,
+    then ``<-`` per subscription (rate, age, count, matched publishers, dropped) and ``->``
+    per publication (rate, count, matched subscribers). Red: a subscription that never got
+    a message or has no publisher, a publication nobody subscribes to, dropped samples;
+    yellow: a message older than STALE_S."""
+    ns = clean(msg.get("namespace") or "/")
+    node = f"{ns.rstrip('/')}/{clean(msg.get('node'))}"
+    rows = [([f"ros2 {clean(msg.get('name'))}", node, f"domain {clean(msg.get('domain'))}",
+              clean(msg.get("distro")), "", ""], "bold")]
+    for s in msg.get("subscriptions", ()):
+        age = s.get("age")
+        style = ""
+        if not s.get("count") or not s.get("publishers"):
+            style = "red"
+        elif isinstance(age, int | float) and age > STALE_S:
+            style = "yellow"
+        seen = f"{age:.2f} s ago" if isinstance(age, int | float) else "never"
+        extra = f"  {s['dropped']} dropped" if s.get("dropped") else ""
+        rows.append(([f"<- {clean(s.get('name'))}", clean(s.get("topic")), _rate(s.get("rate")),
+                      seen, f"n {clean(s.get('count'))}",
+                      f"{clean(s.get('publishers'))} pub{extra}"],
+                     "red" if extra else style))
+    for p in msg.get("publications", ()):
+        rows.append(([f"-> {clean(p.get('name'))}", clean(p.get("topic")), _rate(p.get("rate")),
+                      "", f"n {clean(p.get('count'))}", f"{clean(p.get('subscribers'))} sub"],
+                     "" if p.get("subscribers") else "red"))
+    return rows

@@ -11,6 +11,9 @@ without a terminal, the view prints one plain line per transition).
 - ``Display``: the observer behind the component's ``--display``.
 - ``run_viewer``: the display loop behind ``hfsmc view``.
 
+The terminal's keys and the component's prints under the live view are
+``hfsmc_terminal``'s; a ``ros2`` interface's rows are ``hfsmc_ros2view``'s.
+
 The automaton thread only puts items on a queue; one thread of this module
 owns the ``ViewState`` and the terminal, so the two never share data.
 
@@ -28,9 +31,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
-import os
 import queue
-import select
 import sys
 import threading
 import time
@@ -44,6 +45,7 @@ if TYPE_CHECKING:
 if __package__:
     from . import hfsmc_driverview as _driverview
     from . import hfsmc_ros2view as _ros2view
+    from . import hfsmc_terminal as _terminal
     from .hfsmc_viewstate import (
         EVENTS,
         RECENT,
@@ -58,6 +60,7 @@ if __package__:
 else:  # copied beside the generated component, where the modules are top level
     import hfsmc_driverview as _driverview  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2view as _ros2view  # type: ignore[import-not-found, no-redef]
+    import hfsmc_terminal as _terminal  # type: ignore[import-not-found, no-redef]
     from hfsmc_viewstate import (  # type: ignore[import-not-found, no-redef]
         EVENTS,
         RECENT,
@@ -74,7 +77,6 @@ __all__ = ["EVENTS", "RECENT", "Display", "Item", "PlainLines", "ViewState", "ch
            "clean", "fit", "infer_structure", "readable", "render", "run_viewer"]
 
 REFRESH_S = 0.25  # the live view redraws at 4 Hz
-STALE_S = 2.0  # a topic whose latest message is older is shown yellow
 
 # -- the rich view -------------------------------------------------------------------------
 def _dur(ms: int) -> str:
@@ -241,42 +243,8 @@ def _walk(view: ViewState, focus: str, autofocus: bool) -> list[tuple[str, str, 
     return out
 
 
-def _rate(x: object) -> str:
-    return f"{x:.1f} Hz" if isinstance(x, int | float) and not isinstance(x, bool) else "– Hz"
-
-
-def ros2_rows(msg: dict[str, Any]) -> list[tuple[list[str], str]]:
-    """A ``ros2`` message as the terminal view's rows: (cells, style), the node first,
-    then ``<-`` per subscription (rate, age, count, matched publishers, dropped) and ``->``
-    per publication (rate, count, matched subscribers). Red: a subscription that never got
-    a message or has no publisher, a publication nobody subscribes to, dropped samples;
-    yellow: a message older than STALE_S."""
-    ns = clean(msg.get("namespace") or "/")
-    node = f"{ns.rstrip('/')}/{clean(msg.get('node'))}"
-    rows = [([f"ros2 {clean(msg.get('name'))}", node, f"domain {clean(msg.get('domain'))}",
-              clean(msg.get("distro")), "", ""], "bold")]
-    for s in msg.get("subscriptions", ()):
-        age = s.get("age")
-        style = ""
-        if not s.get("count") or not s.get("publishers"):
-            style = "red"
-        elif isinstance(age, int | float) and age > STALE_S:
-            style = "yellow"
-        seen = f"{age:.2f} s ago" if isinstance(age, int | float) else "never"
-        extra = f"  {s['dropped']} dropped" if s.get("dropped") else ""
-        rows.append(([f"<- {clean(s.get('name'))}", clean(s.get("topic")), _rate(s.get("rate")),
-                      seen, f"n {clean(s.get('count'))}",
-                      f"{clean(s.get('publishers'))} pub{extra}"],
-                     "red" if extra else style))
-    for p in msg.get("publications", ()):
-        rows.append(([f"-> {clean(p.get('name'))}", clean(p.get("topic")), _rate(p.get("rate")),
-                      "", f"n {clean(p.get('count'))}", f"{clean(p.get('subscribers'))} sub"],
-                     "" if p.get("subscribers") else "red"))
-    return rows
-
-
 def _ros2_part(view: ViewState) -> tuple[list[RenderableType], int]:
-    """The ros2 interfaces' topics, and the lines they take."""
+    """The ros2 interfaces' topics and the user drivers' snapshots, and the lines they take."""
     from rich.table import Table
 
     parts: list[RenderableType] = []
@@ -285,7 +253,7 @@ def _ros2_part(view: ViewState) -> tuple[list[RenderableType], int]:
         table = Table.grid(padding=(0, 2))
         for _ in range(6):
             table.add_column(no_wrap=True)
-        for cells, style in ros2_rows(view.ros2[name]):
+        for cells, style in _ros2view.ros2_rows(view.ros2[name]):
             table.add_row(*cells, style=style)
             lines += 1
         parts.append(table)
@@ -402,123 +370,6 @@ def _rich_missing() -> bool:
     return False
 
 
-def _isatty(stream: TextIO) -> bool:
-    try:
-        return stream.isatty()
-    except (AttributeError, ValueError):
-        return False
-
-
-# -- terminal plumbing -------------------------------------------------------------------------
-class _Keys:
-    """Single keys from the terminal (cbreak mode), put on the queue as ("key", ch).
-
-    Only when stdin is a terminal and this process is in its foreground; the
-    terminal's settings are restored by ``stop`` (and at exit, as a safety net).
-    """
-
-    def __init__(self, put: Callable[[Item], None]) -> None:
-        self._put = put
-        self.why: str | None = "not started"  # why keys are not read (None: they are)
-        self._old: list[Any] | None = None
-        self._fd = -1
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    def start(self) -> None:
-        try:
-            import termios
-            import tty
-
-            fd = sys.stdin.fileno()
-            if not os.isatty(fd):
-                self.why = "stdin is not a terminal"
-                return
-            if os.tcgetpgrp(fd) != os.getpgrp():
-                self.why = "in the background"
-                return
-            self._fd, self._old = fd, termios.tcgetattr(fd)
-            tty.setcbreak(fd, termios.TCSANOW)
-        except (ImportError, OSError, ValueError, AttributeError):
-            self._old = None
-            self.why = "stdin is not a terminal"
-            return
-        self.why = None
-        atexit.register(self.stop)
-        self._thread = threading.Thread(target=self._run, name="hfsmc-keys", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        try:
-            while not self._stop.is_set():
-                # In the background (Ctrl-Z, bg) reading would stop the process: the keys
-                # wait, and the panel says so, until the job is in the foreground again.
-                foreground = os.tcgetpgrp(self._fd) == os.getpgrp()
-                self._say(None if foreground else "in the background")
-                if not foreground:
-                    self._stop.wait(0.1)
-                    continue
-                ready, _, _ = select.select([self._fd], [], [], 0.1)
-                if ready and os.tcgetpgrp(self._fd) == os.getpgrp():
-                    data = os.read(self._fd, 64)
-                    if not data:
-                        self._say("stdin closed")
-                        return
-                    for ch in data.decode("utf-8", "replace"):
-                        self._put(("key", ch))
-        except (OSError, ValueError):
-            self._say("stdin closed")
-
-    def _say(self, why: str | None) -> None:
-        if why != self.why:
-            self.why = why
-            self._put(("keys", why))  # the panel says so at the next frame
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(0.2)
-        if self._old is not None:
-            import signal
-            import termios
-
-            # Sent to the background meanwhile: tcsetattr would stop the process on
-            # SIGTTOU unless the signal is blocked (POSIX lets the call through then).
-            blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTTOU})
-            with contextlib.suppress(OSError, termios.error):
-                termios.tcsetattr(self._fd, termios.TCSADRAIN, self._old)
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-            self._old = None
-        atexit.unregister(self.stop)
-
-
-class _QueueWriter:
-    """Stands in for sys.stdout / sys.stderr under the live view: whole lines go on the
-    queue as ("text", line) and the display thread prints them above the tree."""
-
-    def __init__(self, put: Callable[[Item], None], original: TextIO) -> None:
-        self._put, self.original, self._buf = put, original, ""
-        self.encoding = getattr(original, "encoding", "utf-8")
-
-    def write(self, s: str) -> int:
-        self._buf += s
-        if "\n" in self._buf:
-            done, _, self._buf = self._buf.rpartition("\n")
-            self._put(("text", done))
-        return len(s)
-
-    def flush(self) -> None:
-        if self._buf:
-            self._put(("text", self._buf))
-            self._buf = ""
-
-    def isatty(self) -> bool:
-        return _isatty(self.original)
-
-    def fileno(self) -> int:
-        return self.original.fileno()
-
-
 # -- the display loop ------------------------------------------------------------------------
 class _Screen:
     """Owns a ViewState and the terminal; consumes items until ("end" | "error" | quit)."""
@@ -611,8 +462,8 @@ class Display:
         self._focus, self._autofocus = focus, autofocus
         self._q: queue.SimpleQueue[Item] = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
-        self._keys: _Keys | None = None
-        self._writers: list[tuple[str, _QueueWriter]] = []
+        self._keys: _terminal.Keys | None = None
+        self._writers: list[tuple[str, _terminal.QueueWriter]] = []
         self._ros2: dict[str, Any] = {}
         self._drivers: dict[str, Any] = {}
         self._rates = _ros2view.Rates()
@@ -644,7 +495,7 @@ class Display:
         return out
 
     def start(self, structure: dict[str, Any]) -> None:
-        live = _isatty(self._stream)
+        live = _terminal.isatty(self._stream)
         if live and _rich_missing():
             print("display: the rich package is not installed; printing one line per transition",
                   file=sys.stderr, flush=True)
@@ -654,15 +505,15 @@ class Display:
             screen.poll = self._poll
         self._q.put(("structure", structure))
         if live:
-            self._keys = _Keys(self._q.put)
+            self._keys = _terminal.Keys(self._q.put)
             self._keys.start()
             screen.keys = self._keys.why
             # Lines the component prints (logs, errors) would tear the live tree apart:
             # they are printed above it instead.
             for name in ("stdout", "stderr"):
                 current = getattr(sys, name)
-                if _isatty(current):
-                    writer = _QueueWriter(self._q.put, current)
+                if _terminal.isatty(current):
+                    writer = _terminal.QueueWriter(self._q.put, current)
                     setattr(sys, name, writer)
                     self._writers.append((name, writer))
         self._thread = threading.Thread(target=screen.run, args=(self._q,), name="hfsmc-display",
@@ -729,8 +580,8 @@ def run_viewer(source: Iterable[Item], focus: str | None = None, autofocus: bool
             q.put(("error", f"{type(e).__name__}: {e}"))
         q.put(("end", None))
 
-    live = _isatty(out) and not _rich_missing()
-    keys = _Keys(q.put) if live else None
+    live = _terminal.isatty(out) and not _rich_missing()
+    keys = _terminal.Keys(q.put) if live else None
     threading.Thread(target=pump, name="hfsmc-view-source", daemon=True).start()
     status, message = 130, None
     try:

@@ -6,10 +6,12 @@
 // Minor version 1: the registered Feeds (observer.hpp: a `mavlink` vehicle, a `camera`)
 // are sent too, a vehicle's state to every client a few times a second, a camera's frames
 // only to the clients that asked for them with {"type":"subscribe","frames":true}, each new
-// frame made once per feed whatever the clients ask. Minor version 4: a user driver's
-// snapshot (driver.hpp), to every client (the hello says 4 when there is one, else 2: a C++
-// component sends no ros2 messages). A connection beyond the client slots,
+// frame made once per feed whatever the clients ask. A connection beyond the client slots,
 // or beyond one address's share of them, is told `busy` (and why) and closed.
+// Minor version 3: a `ros2` interface (ros2_interface.hpp) is a feed too: its `ros2`
+// message to every client, its laser scans (`scan`) only to the clients that asked with
+// {"type":"subscribe","scans":true}, each new scan made once whatever the clients ask.
+// Minor version 4: a user driver's snapshot (driver.hpp), to every client.
 #pragma once
 
 #include <arpa/inet.h>
@@ -38,63 +40,20 @@
 #include <utility>
 #include <vector>
 
+#include "address.hpp"
 #include "json.hpp"
 #include "observer.hpp"
 #include "viewstate.hpp"
 
 namespace hfsmc {
 
-// `PORT`, `HOST:PORT` or `[IPV6]:PORT` as (host, port); std::invalid_argument if neither.
-inline std::pair<std::string, int> parse_monitor_address(const std::string& raw) {
-    const char* space = " \t\n\r\f\v";
-    std::size_t b = raw.find_first_not_of(space);
-    std::string text = b == std::string::npos ? "" : raw.substr(b, raw.find_last_not_of(space) - b + 1);
-    auto bad = [&](const std::string& why) {
-        // The address as Python's repr() shows it (the usual case: no quotes inside).
-        bool dq = text.find('\'') != std::string::npos && text.find('"') == std::string::npos;
-        std::string q = dq ? "\"" : "'", shown = q;
-        for (unsigned char c : text) {
-            if (c == '\\' || (!dq && c == '\'')) shown += '\\', shown += static_cast<char>(c);
-            else if (c < 32 || c == 127) {
-                char buf[8];
-                std::snprintf(buf, sizeof buf, "\\x%02x", c);
-                shown += c == '\n' ? "\\n" : c == '\t' ? "\\t" : c == '\r' ? "\\r" : buf;
-            } else shown += static_cast<char>(c);
-        }
-        return std::invalid_argument("bad address " + shown + q + ": " + why);
-    };
-    std::string host = "127.0.0.1", port = text;
-    if (!text.empty() && text[0] == '[') {
-        std::size_t end = text.find(']');
-        if (end == std::string::npos || text.compare(end + 1, 1, ":") != 0) throw bad("expected [HOST]:PORT");
-        host = text.substr(1, end - 1);
-        port = text.substr(end + 2);
-    } else if (text.find(':') != std::string::npos) {
-        if (text.find(':') != text.rfind(':')) {
-            throw bad("write an IPv6 address in brackets, [::1]:PORT");
-        }
-        std::size_t colon = text.rfind(':');
-        host = colon ? text.substr(0, colon) : "127.0.0.1";
-        port = text.substr(colon + 1);
-    }
-    bool digits = !port.empty() && port.size() <= 5 &&
-                  port.find_first_not_of("0123456789") == std::string::npos;
-    if (!digits || std::stoi(port) > 65535) {
-        throw bad("expected [HOST:]PORT with a port from 0 to 65535");
-    }
-    return {host, std::stoi(port)};
-}
-
-inline std::string format_monitor_address(const std::string& host, int port) {
-    return host.find(':') != std::string::npos ? "[" + host + "]:" + std::to_string(port)
-                                               : host + ":" + std::to_string(port);
-}
-
 class MonitorServer : public Observer {
 public:
     static constexpr int PROTOCOL = 1;
-    static constexpr int MINOR = 2;  // 1: feeds in hello, vehicle and frame messages; 2: sim_rate
-    static constexpr int FEED_EVERY_MS = 250;  // vehicle records and frames: at most 4 a second
+    // 1: feeds in hello, vehicle and frame messages; 2: sim_rate; 3: ros2 feeds, ros2 and
+    // scan; 4: driver feeds and messages
+    static constexpr int MINOR = 4;
+    static constexpr int FEED_EVERY_MS = 250;  // vehicle records, frames, ros2 topics: at most 4 a second
     static constexpr std::size_t FRAME_BACKLOG = 1 << 18;  // more unsent bytes: no new frame
     static constexpr std::size_t REQUEST_LIMIT = 1024;  // a longer request line is ignored
     static constexpr std::size_t MAX_CLIENTS = 16;  // more are told "busy" and closed
@@ -208,8 +167,10 @@ private:
         bool reading = true;  // until the client shuts its side down
         std::size_t received = 0;
         bool frames = false;  // it asked for camera frames
+        bool scans = false;  // it asked for the ros2 interfaces' laser scans
         std::string inbuf{};  // the start of a request line
         std::map<std::string, unsigned long> got{};  // per camera, the number of the frame it was given
+        std::map<std::string, long> got_scan{};  // per interface/subscription, the scan's count
         std::size_t pending() const { return out.size() - sent; }
     };
     struct Frame {  // a camera's latest frame message, made once
@@ -230,8 +191,9 @@ private:
     std::deque<Item> taken_;
     std::vector<std::unique_ptr<Client>> clients_;
     ViewState view_;
-    bool has_feeds_ = false, has_cameras_ = false, has_drivers_ = false;
+    bool has_feeds_ = false, has_cameras_ = false, has_ros2_ = false;
     std::map<std::string, Frame> frames_;  // per camera
+    std::map<std::string, std::pair<long, std::string>> scans_;  // per interface/subscription
     std::chrono::steady_clock::time_point next_feed_{};
 
     void push(Item&& item) {
@@ -341,8 +303,11 @@ private:
     // The vehicles' state to every client, a camera's new frame to those that asked.
     void send_feeds() {
         next_feed_ = std::chrono::steady_clock::now() + std::chrono::milliseconds(FEED_EVERY_MS);
-        bool takers = false;
-        for (const auto& c : clients_) takers = takers || c->frames;
+        bool takers = false, scanners = false;
+        for (const auto& c : clients_) {
+            takers = takers || c->frames;
+            scanners = scanners || c->scans;
+        }
         std::string vehicles;
         {
             std::lock_guard<std::mutex> lock(feeds_mutex());
@@ -355,6 +320,12 @@ private:
                 } catch (...) {  // a driver's trouble must not stop the monitor
                     continue;
                 }
+                if (scanners && std::strcmp(f->feed_kind(), "ros2") == 0) {
+                    try {  // each new scan made once, only while a client asked for scans
+                        f->feed_scans(view_.t_ms, scans_);
+                    } catch (...) {
+                    }
+                }
                 if (msg.empty()) continue;
                 if (camera) {  // a new frame, made here once, at most every FEED_EVERY_MS
                     Frame& made = frames_[f->feed_name()];
@@ -366,6 +337,7 @@ private:
             }
         }
         if (!vehicles.empty()) send_all(vehicles);
+        if (scanners) send_scans();
         if (!takers) return;
         for (const auto& [name, frame] : frames_) {
             // Frames are skipped, never queued without bound: the client is not dropped, and
@@ -385,7 +357,28 @@ private:
         }
     }
 
-    // A client's request: {"type":"subscribe","frames":true|false}; anything else is ignored.
+    // The latest scans to the clients that asked, each scan once, skipped (never queued
+    // without bound) for a client that is behind.
+    void send_scans() {
+        for (const auto& [key, scan] : scans_) {
+            for (std::size_t i = 0; i < clients_.size();) {
+                Client& c = *clients_[i];
+                auto got = c.got_scan.find(key);
+                if (!c.scans || (got != c.got_scan.end() && got->second == scan.first) ||
+                    c.pending() + scan.second.size() + 1 > std::min(FRAME_BACKLOG, BUFFER_LIMIT)) {
+                    ++i;
+                    continue;
+                }
+                c.got_scan[key] = scan.first;
+                c.out.append(scan.second);
+                c.out += '\n';
+                if (flush(c)) ++i;
+            }
+        }
+    }
+
+    // A client's request: {"type":"subscribe","frames":true|false} or "scans" (minor 3);
+    // anything else is ignored.
     void request(Client& c, const std::string& line) {
         const auto has = [&line](const char* text) { return line.find(text) != std::string::npos; };
         if (line.size() > REQUEST_LIMIT || !has("\"type\"") || !has("\"subscribe\"")) return;
@@ -400,29 +393,36 @@ private:
         } else if (compact.find("\"frames\":false") != std::string::npos) {
             c.frames = false;
         }
+        if (compact.find("\"scans\":true") != std::string::npos) {
+            if (!c.scans) c.got_scan.clear();  // the latest scans at the next feed
+            c.scans = true;
+        } else if (compact.find("\"scans\":false") != std::string::npos) {
+            c.scans = false;
+        }
     }
 
     std::string feeds_json() {
-        std::string vehicle, camera, driver;
+        std::string vehicle, camera, ros2, driver;
         std::lock_guard<std::mutex> lock(feeds_mutex());
         for (Feed* f : feeds()) {
             const bool is_camera = std::strcmp(f->feed_kind(), "camera") == 0;
+            const bool is_ros2 = std::strcmp(f->feed_kind(), "ros2") == 0;
             const bool is_driver = std::strcmp(f->feed_kind(), "driver") == 0;
-            std::string& list = is_camera ? camera : is_driver ? driver : vehicle;
+            std::string& list = is_camera ? camera : is_ros2 ? ros2 : is_driver ? driver : vehicle;
             list += (list.empty() ? "" : ",") + json_string(f->feed_name());
             has_feeds_ = true;
             has_cameras_ = has_cameras_ || is_camera;
-            has_drivers_ = has_drivers_ || is_driver;
+            has_ros2_ = has_ros2_ || is_ros2;
         }
-        return "{\"vehicle\":[" + vehicle + "],\"camera\":[" + camera + "]" +
-               (driver.empty() ? "" : ",\"ros2\":[],\"driver\":[" + driver + "]") + "}";
+        return "{\"vehicle\":[" + vehicle + "],\"camera\":[" + camera + "],\"ros2\":[" + ros2 +
+               "],\"driver\":[" + driver + "]}";
     }
 
     std::string hello_json() {
         const Structure& s = structure_;
-        const std::string feeds = feeds_json();  // first: it says whether a driver is fed
+        const std::string feeds = feeds_json();
         std::string o = "{\"type\":\"hello\",\"protocol\":" + std::to_string(PROTOCOL) +
-                        ",\"minor\":" + std::to_string(has_drivers_ ? 4 : MINOR) +
+                        ",\"minor\":" + std::to_string(MINOR) +
                         ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
         for (const auto& a : s.automata) {
             if (o.back() != '[') o += ',';
@@ -527,7 +527,7 @@ private:
         }
         c.received += static_cast<std::size_t>(n);
         if (c.received > INPUT_LIMIT) return drop(c);
-        if (has_cameras_) {  // the one request a client may make: frames, or no more frames
+        if (has_cameras_ || has_ros2_) {  // the one request a client may make: frames, scans
             c.inbuf.append(buf, static_cast<std::size_t>(n));
             std::size_t start = 0;
             for (std::size_t nl; (nl = c.inbuf.find('\n', start)) != std::string::npos; start = nl + 1)

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <map>
 #include <mutex>
 #include <string>
 #include <utility>
@@ -70,13 +71,18 @@ public:
 class Feed {
 public:
     virtual ~Feed() = default;
-    virtual const char* feed_kind() const = 0;  // "vehicle", "camera" or "driver"
+    virtual const char* feed_kind() const = 0;  // "vehicle", "camera", "ros2" or "driver"
     virtual std::string feed_name() const = 0;
     // The JSON message to send now (no "\n"), "" for none: a vehicle's state, or a
     // camera's frame when a snippet obtained a new one since the last call.
     virtual std::string feed_message(long long t_ms) = 0;
     // Send the latest again at the next feed_message() (a viewer just asked for frames).
     virtual void feed_reset() {}
+    // A `ros2` interface's laser scans (minor version 3), called only while a viewer asked
+    // for scans: per "NAME/SUBSCRIPTION", the count of its latest scan and its `scan`
+    // message (no "\n"), made here only when the count differs from the one in `scans`.
+    virtual void feed_scans(long long /*t_ms*/,
+                            std::map<std::string, std::pair<long, std::string>>& /*scans*/) {}
 };
 
 inline std::mutex& feeds_mutex() {

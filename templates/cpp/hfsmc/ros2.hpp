@@ -129,6 +129,20 @@ class Node {
   const std::string& topic(const std::string& key) const;
   const Options& options() const { return options_; }
 
+  /// A subscription or publication as the live views show it, read now.
+  struct View {
+    std::string key, topic, type;
+    bool publication = false;
+    long count = 0;     // received (a subscription) or published (a publication)
+    double age = -1;    // seconds since the latest sample; < 0 before the first
+    int matched = 0;    // matched remote writers (a subscription) or readers
+    long dropped = 0;   // malformed samples dropped
+    std::shared_ptr<const std::vector<std::uint8_t>> bytes;  // the latest sample's
+  };
+  /// What the live views show (the monitor's thread calls it, after start(); the
+  /// instant's snapshot is left alone), in the order declared.
+  std::vector<View> views() const;
+
  private:
   using Decode = std::function<std::shared_ptr<const void>(const std::uint8_t*, std::size_t)>;
   void add(const std::string& key, const std::string& topic, const Qos& qos, bool publication,

@@ -25,7 +25,10 @@
 // - with --clock sim (the ground robot in lockstep, schemas/lockstep.md "Over ROS 2") the
 //   hello names the resolved topics, each `next` says how many samples were published on
 //   each topic since connecting, and before an instant the interface waits (bounded) until
-//   it holds every sample the simulator's step names.
+//   it holds every sample the simulator's step names;
+// - with --monitor, a live interface is a Feed (observer.hpp): its topics' rates, ages,
+//   counts and matched endpoints as its node holds them, the odometry's pose, and the laser
+//   scans for the viewers that asked (hfsmc/ros2view.hpp, docs/web.md); a fake has none.
 #pragma once
 
 #include <cstdint>
@@ -34,13 +37,16 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "hfsmc/cdr.hpp"
+#include "hfsmc/observer.hpp"
 #include "hfsmc/record.hpp"
 #include "hfsmc/ros2.hpp"
+#include "hfsmc/ros2view.hpp"
 #include "hfsmc/simclock.hpp"
 
 namespace hfsmc {
@@ -55,7 +61,7 @@ struct TopicDecl {
   bool publication;
 };
 
-class Interface : public Source, public simclock::Synced {
+class Interface : public Source, public simclock::Synced, private Feed {
  public:
   using Settings = std::map<std::string, std::string>;
 
@@ -87,6 +93,12 @@ class Interface : public Source, public simclock::Synced {
   std::string snapshot_fields() const override;
   std::string snapshot_schema() const override;
   void record_raw(Recorder& r, long long t_us) const override;
+
+  // -- Feed: the live views (the monitor's thread, under feeds_mutex()) -----------------
+  const char* feed_kind() const override { return "ros2"; }
+  std::string feed_name() const override { return name_; }
+  std::string feed_message(long long t_ms) override;
+  void feed_scans(long long t_ms, std::map<std::string, std::pair<long, std::string>>& scans) override;
 
   // -- simclock::Synced: lockstep with `hfsmc sim --robot diffdrive` ---------------------
   long long lockstep_sent() const override { return 0; }
@@ -202,6 +214,8 @@ class Interface : public Source, public simclock::Synced {
   std::vector<std::string> written_;       // per declaration, its topic as written (the settings)
   int domain_given_ = -1;                  // the domain as set (-1: $ROS_DOMAIN_ID), for the recording
   std::unique_ptr<Node> node_;  // null with --playback
+  bool feeding_ = false;        // registered as a Feed (a live node)
+  ros2view::Rates rates_;       // the monitor thread's
   simclock::Client* sim_ = nullptr;
   std::map<std::string, long long> sent_;  // per resolved topic, published since connecting
   std::map<std::string, long> base_;       // per subscription, received before the lockstep began
