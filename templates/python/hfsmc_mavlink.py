@@ -41,10 +41,12 @@ from pymavlink import mavutil
 try:  # beside the component, or in the hfsmc package
     from . import hfsmc_mavlink_link as _link
     from . import hfsmc_mission as _mission
+    from . import hfsmc_mission_upload as _upload
     from . import hfsmc_px4 as _px4
 except ImportError:
     import hfsmc_mavlink_link as _link  # type: ignore[import-not-found, no-redef]
     import hfsmc_mission as _mission  # type: ignore[import-not-found, no-redef]
+    import hfsmc_mission_upload as _upload  # type: ignore[import-not-found, no-redef]
     import hfsmc_px4 as _px4  # type: ignore[import-not-found, no-redef]
 
 _MAV: Any = mavutil.mavlink
@@ -113,10 +115,11 @@ NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
     "position": (math.nan, math.nan, math.nan), "altitude": math.nan,
     "velocity": (math.nan, math.nan, math.nan), "yaw": math.nan, "battery": -1,
     "acks": {}, "vehicle": False, "type": 0, "autopilot": 0,
-    "location": _mission.NAN3, "home": _mission.NAN3, "status_text": "", "battery_failsafe": ""}
+    "location": _mission.NAN3, "home": _mission.NAN3, "status_text": "", "battery_failsafe": "",
+    "mission": (0, 0), "fence_breached": False}
 
 
-class VehicleQueries:
+class VehicleQueries(_upload.UploadQueries):
     """What snippets call. Queries return the snapshot taken when the instant began
     (docs/recording.md), so that every call of an instant sees the same vehicle; commands
     are told to ``on_command`` (a recording, a playback), then sent by ``_command`` and
@@ -216,7 +219,8 @@ class VehicleQueries:
         return str(self._snap["battery_failsafe"])
 
     def last_ack(self, command: str) -> str:
-        """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
+        """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode,
+        upload_mission, upload_fence, enable_fence):
         accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
         pending, timeout, not_sent; "" when never sent."""
         return str(self._snap["acks"].get(command, ""))
@@ -370,7 +374,7 @@ def modes(vehicle_type: int) -> dict[int, str]:
     return dict(table or mavutil.mode_mapping_acm)
 
 
-class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, VehicleQueries):
+class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, VehicleQueries):
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
@@ -387,6 +391,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, VehicleQueries):
             sysid = 255
         self._px4_init(options)
         self._mission_init()
+        self._upload_init()
         for key in sorted(set(options) - {"rate", "ack_timeout", "source_system", "autopilot"}):
             self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system, "
                       "autopilot)")
@@ -485,7 +490,8 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, VehicleQueries):
             "position": pos, "altitude": -pos[2] if rel is None else rel,
             "velocity": self._velocity, "yaw": self._yaw, "battery": self._battery,
             "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0],
-            "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1], **self._mission_snapshot()}
+            "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1], **self._mission_snapshot(),
+            **self._upload_snapshot()}
         return self._snap
 
     def _mode_name(self, hb: tuple[int, int, int, int]) -> str:
@@ -531,6 +537,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, VehicleQueries):
             self._offboard.target(self._now(), ("local", frame, mask, pos, vel, yaw_rate, yaw))
 
     def _goto_global(self, lat: float, lon: float, alt: float, heading: float | None) -> None:
+        self._fence_check(lat, lon)
         self._send_global(lat, lon, alt, heading)
         if self._px4 and self._target is not None:
             self._offboard.target(self._now(), ("global", lat, lon, alt, heading))
@@ -595,6 +602,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, VehicleQueries):
                 self._conn.mav.heartbeat_send(_MAV.MAV_TYPE_GCS,
                                               _MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
         self._expire(now)
+        self._upload_tick(now)
         self._watch_link()
         if self._px4:
             self._px4_tick(now)
@@ -624,7 +632,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, VehicleQueries):
             return
         if self._target is None or source[0] != self._target[0]:
             return
-        if self._mission_message(kind, msg):
+        if self._mission_message(kind, msg) or self._upload_message(kind, msg):
             return
         if kind == "LOCAL_POSITION_NED":
             self._position = (float(msg.x), float(msg.y), float(msg.z))
