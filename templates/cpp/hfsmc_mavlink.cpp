@@ -210,7 +210,9 @@ std::string Mavlink::snapshot_fields() const {
          ",\"type\":" + std::to_string(snap_.type) + ",\"autopilot\":" + std::to_string(snap_.autopilot) +
          ",\"location\":" + triple(snap_.location) + ",\"home\":" + triple(snap_.home) +
          ",\"status_text\":" + json_string(snap_.status_text) +
-         ",\"battery_failsafe\":" + json_string(snap_.battery_failsafe);
+         ",\"battery_failsafe\":" + json_string(snap_.battery_failsafe) +
+         ",\"mission\":[" + std::to_string(snap_.mission.first) + "," + std::to_string(snap_.mission.second) +
+         "],\"fence_breached\":" + (snap_.fence_breached ? "true" : "false");
 }
 
 // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
@@ -341,6 +343,8 @@ Mavlink::Snap Mavlink::live_snapshot() const {
     n.home = s_.home;
     n.status_text = s_.status_text;
     n.battery_failsafe = s_.battery_failsafe;
+    n.mission = {s_.mission_current, s_.mission_total};
+    n.fence_breached = s_.fence_breached;
     flags = s_.ekf_flags;
     fix = s_.gps_fix;
     prearm = s_.prearm;
@@ -380,6 +384,11 @@ void Mavlink::apply(Snap& s, const playback::Entry& e) const {
     else if (key == "home") s.home = vector();
     else if (key == "status_text") s.status_text = in.text(v, k, e.line);
     else if (key == "battery_failsafe") s.battery_failsafe = in.text(v, k, e.line);
+    else if (key == "fence_breached") s.fence_breached = in.boolean(v, k, e.line);
+    else if (key == "mission") {
+      if (v.kind != json::Value::ARRAY || v.items.size() != 2) in.bad(e.line, "`mission` must be [current, total]");
+      s.mission = {static_cast<int>(in.whole(v.items[0], k, e.line)), static_cast<int>(in.whole(v.items[1], k, e.line))};
+    }
     else if (key == "acks") {
       if (v.kind != json::Value::OBJECT) in.bad(e.line, "`acks` must be an object");
       s.acks.clear();
@@ -515,6 +524,8 @@ void Mavlink::send_rtl_altitude(double alt) {  // a PARAM_SET: RTL_ALT in cm, PX
   say(std::string("rtl: ") + name + " set to " + fmt(value));
 }
 
+mavlink_status_t* Mavlink::tx_status() { return &wire_->tx_status; }  // under link_
+
 void Mavlink::send(const mavlink_message_t& msg) {  // under link_
   if (fd_ < 0 || !peer_known_) return;  // udpin: nobody has written to us yet
   uint8_t buf[MAVLINK_MAX_PACKET_LEN];
@@ -570,6 +581,7 @@ void Mavlink::timed(Clock::time_point now) {
     send(msg);
   }
   expire(now);
+  upload_tick(now);
   watch_link();
   if (px4()) {
     uint32_t mode;
@@ -654,6 +666,17 @@ void Mavlink::handle(const mavlink_message_t& msg) {
     uint8_t system, component;
     if (target(&system, &component) && msg.sysid == system) on_statustext(msg);
     return;
+  }
+  switch (msg.msgid) {
+    case MAVLINK_MSG_ID_MISSION_REQUEST_INT: case MAVLINK_MSG_ID_MISSION_REQUEST:
+    case MAVLINK_MSG_ID_MISSION_ACK: case MAVLINK_MSG_ID_MISSION_CURRENT:
+    case MAVLINK_MSG_ID_MISSION_ITEM_REACHED: case MAVLINK_MSG_ID_FENCE_STATUS: {
+      uint8_t system, component;
+      if (target(&system, &component) && msg.sysid == system) on_mission_message(msg);
+      return;
+    }
+    default:
+      break;
   }
   std::lock_guard<std::mutex> lock(state_);
   if (!s_.target_seen || msg.sysid != s_.target_system) return;

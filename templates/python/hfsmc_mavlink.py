@@ -119,7 +119,7 @@ NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
     "mission": (0, 0), "fence_breached": False}
 
 
-class VehicleQueries(_upload.UploadQueries):
+class VehicleQueries:
     """What snippets call. Queries return the snapshot taken when the instant began
     (docs/recording.md), so that every call of an instant sees the same vehicle; commands
     are told to ``on_command`` (a recording, a playback), then sent by ``_command`` and
@@ -330,6 +330,35 @@ class VehicleQueries(_upload.UploadQueries):
         self._target_local(MAV_FRAME_LOCAL_NED, mask, (n, e, -alt), (0.0, 0.0, 0.0), 0.0,
                            heading or 0.0)
 
+    def upload_mission(self, points: Any, end: str = "hold") -> None:
+        """Upload a mission: points (lat, lon, alt above home[, heading in rad]), then
+        ``end`` (hold, land, rtl); its outcome is last_ack("upload_mission")."""
+        px4 = self._snap.get("autopilot") == _px4.AUTOPILOT_PX4
+        items, users = _upload.mission_items(self.name, points, str(end), px4, self._snap["home"])
+        self._issue("upload_mission", [[list(p) for p in points], str(end)], ack=True)
+        self._upload(_upload.MISSION, items, users)
+
+    def upload_fence(self, vertices: Any) -> None:
+        """Upload an inclusion polygon of (lat, lon) vertices (3 at least; none clears the
+        fence); its outcome is last_ack("upload_fence")."""
+        items = _upload.fence_items(self.name, vertices)
+        self._issue("upload_fence", [[list(p) for p in vertices]], ack=True)
+        self._upload(_upload.FENCE, items, [])
+
+    def enable_fence(self, on: bool = True) -> None:
+        """Turn the fence on or off (ArduPilot: DO_FENCE_ENABLE; PX4: on once uploaded)."""
+        self._issue("enable_fence", [bool(on)], ack=True)
+        self._fence_enable(bool(on))
+
+    def mission_progress(self) -> tuple[int, int]:
+        """(index of the point being flown to, number of points); (n, n): all reached."""
+        m = self._snap["mission"]
+        return (int(m[0]), int(m[1]))
+
+    def fence_breached(self) -> bool:
+        """The vehicle says it is outside its fence (FENCE_STATUS)."""
+        return bool(self._snap["fence_breached"])
+
     def warning_at_stop(self) -> str | None:
         """What the component says when it stops with the vehicle still armed (then nothing
         lands it: --until, an error without on_interrupt...); None when disarmed. Read from
@@ -363,6 +392,12 @@ class VehicleQueries(_upload.UploadQueries):
 
     def _rtl_altitude(self, alt: float) -> None:
         """Set RTL's altitude (the live vehicle)."""
+
+    def _upload(self, kind: int, items: list[Any], users: list[int]) -> None:
+        """Start an upload (the live vehicle)."""
+
+    def _fence_enable(self, on: bool) -> None:
+        """Turn the fence on or off (the live vehicle)."""
 
     def _px4_mode(self, name: str, number: int) -> None:
         """Ask PX4 for a mode (the live vehicle)."""

@@ -134,49 +134,6 @@ def inside(point: tuple[float, float], polygon: list[tuple[float, float]]) -> bo
     return result
 
 
-class UploadQueries:
-    """The mission calls of VehicleQueries (recorded, replayed; sent by the live hooks)."""
-
-    name: str
-    _snap: dict[str, Any]
-    _issue: Any
-
-    def upload_mission(self, points: Any, end: str = "hold") -> None:
-        """Upload a mission: points (lat, lon, alt above home[, heading in rad]), then
-        ``end`` (hold, land, rtl); its outcome is last_ack("upload_mission")."""
-        px4 = self._snap.get("autopilot") == AUTOPILOT_PX4
-        items, users = mission_items(self.name, points, str(end), px4, self._snap["home"])
-        self._issue("upload_mission", [[list(p) for p in points], str(end)], ack=True)
-        self._upload(MISSION, items, users)
-
-    def upload_fence(self, vertices: Any) -> None:
-        """Upload an inclusion polygon of (lat, lon) vertices (3 at least; none clears the
-        fence); its outcome is last_ack("upload_fence")."""
-        items = fence_items(self.name, vertices)
-        self._issue("upload_fence", [[list(p) for p in vertices]], ack=True)
-        self._upload(FENCE, items, [])
-
-    def enable_fence(self, on: bool = True) -> None:
-        """Turn the fence on or off (ArduPilot: DO_FENCE_ENABLE; PX4: on once uploaded)."""
-        self._issue("enable_fence", [bool(on)], ack=True)
-        self._fence_enable(bool(on))
-
-    def mission_progress(self) -> tuple[int, int]:
-        """(index of the point being flown to, number of points); (n, n): all reached."""
-        m = self._snap["mission"]
-        return (int(m[0]), int(m[1]))
-
-    def fence_breached(self) -> bool:
-        """The vehicle says it is outside its fence (FENCE_STATUS)."""
-        return bool(self._snap["fence_breached"])
-
-    def _upload(self, kind: int, items: list[Item], users: list[int]) -> None:
-        """Start an upload (the live vehicle)."""
-
-    def _fence_enable(self, on: bool) -> None:
-        """Turn the fence on or off (the live vehicle)."""
-
-
 @dataclass(slots=True)
 class Upload:
     """One upload in flight."""
