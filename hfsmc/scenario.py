@@ -40,6 +40,7 @@ MAVLINK_FIELDS: dict[str, str] = {
     "velocity": "vector", "altitude": "number", "yaw": "number", "battery": "int",
     "acks": "acks", "location": "vector", "home": "vector", "status_text": "str",
     "battery_failsafe": "str", "mission": "pair", "fence_breached": "bool",
+    "failsafe": "str",
 }
 CAMERA_FIELDS: dict[str, str] = {"image": "image", "world": "world", "rate": "number"}
 FIELDS = {"mavlink": MAVLINK_FIELDS, "camera": CAMERA_FIELDS}

@@ -74,6 +74,7 @@ NEVER_HEARD: dict[str, Any] = {
     "type": 0, "position": [math.nan] * 3, "velocity": [math.nan] * 3, "altitude": math.nan,
     "yaw": math.nan, "battery": -1, "location": [math.nan] * 3, "home": [math.nan] * 3,
     "status_text": "", "battery_failsafe": "", "mission": [0, 0], "fence_breached": False,
+    "failsafe": "",
 }
 
 

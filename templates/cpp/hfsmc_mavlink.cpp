@@ -212,7 +212,8 @@ std::string Mavlink::snapshot_fields() const {
          ",\"status_text\":" + json_string(snap_.status_text) +
          ",\"battery_failsafe\":" + json_string(snap_.battery_failsafe) +
          ",\"mission\":[" + std::to_string(snap_.mission.first) + "," + std::to_string(snap_.mission.second) +
-         "],\"fence_breached\":" + (snap_.fence_breached ? "true" : "false");
+         "],\"fence_breached\":" + (snap_.fence_breached ? "true" : "false") +
+         ",\"failsafe\":" + json_string(snap_.failsafe);
 }
 
 // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
@@ -353,6 +354,11 @@ Mavlink::Snap Mavlink::live_snapshot() const {
                   : n.armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
                             : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
   n.ready = n.heartbeat_age < kLinkTimeoutS && fix >= GPS_FIX_TYPE_3D_FIX && position;
+  n.failsafe = std::isfinite(n.heartbeat_age) && n.heartbeat_age >= kLinkTimeoutS ? "link_lost"
+               : offboard_ && offboard_->lost()                                   ? "offboard_lost"
+               : n.fence_breached                                                  ? "fence"
+               : !n.battery_failsafe.empty()                                       ? "battery"
+                                                                                   : "";
   std::lock_guard<std::mutex> lock(link_);
   n.acks = acks_;
   return n;
@@ -385,6 +391,7 @@ void Mavlink::apply(Snap& s, const playback::Entry& e) const {
     else if (key == "status_text") s.status_text = in.text(v, k, e.line);
     else if (key == "battery_failsafe") s.battery_failsafe = in.text(v, k, e.line);
     else if (key == "fence_breached") s.fence_breached = in.boolean(v, k, e.line);
+    else if (key == "failsafe") s.failsafe = in.text(v, k, e.line);
     else if (key == "mission") {
       if (v.kind != json::Value::ARRAY || v.items.size() != 2) in.bad(e.line, "`mission` must be [current, total]");
       s.mission = {static_cast<int>(in.whole(v.items[0], k, e.line)), static_cast<int>(in.whole(v.items[1], k, e.line))};
@@ -417,6 +424,8 @@ bool Mavlink::command(const std::string& name, const std::string& label, uint16_
              std::initializer_list<float> params, bool quiet) {
   Pending p{name, label, cmd, {0, 0, 0, 0, 0, 0, 0}, {}, {}, true, quiet};
   std::copy(params.begin(), params.end(), p.params);
+  if (offboard_ && (name == "set_mode" || name == "land" || name == "rtl" || name == "takeoff"))
+    offboard_->clear_lost();  // the model acts on it
   if (!quiet) {
     snap_.acks[name] = snap_.vehicle ? "pending" : "not_sent";
     if (inputs_ != nullptr || !snap_.vehicle) {

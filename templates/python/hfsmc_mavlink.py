@@ -116,7 +116,7 @@ NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
     "velocity": (math.nan, math.nan, math.nan), "yaw": math.nan, "battery": -1,
     "acks": {}, "vehicle": False, "type": 0, "autopilot": 0,
     "location": _mission.NAN3, "home": _mission.NAN3, "status_text": "", "battery_failsafe": "",
-    "mission": (0, 0), "fence_breached": False}
+    "mission": (0, 0), "fence_breached": False, "failsafe": ""}
 
 
 class VehicleQueries:
@@ -217,6 +217,13 @@ class VehicleQueries:
         """The battery's failsafe level (BATTERY_STATUS.charge_state): "" (none), low,
         critical, emergency, failed, unhealthy."""
         return str(self._snap["battery_failsafe"])
+
+    def failsafe(self) -> str:
+        """A failsafe the driver meets, for the model to react to: "link_lost" (no heartbeat
+        for 2 s), "offboard_lost" (PX4 left OFFBOARD by itself: its setpoints stopped
+        reaching it; until the model asks for a mode, a landing or RTL), "fence" (breached),
+        "battery" (a battery failsafe level); "" when none."""
+        return str(self._snap["failsafe"])
 
     def last_ack(self, command: str) -> str:
         """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode,
@@ -517,6 +524,9 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, V
             position = bool(flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS))
         rel = self._relative_alt
         pos = self._position
+        failsafe = ("link_lost" if at is not None and age >= LINK_TIMEOUT_S else
+                    "offboard_lost" if self._offboard.lost else
+                    "fence" if self._breached else "battery" if self._charge else "")
         self._snap = {
             "heartbeat_age": age,
             "ready": age < LINK_TIMEOUT_S and self._gps_fix >= GPS_FIX_3D and position,
@@ -526,7 +536,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, V
             "velocity": self._velocity, "yaw": self._yaw, "battery": self._battery,
             "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0],
             "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1], **self._mission_snapshot(),
-            **self._upload_snapshot()}
+            **self._upload_snapshot(), "failsafe": failsafe}
         return self._snap
 
     def _mode_name(self, hb: tuple[int, int, int, int]) -> str:
@@ -547,6 +557,8 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, V
                  quiet: bool = False) -> None:
         p = tuple(float(x) for x in params) + (0.0,) * (7 - len(params))
         target = self._target
+        if name in ("set_mode", "land", "rtl", "takeoff"):
+            self._offboard.lost = False  # the model acts on it
         if self._px4 and target is not None:
             adjusted = self._px4_command(name, command, p)
             if adjusted is None:

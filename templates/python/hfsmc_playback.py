@@ -36,7 +36,7 @@ VEHICLE_QUERIES = {"connected": "heartbeat_age", "heartbeat_age": "heartbeat_age
                    "distance_to_location": "location", "reached": "position",
                    "reached_location": "location", "status_text": "status_text",
                    "battery_failsafe": "battery_failsafe", "mission_progress": "mission",
-                   "fence_breached": "fence_breached"}
+                   "fence_breached": "fence_breached", "failsafe": "failsafe"}
 CAMERA_QUERIES = {"frame": "frame", "age": "age", "ok": "age", "count": "count"}
 _TRIPLES = {"position", "velocity", "location", "home"}
 
@@ -74,7 +74,8 @@ def _normal(field: str, value: Any) -> Any:
         if not isinstance(value, bool):
             raise ValueError(f"`{field}` must be true or false")
         return value
-    if field in ("mode", "status_text", "battery_failsafe") and not isinstance(value, str):
+    if field in ("mode", "status_text", "battery_failsafe", "failsafe") and \
+            not isinstance(value, str):
         raise ValueError(f"`{field}` must be a string")
     if field == "acks" and not (isinstance(value, dict)
                                 and all(isinstance(v, str) for v in value.values())):

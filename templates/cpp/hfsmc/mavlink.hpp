@@ -166,6 +166,11 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// The vehicle says it is outside its fence (FENCE_STATUS).
   bool fence_breached() const { evidence_.asked("fence_breached", "fence_breached"); return snap_.fence_breached; }
 
+  /// A failsafe the driver meets, for the model to react to: "link_lost" (no heartbeat
+  /// for 2 s), "offboard_lost" (PX4 left OFFBOARD by itself; until the model asks for a
+  /// mode, a landing or RTL), "fence" (breached), "battery"; "" when none.
+  std::string failsafe() const { evidence_.asked("failsafe", "failsafe"); return snap_.failsafe; }
+
   /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode,
   /// upload_mission, upload_fence, enable_fence):
   /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
@@ -319,6 +324,7 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     std::string status_text, battery_failsafe;
     std::pair<int, int> mission{0, 0};
     bool fence_breached = false;
+    std::string failsafe;
   };
 
   /// The state at hand, as a snapshot (any thread).
