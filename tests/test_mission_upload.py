@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import signal
 import socket
 import sys
 from collections.abc import Callable, Iterator
@@ -181,3 +182,38 @@ def test_the_vehicle_asks_again_then_cancels_and_refuses_bad_items(cls: type[Aut
         bench.send("mission_item_int", 1, 1, seq, 6, 5001, 0, 1, 4, 0, 0, 0, lat + seq * 1000,
                    lon, 0.0, 1)
     assert [m.type for m in bench.of("MISSION_ACK")] == [M.MAV_MISSION_INVALID_PARAM1]
+
+
+def test_px4_offboard_loss_is_a_failsafe_the_model_sees(tmp_path: Path,
+                                                        capfd: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    """The link cut (SIGUSR1 to the simulator) while PX4 flies OFFBOARD: failsafe() says
+    link_lost, PX4's own failsafe takes over (POSCTL); when the link is back failsafe()
+    says offboard_lost until the model asks for a mode."""
+    sys.path.insert(0, str(ROOT / "templates" / "python"))
+    import hfsmc_mavlink  # type: ignore[import-not-found]
+    port = free_port(socket.SOCK_DGRAM)
+    try:
+        with simulator(tmp_path, port, "--no-camera", "--boot-time", "2", "--autopilot", "px4",
+                       "--source-port", "0") as sim:
+            v = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
+            try:
+                _airborne(v)
+                v.set_mode("GUIDED")
+                assert _until(v, lambda: v.mode() == "GUIDED", 10)
+                assert v.failsafe() == ""
+                sim.send_signal(signal.SIGUSR1)  # the link down
+                assert _until(v, lambda: v.failsafe() == "link_lost", 10)
+                sim.send_signal(signal.SIGUSR1)  # back
+                assert _until(v, lambda: v.failsafe() == "offboard_lost", 10)
+                assert v.mode() == "POSCTL"  # PX4's text went out while the link was down
+                v.land()
+                v.snapshot()
+                assert v.failsafe() == ""
+                assert _until(v, lambda: v.mode() == "LAND", 10)
+            finally:
+                v.close()
+    finally:
+        sys.path.remove(str(ROOT / "templates" / "python"))
+    err = capfd.readouterr().err
+    assert "drone: PX4 left OFFBOARD for POSCTL" in err
