@@ -70,7 +70,7 @@ def _airborne(v: Any) -> None:
 def test_a_mission_is_uploaded_flown_in_auto_and_lands(vehicle: tuple[Any, str],
                                                         capfd: pytest.CaptureFixture[str]
                                                         ) -> None:
-    v, autopilot = vehicle
+    v, _ = vehicle
     assert _until(v, lambda: v.ready() and not math.isnan(v.home()[0]), 30)
     v.upload_mission([(*_ll(1.0, 1.0), 5.0)] * 1001)  # more than the vehicle holds
     assert v.last_ack("upload_mission") == "pending"
@@ -191,7 +191,7 @@ def test_px4_offboard_loss_is_a_failsafe_the_model_sees(tmp_path: Path,
     link_lost, PX4's own failsafe takes over (POSCTL); when the link is back failsafe()
     says offboard_lost until the model asks for a mode."""
     sys.path.insert(0, str(ROOT / "templates" / "python"))
-    import hfsmc_mavlink  # type: ignore[import-not-found]
+    import hfsmc_mavlink
     port = free_port(socket.SOCK_DGRAM)
     try:
         with simulator(tmp_path, port, "--no-camera", "--boot-time", "2", "--autopilot", "px4",
@@ -217,3 +217,41 @@ def test_px4_offboard_loss_is_a_failsafe_the_model_sees(tmp_path: Path,
         sys.path.remove(str(ROOT / "templates" / "python"))
     err = capfd.readouterr().err
     assert "drone: PX4 left OFFBOARD for POSCTL" in err
+
+
+def test_the_hooks_mode_numbers_are_the_autopilots() -> None:
+    from hfsmc.sim import autopilot, mission_hooks as hooks
+    assert (hooks.PX4_HOLD, hooks.PX4_RTL, hooks.PX4_LAND) == (px4.HOLD, px4.RTL, px4.LAND)
+    assert (hooks.AUTO, hooks.AP_RTL, hooks.AP_LAND, hooks.AP_BRAKE) == (
+        autopilot.AUTO, autopilot.RTL, autopilot.LAND, autopilot.BRAKE)
+
+
+@pytest.mark.parametrize(("cls", "params", "mode"), [
+    (Autopilot, {"FENCE_ENABLE": 1}, "RTL"), (Autopilot, {"FENCE_ENABLE": 1,
+                                                          "FENCE_ACTION": 2}, "LAND"),
+    (px4.Px4, {}, "AUTO.LOITER"), (px4.Px4, {"GF_ACTION": 3}, "AUTO.RTL")])
+def test_a_breach_does_what_the_autopilots_parameter_says(cls: type[Autopilot],
+                                                          params: dict[str, float],
+                                                          mode: str) -> None:
+    bench = Bench(cls)
+    bench.ap.set_params(params)
+    bench.send("mission_count", 1, 1, 4, 1)
+    for seq, (n, e) in enumerate(((-10, -10), (-10, 10), (10, 10), (10, -10))):
+        lat, lon = latlon(HOME, n, e)
+        bench.send("mission_item_int", 1, 1, seq, 6, 5001, 0, 1, 4, 0, 0, 0, lat, lon, 0.0, 1)
+    assert [m.type for m in bench.of("MISSION_ACK")] == [M.MAV_MISSION_ACCEPTED]
+    bench.steps(1.0)
+    guided = px4.HOLD if cls is px4.Px4 else 4
+    assert bench.ap.set_mode(guided)
+    assert bench.ap._cmd_arm((1, 0, 0, 0, 0, 0, 0)) == M.MAV_RESULT_ACCEPTED
+    bench.body.goto(0.0, 0.0, -5.0)
+    bench.steps(8.0)
+    assert not bench.ap.missions.breached and not bench.body.landed
+    bench.body.goto(25.0, 0.0, -5.0)  # the body flown out (a pilot, a wind), not a target
+    end = bench.body.t + 20
+    while not bench.ap.missions.breached:
+        assert bench.body.t < end, "never breached"
+        bench.ap.step()
+    assert 10.0 < bench.body.north < 11.0
+    assert bench.ap.mode_name == mode
+    assert [m.breach_status for m in bench.of("FENCE_STATUS")][-1] == 1

@@ -22,8 +22,12 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from hfsmc.sim.missions import MISSION, TAKEOFF, Missions
+from hfsmc.sim.vehicle import Body
+from hfsmc.sim.world import World
 
-AUTO = 3  # Copter's AUTO
+AUTO, AP_RTL, AP_LAND, AP_BRAKE = 3, 6, 9, 17  # Copter's (hfsmc/sim/autopilot.py)
+PX4_HOLD, PX4_RTL, PX4_LAND = (s << 24 | 4 << 16 for s in (3, 5, 6))  # hfsmc/sim/px4.py
+PX4_NAMES = {PX4_HOLD: "AUTO.LOITER", PX4_RTL: "AUTO.RTL", PX4_LAND: "AUTO.LAND"}
 ACCEPTED, FAILED, UNSUPPORTED = (int(M.MAV_RESULT_ACCEPTED), int(M.MAV_RESULT_FAILED),
                                  int(M.MAV_RESULT_UNSUPPORTED))
 MISSION_MESSAGES = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_REQUEST_LIST",
@@ -36,7 +40,8 @@ class ArduPilotMissions:
     px4 = False
     missions: Missions
     mav: Any
-    body: Any
+    body: Body
+    world: World
     params: dict[str, float]
     mode: int
     rtl_stage: str
@@ -85,9 +90,8 @@ class ArduPilotMissions:
         target = {1: "RTL", 2: "LAND", 3: "RTL", 4: "BRAKE", 5: "LAND"}.get(action)
         if target is None or self.body.landed:
             return
-        from hfsmc.sim import autopilot as ap  # the autopilot imports this module
-        mode = {"RTL": ap.RTL, "LAND": ap.LAND, "BRAKE": ap.BRAKE}[target]
-        if self.mode not in (ap.LAND, mode):
+        mode = {"RTL": AP_RTL, "LAND": AP_LAND, "BRAKE": AP_BRAKE}[target]
+        if self.mode not in (AP_LAND, mode):
             self.log(f"fence: {target} (FENCE_ACTION {action})")
             self.set_mode(mode)
 
@@ -141,16 +145,14 @@ class Px4Missions(ArduPilotMissions):
         self._commands[int(M.MAV_CMD_DO_FENCE_ENABLE)] = lambda p: UNSUPPORTED
 
     def mission_rtl(self) -> None:
-        from hfsmc.sim import px4  # px4 imports this module
         self.log("mission: return to launch (RTL mode)")
-        self._enter(px4.RTL)
+        self._enter(PX4_RTL)
 
     def mission_done(self) -> None:
-        from hfsmc.sim import px4
         self.text(int(M.MAV_SEVERITY_INFO), "Mission finished")
         if not self.body.landed and not self.missions.landing:
-            self.user_mode = px4.HOLD
-            self._enter(px4.HOLD)
+            self.user_mode = PX4_HOLD
+            self._enter(PX4_HOLD)
 
     def default_radius(self) -> float:
         return max(0.05, self.params["NAV_ACC_RAD"])
@@ -159,15 +161,14 @@ class Px4Missions(ArduPilotMissions):
         return self.params["GF_ACTION"] != 0
 
     def fence_action(self) -> None:
-        from hfsmc.sim import px4
         action = int(self.params["GF_ACTION"])
-        mode = {2: px4.HOLD, 3: px4.RTL, 4: px4.LAND, 5: px4.LAND}.get(action)
+        mode = {2: PX4_HOLD, 3: PX4_RTL, 4: PX4_LAND, 5: PX4_LAND}.get(action)
         what = {1: "warning only", 2: "holding", 3: "returning", 4: "flight termination "
                 "(simulated as a landing)", 5: "landing"}.get(action, "")
         self.text(int(M.MAV_SEVERITY_CRITICAL), f"Geofence breached, {what}")
-        if mode is None or self.body.landed or self.mode in (px4.LAND, mode):
+        if mode is None or self.body.landed or self.mode in (PX4_LAND, mode):
             return
-        self.log(f"fence: {px4.MODE_NAMES[mode]} (GF_ACTION {action})")
+        self.log(f"fence: {PX4_NAMES[mode]} (GF_ACTION {action})")
         self.failsafe = "geofence"
         self._enter(mode)
 

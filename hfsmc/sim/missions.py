@@ -92,7 +92,9 @@ def item_fault(kind: int, m: Any, home_alt: float) -> int | None:
             return int(M.MAV_MISSION_INVALID_PARAM1)
     elif command not in NAV_COMMANDS and command != CONDITION_YAW:
         return int(M.MAV_MISSION_UNSUPPORTED)
-    if command == CONDITION_YAW or (command == RTL and kind == MISSION):
+    if command == CONDITION_YAW:
+        return None if math.isfinite(m.param1) else int(M.MAV_MISSION_INVALID_PARAM1)
+    if command == RTL and kind == MISSION:
         return None  # no position
     if frame not in GLOBAL_FRAMES:
         return int(M.MAV_MISSION_UNSUPPORTED_FRAME)

@@ -342,14 +342,14 @@ class VehicleQueries:
         ``end`` (hold, land, rtl); its outcome is last_ack("upload_mission")."""
         px4 = self._snap.get("autopilot") == _px4.AUTOPILOT_PX4
         items, users = _upload.mission_items(self.name, points, str(end), px4, self._snap["home"])
-        self._issue("upload_mission", [[list(p) for p in points], str(end)], ack=True)
+        self._issue("upload_mission", [_upload.plain(points), str(end)], ack=True)
         self._upload(_upload.MISSION, items, users)
 
     def upload_fence(self, vertices: Any) -> None:
         """Upload an inclusion polygon of (lat, lon) vertices (3 at least; none clears the
         fence); its outcome is last_ack("upload_fence")."""
         items = _upload.fence_items(self.name, vertices)
-        self._issue("upload_fence", [[list(p) for p in vertices]], ack=True)
+        self._issue("upload_fence", [_upload.plain(vertices)], ack=True)
         self._upload(_upload.FENCE, items, [])
 
     def enable_fence(self, on: bool = True) -> None:

@@ -96,6 +96,11 @@ def mission_items(vehicle: str, points: Any, end: str, px4: bool,
     return items, users
 
 
+def plain(points: Any) -> list[list[float | None]]:
+    """Points as recorded (checked already): lists of floats, a heading None when none."""
+    return [[None if x is None else float(x) for x in p] for p in points]
+
+
 def fence_items(vehicle: str, vertices: Any) -> list[Item]:
     """One inclusion polygon's items; an empty list clears the fence."""
     pts = _sequence(vehicle, "upload_fence", vertices)
@@ -129,7 +134,7 @@ def inside(point: tuple[float, float], polygon: list[tuple[float, float]]) -> bo
     result = False
     for i in range(len(xy)):
         (an, ae), (bn, be) = xy[i], xy[(i + 1) % len(xy)]
-        if (ae > 0) != (be > 0) and 0 < an + (0 - ae) * (bn - an) / (be - ae):
+        if (ae > 0) != (be > 0) and an - ae * (bn - an) / (be - ae) > 0:
             result = not result
     return result
 
