@@ -226,14 +226,17 @@ int px4(const std::string& port) {
         "OFFBOARD, flying north");
   sleep_s(2.0);  // far longer than PX4's COM_OF_LOSS_T: the driver streams
   snap();
-  check(drone.mode() == "GUIDED", "still OFFBOARD");
+  check(drone.mode() == "GUIDED" && drone.failsafe().empty(), "still OFFBOARD, no failsafe");
   wait_for_go("drop the link");
   check(wait_until([&] { return drone.heartbeat_age() < 1.0 && drone.mode() == "POSCTL"; }, 10),
         "back in POSCTL (the failsafe)");
   sleep_s(2.0);
   snap();
   check(drone.mode() == "POSCTL", "not taken back");
+  check(drone.failsafe() == "offboard_lost", "failsafe(): offboard_lost, not " + drone.failsafe());
   check(drone.land(), "land sent");
+  snap();
+  check(drone.failsafe().empty(), "the model acted: no failsafe left");
   check(wait_until([&] { return drone.mode() == "LAND"; }, 5), "LAND");
   return 0;
 }
