@@ -255,3 +255,22 @@ def test_a_breach_does_what_the_autopilots_parameter_says(cls: type[Autopilot],
     assert 10.0 < bench.body.north < 11.0
     assert bench.ap.mode_name == mode
     assert [m.breach_status for m in bench.of("FENCE_STATUS")][-1] == 1
+
+
+def test_a_breach_ends_when_the_fence_is_turned_off() -> None:
+    """FENCE_STATUS says the breach is over when ArduPilot's fence is turned off, though
+    no status comes while it is off."""
+    bench = Bench(Autopilot)
+    bench.ap.set_params({"FENCE_ENABLE": 1, "FENCE_ACTION": 0})
+    bench.send("mission_count", 1, 1, 1, 1)
+    lat, lon = latlon(HOME, 50.0, 0.0)
+    bench.send("mission_item_int", 1, 1, 0, 6, 5003, 0, 1, 10.0, 0, 0, 0, lat, lon, 0.0, 1)
+    bench.steps(1.0)
+    assert bench.ap.set_mode(4)
+    assert bench.ap._cmd_arm((1, 0, 0, 0, 0, 0, 0)) == M.MAV_RESULT_ACCEPTED
+    bench.steps(0.1)  # armed at home, 40 m outside the circle: breached, reported only
+    assert bench.ap.missions.breached and bench.ap.mode_name == "GUIDED"
+    bench.sent.clear()
+    bench.send("command_long", 1, 1, M.MAV_CMD_DO_FENCE_ENABLE, 0, 0, 0, 0, 0, 0, 0, 0)
+    bench.steps(2.5)
+    assert [m.breach_status for m in bench.of("FENCE_STATUS")] == [0]

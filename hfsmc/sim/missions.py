@@ -227,8 +227,9 @@ class Missions:
             self.current = 0 if self.host.px4 else 1
             self.stage = ""
             self.send_current()
-        else:
+        elif self.breached:
             self.breached = False
+            self.send_fence_status(change=True)
 
     def _on_list(self, m: Any) -> None:
         kind = self._kind(m)
@@ -275,8 +276,10 @@ class Missions:
                  int(M.MISSION_STATE_ACTIVE) if self.stage else int(M.MISSION_STATE_NOT_STARTED))
         self.host.mav.mission_current_send(min(self.current, max(total - 1, 0)), total, state)
 
-    def send_fence_status(self) -> None:
-        if self.fence_active():
+    def send_fence_status(self, change: bool = False) -> None:
+        """Once a second while the fence is on; at a change (a breach, its end, the fence
+        turned off or removed) whatever the fence."""
+        if change or self.fence_active():
             self.host.mav.fence_status_send(int(self.breached), self.breaches,
                                             int(M.FENCE_BREACH_BOUNDARY) if self.breached else 0,
                                             0)
@@ -401,7 +404,7 @@ class Missions:
         if now == self.breached:
             return
         self.breached = now
-        self.send_fence_status()
+        self.send_fence_status(change=True)
         if now:
             self.breaches += 1
             self.host.log(f"fence breached at north {b.north:.1f} m, east {b.east:.1f} m")
