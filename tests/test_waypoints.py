@@ -40,7 +40,8 @@ def test_waypoints_are_flown_in_auto_and_the_vehicle_lands_at_home(tmp_path: Pat
         component = subprocess.Popen(
             [sys.executable, str(tmp_path / "component" / "waypoints.py"), "--config",
              str(tmp_path / "config.yaml"), "--trace", str(tmp_path / "trace.jsonl"),
-             "--until", "400s", "--clock", f"sim:{step}"],
+             "--until", "400s", "--clock", f"sim:{step}", "--record",
+             str(tmp_path / "flight.mcap")],
             stdout=comp_log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         try:
             component.wait(timeout=360)
@@ -64,3 +65,7 @@ def test_waypoints_are_flown_in_auto_and_the_vehicle_lands_at_home(tmp_path: Pat
     landing = truth["landing"]
     assert abs(landing["north"]) < 1.0 and abs(landing["east"]) < 1.0, truth
     assert truth["track"]["max_altitude"] > 9.5
+    # recorded: the upload, its answer and the progress replay without the simulator
+    r = subprocess.run([*HFSMC, "replay", str(tmp_path / "flight.mcap"), "--model", str(MODEL)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "(python -> python): identical" in r.stdout, r.stdout + r.stderr
