@@ -220,7 +220,8 @@ def test_px4_offboard_loss_is_a_failsafe_the_model_sees(tmp_path: Path,
 
 
 def test_the_hooks_mode_numbers_are_the_autopilots() -> None:
-    from hfsmc.sim import autopilot, mission_hooks as hooks
+    from hfsmc.sim import autopilot
+    from hfsmc.sim import mission_hooks as hooks
     assert (hooks.PX4_HOLD, hooks.PX4_RTL, hooks.PX4_LAND) == (px4.HOLD, px4.RTL, px4.LAND)
     assert (hooks.AUTO, hooks.AP_RTL, hooks.AP_LAND, hooks.AP_BRAKE) == (
         autopilot.AUTO, autopilot.RTL, autopilot.LAND, autopilot.BRAKE)
