@@ -24,7 +24,7 @@ PYTEST_ARGS ?=
 # (tests/conftest.py: LONGEST_FIRST, SPREAD). PYTEST_JOBS=0 runs serially.
 PYTEST_JOBS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); echo $$(( n + 1 > 8 ? 8 : n + 1 )))
 
-.PHONY: all setup deps test demo bench golden lint examples clean fuzz soak
+.PHONY: all setup deps test demo bench golden lint examples clean fuzz soak editor-bundle
 
 all: test
 
@@ -45,6 +45,12 @@ $(STAMP): pyproject.toml
 	touch $@
 
 setup: deps $(STAMP)
+
+# The editor's page uses CodeMirror 6, bundled once into hfsmc/web/static/vendor/codemirror.js
+# (committed, so neither pip install nor the tests need node). This rebuilds it with npm from
+# the versions pinned in its package-lock.json.
+editor-bundle:
+	cd hfsmc/web/static/vendor && npm ci --no-audit --no-fund && npm run build
 
 lint: setup
 	$(BIN)/ruff check hfsmc tests bench templates/python scripts

@@ -64,7 +64,7 @@ LOOPBACK = ("<CycloneDDS><Domain Id=\"any\"><General><Interfaces>"
             "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
             "<MaxAutoParticipantIndex>19</MaxAutoParticipantIndex>"
             "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>")
-DOMAINS = range(20, 233)  # as the tests (tests/ros2_support.py), with the same lock files
+DOMAINS = range(10, 102)  # as the tests (tests/ros2_support.py), with the same lock files
 TARGET_CPU = {"C++": 2.0, "Python": 8.0}  # % of a core
 TARGET_SNAPSHOT_US = 5.0
 TARGET_RECORD = 5.0  # % of a core more with --record (as bench/record.py; relative shown too)

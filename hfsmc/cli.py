@@ -410,6 +410,21 @@ def sim(args: tuple[str, ...]) -> None:
 
 
 @main.command()
+@click.argument("model", type=click.Path(dir_okay=False))
+@click.option("--web", metavar="[HOST:]PORT", default="127.0.0.1:0", show_default=True,
+              help="Serve the editor's page there (loopback unless a host is named; port 0 "
+                   "picks a free one). Open the URL it prints, with its token.")
+@_guard
+def edit(model: str, web: str) -> None:
+    """Edit MODEL in a browser page (docs/editor.md): a canvas per sub-automaton, the state
+    tree, code editors for snippets and conditions, errors on what they are about, undo,
+    redo; Save changes only the edited lines."""
+    from hfsmc.commands.edit import edit as run_edit
+
+    sys.exit(run_edit(model, web))
+
+
+@main.command()
 @click.option("--stdio", is_flag=True, help="Speak on stdin/stdout (the default; editors pass it).")
 def lsp(stdio: bool) -> None:
     """Language server for model files on stdio (docs/editors.md): diagnostics as you type,

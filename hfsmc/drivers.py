@@ -43,7 +43,7 @@ RUNTIME_ONLY = frozenset({"snapshot", "lockstep_sent", "lockstep_sync"})
 # Methods of a user's driver that belong to the runtime (hfsmc_driver.Driver's protocol).
 DRIVER_PROTOCOL = frozenset({"open", "read", "close", "snapshot", "apply", "send",
                              "warning_at_stop", "value", "say", "start_thread", "connect",
-                             "fake", "snapshot_schema"})
+                             "fake", "snapshot_schema", "view_fields"})
 # Plain attributes every driver has (C++: the methods name() and url()).
 ATTRIBUTES = ("name", "url")
 # C++ names that differ from the Python ones (`goto` is a C++ keyword).

@@ -244,6 +244,9 @@ class Ros2Settings:
     messages: tuple[MsgRef, ...]
     actions: tuple[Ros2Rpc, ...] = ()
     services: tuple[Ros2Rpc, ...] = ()
+    # SPEC 5.4: publish the automaton on /fsm_viewer and ~/hfsm/status (None: not written,
+    # off); Python components only.
+    introspection: bool | None = None
 
     @property
     def distro_or_default(self) -> str:

@@ -32,12 +32,18 @@ from hfsmc.ros2.definitions import (
     standard_types,
 )
 from hfsmc.ros2.names import NameError_, resolve_name, validate_namespace, validate_node_name
+from hfsmc.ros2.services import SHIPPED
 
 ROS2_KEYS = ("node", "namespace", "domain", "distro", "subscribe", "publish", "messages",
-             "actions", "services")
+             "actions", "services", "introspection")
 OTHER_KEYS = ("url", "options", "python", "cpp")
 # What the runtime needs besides the model's types: the node's announcement.
 RUNTIME_TYPES = ("rmw_dds_common/msg/ParticipantEntitiesInfo",)
+# What `introspection: true` publishes (SPEC 5.4), and the shipped files of yasmin_msgs.
+INTROSPECTION_TYPES = ("yasmin_msgs/msg/StateMachine", "std_msgs/msg/String")
+INTROSPECTION_TOPICS = ("/fsm_viewer", "~/hfsm/status")  # templates/python/hfsmc_ros2intro.py
+YASMIN_MSGS = tuple(SHIPPED / "yasmin_msgs" / "msg" / f"{n}.msg"
+                    for n in ("Transition", "State", "StateMachine"))
 _QOS_KEYS = ("reliability", "durability", "depth")
 _FROM_MSG = re.compile(r"^\s*from\s+([A-Za-z_][A-Za-z0-9_]*)\.msg\s+import\s+\(?(.*?)\)?\s*$")
 
@@ -76,7 +82,11 @@ def ros2_settings(doc: Document, name: str, spec: Mapping[str, Any], model_name:
     publish = _topics(doc, path, spec, "publish")
     settings = Ros2Settings(node, namespace, spec.get("domain"), spec.get("distro"), subscribe,
                             publish, _messages(doc, path, spec, diags),
-                            _rpcs(doc, path, spec, "actions"), _rpcs(doc, path, spec, "services"))
+                            _rpcs(doc, path, spec, "actions"), _rpcs(doc, path, spec, "services"),
+                            spec.get("introspection"))
+    if settings.introspection and language == "cpp":
+        diags.error("E312", "`introspection` of a ros2 interface is not supported in C++ models "
+                    "yet (docs/ros2.md)", doc.span((*path, "introspection")))
     _check_topics(settings, model_name if node is None else node, ns_ok, diags)
     _check_rpcs(settings, model_name if node is None else node, ns_ok, language, diags)
     return settings
@@ -155,6 +165,11 @@ def _check_topics(s: Ros2Settings, node: str, ns_ok: bool, diags: Diagnostics) -
             diags.error("E313", str(e), t.topic_span, "ROS 2 names: parts of letters, digits "
                         "and `_`, not starting with a digit, no `__`; `~/x` is below the node")
             continue
+        if s.introspection and full in (INTROSPECTION_TOPICS[0],
+                                        resolve_name(INTROSPECTION_TOPICS[1], s.namespace or "/"
+                                                     if ns_ok else "/", node)):
+            diags.error("E314", f"topic {full} is the introspection's (`introspection: "
+                        "true`): the model may not subscribe or publish it", t.topic_span)
         other = seen.setdefault(full, t)
         if ros2_type_name(other.type) != ros2_type_name(t.type):
             diags.error("E314", f"topic {full} is used with two types: {other.type} "
@@ -257,12 +272,17 @@ def used_messages(interfaces: tuple[Interface, ...], imports: tuple[Import, ...]
     the component's runtime needs too); CheckError as message_set raises it."""
     distro = model_distro(interfaces)
     files = msg_files(interfaces)
+    if runtime and any(i.ros2 is not None and i.ros2.introspection
+                       for i in ros2_interfaces(interfaces)):
+        files += tuple(MsgFile(p, f"hfsmc/ros2/msg/yasmin_msgs/msg/{p.name}") for p in YASMIN_MSGS)
     uses: list[tuple[str, Span]] = [
         (t.type, t.type_span) for i in ros2_interfaces(interfaces) if i.ros2 is not None
         for t in (*i.ros2.subscribe, *i.ros2.publish)]
     uses += imported_types(imports, _packages(distro, files))
     if runtime:
         uses += [(t, Span("<runtime>", 1, 1)) for t in RUNTIME_TYPES]
+        if any(i.ros2 is not None and i.ros2.introspection for i in ros2_interfaces(interfaces)):
+            uses += [(t, Span("<runtime>", 1, 1)) for t in INTROSPECTION_TYPES]
     rpcs = [(r.type, r.type_span) for i in ros2_interfaces(interfaces) if i.ros2 is not None
             for r in (*i.ros2.actions, *i.ros2.services) if r.type.count("/") == 2]
     return message_set(distro, uses, files, rpcs)

@@ -12,6 +12,7 @@ collected before :class:`ScenarioError` is raised.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
@@ -22,12 +23,14 @@ from typing import Any, Literal
 
 from hfsmc.drivers import driver
 from hfsmc.durations import has_unit, parse_us
-from hfsmc.errors import Diagnostics, HfsmcError, Span, did_you_mean
+from hfsmc.errors import Diagnostic, Diagnostics, HfsmcError, Span, did_you_mean
 from hfsmc.frontend import read_text
 from hfsmc.frontend.source import Document, PathKey
 from hfsmc.frontend.yaml import load_yaml
-from hfsmc.ir import Model
+from hfsmc.ir import Interface, Model
+from hfsmc.scenario_driver import Ramp, check_settings
 from hfsmc.scenario_ros2 import RecordedTopic, Topics, Written, recorded_topic, written
+from hfsmc.scenario_rpc import check_server, rpc
 
 Language = Literal["python", "cpp"]
 LANGUAGES: tuple[Language, ...] = ("python", "cpp")
@@ -74,14 +77,6 @@ class ScenarioError(HfsmcError):
     """A scenario file that cannot be run as written (exit status 2)."""
 
 
-@dataclass(frozen=True, slots=True)
-class Ramp:
-    """A value moving linearly from ``start`` to ``end`` over an entry's span."""
-
-    start: Any  # a float, or a tuple of floats (a vector)
-    end: Any
-
-
 Scalar = bool | int | float | str | None | tuple[float, ...] | tuple[tuple[str, str], ...]
 
 
@@ -91,6 +86,13 @@ class Setting:
     value: Any  # a Scalar, or a Ramp
     span: Span
     key_span: Span
+    # The value as written, with its positions: a user driver's field (its type is known
+    # only with the model: hfsmc/scenario_driver.py); `spanned`: in a from/to entry.
+    raw: Written | None = dataclasses.field(default=None, compare=False)
+    spanned: bool = False
+    # What reading it as a built-in interface's input found wrong: said unless the
+    # interface turns out to be a user driver's, whose fields are its own.
+    held: tuple[Diagnostic, ...] = dataclasses.field(default=(), compare=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -442,10 +444,17 @@ class _Reader:
         for key, v in m.items():
             if key in ENTRY_KEYS:
                 continue
-            s = self.setting(key, v, (*path, key), end is not None)
-            if s is not None:
-                settings.append(s)
-        if not settings and not self.diags.has_errors:
+            # read as a built-in interface's input; what is wrong is held until the model
+            # says whether the interface is one, or a user driver's (its own fields)
+            held, self.diags = self.diags, Diagnostics()
+            try:
+                s = self.setting(key, v, (*path, key), end is not None)
+            finally:
+                held, self.diags = self.diags, held
+            settings.append(Setting(key, None if s is None else s.value, self.at((*path, key)),
+                                    self.key_at((*path, key)), written(self.doc, (*path, key)),
+                                    end is not None, tuple(held)))
+        if not settings:
             self.error("E192", "the entry sets no value", self.at(path))
         return Entry(iface, start, end, tuple(settings), self.at(path), self.key_at(path[:2]))
 
@@ -463,7 +472,8 @@ class _Reader:
             self.error("E190", f"unknown input `{key}`", self.key_at(path), *([note] if note else []),
                        f"a mavlink interface takes: {', '.join(MAVLINK_FIELDS)}; a camera: "
                        f"{', '.join(CAMERA_FIELDS)}; a ros2 interface: its subscriptions, each "
-                       "a message (`scan: {range_max: 12.0}`), and `rate` (and every entry "
+                       "a message (`scan: {range_max: 12.0}`), `rate`, and its actions and "
+                       "services, each a server (`navigate: {after: 2s}`) (and every entry "
                        "at/from/to)")
             return None
         span = self.at(path)
@@ -657,10 +667,10 @@ class _Reader:
         args = None
         if "args" in m and kind == "command":
             a = m["args"]
-            if isinstance(a, list) and all(_number(x) is not None or isinstance(x, str) for x in a):
+            if isinstance(a, list) and all(isinstance(x, (int, float, str)) for x in a):
                 args = tuple(a)
             else:
-                self.error("E191", "`args` must be a list of numbers and strings",
+                self.error("E191", "`args` must be a list of numbers, strings and booleans",
                            self.at((*path, "args")))
         return Expectation(kind, subject, self.key_at(kpath), self.at(kpath), after, before, times.get("at"),
                            count, args, at_least, fields, msg_type)
@@ -755,6 +765,12 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
     said: set[str] = set()
     for e in sc.inputs:
         iface = interfaces.get(e.interface)
+        if iface is not None and iface.type == "driver":  # its own fields (scenario_driver.py)
+            check_settings(e.interface, iface.declaration, e.settings, e.interface_span, diags)
+            continue
+        for s in e.settings:  # what reading it as a built-in interface's input found
+            diags.extend(s.held)
+        settings = [s for s in e.settings if not s.held]
         if iface is None or (FIELDS.get(iface.type) is None and iface.type != "ros2"):
             if e.interface in said:
                 continue
@@ -773,14 +789,18 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
                                 "arrives: docs/ros2-cpp.md)", e.interface_span,
                                 "run this scenario with the Python model (`languages: python`)")
                 continue
-            topics.check_settings(e.interface, e.settings, diags)
+            servers = [s for s in settings if rpc(topics, e.interface, s.field) is not None]
+            for s in servers:  # an action's or a service's scripted server
+                check_server(topics, e.interface, s.field, s.value, diags)
+            topics.check_settings(e.interface, tuple(s for s in settings if s not in servers),
+                                  diags)
             continue
         fields = FIELDS.get(iface.type)
         if fields is None:
             diags.error("E195", f"`{e.interface}` is a {iface.type} interface: scenarios script "
-                        "mavlink, camera and ros2 interfaces", e.interface_span)
+                        "mavlink, camera, ros2 and user driver interfaces", e.interface_span)
             continue
-        for s in e.settings:
+        for s in settings:
             if isinstance(s.value, (Written, RecordedTopic)):
                 diags.error("E195", f"`{s.field}`: a message (a mapping of fields) is an input of "
                             f"a ros2 interface; `{e.interface}` is a {iface.type} interface",
@@ -813,10 +833,10 @@ def check_against_model(sc: Scenario, model: Model, diags: Diagnostics) -> None:
                 note = did_you_mean(iname, interfaces)
                 diags.error("E195", f"{where} has no interface `{iname}`", x.subject_span,
                             *([note] if note else []))
-            elif _call(call) not in commands_of(iface.type):
-                commands = commands_of(iface.type)
+            elif _call(call) not in _commands(iface):
+                commands = _commands(iface)
                 note = did_you_mean(call, commands)
-                diags.error("E199", f"`{call}` is not a command of a {iface.type} interface",
+                diags.error("E199", f"`{call}` is not a command of a {iface.kind} interface",
                             x.subject_span, *([note] if note else []),
                             f"commands: {', '.join(commands) or 'none'}")
 
@@ -825,6 +845,13 @@ def commands_of(kind: str) -> tuple[str, ...]:
     """The commands of an interface type, as its driver defines them (hfsmc/drivers.py)."""
     d = driver(kind)
     return () if d is None else d.commands
+
+
+def _commands(iface: Interface) -> tuple[str, ...]:
+    """The commands of one interface: a user driver's as it declares them."""
+    if iface.type == "driver":
+        return () if iface.declaration is None else iface.declaration.commands
+    return commands_of(iface.type)
 
 
 def acknowledged(kind: str) -> tuple[str, ...]:

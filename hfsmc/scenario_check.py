@@ -214,8 +214,8 @@ def _same_args(want: Iterable[Any], got: Any) -> bool:
     if not isinstance(got, list) or len(got) != len(want):
         return False
     for a, b in zip(want, got, strict=True):
-        if isinstance(a, str) or isinstance(b, str):
-            if a != b:
+        if isinstance(a, (str, bool)) or isinstance(b, (str, bool)):
+            if a != b or isinstance(a, bool) != isinstance(b, bool):
                 return False
         elif not math.isclose(float(a), float(b), rel_tol=1e-6, abs_tol=1e-9):
             return False

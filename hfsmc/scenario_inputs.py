@@ -19,8 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from hfsmc.errors import Diagnostics
-from hfsmc.scenario import Entry, Ramp, Scenario, ScenarioError, Setting
+from hfsmc.scenario import Entry, Scenario, ScenarioError, Setting
+from hfsmc.scenario_driver import Ramp, driver_value
 from hfsmc.scenario_ros2 import Topics, topic_rows
+from hfsmc.scenario_rpc import server_rows
 
 DEFAULT_RATE = 10.0  # frames per second of a scripted camera
 
@@ -173,6 +175,28 @@ class _Camera:
         return {"count": self.count, "age": (t - self.last) / 1e6, "frame": self.frame}
 
 
+class _Driver:
+    """A user driver's snapshot fields over time: each the value of the entry that holds
+    it, else its declared "nothing yet" value."""
+
+    def __init__(self, sources: list[_Source], defaults: dict[str, Any]) -> None:
+        self.defaults = defaults
+        self.fields: dict[str, list[_Source]] = {}
+        for s in sources:
+            assert s.setting.raw is not None
+            value = driver_value(defaults[s.setting.field], s.setting.raw, s.setting.spanned,
+                                 s.setting.field, Diagnostics())
+            one = Setting(s.setting.field, value, s.setting.span, s.setting.key_span)
+            self.fields.setdefault(one.field, []).append(_Source(s.entry, one, s.order))
+
+    def at(self, t: int) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for name, sources in self.fields.items():
+            w = _winner(sources, t)
+            out[name] = self.defaults[name] if w is None else _value(w, t)
+        return out
+
+
 def _times(sc: Scenario, step: int) -> list[int]:
     times = set(range(0, sc.until_us + 1, step))
     for e in sc.inputs:
@@ -193,9 +217,12 @@ def _json(v: Any) -> Any:
 
 
 def snapshots(sc: Scenario, types: dict[str, str], step: int, frames: dict[str, str],
-              render: Render | None = None) -> Iterator[dict[str, Any]]:
+              render: Render | None = None, drivers: dict[str, dict[str, Any]] | None = None
+              ) -> Iterator[dict[str, Any]]:
     """The playback entries of ``sc``'s inputs, in time order: one per interface and time at
-    which one of its values changed, with the values that changed."""
+    which one of its values changed, with the values that changed. ``drivers``: each user
+    driver interface's snapshot fields and their "nothing yet" values."""
+    drivers = drivers or {}
     by_iface: dict[str, list[_Source]] = {}
     for order, e in enumerate(sc.inputs):
         if types.get(e.interface) == "ros2":  # its messages: hfsmc/scenario_ros2.py
@@ -207,7 +234,8 @@ def snapshots(sc: Scenario, types: dict[str, str], step: int, frames: dict[str, 
     vehicle = next((n for n in names if types[n] == "mavlink"), None)
     # what the fakes start with: a value is written when it differs
     heard = {k: _json(v) for k, v in NEVER_HEARD.items()} | {"acks": {}}
-    shown = {name: dict(heard) if types[name] == "mavlink" else {} for name in names}
+    shown = {name: dict(heard) if types[name] == "mavlink" else
+             {k: _json(v) for k, v in drivers.get(name, {}).items()} for name in names}
 
     def pose() -> Pose | None:
         values = shown.get(vehicle or "", {})
@@ -216,11 +244,11 @@ def snapshots(sc: Scenario, types: dict[str, str], step: int, frames: dict[str, 
             return None
         return (position[0], position[1], position[2], yaw if isinstance(yaw, float) else 0.0)
 
-    makers: dict[str, _Mavlink | _Camera] = {}
+    makers: dict[str, _Mavlink | _Camera | _Driver] = {}
     for name in names:
         sources = by_iface[name]
         makers[name] = _Camera(sources, frames, render, pose) if types[name] == "camera" \
-            else _Mavlink(sources)
+            else _Driver(sources, drivers[name]) if types[name] == "driver" else _Mavlink(sources)
     for t in _times(sc, step):
         for name, maker in makers.items():
             now = {k: _json(v) for k, v in maker.at(t).items()}
@@ -236,14 +264,17 @@ _UNSET = object()
 
 
 def write_playback(sc: Scenario, types: dict[str, str], step: int, folder: Path,
-                   topics: Topics | None = None) -> int:
+                   topics: Topics | None = None,
+                   drivers: dict[str, dict[str, Any]] | None = None) -> int:
     """Write ``folder/inputs.jsonl`` and the camera pictures (PNG); the number of entries.
-    ``topics``: the model's ros2 interfaces, whose messages join the snapshots in time."""
+    ``topics``: the model's ros2 interfaces, whose messages join the snapshots in time;
+    ``drivers``: its user driver interfaces' snapshot fields (:func:`snapshots`)."""
     folder.mkdir(parents=True, exist_ok=True)
     frames = _write_frames(sc, types, folder)
-    items = list(snapshots(sc, types, step, frames, _renderer(sc, folder)))
+    items = list(snapshots(sc, types, step, frames, _renderer(sc, folder), drivers))
     if topics is not None:
-        items = sorted(items + topic_rows(sc.inputs, sc.until_us, topics), key=lambda i: i["t"])
+        items = sorted(items + topic_rows(sc.inputs, sc.until_us, topics)
+                       + server_rows(sc.inputs, sc.until_us, topics), key=lambda i: i["t"])
     with open(folder / "inputs.jsonl", "w", encoding="utf-8") as f:
         for item in items:
             f.write(json.dumps(item, separators=(",", ":")) + "\n")

@@ -161,7 +161,9 @@ class Topics:
 
             uses = [(t.type, t.type_span) for i in self.interfaces.values() if i.ros2
                     for t in (*i.ros2.subscribe, *i.ros2.publish)]
-            self._set = message_set(self.distro, uses, self.files)
+            rpcs = [(r.type, r.type_span) for i in self.interfaces.values() if i.ros2
+                    for r in (*i.ros2.actions, *i.ros2.services)]
+            self._set = message_set(self.distro, uses, self.files, rpcs)
         return self._set
 
     def store(self) -> Any:
@@ -193,6 +195,11 @@ class Topics:
         assert s is not None
         return [t.name for t in (s.subscribe if role == "subscribe" else s.publish)]
 
+    def rpc_names(self, iface: str) -> list[str]:
+        s = self.interfaces[iface].ros2
+        assert s is not None
+        return [r.name for r in (*s.actions, *s.services)]
+
     # -- a scenario's parts against the model
 
     def check_settings(self, iface: str, settings: Any, diags: Diagnostics) -> None:
@@ -213,7 +220,8 @@ class Topics:
                     diags.error("E195", f"the ros2 interface `{iface}` subscribes to no `{s.field}`",
                                 s.key_span, *([note] if note else []),
                                 f"it takes its subscriptions ({', '.join(subs) or 'none'}), each a "
-                                "message, and `rate`")
+                                "message, and `rate`; its actions and services, each a server "
+                                f"({', '.join(self.rpc_names(iface)) or 'none'})")
                 else:
                     diags.error("E191", f"`{s.field}` is a {t.type}: a mapping of its fields, or "
                                 "`{recorded: FILE}`", s.span)
@@ -579,8 +587,9 @@ def topic_rows(entries: Any, until_us: int, topics: Topics) -> list[dict[str, An
     ordered = [(order, e) for order, e in enumerate(entries) if e.interface in topics.interfaces]
     sources: dict[tuple[str, str], list[tuple[int, Any, Any]]] = {}
     for order, e in ordered:
-        for s in e.settings:
-            if isinstance(s.value, (Written, RecordedTopic)):
+        for s in e.settings:  # (an action's or a service's server: hfsmc/scenario_rpc.py)
+            if isinstance(s.value, (Written, RecordedTopic)) and \
+                    topics.subscription(e.interface, s.field) is not None:
                 sources.setdefault((e.interface, s.field), []).append((order, e, s))
     arrivals: list[tuple[int, int, str, str, bytes]] = []  # t, order, interface, name, cdr
     for (iface, name), srcs in sources.items():

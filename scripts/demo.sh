@@ -74,5 +74,7 @@ print(f"   files: {out}/trace.jsonl (trace), {out}/report.json, {out}/truth.json
 print(f"   replay it in the browser: hfsmc view --web 8080 --replay {out}/trace.jsonl "
       "--model examples/follow_colors/follow_colors.yaml")
 print("   draw it: hfsmc diagram examples/follow_colors/follow_colors.yaml -o build/follow_colors.svg")
+print("   edit it in the browser: hfsmc edit examples/follow_colors/follow_colors.yaml "
+      "(open the URL it prints; docs/editor.md)")
 sys.exit(0 if ok else 1)
 PY

@@ -33,6 +33,12 @@ __all__ = ["ROOT", "examples", "model_language"]
 # folder of their own would otherwise start ccache cold each time. A run's own CCACHE_DIR wins.
 os.environ.setdefault("CCACHE_DIR", str(Path(tempfile.gettempdir()) / f"hfsmc-test-ccache-{os.getuid()}"))
 os.environ.setdefault("CCACHE_MAXSIZE", "2G")
+# Every DDS participant of the run (components, simulators, peers) on the loopback interface
+# only (tests/ros2_support.py); a test that sets an environment of its own passes it on.
+LOOPBACK_DDS = ("<CycloneDDS><Domain Id=\"any\"><General><Interfaces>"
+                "<NetworkInterface name=\"lo\" multicast=\"true\"/></Interfaces></General>"
+                "</Domain></CycloneDDS>")
+os.environ["CYCLONEDDS_URI"] = LOOPBACK_DDS
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -20,9 +20,14 @@ from hypothesis import strategies as st
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import FieldType, MessageSet, MsgFile, message_set
 from hfsmc.ros2.python_messages import python_message_files
+from tests.conftest import LOOPBACK_DDS
 
 AT = Span("test.yaml", 1, 1)
-DOMAINS = range(20, 233)  # ROS_DOMAIN_ID values the tests use (0, ROS 2's default, never)
+# DDS in the tests stays on the loopback interface (multicast discovery on `lo`): other
+# machines and interfaces never see them. tests/conftest.py sets it for the whole run.
+LOOPBACK = LOOPBACK_DDS
+DOMAINS = range(10, 102)  # ROS_DOMAIN_ID values the tests use: not 0 (ROS 2's default), and
+# none above 101, whose ports (7400 + 250 * id and up) fall in the kernel's ephemeral range
 
 
 @contextlib.contextmanager

@@ -185,12 +185,13 @@ def test_connects_requests_rates_and_reads_telemetry(link: tuple[Any, FakeVehicl
     assert drone.position() == (0.0, 0.0, 0.0)
     assert drone.velocity() == (0.5, -0.25, 0.125)
     assert drone.yaw() == 1.25 and drone.battery() == 87 and drone.altitude() == 0.0
-    assert wait_until(lambda: len(fake.commands(MAV.MAV_CMD_SET_MESSAGE_INTERVAL)) == 6, 2)
+    assert wait_until(lambda: len(fake.commands(MAV.MAV_CMD_SET_MESSAGE_INTERVAL)) == 8, 2)
     intervals = {int(m.param1): m.param2 for m in fake.commands(MAV.MAV_CMD_SET_MESSAGE_INTERVAL)}
     fast = (MAV.MAVLINK_MSG_ID_LOCAL_POSITION_NED, MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
             MAV.MAVLINK_MSG_ID_ATTITUDE)
     slow = (MAV.MAVLINK_MSG_ID_SYS_STATUS, MAV.MAVLINK_MSG_ID_GPS_RAW_INT,
-            MAV.MAVLINK_MSG_ID_EKF_STATUS_REPORT)
+            MAV.MAVLINK_MSG_ID_EKF_STATUS_REPORT, MAV.MAVLINK_MSG_ID_BATTERY_STATUS,
+            MAV.MAVLINK_MSG_ID_HOME_POSITION)
     assert set(intervals) == {*fast, *slow}
     assert all(0 < intervals[i] <= 100_000 for i in fast)  # 10 Hz or more, in microseconds
     assert all(intervals[i] > 100_000 for i in slow)

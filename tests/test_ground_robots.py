@@ -5,6 +5,7 @@ seconds), judged on the simulator's truth (docs/worlds.md, "Ground robots")."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -39,7 +40,8 @@ def drive(tmp: Path, component: Path, world: Path, seconds: int,
                                   "--until", f"{seconds}s", "--trace", str(tmp / "trace.jsonl"),
                                   *(["--config", str(config)] if config else []), *more],
                                  capture_output=True, text=True, timeout=300,
-                                 env={"ROS_DOMAIN_ID": str(dom), "PATH": "/usr/bin:/bin"})
+                                 env={"ROS_DOMAIN_ID": str(dom), "PATH": "/usr/bin:/bin",
+                                      "CYCLONEDDS_URI": os.environ["CYCLONEDDS_URI"]})
         finally:
             try:
                 _, err = sim.communicate(timeout=30)

@@ -59,7 +59,7 @@ drone.fly_to(10, 0, 5)
 x = cam.frames()
 drone.go_to(1, 2, 3)
 drone.takeoff()
-drone.goto(1, 2, 3, 4)
+drone.goto(1, 2, 3, 4, 5)
 drone.takeoff(3, alt=3)
 drone.land(now=True)
 y = drone.altitud
@@ -69,7 +69,7 @@ z = cam.url()""")
         ("E148", 13, 15, "`cam` (camera interface) has no method `frames`"),
         ("E148", 14, 13, "`drone` (mavlink interface) has no method `go_to`"),
         ("E149", 15, 13, "`drone.takeoff` takes 1 argument (alt): missing `alt`"),
-        ("E149", 16, 13, "`drone.goto` takes 3 arguments (north, east, alt): 4 given"),
+        ("E149", 16, 13, "`drone.goto` takes 4 arguments (north, east, alt, heading): 5 given"),
         ("E149", 17, 13, "`drone.takeoff` takes 1 argument (alt): `alt` given twice"),
         ("E149", 18, 13, "`drone.land` takes no arguments: no parameter `now`"),
         ("E148", 19, 17, "`drone` (mavlink interface) has no method `altitud`"),
@@ -80,7 +80,8 @@ z = cam.url()""")
     assert notes["`cam` (camera interface) has no method `frames`"] == ("did you mean `frame`?",)
     assert notes["`drone` (mavlink interface) has no method `go_to`"] == (
         "`go_to` is the C++ name; in Python the method is `goto`",)
-    assert "goto(north, east, alt)" in notes["`drone` (mavlink interface) has no method `fly_to`"][0]
+    assert "goto(north, east, alt, heading)" in \
+        notes["`drone` (mavlink interface) has no method `fly_to`"][0]
 
 
 def test_a_when_and_a_do_are_checked_too() -> None:

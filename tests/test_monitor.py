@@ -142,8 +142,8 @@ def test_hello_then_snapshot_then_everything_in_order(server: Any, clients: Any)
     srv = server()
     srv.start(STRUCTURE)
     a = clients(srv.port)
-    assert a.message() == {"type": "hello", "protocol": 1, "minor": 3, "structure": STRUCTURE,
-                           "feeds": {"vehicle": [], "camera": [], "ros2": []}}
+    assert a.message() == {"type": "hello", "protocol": 1, "minor": 4, "structure": STRUCTURE,
+                           "feeds": {"vehicle": [], "camera": [], "ros2": [], "driver": []}}
     snap = a.message()
     assert snap is not None and snap["type"] == "snapshot" and snap["active"] == []
     srv.sample(0, {"led": "False", "count": "0", "pauses": "0"}, 0)

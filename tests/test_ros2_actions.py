@@ -5,6 +5,7 @@ rmw_cyclonedds_cpp's request header, the simulator's navigate_to_pose, bad input
 from __future__ import annotations
 
 import json
+import os
 import struct
 import subprocess
 import sys
@@ -13,6 +14,7 @@ from typing import Any
 
 import pytest
 
+from hfsmc.emit.python import INTERFACE_FILES
 from hfsmc.errors import Span
 from hfsmc.ros2.definitions import message_set, rosbags_store
 from tests.ros2_support import generate, ros2_domain
@@ -30,13 +32,13 @@ def scenario(tmp: Path, name: str) -> dict[str, Any]:
     out = tmp / "gen"
     if not out.exists():
         generate(ms, out)
-        for f in ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_lockstep.py",
-                  "hfsmc_ros2_rpc.py"):
+        for f in INTERFACE_FILES["ros2"]:  # what a component gets beside it
             (out / f).write_text((RUNTIME / f).read_text())
     with ros2_domain() as dom:
         run = subprocess.run([sys.executable, str(SCRIPT), str(dom), name], cwd=out,
                              capture_output=True, text=True, timeout=60,
-                             env={"PYTHONPATH": str(out), "PATH": "/usr/bin:/bin"})
+                             env={"PYTHONPATH": str(out), "PATH": "/usr/bin:/bin",
+                                  "CYCLONEDDS_URI": os.environ["CYCLONEDDS_URI"]})
     assert run.returncode == 0, run.stderr
     return dict(json.loads(run.stdout.strip().splitlines()[-1]))
 

@@ -26,13 +26,7 @@ from tests.support import ROOT, free_port, hfsmc, interrupt
 MODELS = ROOT / "tests" / "ros2" / "models"
 STOP_AT_WALL = ROOT / "examples" / "stop_at_wall_cpp" / "stop_at_wall_cpp.yaml"
 ROOM = "walls: [[[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]]]\nlaser: {range_max: 8}\n"
-LOOPBACK = ("<CycloneDDS><Domain Id=\"any\"><General><Interfaces>"
-            "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"
-            "<AllowMulticast>false</AllowMulticast></General>"
-            "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-            "<MaxAutoParticipantIndex>19</MaxAutoParticipantIndex>"
-            "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>")
-ENV = {**os.environ, "CYCLONEDDS_URI": LOOPBACK}
+ENV = dict(os.environ)  # DDS on loopback (tests/conftest.py)
 
 
 def twin(folder: Path, name: str, distro: str) -> Path:
@@ -203,22 +197,24 @@ def test_a_domain_id_out_of_range_stops_the_component_at_start(
 
 @pytest.mark.parametrize(("old", "new", "found"), [
     ("go.linear.x = speed;", "go.linear.xx = speed;",
-     r"stop_at_wall_cpp\.yaml:42:17: error\[E144\]: 'struct geometry_msgs::msg::Vector3' has "
+     r"stop_at_wall_cpp\.yaml:{line}:17: error\[E144\]: 'struct geometry_msgs::msg::Vector3' has "
      r"no member named 'xx'"),
     ('robot.publish("cmd_vel", go);', 'robot.publish("cmd_vel", go.linear);',
-     r"stop_at_wall_cpp\.yaml:43:35: error\[E144\]: cannot convert "
+     r"stop_at_wall_cpp\.yaml:{line}:35: error\[E144\]: cannot convert "
      r"'geometry_msgs::msg::Vector3' to 'const geometry_msgs::msg::Twist&'"),
     ('robot.publish("cmd_vel", go);', 'robot.publish("cmd_vl", go);',
-     r"stop_at_wall_cpp\.yaml:43:21: error\[E148\]: `robot\.publish`: `cmd_vl` is not one of "
+     r"stop_at_wall_cpp\.yaml:{line}:21: error\[E148\]: `robot\.publish`: `cmd_vl` is not one of "
      r"the interface's `publish` \(cmd_vel\)"),
     ('robot.count("scan")', 'robot.count("cmd_vel")',
-     r"stop_at_wall_cpp\.yaml:5\d:\d+: error\[E148\]: `robot\.count`: `cmd_vel` is not one of "
+     r"stop_at_wall_cpp\.yaml:{line}:\d+: error\[E148\]: `robot\.count`: `cmd_vel` is not one of "
      r"the interface's `subscribe` \(scan, odom\)"),
 ])
 def test_check_finds_a_wrong_field_type_or_name_at_the_models_line(
         tmp_path: Path, old: str, new: str, found: str) -> None:
     text = STOP_AT_WALL.read_text()
     assert old in text
+    line = text[:text.index(old)].count("\n") + 1  # where the example has it
+    found = found.replace("{line}", str(line))
     model = tmp_path / "stop_at_wall_cpp.yaml"
     model.write_text(text.replace(old, new))
     result = hfsmc("check", str(model), cwd=tmp_path)

@@ -22,19 +22,12 @@ from rosbags.typesys import Stores, get_typestore
 
 from hfsmc.ros2.cpp_messages import RUNTIME_TYPES, cpp_message_files
 from hfsmc.ros2.definitions import message_set
-from tests.ros2_support import AT
+from tests.ros2_support import AT, LOOPBACK
 from tests.support import ROOT
 
 HERE = Path(__file__).resolve().parent / "ros2_cpp"
 STORES = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY}
 TYPES = ["sensor_msgs/msg/LaserScan", "geometry_msgs/msg/Twist"]
-# Discovery by unicast on 127.0.0.1 only: other machines and interfaces never see the tests.
-LOOPBACK = ("<CycloneDDS><Domain Id=\"any\"><General><Interfaces>"
-            "<NetworkInterface address=\"127.0.0.1\"/></Interfaces>"
-            "<AllowMulticast>false</AllowMulticast></General>"
-            "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-            "<MaxAutoParticipantIndex>19</MaxAutoParticipantIndex>"
-            "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>")
 
 
 def _build(out: Path, distro: str, fastdds: bool) -> Path:

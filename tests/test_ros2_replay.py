@@ -6,6 +6,7 @@ mcap-ros2-support and export to a rosbag2."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import signal
 import subprocess
@@ -42,7 +43,8 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
             run = subprocess.run([sys.executable, str(tmp / "out" / "stop_at_wall.py"),
                                   "--record", str(mcap), "--until", "40s"],
                                  capture_output=True, text=True, timeout=90, check=False,
-                                 env={"ROS_DOMAIN_ID": str(dom), "PATH": "/usr/bin:/bin"})
+                                 env={"ROS_DOMAIN_ID": str(dom), "PATH": "/usr/bin:/bin",
+                                      "CYCLONEDDS_URI": os.environ["CYCLONEDDS_URI"]})
         finally:
             sim.send_signal(signal.SIGINT)
             sim.communicate(timeout=30)

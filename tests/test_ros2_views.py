@@ -172,8 +172,8 @@ def test_the_monitor_sends_the_topics_to_every_viewer_and_scans_to_those_that_as
     c = Client(run.port)  # every message checked against schemas/monitor.schema.json
     try:
         hello = c.message()
-        assert hello is not None and hello["minor"] == 3
-        assert hello["feeds"] == {"vehicle": [], "camera": [], "ros2": ["robot"]}
+        assert hello is not None and hello["minor"] == 4
+        assert hello["feeds"] == {"vehicle": [], "camera": [], "ros2": ["robot"], "driver": []}
 
         def settled(m: dict[str, Any]) -> bool:
             subs = {s["name"]: s for s in m["subscriptions"]}

@@ -5,6 +5,7 @@ and faked from a playback script. examples/udp_gadget is the example."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import socket
 import subprocess
@@ -163,3 +164,131 @@ def test_the_fake_answers_from_the_script_and_sends_nothing(tmp_path: Path) -> N
                           str(play)], capture_output=True, text=True, timeout=60)
     assert run.returncode == 2 and "no snapshot field `range`" in run.stderr
     assert "Traceback" not in run.stderr
+
+
+# -- scenarios (docs/testing.md, "Interfaces of your own") --------------------------------------
+
+def _scenario(tmp: Path, inputs: str, expect: str = "  - stop: until\n",
+              model: Path = GADGET / "udp_gadget.yaml") -> Path:
+    path = tmp / "sc.yaml"
+    path.write_text(f"model: {model}\nuntil: 5s\ninputs:\n{inputs}expect:\n{expect}")
+    return path
+
+
+def _problems(path: Path) -> list[str]:
+    from hfsmc.errors import Diagnostics
+    from hfsmc.pipeline import compile_file
+    from hfsmc.scenario import check_against_model, read_scenario
+
+    diags = Diagnostics()
+    sc = read_scenario(str(path), diags)
+    assert sc is not None
+    result = compile_file(sc.models[0].path)
+    assert result.model is not None
+    check_against_model(sc, result.model, diags)
+    return [f"{d.span.line}:{d.span.col}: {d.code} {d.message}" for d in diags.sorted()]
+
+
+@pytest.mark.parametrize("model", ["udp_gadget.yaml", "udp_gadget_cpp.yaml"])
+def test_a_scenario_scripts_a_drivers_fields_each_of_its_type(tmp_path: Path, model: str) -> None:
+    """Checked against the declaration of the model's language (gadget.py, gadget.hpp)."""
+    path = _scenario(tmp_path, """\
+  gadget:
+    - {at: 0s, distanse: 2.0, count: 1.5, led: 1}
+    - {at: 1s, distance: fast, mode: 3}
+    - {at: 2s, distance: {ramp: [0, 1]}}
+    - {from: 2s, to: 3s, count: {ramp: [0, 9]}, distance: {ramp: [0, x]}}
+""", "  - command: gadget.blink\n  - command: gadget.led\n    args: [true]\n", GADGET / model)
+    assert _problems(path) == [
+        "5:16: E195 `distanse` is not a snapshot field of the gadget driver (`gadget`)",
+        "5:38: E191 `count` must be an integer, not a number (`1.5`)",
+        "5:48: E191 `led` must be true or false, not a number (`1`)",
+        "6:26: E191 `distance` must be a number (.nan and .inf are numbers too), not a "
+        "string (`fast`)",
+        "6:32: E195 `mode` is not a snapshot field of the gadget driver (`gadget`)",
+        "7:26: E193 a ramp needs a span: `from: TIME, to: TIME`",
+        "8:33: E193 `count` cannot ramp: only numbers and lists of numbers do (its declared "
+        "value is an integer)",
+        "8:70: E191 `distance` must be a number (.nan and .inf are numbers too), not a "
+        "string (`x`)",
+        "10:14: E199 `blink` is not a command of a gadget interface",
+    ]
+    r = hfsmc("test", str(path))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"{path}:5:16: error[E195]: `distanse` is not a snapshot field" in r.stderr
+    assert "did you mean `distance`?" in r.stderr
+
+
+def test_a_drivers_field_may_bear_a_built_in_inputs_name(tmp_path: Path) -> None:
+    """`mode` and `position` are a vehicle's inputs; a driver's fields of those names take
+    the driver's types, and a vehicle's value for them is refused there."""
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d/arm.py").write_text(
+        "from hfsmc_driver import Driver, query\n\n\nclass Arm(Driver):\n"
+        "    KIND = 'arm'\n    SNAPSHOT = {'position': 0.0, 'mode': 0, 'joints': (0.0, 0.0)}\n\n"
+        "    @query\n    def position(self):\n        \"\"\"Where.\"\"\"\n"
+        "        return self.value('position')\n")
+    model = tmp_path / "m.yaml"
+    model.write_text("hfsm: 1\nname: m\ninterfaces:\n  arm: {type: driver, python: d/arm.py}\n"
+                     "initial: A\nstates:\n  A:\n    transitions:\n"
+                     "      - {to: B, when: arm.position() > 0.4}\n  B: {}\n")
+    good = _scenario(tmp_path, """\
+  arm:
+    - {at: 0s, position: 0.1, mode: 3, joints: [0.5, 1]}
+    - {from: 1s, to: 2s, position: {ramp: [0.1, 0.9]}, joints: {ramp: [[0, 0], [1, 1]]}}
+""", "  - entered: B\n    between: [1.3s, 1.45s]\n", model)
+    assert _problems(good) == []
+    r = hfsmc("test", str(good), "--keep", str(tmp_path / "runs"))
+    assert r.returncode == 0, r.stdout + r.stderr
+    rows = [json.loads(x) for x in next((tmp_path / "runs").iterdir()).joinpath(
+        "inputs.jsonl").read_text().splitlines()]
+    assert rows[0] == {"t": 0, "kind": "snapshot", "interface": "arm",
+                       "values": {"position": 0.1, "mode": 3, "joints": [0.5, 1.0]}}
+    assert {"t": 1_500_000, "kind": "snapshot", "interface": "arm",
+            "values": {"position": 0.5, "joints": [0.5, 0.5]}} in rows
+    bad = _scenario(tmp_path, """\
+  arm:
+    - {at: 0s, position: [0, 0, 1], mode: GUIDED, joints: [0.5, true]}
+    - {at: 1s, mode: 9223372036854775808, joints: [%s]}
+""" % ("9" * 400), "  - stop: until\n", model)
+    assert _problems(bad) == [
+        "5:26: E191 `position` must be a number (.nan and .inf are numbers too), not a list",
+        "5:43: E191 `mode` must be an integer, not a string (`GUIDED`)",
+        "5:65: E191 an item of `joints` must be a number (.nan and .inf are numbers too), "
+        "not a boolean",
+        "6:22: E191 `mode`: 9223372036854775808 is out of the range of a 64-bit integer",
+        f"6:52: E191 an item of `joints`: {'9' * 400} is beyond what a float holds",
+    ]
+
+
+def test_the_gadgets_scenarios_fail_when_the_model_does_otherwise(tmp_path: Path) -> None:
+    """examples/udp_gadget/tests pass (tests/test_scenario.py runs them in both languages);
+    the same script with `near` at 0.1 m never reaches Near, and says so."""
+    sc = (GADGET / "tests/obstacle_near.yaml").read_text().replace(
+        "../udp_gadget.yaml", str(GADGET / "udp_gadget.yaml")).replace(
+        "  cpp: ../udp_gadget_cpp.yaml\n", "")
+    path = tmp_path / "near.yaml"
+    path.write_text(sc.replace("until: 7s\n", "until: 7s\nparameters: {near: 0.1}\n"))
+    r = hfsmc("test", str(path))
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert f"{path}::python FAILED" in r.stdout
+    assert re.search(r"near\.yaml:\d+:5: expected `Near` entered 1 time\(s\) between 2\.65 s "
+                     r"and 2\.75 s\n  got: entered 0 time", r.stdout), r.stdout
+    assert re.search(r"expected command gadget\.beep\(100\) 1 time\(s\)\n  got: sent 0 "
+                     r"time", r.stdout), r.stdout
+
+
+def test_a_span_gives_way_to_what_held_before_or_to_the_declared_value(tmp_path: Path) -> None:
+    from hfsmc.scenario import load_scenario
+    from hfsmc.scenario_inputs import snapshots
+
+    sc = load_scenario(str(_scenario(tmp_path, """\
+  gadget:
+    - {at: 0s, distance: 2.0}
+    - {from: 100ms, to: 200ms, distance: 0.3, led: true}
+""")))
+    defaults = dict(read_python_driver((GADGET / "drivers/gadget.py").read_text()).snapshot)
+    got = [(e["t"] // 1000, e["values"]) for e in snapshots(
+        sc, {"gadget": "driver"}, 50_000, {}, drivers={"gadget": defaults})]
+    assert got == [(0, {"distance": 2.0}), (100, {"distance": 0.3, "led": True}),
+                   (200, {"distance": 2.0, "led": False})]  # led: never set before, its default

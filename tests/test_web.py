@@ -507,8 +507,8 @@ def test_the_monitor_sends_vehicles_to_every_viewer_and_frames_only_to_those_tha
         for msgs in (got, other):
             for m in msgs:
                 MONITOR_VALIDATOR.validate(m)
-            assert msgs[0]["minor"] == 3 and msgs[0]["feeds"] == {"vehicle": ["drone"],
-                                                                  "camera": ["camera"], "ros2": []}
+            assert msgs[0]["minor"] == 4 and msgs[0]["feeds"] == {
+                "vehicle": ["drone"], "camera": ["camera"], "ros2": [], "driver": []}
         vehicles = [m for m in got if m["type"] == "vehicle"]
         assert 3 <= len(vehicles) <= 6, len(vehicles)  # about 4 a second
         assert vehicles[0] == {"type": "vehicle", "t": 0, "name": "drone", "connected": True,
@@ -615,7 +615,8 @@ async def _feeds_story() -> None:
         while "frame" not in kinds or "model" not in kinds:
             msg = await next_message(page)
             kinds[msg["type"]] = msg
-        assert kinds["model"]["feeds"] == {"vehicle": ["drone"], "camera": ["camera"], "ros2": []}
+        assert kinds["model"]["feeds"] == {"vehicle": ["drone"], "camera": ["camera"], "ros2": [],
+                                           "driver": []}
         assert kinds["vehicle"]["altitude"] == 2.346 and kinds["vehicle"]["battery"] == 87
         assert kinds["frame"]["width"] == 320 and kinds["frame"]["jpeg"]
         vehicle.alt = 7.5

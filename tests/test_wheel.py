@@ -33,11 +33,14 @@ def test_wheel_contents(wheel: Path) -> None:
                      "hfsmc/templates/cpp/CMakeLists.txt.j2", "hfsmc/templates/cpp/hfsmc_runtime.cpp",
                      "hfsmc/templates/cpp/hfsmc/runtime.hpp", "hfsmc/templates/cpp/hfsmc/mavlink.hpp",
                      "hfsmc/web/server.py", "hfsmc/web/static/index.html",
-                     "hfsmc/web/static/app.js", "hfsmc/web/static/app.css"):
+                     "hfsmc/web/static/app.js", "hfsmc/web/static/app.css",
+                     "hfsmc/editor/server.py", "hfsmc/web/static/editor.html",
+                     "hfsmc/web/static/editor.js", "hfsmc/web/static/vendor/codemirror.js"):
         assert required in names, f"{required} missing from {wheel.name}"
     entry = next(n for n in names if n.endswith("entry_points.txt"))
     assert "hfsmc = hfsmc.cli:main" in zipfile.ZipFile(wheel).read(entry).decode()
     assert not any(n.startswith(("tests/", "examples/", "bench/")) for n in names)
+    assert not any("node_modules" in n or n.endswith("package-lock.json") for n in names)
 
 
 def hfsmc_from_wheel(wheel: Path, tmp_path: Path, example: str, *args: str,

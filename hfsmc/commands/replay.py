@@ -449,7 +449,34 @@ def _command_text(c: Command | None, rec: Recording | None = None) -> str:
     if c is None:
         return "(no more commands)"
     text = _publish_text(c, rec) if rec is not None and c.call == "publish" else None
+    if rec is not None and c.call in ("send_goal", "call"):
+        text = _rpc_text(c, rec)
     return f"{text or c.text()} at {seconds(c.t)}"
+
+
+def _rpc_text(c: Command, rec: Recording) -> str | None:
+    """A goal or a request decoded as ``_publish_text`` does, by the action's or the
+    service's type in the recording's wiring (hfsmc's definitions of it)."""
+    if len(c.args) != 2 or not all(isinstance(a, str) for a in c.args):
+        return None
+    spec = rec.interfaces.get(c.interface)
+    options = spec.get("options") if isinstance(spec, Mapping) else None
+    table = options.get("actions" if c.call == "send_goal" else "services") \
+        if isinstance(options, Mapping) else None
+    entry = table.get(c.args[0]) if isinstance(table, Mapping) else None
+    if not isinstance(entry, Mapping) or not isinstance(entry.get("type"), str):
+        return None
+    kind = f"{entry['type']}_{'Goal' if c.call == 'send_goal' else 'Request'}"
+    try:
+        from hfsmc.ros2.definitions import rosbags_store
+
+        store = rosbags_store(str(options.get("distro") or "jazzy"))  # type: ignore[union-attr]
+        msg = store.deserialize_cdr(base64.b64decode(c.args[1], validate=True), kind)
+    except Exception:  # a type or bytes hfsmc does not know: the raw text then
+        return None
+    fields = ", ".join(f"{k}={v!r}" for k, v in _fields(msg, ""))
+    short = entry["type"].rsplit("/", 1)[1] + (".Goal" if c.call == "send_goal" else ".Request")
+    return f"{c.interface}.{c.call}({json.dumps(c.args[0])}, {short}({fields}))"
 
 
 def _publish_text(c: Command, rec: Recording) -> str | None:

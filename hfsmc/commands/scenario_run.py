@@ -301,7 +301,9 @@ def run_one(sc: Scenario, model: Model, language: str, component: Component, fol
     folder.mkdir(parents=True)
     types = {i.name: i.type for i in model.interfaces}
     topics = Topics(model) if "ros2" in types.values() else None
-    write_playback(sc, types, grid_us([model]), folder, topics)
+    drivers = {i.name: dict(i.declaration.snapshot) for i in model.interfaces
+               if i.type == "driver" and i.declaration is not None}
+    write_playback(sc, types, grid_us([model]), folder, topics, drivers)
     trace = folder / "trace.jsonl"
     args = [*component.command, "--playback", str(folder.resolve()), "--clock", "virtual",
             "--trace", str(trace.resolve()), "--until", format_us(sc.until_us)]

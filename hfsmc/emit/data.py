@@ -164,6 +164,8 @@ def ros2_data(r: Ros2Settings) -> dict[str, Any]:
                                **({} if x.timeout_us is None
                                   else {"timeout": format_us(x.timeout_us)})}
                       for x in rpcs}
+    if r.introspection is not None:
+        d["introspection"] = r.introspection
     return d
 
 
@@ -178,7 +180,8 @@ def ros2_config(model_name: str, r: Ros2Settings) -> dict[str, Any]:
                            "timeout": _timeout_s(x.timeout_us, key)} for x in xs}
             for key, xs in (("actions", r.actions), ("services", r.services)) if xs}
     return {"type": "ros2", "node": r.node or model_name, "namespace": r.namespace or "/",
-            "domain": r.domain, "distro": r.distro_or_default, **topics, **rpcs}
+            "domain": r.domain, "distro": r.distro_or_default, **topics, **rpcs,
+            **({"introspection": True} if r.introspection else {})}
 
 
 def _timeout_s(us: int | None, key: str) -> float | None:

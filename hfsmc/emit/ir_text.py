@@ -35,7 +35,8 @@ def dump(model: Model) -> str:
             continue
         r = itf.ros2
         out.append(f"  interface {itf.name}: ros2 node={r.node!r} namespace={r.namespace!r} "
-                   f"domain={r.domain!r} distro={r.distro_or_default} {_at(itf.span)}")
+                   f"domain={r.domain!r} distro={r.distro_or_default}"
+                   f"{' introspection' if r.introspection else ''} {_at(itf.span)}")
         for kind, topics in (("subscribe", r.subscribe), ("publish", r.publish)):
             for t in topics:
                 out.append(f"    {kind} {t.name}: topic={t.topic!r} type={t.type} "

@@ -27,14 +27,16 @@ from hfsmc.ros2.python_messages import python_message_files
 from hfsmc.ros2files import used_messages
 
 RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py",
-                 "hfsmc_monitor.py", "hfsmc_ros2view.py", "hfsmc_record.py", "hfsmc_playback.py",
-                 "hfsmc_simclock.py", "hfsmc_helpers.py")
-INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py", "hfsmc_mission.py",
+                 "hfsmc_monitor.py", "hfsmc_ros2view.py", "hfsmc_driverview.py", "hfsmc_record.py",
+                 "hfsmc_playback.py", "hfsmc_simclock.py", "hfsmc_helpers.py")
+INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py",
+                               "hfsmc_mavlink_reader.py", "hfsmc_mission.py",
                                "hfsmc_mission_upload.py", "hfsmc_px4.py"),
                    "camera": ("hfsmc_camera.py",), "driver": ("hfsmc_driver.py",),
                    "ros2": ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_names.py",
                             "hfsmc_ros2_cdr.py", "hfsmc_ros2_playback.py",
-                            "hfsmc_ros2_lockstep.py", "hfsmc_ros2_rpc.py")}
+                            "hfsmc_ros2_lockstep.py", "hfsmc_ros2_rpc.py",
+                            "hfsmc_ros2intro.py", "hfsmc_ros2_servers.py")}
 _STATEMENT_INDENT = 8  # def / try / body
 _EXPRESSION_INDENT = 12  # def / try / return bool( / body
 _TRY_MARK = re.compile(r"^\s*try:  # s(\d+)$")

@@ -77,7 +77,9 @@ def to_xml(model: Model, comments: Sequence[tuple[int, str]] = ()) -> str:
 def _ros2(w: _Writer, name: str, r: Ros2Settings, span: Span) -> None:
     """A ros2 interface: its keys as attributes, its topics and .msg files as elements."""
     attrs = [("name", name), ("type", "ros2"), ("node", r.node), ("namespace", r.namespace),
-             ("domain", None if r.domain is None else str(r.domain)), ("distro", r.distro)]
+             ("domain", None if r.domain is None else str(r.domain)), ("distro", r.distro),
+             ("introspection", None if r.introspection is None
+              else str(r.introspection).lower())]
     if not (r.subscribe or r.publish or r.messages or r.actions or r.services):
         w.empty(1, "interface", attrs, span)
         return

@@ -384,6 +384,7 @@ class _Converter:
             self.attr(el, path, item, name)
         self.attr(el, path, item, "domain", convert=_number)
         if tag == "interface":
+            self.attr(el, path, item, "introspection", convert=_flag)
             self.ros2_children(el, path, item)
         for option in el.iterchildren("option"):
             self.first_key(option, (*path, "options"))

@@ -38,7 +38,8 @@ from hfsmc.errors import UsageError
 from hfsmc.ir import Model
 
 # The component's own modules, shipped as the data package hfsmc.templates (see hfsmc/commands/view.py).
-from hfsmc.templates.python import hfsmc_monitor as monitor  # type: ignore[import-not-found]
+from hfsmc.templates.python import hfsmc_driverview as driverview  # type: ignore[import-not-found]
+from hfsmc.templates.python import hfsmc_monitor as monitor
 from hfsmc.templates.python import hfsmc_viewstate as viewstate
 from hfsmc.web.picture import svg_of
 from hfsmc.web.ros2 import Trail, WorldMap, odometry, ros2_record, scan_record, world_message
@@ -130,13 +131,15 @@ class Bridge:
         self._subs_of: Picture | None = None  # the picture the sub-automata below were drawn for
         self._subs: dict[str, str | None] = {}
         self._drawable: frozenset[str] = frozenset()  # the picture's composite states and regions
-        self.feeds: dict[str, list[str]] = {"vehicle": [], "camera": [], "ros2": []}  # hello's
+        self.feeds: dict[str, list[str]] = {"vehicle": [], "camera": [], "ros2": [],
+                                            "driver": []}  # hello's
         self.vehicles: dict[str, dict[str, Any]] = {}  # the latest vehicle message of each
         self.frames: dict[str, dict[str, Any]] = {}  # the latest frame of each camera
         self._writer: asyncio.StreamWriter | None = None  # to the component, while connected
         self._subscribed: tuple[bool, bool] = (False, False)  # asked for: frames, scans
         self.world = world
         self.ros2: dict[str, dict[str, Any]] = {}  # the latest ros2 message of each
+        self.drivers: dict[str, dict[str, Any]] = {}  # the latest driver message of each
         self.scans: dict[str, dict[str, Any]] = {}  # the latest scan of each interface
         self.trails: dict[str, Trail] = {}
         self.worlds: dict[str, dict[str, Any]] = {}  # per interface, the world in its odom frame
@@ -176,7 +179,7 @@ class Bridge:
         for msg in (*self.vehicles.values(), *self.frames.values(), *self.worlds.values(),
                     *({"type": "trail", "name": n, "points": t.points}
                       for n, t in self.trails.items()),
-                    *self.ros2.values(), *self.scans.values()):
+                    *self.ros2.values(), *self.scans.values(), *self.drivers.values()):
             page.offer(_dump(msg))
         self.pages.add(page)
         self._subscribe()
@@ -385,8 +388,8 @@ class Bridge:
             feeds: dict[str, Any] = given if isinstance(given, dict) else {}
             self.feeds = {k: [str(n) for n in feeds.get(k, ()) if isinstance(n, str)][:8]
                           if isinstance(feeds.get(k), list) else []
-                          for k in ("vehicle", "camera", "ros2")}
-            self.vehicles, self.frames = {}, {}
+                          for k in ("vehicle", "camera", "ros2", "driver")}
+            self.vehicles, self.frames, self.drivers = {}, {}, {}
             self.ros2, self.scans, self.trails, self.worlds = {}, {}, {}, {}
             self._subscribe()
             return False
@@ -398,6 +401,12 @@ class Bridge:
             return True
         if kind == "ros2" and isinstance(name, str) and name in self.feeds["ros2"]:
             self._ros2(ros2_record(msg))
+            return True
+        if kind == "driver" and isinstance(name, str) and name in self.feeds["driver"]:
+            rec = driverview.cleaned(msg)  # minor 4: a user driver's snapshot
+            if rec is not None:
+                self.drivers[name] = rec
+                self._broadcast(rec)
             return True
         if kind == "scan" and isinstance(name, str) and name in self.feeds["ros2"]:
             scan = scan_record(msg)

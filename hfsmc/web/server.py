@@ -133,6 +133,22 @@ def url_of(sock: socket.socket, token: str) -> str:
     return f"http://{where}/?token={token}"
 
 
+def stop_on_signals(stop: asyncio.Event) -> None:
+    """SIGINT and SIGTERM set ``stop`` (where the loop can take signal handlers)."""
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+            loop.add_signal_handler(sig, stop.set)
+
+
+def release_signals() -> None:
+    """Undo stop_on_signals."""
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+            loop.remove_signal_handler(sig)
+
+
 async def serve(sock: socket.socket, bridge: Bridge, trust: Trust, out: TextIO | None = None,
                 stop: asyncio.Event | None = None, log: TextIO | None = None) -> None:
     """Serve the page on ``sock`` to those ``trust`` lets in, and run ``bridge``, until
@@ -141,10 +157,7 @@ async def serve(sock: socket.socket, bridge: Bridge, trust: Trust, out: TextIO |
     out = out if out is not None else sys.stdout
     log = log if log is not None else sys.stderr
     stop = stop if stop is not None else asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-            loop.add_signal_handler(sig, stop.set)
+    stop_on_signals(stop)
     runner = web.AppRunner(make_app(bridge, trust, log), access_log=None, handle_signals=False)
     await runner.setup()
     watching = asyncio.create_task(bridge.run())
@@ -162,9 +175,7 @@ async def serve(sock: socket.socket, bridge: Bridge, trust: Trust, out: TextIO |
         for page in list(bridge.pages):
             page.end()
         await runner.cleanup()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-                loop.remove_signal_handler(sig)
+        release_signals()
 
 
 def network_warning(sock: socket.socket, trust: Trust) -> str:

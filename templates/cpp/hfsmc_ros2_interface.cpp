@@ -322,13 +322,22 @@ std::string Interface::snapshot_fields() const {
 
 // The text the Python recorder registers (json.dumps of its schema), so both are alike.
 std::string Interface::snapshot_schema() const {
-  return "{\"title\": \"What the automaton saw of its ROS 2 topics during one instant\", \"type\": "
-         "\"object\", \"properties\": {\"t\": {\"type\": \"integer\"}, \"subscriptions\": {\"type\": "
-         "\"object\", \"additionalProperties\": {\"type\": \"object\", \"properties\": {\"count\": "
-         "{\"type\": \"integer\", \"description\": \"samples arrived since start\"}, \"age\": {\"type\": "
-         "[\"number\", \"string\"], \"description\": \"s; inf: none yet\"}, \"publishers\": {\"type\": "
-         "\"integer\"}, \"dropped\": {\"type\": \"integer\"}}}}, \"subscribers\": {\"type\": \"object\", "
-         "\"additionalProperties\": {\"type\": \"integer\"}}}}";
+  return "{\"title\": \"What the automaton saw of its ROS 2 topics during one instant\", \"type\":"
+         " \"object\", \"properties\": {\"t\": {\"type\": \"integer\"}, \"subscriptions\": {\"type"
+         "\": \"object\", \"additionalProperties\": {\"type\": \"object\", \"properties\": {\"coun"
+         "t\": {\"type\": \"integer\", \"description\": \"samples arrived since start\"}, \"age\":"
+         " {\"type\": [\"number\", \"string\"], \"description\": \"s; inf: none yet\"}, \"publishe"
+         "rs\": {\"type\": \"integer\"}, \"dropped\": {\"type\": \"integer\"}}}}, \"subscribers\":"
+         " {\"type\": \"object\", \"additionalProperties\": {\"type\": \"integer\"}}, \"goals\": {"
+         "\"type\": \"object\", \"description\": \"per action, its latest goal\", \"additionalProp"
+         "erties\": {\"type\": \"object\", \"properties\": {\"status\": {\"type\": \"string\"}, \""
+         "feedback\": {\"type\": [\"string\", \"null\"], \"contentEncoding\": \"base64\", \"descri"
+         "ption\": \"CDR; only in the instant it changed\"}, \"result\": {\"type\": [\"string\", "
+         "\"null\"], \"contentEncoding\": \"base64\", \"description\": \"CDR; only in the instant "
+         "it changed\"}}}}, \"calls\": {\"type\": \"object\", \"description\": \"per service, its "
+         "latest call\", \"additionalProperties\": {\"type\": \"object\", \"properties\": {\"statu"
+         "s\": {\"type\": \"string\"}, \"response\": {\"type\": [\"string\", \"null\"], \"contentE"
+         "ncoding\": \"base64\", \"description\": \"CDR; only in the instant it changed\"}}}}}}";
 }
 
 // A subscription's or publication's channel in the recording: the resolved topic, the

@@ -215,6 +215,11 @@ class Driver:
             self._snap = dict(self._scripted)
         return self._snap
 
+    def view_fields(self) -> dict[str, Any]:
+        """The snapshot of the latest instant, for the live views (their thread reads it:
+        the runtime replaces the dict at each instant, never changes it in place)."""
+        return self._snap
+
     def apply(self, values: dict[str, Any]) -> None:
         """A fake: the script's entry over the fields (unknown fields are an error)."""
         for k, v in values.items():

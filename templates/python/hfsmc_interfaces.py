@@ -175,6 +175,14 @@ def ros2_settings(name: str, built: dict[str, Any], given: dict[str, Any]) -> di
                 raise UsageError(f"{where}: `{key}` maps names to {{topic, qos}}")
             for entry, spec in value.items():
                 _ros2_topic(where, key, entry, spec, out[key])
+        elif key == "introspection":  # may be turned off; on needs its messages generated
+            if value not in (True, False):
+                raise UsageError(f"{where}: `introspection: {value}`: true or false")
+            if value and not built.get("introspection"):
+                raise UsageError(f"{where}: `introspection: true`: the model does not ask for "
+                                 "it (its messages are not generated): change the model and "
+                                 "rebuild")
+            out[key] = value
         elif key in ("actions", "services"):
             if not isinstance(value, dict):
                 raise UsageError(f"{where}: `{key}` maps names to {{name, timeout}}")
@@ -182,8 +190,8 @@ def ros2_settings(name: str, built: dict[str, Any], given: dict[str, Any]) -> di
                 _ros2_rpc(where, key, entry, spec, out[key])
         elif key not in ("url", "options") or given[key]:
             raise UsageError(f"{where}: `{key}` is not a setting of a ros2 interface "
-                             f"(the file may change {', '.join(ROS2_CHANGEABLE)} and each "
-                             "topic's topic and qos)")
+                             f"(the file may change {', '.join(ROS2_CHANGEABLE)}, turn "
+                             "introspection off, and each topic's topic and qos)")
     return out
 
 

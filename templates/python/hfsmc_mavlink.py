@@ -6,12 +6,12 @@ Copied beside a generated component that declares an interface of type
 pymavlink is imported with the module: without it the import fails and the
 runtime turns the interface into one that says "cannot be loaded" when used.
 
-One daemon thread owns the receiving side: it reads the socket, keeps the
-latest telemetry as immutable values (a float or a tuple, replaced whole, so
-that readers need no lock), watches the heartbeat, requests the message
-rates, matches COMMAND_ACKs to the commands waiting for them (resending once,
-as MAVProxy does with ``confirmation`` + 1) and logs each outcome once on
-stderr. The automaton's thread never waits on the network: queries return
+One daemon thread owns the receiving side (hfsmc_mavlink_reader.py, mixed into
+``Vehicle``): it reads the socket, keeps the latest telemetry as immutable values (a
+float or a tuple, replaced whole, so that readers need no lock), watches the
+heartbeat, requests the message rates, matches COMMAND_ACKs to the commands waiting
+for them (resending once, as MAVProxy does with ``confirmation`` + 1) and logs each
+outcome once on stderr. The automaton's thread never waits on the network: queries return
 the state at hand, commands send one datagram on a non-blocking socket and
 return. One lock orders the pymavlink calls of the two threads (the parser
 can swap its protocol object when MAVLink 2 shows up); it is held for a
@@ -33,18 +33,19 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 from pymavlink import mavutil
 
 try:  # beside the component, or in the hfsmc package
     from . import hfsmc_mavlink_link as _link
+    from . import hfsmc_mavlink_reader as _reader
     from . import hfsmc_mission as _mission
     from . import hfsmc_mission_upload as _upload
     from . import hfsmc_px4 as _px4
 except ImportError:
     import hfsmc_mavlink_link as _link  # type: ignore[import-not-found, no-redef]
+    import hfsmc_mavlink_reader as _reader  # type: ignore[import-not-found, no-redef]
     import hfsmc_mission as _mission  # type: ignore[import-not-found, no-redef]
     import hfsmc_mission_upload as _upload  # type: ignore[import-not-found, no-redef]
     import hfsmc_px4 as _px4  # type: ignore[import-not-found, no-redef]
@@ -52,10 +53,9 @@ except ImportError:
 _MAV: Any = mavutil.mavlink
 
 DEFAULT_URL = "udpin:127.0.0.1:14550"  # the vehicle sends there, as ArduPilot SITL does for a GCS
-LINK_TIMEOUT_S = 2.0  # no heartbeat for that long: the link is lost (docs/interfaces.md)
+LINK_TIMEOUT_S = _reader.LINK_TIMEOUT_S  # no heartbeat for that long: the link is lost
 ACK_TIMEOUT_S = 3.0  # a command without COMMAND_ACK by then has failed; resent once halfway
-GCS_HEARTBEAT_S = 1.0  # our own heartbeat, so the vehicle sees a ground station
-POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
+POLL_S = _reader.POLL_S  # longest wait of the reader: bounds ack deadlines and close()
 FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
 SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
 HOME_RATE_HZ = 1.0  # HOME_POSITION (it moves only when the autopilot sets a new home)
@@ -84,30 +84,12 @@ EKF_PRED_POS_HORIZ_ABS = 512
 GPS_FIX_3D = 3  # GPS_RAW_INT.fix_type
 MODE_FLAG_SAFETY_ARMED = 128  # HEARTBEAT.base_mode
 MODE_FLAG_CUSTOM_MODE_ENABLED = 1
-PREARM_CHECK = 0x10000000  # SYS_STATUS sensor bit PX4 sets healthy once it would arm
-
-RESULTS = _px4.RESULTS = {0: "accepted", 1: "temporarily_rejected", 2: "denied", 3: "unsupported",
-           4: "failed", 5: "in_progress", 6: "cancelled"}  # MAV_RESULT
-IN_PROGRESS = 5
 
 
 def connect(name: str, url: str | None, options: dict[str, str], sim: Any = None) -> Vehicle:
     """Open the link to a vehicle and start its reader; returns at once. ``sim``: the
     simulator's clock (hfsmc_simclock.SimClock), which the vehicle then follows."""
     return Vehicle(name, url or DEFAULT_URL, options, sim)
-
-
-@dataclass(slots=True)
-class _Pending:
-    """A command waiting for its COMMAND_ACK."""
-
-    name: str  # the key of last_ack(): arm, disarm, takeoff, land, rtl, set_mode, ...
-    label: str  # as logged: `set_mode GUIDED`
-    command: int
-    params: tuple[float, ...]  # the seven of COMMAND_LONG
-    deadline: float
-    resend_at: float | None  # None once resent (or in progress)
-    quiet: bool  # log only a failure (message rates)
 
 
 NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
@@ -416,7 +398,8 @@ def modes(vehicle_type: int) -> dict[int, str]:
     return dict(table or mavutil.mode_mapping_acm)
 
 
-class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, VehicleQueries):
+class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, _reader.Reader,
+              VehicleQueries):
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
@@ -446,7 +429,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, V
             raise SystemExit(1) from None
         self._start = self._now()
         self._lock = threading.Lock()  # pymavlink calls and the pending commands
-        self._pending: list[_Pending] = []
+        self._pending: list[_reader.Pending] = []
         self._acks: dict[str, str] = {}
         # Latest telemetry, each replaced whole by the reader.
         self._target: tuple[int, int] | None = None  # (system, component) of the autopilot
@@ -568,8 +551,9 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, V
             if target is not None:
                 self._conn.mav.command_long_send(target[0], target[1], command, 0, *p)
                 now = self._now()
-                self._pending.append(_Pending(name, label, command, p, now + self._ack_timeout,
-                                              now + self._ack_timeout / 2, quiet))
+                self._pending.append(_reader.Pending(name, label, command, p,
+                                                      now + self._ack_timeout,
+                                                      now + self._ack_timeout / 2, quiet))
             if not quiet:
                 self._acks[name] = "pending" if target is not None else "not_sent"
         if target is None:
@@ -624,148 +608,6 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, V
                           _MAV.MAV_CMD_SET_MESSAGE_INTERVAL,
                           getattr(_MAV, f"MAVLINK_MSG_ID_{message}"), round(interval),
                           quiet=True)
-
-    # -- the reader thread -------------------------------------------------------
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            fd = self._conn.fd
-            if fd is None:  # a link select cannot watch: poll it
-                self._stop.wait(POLL_S)
-                self._drain()
-            else:
-                try:
-                    readable, _, _ = select.select([fd], [], [], POLL_S)
-                except (OSError, ValueError):  # closed under us
-                    return
-                if readable:
-                    self._drain()
-            self._timed(time.monotonic())
-
-    def _timed(self, now: float) -> None:
-        """The reader's timed work: our heartbeat, resends and deadlines, the link's watch."""
-        if now >= self._next_heartbeat:
-            self._next_heartbeat = now + GCS_HEARTBEAT_S
-            with self._lock:
-                self._conn.mav.heartbeat_send(_MAV.MAV_TYPE_GCS,
-                                              _MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        self._expire(now)
-        self._upload_tick(now)
-        self._watch_link()
-        if self._px4:
-            self._px4_tick(now)
-
-    def _drain(self) -> None:
-        """Handle every datagram waiting; a bad one is dropped, never raised."""
-        for _ in range(1000):  # bounded, so a flood cannot starve the deadlines
-            try:
-                with self._lock:
-                    msg = self._conn.recv_msg()
-            except Exception:  # garbage pymavlink could not digest
-                continue
-            if msg is None:
-                return
-            try:
-                self._handle(msg)
-            except (AttributeError, TypeError, ValueError):  # a malformed field
-                continue
-
-    def _handle(self, msg: Any) -> None:
-        kind = msg.get_type()
-        source = (msg.get_srcSystem(), msg.get_srcComponent())
-        if self._duplicates.seen(self._now(), source, bytes(msg.get_msgbuf())):
-            return
-        if kind == "HEARTBEAT":
-            self._on_heartbeat(msg, source)
-            return
-        if self._target is None or source[0] != self._target[0]:
-            return
-        if self._mission_message(kind, msg) or self._upload_message(kind, msg):
-            return
-        if kind == "LOCAL_POSITION_NED":
-            self._position = (float(msg.x), float(msg.y), float(msg.z))
-            self._velocity = (float(msg.vx), float(msg.vy), float(msg.vz))
-        elif kind == "GLOBAL_POSITION_INT":
-            self._relative_alt = msg.relative_alt / 1000.0
-            if msg.lat or msg.lon:
-                self._home_amsl = (msg.alt - msg.relative_alt) / 1000.0
-        elif kind == "ATTITUDE":
-            self._yaw = float(msg.yaw)
-        elif kind == "SYS_STATUS":
-            self._battery = int(msg.battery_remaining)
-            self._prearm = bool(msg.onboard_control_sensors_health & PREARM_CHECK)
-        elif kind == "GPS_RAW_INT":
-            self._gps_fix = int(msg.fix_type)
-        elif kind == "EKF_STATUS_REPORT":
-            self._ekf_flags = int(msg.flags)
-        elif kind == "COMMAND_ACK":
-            self._on_ack(msg)
-
-    def _on_heartbeat(self, msg: Any, source: tuple[int, int]) -> None:
-        if msg.autopilot == _MAV.MAV_AUTOPILOT_INVALID or msg.type == _MAV.MAV_TYPE_GCS:
-            return  # a ground station, a camera, a gimbal: not the vehicle
-        if self._target is not None and source != self._target:
-            return
-        first = self._target is None
-        self._target = source
-        if first and self._autopilot == "auto":
-            self._px4 = msg.autopilot == _px4.AUTOPILOT_PX4
-        self._heartbeat = (int(msg.type), int(msg.autopilot), int(msg.base_mode),
-                           int(msg.custom_mode))
-        self._heartbeat_at = self._now()
-        if first:
-            mode = self._mode_name(self._heartbeat)
-            kind = "PX4 " if self._px4 else ""
-            self._say(f"{kind}vehicle {source[0]}/{source[1]} on {self.url}, mode {mode}")
-            self._request_rates()
-        elif self._lost:
-            self._lost = False
-            self._say("link back")
-            self._request_rates()  # the vehicle may have restarted
-
-    def _on_ack(self, msg: Any) -> None:
-        """The oldest command of that id waiting gets the answer (acks come in order)."""
-        with self._lock:
-            p = next((p for p in self._pending if p.command == msg.command), None)
-            if p is None:
-                self._late_ack(msg)
-                return
-            if msg.result == IN_PROGRESS:  # keep waiting for the final word, without resending
-                p.deadline = self._now() + self._ack_timeout
-                p.resend_at = None
-                return
-            self._pending.remove(p)
-            result = RESULTS.get(int(msg.result), f"result_{msg.result}")
-            self._answered[p.command] = (p.name, p.label, p.quiet, self._now() + self._ack_timeout)
-            if not p.quiet:
-                self._acks[p.name] = result
-        if p.quiet and result == "accepted":
-            return
-        self._say(f"{p.label} {result if result == 'accepted' else result.upper()}")
-
-    def _expire(self, now: float) -> None:
-        """Resend a command once halfway to its deadline; give up at the deadline."""
-        expired: list[_Pending] = []
-        with self._lock:
-            target = self._target
-            for p in list(self._pending):
-                if now >= p.deadline:
-                    self._pending.remove(p)
-                    expired.append(p)
-                    if not p.quiet:
-                        self._acks[p.name] = "timeout"
-                elif p.resend_at is not None and now >= p.resend_at and target is not None:
-                    p.resend_at = None
-                    self._conn.mav.command_long_send(target[0], target[1], p.command, 1, *p.params)
-        for p in expired:
-            self._say(f"{p.label}: no acknowledgement in {self._ack_timeout:g} s")
-
-    def _watch_link(self) -> None:
-        at = self._heartbeat_at
-        if not self._lost and at is not None and self._now() - at >= LINK_TIMEOUT_S:
-            self._lost = True
-            self._gps_fix = 0  # whatever answers next says afresh whether it is ready
-            self._ekf_flags = 0
-            self._say(f"link lost: no heartbeat for {LINK_TIMEOUT_S:g} s")
 
     # -- helpers -------------------------------------------------------------------
     def _say(self, text: str) -> None:

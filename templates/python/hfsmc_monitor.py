@@ -20,7 +20,9 @@ snippet obtained, downscaled JPEG), the frames only to clients that subscribed
 to them, so a component without such a viewer pays nothing for them. Minor
 version 3 adds the ``ros2`` message of a ``ros2`` interface (its topics' rates,
 ages, counts and matched endpoints, an odometry's pose) to every client, and its
-LaserScans (``scan``) to the clients that asked for scans.
+LaserScans (``scan``) to the clients that asked for scans. Minor version 4 adds the
+``driver`` message of a user's driver (docs/drivers.md): the fields of the snapshot it
+gave the latest instant, to every client.
 """
 
 from __future__ import annotations
@@ -41,16 +43,18 @@ from collections.abc import Iterator
 from typing import Any, TextIO
 
 if __package__:
+    from . import hfsmc_driverview as _driverview
     from . import hfsmc_ros2view as _ros2view
     from . import hfsmc_view as _view
 else:  # copied beside the generated component, where the modules are top level
+    import hfsmc_driverview as _driverview  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2view as _ros2view  # type: ignore[import-not-found, no-redef]
     import hfsmc_view as _view  # type: ignore[import-not-found, no-redef]
 
 PROTOCOL = 1
 # Additions old viewers ignore: 1 feeds in hello, vehicle and frame messages; 2 sim_rate;
-# 3 ros2 feeds, ros2 and scan messages.
-MINOR = 3
+# 3 ros2 feeds, ros2 and scan messages; 4 driver feeds and messages.
+MINOR = 4
 MAX_CLIENTS = 16  # more connections at once are told "busy" and closed
 # One address (127.0.0.1 too) may hold at most this share of the slots: a viewer elsewhere
 # always finds one.
@@ -60,7 +64,7 @@ INPUT_LIMIT = 1 << 20  # bytes one client may send (all ignored); beyond, it is 
 LINE_LIMIT = 1 << 24  # longest message a viewer reads
 SLICE = 1 << 16  # bytes of messages made before the sockets are served again
 FAREWELL_S = 0.5  # how long a stopping component tries to deliver the last messages
-FEED_EVERY_S = 0.25  # vehicle records, camera frames, ros2 topics: at most 4 a second
+FEED_EVERY_S = 0.25  # vehicle records, camera frames, ros2 topics, drivers: at most 4 a second
 FRAME_WIDTH = 320  # frames sent are downscaled to at most that many pixels wide
 FRAME_QUALITY = 70  # JPEG quality of the frames sent
 FRAME_BACKLOG = 1 << 18  # a client with that many bytes still unsent gets no new frame
@@ -204,6 +208,7 @@ class MonitorServer:
         self._vehicles: dict[str, Any] = {}
         self._cameras: dict[str, Any] = {}
         self._ros2: dict[str, Any] = {}
+        self._drivers: dict[str, Any] = {}  # user drivers (minor 4)
         self._rates = _ros2view.Rates()
         self._scans: dict[str, tuple[int, bytes]] = {}  # per interface/subscription: count, message
         self._encoded: dict[str, tuple[Any, bytes]] = {}  # per camera, the last image and its frame
@@ -217,7 +222,9 @@ class MonitorServer:
         and a camera's latest frame are then sent to viewers (monitor.md, minor version 1)."""
         for name, obj in interfaces.items():
             try:  # an interface the component cannot drive raises on any use
-                if all(callable(getattr(obj, a, None)) for a in VEHICLE_QUERIES):
+                if _driverview.is_driver(obj):
+                    self._drivers[name] = obj  # a user's driver, live or a playback's fake
+                elif all(callable(getattr(obj, a, None)) for a in VEHICLE_QUERIES):
                     self._vehicles[name] = obj
                 elif callable(getattr(obj, "views", None)) and callable(getattr(obj, "publish", None)):
                     self._ros2[name] = obj  # a live ros2 node (a replay's fake has no views)
@@ -268,7 +275,8 @@ class MonitorServer:
             while not ended:
                 # A burst is sent a slice at a time, the sockets served in between.
                 wait = 0.0 if more else 0.5
-                if self._clients and (self._vehicles or self._cameras or self._ros2):
+                if self._clients and (self._vehicles or self._cameras or self._ros2
+                                      or self._drivers):
                     wait = min(wait, max(self._next_feed - time.monotonic(), 0.0))
                 for key, mask in self._sel.select(wait):
                     if key.data == "listen":
@@ -351,6 +359,11 @@ class MonitorServer:
             except Exception:  # a driver's trouble must not stop the monitor
                 continue
             self._new_scans(name, views, view.t_ms)
+        for name, driver in self._drivers.items():
+            try:
+                chunks.append(encode(_driverview.driver_message(name, view.t_ms, driver)))
+            except Exception:  # a driver's trouble must not stop the monitor
+                continue
         if chunks:
             self._send_all(b"".join(chunks))
         self._send_scans()
@@ -433,7 +446,7 @@ class MonitorServer:
             hello = {"type": "hello", "protocol": PROTOCOL, "minor": MINOR,
                      "structure": self._structure,
                      "feeds": {"vehicle": list(self._vehicles), "camera": list(self._cameras),
-                               "ros2": list(self._ros2)}}
+                               "ros2": list(self._ros2), "driver": list(self._drivers)}}
             c.out += encode(hello) + encode(view.snapshot())
             self._flush(c)
 
@@ -584,6 +597,8 @@ def item(msg: object) -> _view.Item | None:
         ok = isinstance(msg.get("name"), str) and isinstance(msg.get("subscriptions"), list) \
             and isinstance(msg.get("publications"), list)
         return ("ros2", msg) if ok else None
+    if kind == "driver":  # minor 4: a user driver's snapshot
+        return ("driver", msg) if _driverview.valid(msg) else None
     if kind == "busy":
         return "error", f"the component's monitor is busy: {msg.get('reason')}"
     if kind == "bye":

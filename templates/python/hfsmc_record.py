@@ -58,7 +58,19 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
                     "count": {"type": "integer", "description": "samples arrived since start"},
                     "age": {"type": ["number", "string"], "description": "s; inf: none yet"},
                     "publishers": {"type": "integer"}, "dropped": {"type": "integer"}}}},
-            "subscribers": {"type": "object", "additionalProperties": {"type": "integer"}}}},
+            "subscribers": {"type": "object", "additionalProperties": {"type": "integer"}},
+            "goals": {"type": "object", "description": "per action, its latest goal",
+                      "additionalProperties": {"type": "object", "properties": {
+                          "status": {"type": "string"},
+                          "feedback": {"type": ["string", "null"], "contentEncoding": "base64",
+                                       "description": "CDR; only in the instant it changed"},
+                          "result": {"type": ["string", "null"], "contentEncoding": "base64",
+                                     "description": "CDR; only in the instant it changed"}}}},
+            "calls": {"type": "object", "description": "per service, its latest call",
+                      "additionalProperties": {"type": "object", "properties": {
+                          "status": {"type": "string"},
+                          "response": {"type": ["string", "null"], "contentEncoding": "base64",
+                                       "description": "CDR; only in the instant it changed"}}}}}},
     "hfsmc.Command": {
         "title": "A command a snippet sent to an interface", "type": "object", "properties": {
             "t": {"type": "integer"}, "call": {"type": "string"}, "args": {"type": "array"}}},

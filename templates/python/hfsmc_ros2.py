@@ -157,8 +157,9 @@ class Ros2Queries:
         if type(goal) is not cls.Goal:
             raise TypeError(f"{self.name}.send_goal({name!r}, ...): a {cls._TYPE} goal "
                             f"({cls.Goal._TYPE}) is expected, not {_kind(goal)}")
+        running = self._goal_snap[name][0] in rpc.RUNNING  # as this instant sees it
         self._goal_snap[name] = ("pending", None, None)
-        self._send_goal(name, goal)
+        self._send_goal(name, goal, running)
 
     def cancel(self, name: str) -> bool:
         """Ask the server to cancel the running goal of ``name`` (a command); False, and
@@ -203,8 +204,8 @@ class Ros2Queries:
     def _send(self, name: str, data: bytes) -> None:
         raise NotImplementedError  # the live class and the replay define it
 
-    def _send_goal(self, name: str, goal: Any) -> None:
-        raise NotImplementedError  # the live class defines it
+    def _send_goal(self, name: str, goal: Any, running: bool) -> None:
+        raise NotImplementedError  # the live class and the replay define it
 
     def _cancel(self, name: str) -> None:
         raise NotImplementedError
@@ -239,18 +240,21 @@ class Ros2Queries:
                     "metadata": {"hfsmc.interface": self.name, f"hfsmc.{role}": n}}
         return out
 
-    @staticmethod
-    def recorded(values: dict[str, Any]) -> tuple[dict[str, Any], dict[str, tuple[int, bytes]]]:
+    def recorded(self, values: dict[str, Any]
+                 ) -> tuple[dict[str, Any], dict[str, tuple[int, bytes]]]:
         """A snapshot as recorded: its JSON part (per subscription count, age, publishers,
-        dropped; per publication its subscribers), and per subscription the latest
-        sample's CDR with its count (the recording writes it when the count is new)."""
+        dropped; per publication its subscribers; each action's goal and each service's
+        call: ``rpc.as_recorded``), and per subscription the latest sample's CDR with its
+        count (the recording writes it when the count is new)."""
         subs: dict[str, Any] = {}
         raw: dict[str, tuple[int, bytes]] = {}
         for n, v in values["subscriptions"].items():
             subs[n] = {k: v[k] for k in ("count", "age", "publishers", "dropped")}
             if v.get("cdr") is not None:
                 raw[f"subscription/{n}"] = (int(v["count"]), v["cdr"])
-        return {"subscriptions": subs, "subscribers": dict(values["subscribers"])}, raw
+        out = {"subscriptions": subs, "subscribers": dict(values["subscribers"])}
+        out.update(rpc.as_recorded(values, self.__dict__.setdefault("_recorded", {})))
+        return out, raw
 
     def _sub(self, name: str) -> str:
         if name not in self._subs:
@@ -263,6 +267,17 @@ class Ros2Queries:
             raise KeyError(f"the ros2 interface `{self.name}` does not publish `{name}` "
                            f"(publications: {', '.join(self._pubs) or 'none'})")
         return name
+
+
+def _intro() -> Any:
+    """hfsmc_ros2intro, imported only by a node that publishes its automaton (the module
+    and the viewer's state it needs are copied beside every component, not beside the
+    simulator's nodes)."""
+    if __package__:
+        from . import hfsmc_ros2intro
+    else:
+        import hfsmc_ros2intro  # type: ignore[import-not-found, no-redef]
+    return hfsmc_ros2intro
 
 
 def _kind(msg: Any) -> str:
@@ -288,6 +303,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self._goal_snap = {n: ("none", None, None) for n in self._acts}
         self._call_snap = {n: ("none", None) for n in self._srvs}
         self._check_topics()
+        self._introspect = settings.get("introspection") is True
         self.on_publish: Callable[[str, bytes], None] | None = None  # a recording's hook
         self.on_command: Callable[[str, list[Any]], None] | None = None  # the recording's
         self._lockstep_init()
@@ -373,6 +389,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
         self._topics = topics
         self._actions = {n: rpc.ActionClient(self._dp, n, s) for n, s in self._acts.items()}
         self._services = {n: rpc.ServiceClient(self._dp, n, s) for n, s in self._srvs.items()}
+        self._views = _intro().writers(self, topic) if self._introspect else {}
         self._announce()
 
     def _qos(self, s: dict[str, Any]) -> Any:
@@ -396,6 +413,7 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
                                                          *[e for e in rpcs
                                                            if isinstance(e, DataReader)])],
                         writer_gid_seq=[gid(w) for w in (*self._writers.values(),
+                                                         *[v[1] for v in self._views.values()],
                                                          *[e for e in rpcs
                                                            if isinstance(e, DataWriter)])])
         info = info_cls(gid=gid(self._dp), node_entities_info_seq=[node])
@@ -437,7 +455,8 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             self._goal_snap = {n: (c.status, c.feedback, c.result)
                                for n, c in self._actions.items()}
             self._call_snap = {n: (c.status, c.response) for n, c in self._services.items()}
-        return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers)}
+        return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers),
+                **rpc.snapshot_values(self._goal_snap, self._call_snap)}
 
     def views(self) -> dict[str, Any]:
         """What the live views show (the monitor's thread calls it; the instant's snapshot
@@ -457,13 +476,13 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
                 "distro": self.distro, "subscriptions": subs, "publications": pubs}
 
     # -- actions and services, live ---------------------------------------------------
-    def _send_goal(self, name: str, goal: Any) -> None:
+    def _send_goal(self, name: str, goal: Any, running: bool) -> None:
         data = cdr.serialize(goal)
         with self._lock:
             client = self._actions[name]
-            replaced = client.send_goal(goal, time.monotonic())
+            client.send_goal(goal, time.monotonic())  # cancels the goal it has running
             client.poll(time.monotonic())
-        if replaced:
+        if running:  # recorded as the instant saw it, so that a replay tells the same
             self._told("cancel", [name, "replaced"])
         self._told("send_goal", [name, base64.b64encode(data).decode("ascii")])
 
@@ -507,6 +526,11 @@ class Ros2Node(Ros2Lockstep, Ros2Queries):
             self._told("cancel", [n, "stop"])
             with contextlib.suppress(DDSException):
                 self._actions[n].cancel_ep.writer.wait_for_acks(duration(seconds=1))
+
+    def introspection(self) -> Any:
+        """With ``introspection: true``: the observer that publishes the automaton on
+        /fsm_viewer and ~/hfsm/status (SPEC 5.4); else None."""
+        return _intro().Introspection(self, self._views) if self._views else None
 
     def dropped(self, name: str) -> int:
         """Malformed samples of ``name`` dropped so far (not a snapshot: for the views)."""

@@ -27,10 +27,14 @@ from typing import Any
 if __package__:
     from . import hfsmc_ros2 as ros2
     from . import hfsmc_ros2_cdr as cdr
+    from . import hfsmc_ros2_rpc as rpc
+    from . import hfsmc_ros2_servers as servers
     from . import hfsmc_ros2_wire as wire
 else:  # beside the generated component
     import hfsmc_ros2 as ros2  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_cdr as cdr  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2_rpc as rpc  # type: ignore[import-not-found, no-redef]
+    import hfsmc_ros2_servers as servers  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2_wire as wire  # type: ignore[import-not-found, no-redef]
 
 _FIELDS = ("count", "age", "publishers", "dropped", "cdr")
@@ -46,15 +50,18 @@ class Ros2Fake(ros2.Ros2Queries):
         self.quiet = False
         self.on_command: Any = None  # the playback's (hfsmc_interfaces.hook)
         self.on_publish: Any = None
-        if settings.get("actions") or settings.get("services"):
-            raise ros2.Ros2Error("a model with ROS 2 actions or services does not replay yet "
-                                 "(docs/ros2.md)")
-        self._acts: dict[str, Any] = {}
-        self._srvs: dict[str, Any] = {}
-        self._goal_snap: dict[str, Any] = {}
-        self._call_snap: dict[str, Any] = {}
         self.node = wire.validate_node_name(str(settings.get("node") or name))
         self.namespace = wire.validate_namespace(str(settings.get("namespace") or "/"))
+        self._acts = ros2.Ros2Node._rpc_settings(self, settings.get("actions") or {})  # type: ignore[arg-type]
+        self._srvs = ros2.Ros2Node._rpc_settings(self, settings.get("services") or {})  # type: ignore[arg-type]
+        # what the script says of each goal and call (the latest, applied over before)
+        self._goals: dict[str, dict[str, Any]] = {
+            n: {"status": "none", "feedback": None, "result": None} for n in self._acts}
+        self._calls: dict[str, dict[str, Any]] = {
+            n: {"status": "none", "response": None} for n in self._srvs}
+        self._goal_snap = {n: ("none", None, None) for n in self._acts}
+        self._call_snap = {n: ("none", None) for n in self._srvs}
+        self._servers = servers.Scripted(self._acts, self._srvs)  # a scenario's
         self._subs = ros2.Ros2Node._endpoints(self, settings.get("subscribe") or {})  # type: ignore[arg-type]
         self._pubs = ros2.Ros2Node._endpoints(self, settings.get("publish") or {})  # type: ignore[arg-type]
         ros2.Ros2Node._check_topics(self)  # type: ignore[arg-type]
@@ -75,10 +82,12 @@ class Ros2Fake(ros2.Ros2Queries):
         are left out: another model than the recorded one can be replayed)."""
         if not isinstance(values, dict):
             raise ValueError("`values` must be a mapping")
-        odd = [k for k in values if k not in ("subscriptions", "subscribers")]
+        known = ("subscriptions", "subscribers", "goals", "calls", *(() if recorded else
+                                                                      ("servers",)))
+        odd = [k for k in values if k not in known]
         if odd:
             raise ValueError(f"the ros2 interface `{self.name}` has no snapshot field "
-                             f"`{odd[0]}` (subscriptions, subscribers)")
+                             f"`{odd[0]}` ({', '.join(known)})")
         subs: dict[str, dict[str, Any]] = {}
         for n, v in _mapping(values.get("subscriptions"), "subscriptions").items():
             if recorded and n not in self._subs:
@@ -105,7 +114,11 @@ class Ros2Fake(ros2.Ros2Queries):
                 continue
             self._known(n, self._pubs, "publication")
             pubs[n] = _count(k, f"`{n}`'s subscribers")
-        return {"subscriptions": subs, "subscribers": pubs}
+        out = {"subscriptions": subs, "subscribers": pubs,
+               **rpc.from_recorded(values, self._acts, self._srvs, recorded)}
+        if "servers" in values:
+            out["servers"] = servers.convert(values["servers"], self._acts, self._srvs)
+        return out
 
     def _decode(self, n: str, text: Any) -> tuple[Any, bytes | None]:
         if text is None:
@@ -135,6 +148,11 @@ class Ros2Fake(ros2.Ros2Queries):
                 s["count"] = s["count"] + (v["cdr"] is not None)
             s.update(v)
         self._given_subscribers.update(values["subscribers"])
+        for n, v in values.get("goals", {}).items():
+            self._goals[n].update(v)
+        for n, v in values.get("calls", {}).items():
+            self._calls[n].update(v)
+        self._servers.holding.update(values.get("servers", {}))
 
     def snapshot(self) -> dict[str, Any]:
         now = self.playback.t if self.playback is not None else 0
@@ -153,7 +171,13 @@ class Ros2Fake(ros2.Ros2Queries):
                          "dropped": s["dropped"], "cdr": s["cdr"]}
         self._snap = snap
         self._snap_subscribers = dict(self._given_subscribers)
-        return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers)}
+        scripted = self._servers
+        self._goal_snap = {n: scripted.goal(n, now) or (g["status"], g["feedback"], g["result"])
+                           for n, g in self._goals.items()}
+        self._call_snap = {n: scripted.call(n, now) or (c["status"], c["response"])
+                           for n, c in self._calls.items()}
+        return {"subscriptions": topics, "subscribers": dict(self._snap_subscribers),
+                **rpc.snapshot_values(self._goal_snap, self._call_snap)}
 
     # -- what snippets call --------------------------------------------------------------
     def __getattr__(self, attr: str) -> Any:
@@ -178,9 +202,56 @@ class Ros2Fake(ros2.Ros2Queries):
         self._asked("subscribers", name)
         return super().subscribers(name)
 
+    def goal_status(self, name: str) -> str:
+        self._asked("goal_status", name)
+        return super().goal_status(name)
+
+    def feedback(self, name: str) -> Any:
+        self._asked("feedback", name)
+        return super().feedback(name)
+
+    def result(self, name: str) -> Any:
+        self._asked("result", name)
+        return super().result(name)
+
+    def call_status(self, name: str) -> str:
+        self._asked("call_status", name)
+        return super().call_status(name)
+
+    def response(self, name: str) -> Any:
+        self._asked("response", name)
+        return super().response(name)
+
+    def cancel(self, name: str) -> bool:
+        self._asked("cancel", name)  # it reads the goal's status
+        return super().cancel(name)
+
     def _send(self, name: str, data: bytes) -> None:
+        self._tell("publish", [name, base64.b64encode(data).decode("ascii")])
+
+    # -- commands: told, as the live node tells the recording, and sent nowhere --------
+    def _send_goal(self, name: str, goal: Any, running: bool) -> None:
+        if self._servers.scripted(name):
+            self._servers.send(name, self._now())
+        if running:
+            self._tell("cancel", [name, "replaced"])
+        self._tell("send_goal", [name, base64.b64encode(cdr.serialize(goal)).decode("ascii")])
+
+    def _cancel(self, name: str) -> None:
+        self._servers.cancel(name, self._now())
+        self._tell("cancel", [name])
+
+    def _call(self, name: str, request: Any) -> None:
+        if self._servers.scripted(name):
+            self._servers.send(name, self._now())
+        self._tell("call", [name, base64.b64encode(cdr.serialize(request)).decode("ascii")])
+
+    def _now(self) -> int:
+        return int(self.playback.t) if self.playback is not None else 0
+
+    def _tell(self, call: str, args: list[Any]) -> None:
         if self.on_command is not None:
-            self.on_command("publish", [name, base64.b64encode(data).decode("ascii")])
+            self.on_command(call, args)
 
     def close(self) -> None:
         """Nothing to leave (the live node's DDS entities)."""
@@ -230,6 +301,11 @@ def fake(name: str, settings: dict[str, Any], playback: Any,
     except ros2.Ros2Error as e:
         raise ValueError(f"interface `{name}`: {e}") from None
     recorded = bool(getattr(playback, "recorded", False))
+    # A scenario's script: no server unless it scripts one. A script that gives the goals'
+    # and calls' values itself (a recording, or one written by hand) answers with those.
+    gives = any(isinstance(values, dict) and (values.get("goals") or values.get("calls"))
+                for _, values, _ in rows)
+    made._servers.every = not recorded and not gives
     out = []
     for t, values, missing in rows:
         try:
@@ -237,6 +313,8 @@ def fake(name: str, settings: dict[str, Any], playback: Any,
             if recorded:  # what the model has and the recorded run did not: not evidence
                 missing = missing | (frozenset(made._subs) - frozenset(converted["subscriptions"]))
                 missing = missing | (frozenset(made._pubs) - frozenset(converted["subscribers"]))
+                missing = missing | (frozenset(made._acts) - frozenset(converted.get("goals", {})))
+                missing = missing | (frozenset(made._srvs) - frozenset(converted.get("calls", {})))
             out.append((t, converted, missing))
         except ValueError as e:
             raise ValueError(f"t={t}: interface `{name}`: {e}") from None

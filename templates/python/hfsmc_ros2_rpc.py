@@ -23,6 +23,8 @@ runtime's wire module.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import os
 import struct
 import time
@@ -49,6 +51,9 @@ GOAL_STATUS = {1: "accepted", 2: "executing", 3: "canceling", 4: "succeeded", 5:
                6: "aborted"}
 TERMINAL = frozenset({"succeeded", "aborted", "canceled", "rejected", "timeout"})
 RUNNING = frozenset({"pending", "accepted", "executing", "canceling", "no_server"})
+GOAL_STATUSES = ("none", "pending", "accepted", "executing", "canceling", "succeeded",
+                 "aborted", "canceled", "rejected", "no_server", "timeout")
+CALL_STATUSES = ("none", "pending", "done", "no_server", "timeout")
 
 
 def wrap(client: int, seq: int, data: bytes) -> bytes:
@@ -479,3 +484,94 @@ class ActionServer:
             for gid, g in self.goals.items()])
         self.status_writer.write(wire.raw_sample(self.status_writer.data_type,
                                                  cdr.serialize(arr)))
+
+
+# -- the instant's snapshot of goals and calls, live, recorded and replayed ---------------
+def snapshot_values(goals: dict[str, tuple[str, Any, Any]], calls: dict[str, tuple[str, Any]]
+                    ) -> dict[str, Any]:
+    """The goals' and calls' part of an instant's snapshot (none for an interface without
+    actions or services, whose recordings stay as they were)."""
+    out: dict[str, Any] = {}
+    if goals:
+        out["goals"] = {n: {"status": s, "feedback": f, "result": r}
+                        for n, (s, f, r) in goals.items()}
+    if calls:
+        out["calls"] = {n: {"status": s, "response": r} for n, (s, r) in calls.items()}
+    return out
+
+
+_MESSAGES = (("goals", ("feedback", "result")), ("calls", ("response",)))
+
+
+def as_recorded(values: dict[str, Any], last: dict[tuple[str, str, str], Any]
+                ) -> dict[str, Any]:
+    """The goals and calls of a snapshot as the recording keeps them: each status every
+    instant; a feedback, a result or a response (its CDR in base64, null for none) only
+    in the instant it changed (``last``: what was recorded before, per name)."""
+    out: dict[str, Any] = {}
+    for key, fields in _MESSAGES:
+        if key not in values:
+            continue
+        table: dict[str, Any] = {}
+        for n, v in values[key].items():
+            entry: dict[str, Any] = {"status": v["status"]}
+            for f in fields:
+                msg = v[f]
+                if last.get((key, n, f)) is not msg:
+                    last[(key, n, f)] = msg
+                    entry[f] = None if msg is None else \
+                        base64.b64encode(cdr.serialize(msg)).decode("ascii")
+            table[n] = entry
+        out[key] = table
+    return out
+
+
+def from_recorded(values: dict[str, Any], acts: dict[str, Any], srvs: dict[str, Any],
+                  recorded: bool) -> dict[str, Any]:
+    """A script's goals and calls checked and decoded (ValueError says what is wrong):
+    name -> {"status", and the messages it gives}; a name the model does not have is
+    left out of a recorded run's (another model may be replayed), else refused."""
+    out: dict[str, Any] = {}
+    for key, fields in _MESSAGES:
+        table, statuses = (acts, GOAL_STATUSES) if key == "goals" else (srvs, CALL_STATUSES)
+        given = values.get(key)
+        if given is None:
+            continue
+        if not isinstance(given, dict):
+            raise ValueError(f"`{key}` must be a mapping")
+        got: dict[str, Any] = {}
+        for n, v in given.items():
+            if n not in table:
+                if recorded:
+                    continue
+                raise ValueError(f"no {'action' if key == 'goals' else 'service'} `{n}` "
+                                 f"({', '.join(table) or 'none'})")
+            if not isinstance(v, dict) or v.get("status") not in statuses:
+                raise ValueError(f"`{key}.{n}`: {{status, {', '.join(fields)}}} with a "
+                                 f"status among {', '.join(statuses)}")
+            entry = {"status": v["status"]}
+            cls = table[n]["class"]
+            for f in fields:
+                if f in v:
+                    entry[f] = _decoded(getattr(cls, f.capitalize()), v[f], f"`{n}`'s {f}")
+            odd = [k for k in v if k not in ("status", *fields)]
+            if odd:
+                raise ValueError(f"`{key}.{n}` has no field `{odd[0]}`")
+            got[n] = entry
+        out[key] = got
+    return out
+
+
+def _decoded(cls: Any, text: Any, what: str) -> Any:
+    if text is None:
+        return None
+    if not isinstance(text, str):
+        raise ValueError(f"{what} must be base64 text")
+    try:
+        data = base64.b64decode(text, validate=True)
+    except (binascii.Error, ValueError):
+        raise ValueError(f"{what} is not base64") from None
+    try:
+        return cdr.deserialize(cls, data)
+    except cdr.CdrError as e:
+        raise ValueError(f"{what} is no {cls._TYPE}: {e}") from None

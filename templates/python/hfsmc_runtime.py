@@ -92,6 +92,7 @@ class Engine:
         self.trace_variables = False  # --trace-variables: `variables` records in the trace
         self.traced_values: dict[str, str] = {}
         self.observers: list[Any] = []
+        self.instant_hooks: list[Callable[[], None]] = []  # observers' after_instant
         self.request: str | None = None  # shutdown / error / final, acted on at the boundary
         self.signal_reason: str | None = None
         self.interrupting: str | None = None  # the interrupt's reason while one runs
@@ -348,6 +349,8 @@ class Engine:
                     if self.request is not None or self.signal_reason is not None:
                         if self.trace_variables:
                             self.trace_values()
+                        for hook in self.instant_hooks:  # the instant ends here
+                            hook()
                         return
                 k += 1
             if self.trace_variables:
@@ -355,6 +358,8 @@ class Engine:
             if recorder is not None:
                 recorder.flush()
             if self.observers:
+                for hook in self.instant_hooks:
+                    hook()
                 self.sample()
 
     def fresh(self) -> None:
@@ -1154,6 +1159,13 @@ def _observers(engine: Engine, args: argparse.Namespace) -> None:
             raise UsageError(f"--monitor {args.monitor}: {e}") from None
         server.watch(interfaces)
         engine.observers.append(server)
+    for iface in interfaces.values():  # a ros2 interface's introspection (docs/ros2.md)
+        if callable(getattr(type(iface), "introspection", None)):
+            observer = iface.introspection()
+            if observer is not None:
+                engine.observers.append(observer)
+    engine.instant_hooks = [o.after_instant for o in engine.observers
+                            if callable(getattr(o, "after_instant", None))]
     if engine.observers:
         structure = engine.structure()
         for o in engine.observers:

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from rich.text import Text
 
 if __package__:
+    from . import hfsmc_driverview as _driverview
     from . import hfsmc_ros2view as _ros2view
     from .hfsmc_viewstate import (
         EVENTS,
@@ -55,6 +56,7 @@ if __package__:
         readable,
     )
 else:  # copied beside the generated component, where the modules are top level
+    import hfsmc_driverview as _driverview  # type: ignore[import-not-found, no-redef]
     import hfsmc_ros2view as _ros2view  # type: ignore[import-not-found, no-redef]
     from hfsmc_viewstate import (  # type: ignore[import-not-found, no-redef]
         EVENTS,
@@ -287,6 +289,16 @@ def _ros2_part(view: ViewState) -> tuple[list[RenderableType], int]:
             table.add_row(*cells, style=style)
             lines += 1
         parts.append(table)
+    for name in sorted(view.drivers):  # a user driver's snapshot: field, value
+        table = Table.grid(padding=(0, 2))
+        table.add_column(no_wrap=True, style="magenta")
+        table.add_column(no_wrap=True, overflow="ellipsis")
+        title, *rows = _driverview.driver_rows(view.drivers[name])
+        table.add_row(clean(title[0]), "", style="bold")
+        for field, value in rows:
+            table.add_row(clean(field), clean(value))
+        lines += 1 + len(rows)
+        parts.append(table)
     return parts, lines
 
 
@@ -369,7 +381,8 @@ def render(view: ViewState, focus: str | None = None, autofocus: bool = True,
                  len(set(view.variable_names) | set(view.values))]
         panel_min = 2 + 4 + (view.interrupt is not None) + min(sum(n + 1 for n in items if n), 6) \
             + sum(1 + len(m.get("subscriptions", ())) + len(m.get("publications", ()))
-                  for m in view.ros2.values())
+                  for m in view.ros2.values()) \
+            + sum(1 + len(m.get("fields", ())) for m in view.drivers.values())
         tree, used = _tree(view, focus, autofocus, max(rows - panel_min, 2))
         return Group(tree, _panel(view, autofocus, rows - used, keys))
     tree, _ = _tree(view, focus, autofocus, rows)
@@ -601,25 +614,33 @@ class Display:
         self._keys: _Keys | None = None
         self._writers: list[tuple[str, _QueueWriter]] = []
         self._ros2: dict[str, Any] = {}
+        self._drivers: dict[str, Any] = {}
         self._rates = _ros2view.Rates()
         self._t_ms = 0
 
     def watch(self, interfaces: dict[str, Any]) -> None:
         """The component's interface objects (before ``start``): a live ros2 node's topics
-        are shown under the panel's facts, as the monitor sends them."""
+        and a user driver's snapshot are shown under the panel's facts, as the monitor
+        sends them."""
         for name, obj in interfaces.items():
             with contextlib.suppress(Exception):  # an interface it cannot drive raises on use
-                if callable(getattr(obj, "views", None)) and callable(getattr(obj, "publish", None)):
+                if _driverview.is_driver(obj):
+                    self._drivers[name] = obj
+                elif callable(getattr(obj, "views", None)) and callable(getattr(obj, "publish", None)):
                     self._ros2[name] = obj
 
     def _poll(self) -> list[Item]:
-        """On the display's thread, at each redraw: the ros2 nodes' topics."""
+        """On the display's thread, at each redraw: the ros2 nodes' topics, the drivers'
+        snapshots."""
         now = time.monotonic()
         out: list[Item] = []
         for name, node in self._ros2.items():
             with contextlib.suppress(Exception):
                 out.append(("ros2", _ros2view.ros2_message(name, self._t_ms, node.views(),
                                                            self._rates, now)))
+        for name, driver in self._drivers.items():
+            with contextlib.suppress(Exception):
+                out.append(("driver", _driverview.driver_message(name, self._t_ms, driver)))
         return out
 
     def start(self, structure: dict[str, Any]) -> None:
@@ -629,7 +650,7 @@ class Display:
                   file=sys.stderr, flush=True)
             live = False
         screen = _Screen(self._focus, self._autofocus, self._stream, live, quit_key=False)
-        if self._ros2:
+        if self._ros2 or self._drivers:
             screen.poll = self._poll
         self._q.put(("structure", structure))
         if live:

@@ -169,6 +169,7 @@ class ViewState:
         self.stopped_in: dict[str, int] = {}  # the states the stop exited
         self.note: str | None = None  # "disconnected", "replayed ...": shown with the status
         self.ros2: dict[str, dict[str, Any]] = {}  # a ros2 interface's latest ``ros2`` message
+        self.drivers: dict[str, dict[str, Any]] = {}  # a user driver's latest ``driver`` message
         self._exited: dict[str, int] = {}  # exits since the last enter, fire or interrupt
         if structure is not None:
             self.apply_structure(structure)
@@ -348,6 +349,8 @@ class ViewState:
             self.advance(payload)
         elif kind == "ros2":
             self.ros2[str(payload["name"])] = payload
+        elif kind == "driver":
+            self.drivers[str(payload["name"])] = payload
 
 
 # -- plain lines ---------------------------------------------------------------------------

@@ -442,6 +442,9 @@
   // -- the vehicle panel and the camera's frames (monitor minor version 1) ---------------
   function showFeeds(feeds) {
     const vehicles = feeds.vehicle || [], cameras = feeds.camera || [];
+    const drivers = $("hv-drivers");
+    drivers.hidden = (feeds.driver || []).length === 0;
+    for (const t of [...drivers.querySelectorAll("table")]) t.remove();
     const vbox = $("hv-vehicles"), cbox = $("hv-cameras");
     vbox.hidden = vehicles.length === 0;
     cbox.hidden = cameras.length === 0;
@@ -489,6 +492,39 @@
     const age = typeof msg.link_age === "number" ? fixed(msg.link_age, 1) + " s ago" : "never";
     cell("link").textContent = msg.connected ? "heartbeat " + age : "lost (heartbeat " + age + ")";
     cell("link").className = msg.connected ? "" : "hv-lost";
+  }
+
+  // A user driver's snapshot (monitor minor 4): one small table per interface, its
+  // fields in the declaration's order; text only (textContent), whatever the driver says.
+  function onDriver(msg) {
+    if (!Array.isArray(msg.fields)) return;
+    const box = $("hv-drivers");
+    let table = [...box.querySelectorAll("table")].find((t) => t.dataset.name === msg.name);
+    if (!table) {
+      table = el("table", "hv-driver");
+      table.dataset.name = msg.name;
+      table.appendChild(el("caption", "", ""));
+      table.appendChild(el("tbody"));
+      box.appendChild(table);
+      box.hidden = false;
+    }
+    table.querySelector("caption").textContent =
+      msg.kind + " " + msg.name + (msg.live === false ? " (playback)" : "");
+    const body = table.querySelector("tbody");
+    const rows = new Map([...body.querySelectorAll("tr")].map((tr) => [tr.dataset.key, tr]));
+    for (const f of msg.fields) {
+      let tr = rows.get(f.name);
+      if (!tr) {
+        tr = el("tr");
+        tr.dataset.key = f.name;
+        tr.append(el("th", "", f.name), el("td", "", ""));
+        body.appendChild(tr);
+        rows.set(f.name, tr);
+      }
+      const v = f.value;
+      tr.querySelector("td").textContent = v === null || v === undefined ? "–"
+        : typeof v === "number" ? String(Number(v.toPrecision(6))) : String(v);
+    }
   }
 
   function onFrame(msg) {
@@ -595,6 +631,7 @@
     else if (msg.type === "vehicle") onVehicle(msg);
     else if (msg.type === "frame") onFrame(msg);
     else if (msg.type === "ros2") window.hfsmcRos2.onRos2(msg);
+    else if (msg.type === "driver") onDriver(msg);
     else if (msg.type === "scan") window.hfsmcRos2.onScan(msg);
     else if (msg.type === "trail") window.hfsmcRos2.onTrail(msg);
     else if (msg.type === "world") window.hfsmcRos2.onWorld(msg);

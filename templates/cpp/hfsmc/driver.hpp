@@ -16,11 +16,13 @@
 #pragma once
 
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -29,6 +31,7 @@
 #include <vector>
 
 #include "hfsmc/json.hpp"
+#include "hfsmc/observer.hpp"
 #include "hfsmc/playback.hpp"
 #include "hfsmc/record.hpp"
 #include "hfsmc/thread.hpp"
@@ -66,6 +69,7 @@ public:
             for (const playback::Entry& e : inputs->entries(name_)) apply(scratch, e);
         }
         register_source(this);
+        view_.start(inputs_ == nullptr);
     }
     ~Driver() override {
         unregister_source(this);
@@ -93,11 +97,13 @@ public:
             Snap latest = snap_;
             read(latest);
             snap_ = latest;
+            view_.set(snap_);
             return;
         }
         const std::vector<playback::Entry>& entries = inputs_->entries(name_);
         for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
         snap_ = fed_;
+        view_.set(snap_);
         evidence_.at(inputs_, name_, t_us, next_ > 0 ? &entries[next_ - 1] : nullptr, -1);
     }
     std::string snapshot_fields() const override {
@@ -197,6 +203,88 @@ private:
         }
     }
 
+    // The live views (schemas/monitor.md, minor version 4): the latest instant's snapshot,
+    // copied for the monitor's thread once a viewer has asked (nothing is copied before),
+    // sent as field/value pairs. A Feed of its own, unregistered when it goes, first of
+    // the driver's members (the monitor then never sees a driver half gone).
+    class View final : public Feed {
+    public:
+        View(const char* kind, const std::string& name) : kind_(kind), name_(name) {}
+        ~View() override {
+            if (started_) unregister_feed(this);
+        }
+        View(const View&) = delete;
+        View& operator=(const View&) = delete;
+        void start(bool live) {
+            live_ = live;
+            started_ = true;
+            register_feed(this);
+        }
+        void set(const Snap& s) {
+            if (!watched_.load(std::memory_order_relaxed)) return;
+            std::lock_guard<std::mutex> lock(m_);
+            shown_ = s;
+            has_ = true;
+        }
+        const char* feed_kind() const override { return "driver"; }
+        std::string feed_name() const override { return name_; }
+        std::string feed_message(long long t_ms) override {
+            watched_ = true;
+            Snap s;
+            {
+                std::lock_guard<std::mutex> lock(m_);
+                if (!has_) return "";
+                s = shown_;
+            }
+            std::string fields;
+            for (const Field& f : Snap::fields(s)) {
+                fields += std::string(fields.empty() ? "" : ",") + "{\"name\":" + json_string(f.name) +
+                          ",\"value\":";
+                if (auto d = std::get_if<double*>(&f.ref)) fields += number(**d);
+                else if (auto i = std::get_if<long long*>(&f.ref))
+                    fields += (**i < (1LL << 53) && **i > -(1LL << 53)) ? std::to_string(**i)
+                                                                         : json_string(std::to_string(**i));
+                else if (auto b = std::get_if<bool*>(&f.ref)) fields += **b ? "true" : "false";
+                else fields += json_string(cut(*std::get<std::string*>(f.ref)));
+                fields += "}";
+            }
+            return "{\"type\":\"driver\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
+                   ",\"kind\":" + json_string(kind_) + ",\"live\":" + (live_ ? "true" : "false") +
+                   ",\"fields\":[" + fields + "]}";
+        }
+
+    private:
+        // 6 significant digits, as the Python monitor sends them; inf, -inf, nan as text.
+        static std::string number(double v) {
+            if (!std::isfinite(v)) return "\"" + float_repr(v) + "\"";
+            char b[32];
+            std::snprintf(b, sizeof b, "%.6g", v);
+            return b;
+        }
+        // At most 80 characters (code points): longer ends with an ellipsis.
+        static std::string cut(const std::string& text) {
+            std::size_t points = 0;
+            for (std::size_t i = 0; i < text.size(); ++i) {
+                if ((static_cast<unsigned char>(text[i]) & 0xC0) == 0x80) continue;
+                if (++points == 80) {
+                    std::size_t rest = 0;
+                    for (std::size_t j = i; j < text.size(); ++j)
+                        rest += (static_cast<unsigned char>(text[j]) & 0xC0) != 0x80;
+                    return rest > 1 ? text.substr(0, i) + "\u2026" : text;
+                }
+            }
+            return text;
+        }
+
+        const char* kind_;
+        std::string name_;
+        bool live_ = true, started_ = false;
+        std::mutex m_;
+        Snap shown_{};
+        bool has_ = false;
+        std::atomic<bool> watched_{false};
+    };
+
     const char* kind_;
     std::string name_, url_;
     Options options_;
@@ -206,6 +294,7 @@ private:
     playback::Evidence evidence_;
     std::atomic<bool> stop_{false};
     std::vector<std::thread> threads_;
+    View view_{kind_, name_};  // last: gone first
 };
 
 }  // namespace hfsmc

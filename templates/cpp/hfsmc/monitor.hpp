@@ -6,7 +6,9 @@
 // Minor version 1: the registered Feeds (observer.hpp: a `mavlink` vehicle, a `camera`)
 // are sent too, a vehicle's state to every client a few times a second, a camera's frames
 // only to the clients that asked for them with {"type":"subscribe","frames":true}, each new
-// frame made once per feed whatever the clients ask. A connection beyond the client slots,
+// frame made once per feed whatever the clients ask. Minor version 4: a user driver's
+// snapshot (driver.hpp), to every client (the hello says 4 when there is one, else 2: a C++
+// component sends no ros2 messages). A connection beyond the client slots,
 // or beyond one address's share of them, is told `busy` (and why) and closed.
 #pragma once
 
@@ -228,7 +230,7 @@ private:
     std::deque<Item> taken_;
     std::vector<std::unique_ptr<Client>> clients_;
     ViewState view_;
-    bool has_feeds_ = false, has_cameras_ = false;
+    bool has_feeds_ = false, has_cameras_ = false, has_drivers_ = false;
     std::map<std::string, Frame> frames_;  // per camera
     std::chrono::steady_clock::time_point next_feed_{};
 
@@ -401,22 +403,27 @@ private:
     }
 
     std::string feeds_json() {
-        std::string vehicle, camera;
+        std::string vehicle, camera, driver;
         std::lock_guard<std::mutex> lock(feeds_mutex());
         for (Feed* f : feeds()) {
             const bool is_camera = std::strcmp(f->feed_kind(), "camera") == 0;
-            std::string& list = is_camera ? camera : vehicle;
+            const bool is_driver = std::strcmp(f->feed_kind(), "driver") == 0;
+            std::string& list = is_camera ? camera : is_driver ? driver : vehicle;
             list += (list.empty() ? "" : ",") + json_string(f->feed_name());
             has_feeds_ = true;
             has_cameras_ = has_cameras_ || is_camera;
+            has_drivers_ = has_drivers_ || is_driver;
         }
-        return "{\"vehicle\":[" + vehicle + "],\"camera\":[" + camera + "]}";
+        return "{\"vehicle\":[" + vehicle + "],\"camera\":[" + camera + "]" +
+               (driver.empty() ? "" : ",\"ros2\":[],\"driver\":[" + driver + "]") + "}";
     }
 
     std::string hello_json() {
         const Structure& s = structure_;
+        const std::string feeds = feeds_json();  // first: it says whether a driver is fed
         std::string o = "{\"type\":\"hello\",\"protocol\":" + std::to_string(PROTOCOL) +
-                        ",\"minor\":" + std::to_string(MINOR) + ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
+                        ",\"minor\":" + std::to_string(has_drivers_ ? 4 : MINOR) +
+                        ",\"structure\":{\"name\":" + json_string(s.name) + ",\"automata\":[";
         for (const auto& a : s.automata) {
             if (o.back() != '[') o += ',';
             o += "{\"owner\":" + json_string(a.owner) + ",\"region\":" +
@@ -444,7 +451,7 @@ private:
             o += json_string(v);
         }
         return o + "],\"parameters\":" + ViewState::values_json(s.parameters) +
-               "},\"feeds\":" + feeds_json() + "}\n";
+               "},\"feeds\":" + feeds + "}\n";
     }
 
     void send_all(const std::string& data) {

@@ -70,7 +70,7 @@ public:
 class Feed {
 public:
     virtual ~Feed() = default;
-    virtual const char* feed_kind() const = 0;  // "vehicle" or "camera"
+    virtual const char* feed_kind() const = 0;  // "vehicle", "camera" or "driver"
     virtual std::string feed_name() const = 0;
     // The JSON message to send now (no "\n"), "" for none: a vehicle's state, or a
     // camera's frame when a snippet obtained a new one since the last call.

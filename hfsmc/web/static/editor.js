@@ -1,0 +1,509 @@
+// hfsmc edit's page (docs/editor.md): one sub-automaton at a time on an SVG canvas, the
+// state tree, CodeMirror editors for snippets and conditions, problems on what they are
+// about. The server holds the edit session; this page sends it operations by name.
+"use strict";
+
+const SVG = "http://www.w3.org/2000/svg";
+const W = 140, H = 50;  // a state's box
+const $ = (id) => document.getElementById(id);
+let model = null;      // the server's last "model" message
+let cur = "";          // the automaton shown: its owner's path ("" the root)
+let sel = null;        // {kind: "state", path} | {kind: "edge", state, index}
+let ws = null;
+let drag = null;       // a state being moved or a transition being drawn
+const editors = {};    // field -> {view, key}
+let panelFor = null;   // what the side panel was built for
+
+function send(op, args) {
+  if (ws && ws.readyState === 1) ws.send(JSON.stringify({op, args: args || {}}));
+}
+const prefix = (owner) => (owner ? owner + "/" : "");
+const parentOf = (path) => (path.includes("/") ? path.slice(0, path.lastIndexOf("/")) : "");
+const baseName = (path) => path.slice(path.lastIndexOf("/") + 1);
+function el(tag, attrs, parent) {
+  const e = document.createElementNS(SVG, tag);
+  for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, v);
+  if (parent) parent.appendChild(e);
+  return e;
+}
+function problemsOf(state, transition) {
+  return (model ? model.diagnostics : []).filter(
+    (d) => !d.other && d.state === state && (transition === undefined || d.transition === transition));
+}
+function worst(list) {
+  return list.some((d) => d.severity === "error") ? "error" : list.length ? "warning" : "";
+}
+function say(text, error) {
+  const m = $("message");
+  m.hidden = !text;
+  m.textContent = text || "";
+  m.className = error ? "error" : "";
+}
+
+// ----- the connection
+function connect() {
+  ws = new WebSocket(`ws://${location.host}/ws`);
+  ws.onmessage = (ev) => {
+    const msg = JSON.parse(ev.data);
+    if (msg.type === "error") { say(msg.message, true); return; }
+    model = msg;
+    if (!(cur in model.automata)) cur = "";
+    if (sel && sel.kind === "state" && !(sel.path in model.states)) sel = null;
+    if (sel && sel.kind === "edge" && !(model.states[sel.state] &&
+        model.states[sel.state].transitions[sel.index])) sel = null;
+    if (msg.message) say(msg.message, false);
+    else if (msg.layout_problem) say(msg.layout_problem, true);
+    render();
+  };
+  ws.onclose = () => say("the editor's server is gone: start hfsmc edit again", true);
+}
+
+// ----- drawing
+function render() {
+  document.body.dataset.ready = "1";
+  $("file").textContent = model.file + (model.read_only ? " (read-only)" : "");
+  const st = $("status");
+  st.textContent = model.dirty ? "unsaved" : "saved";
+  st.className = model.dirty ? "dirty" : "";
+  $("undo").disabled = !model.can_undo;
+  $("redo").disabled = !model.can_redo;
+  $("save").disabled = !model.dirty || model.read_only;
+  $("up").disabled = cur === "";
+  $("conflict").hidden = !model.conflict;
+  $("conflict-text").textContent = model.conflict ?
+    `${model.file} changed on disk while you have unsaved edits: not saved over. ` : "";
+  crumbs(); tree(); canvas(); panel(); problems();
+}
+
+function crumbs() {
+  const nav = $("crumbs");
+  nav.textContent = "";
+  const parts = cur ? cur.split("/") : [];
+  const add = (label, path) => {
+    const a = document.createElement("a");
+    a.textContent = label;
+    a.dataset.path = path;
+    a.onclick = () => open(path);
+    nav.appendChild(a);
+  };
+  add(model.file.replace(/\.[^.]*$/, ""), "");
+  parts.forEach((p, i) => add(p, parts.slice(0, i + 1).join("/")));
+}
+
+function tree() {
+  const root = $("tree");
+  root.textContent = "";
+  const q = $("search").value.trim().toLowerCase();
+  const build = (owner, ul) => {
+    for (const name of (model.automata[owner] || {states: []}).states) {
+      const path = prefix(owner) + name;
+      const li = document.createElement("li");
+      const span = document.createElement("span");
+      span.textContent = name;
+      span.dataset.path = path;
+      if (sel && sel.kind === "state" && sel.path === path) span.classList.add("current");
+      if (worst(problemsOf(path)) === "error") span.classList.add("bad");
+      if (q && !path.toLowerCase().includes(q)) span.classList.add("hidden");
+      span.onclick = () => { sel = {kind: "state", path}; open(owner); };
+      li.appendChild(span);
+      ul.appendChild(li);
+      if (model.automata[path]) {
+        const sub = document.createElement("ul");
+        li.appendChild(sub);
+        build(path, sub);
+      }
+    }
+  };
+  build("", root);
+}
+
+function center(path) { return model.positions[path] || [80, 80]; }
+
+// Where the segment from the centre of box a towards point p leaves the box.
+function border(c, p) {
+  const dx = p[0] - c[0], dy = p[1] - c[1];
+  if (!dx && !dy) return c;
+  const t = Math.min(Math.abs((W / 2) / (dx || 1e-9)), Math.abs((H / 2) / (dy || 1e-9)));
+  return [c[0] + dx * t, c[1] + dy * t];
+}
+
+function canvas() {
+  const svg = $("canvas");
+  svg.textContent = "";
+  const defs = el("defs", {}, svg);
+  const marker = el("marker", {id: "arrow", viewBox: "0 0 10 10", refX: 9, refY: 5,
+    markerWidth: 8, markerHeight: 8, orient: "auto-start-reverse"}, defs);
+  el("path", {d: "M0,0 L10,5 L0,10 z", fill: "#444"}, marker);
+  const auto = model.automata[cur];
+  if (!auto) return;
+  const names = auto.states;
+  let maxX = 600, maxY = 400;
+  const edges = el("g", {id: "edges"}, svg);
+  const nodes = el("g", {id: "states"}, svg);
+  const labels = el("g", {id: "labels"}, svg);  // above the states: always readable, clickable
+  const pairs = {};
+  for (const name of names) {
+    const path = prefix(cur) + name;
+    const s = model.states[path];
+    s.transitions.forEach((t, i) => {
+      if (!names.includes(t.to)) return;
+      const key = [name, t.to].sort().join("\u0000");
+      const n = (pairs[key] = (pairs[key] || 0) + 1);
+      drawEdge(edges, labels, path, i, t, center(path), center(prefix(cur) + t.to), n, name === t.to);
+    });
+  }
+  for (const name of names) {
+    const path = prefix(cur) + name;
+    const [x, y] = center(path);
+    maxX = Math.max(maxX, x + W); maxY = Math.max(maxY, y + H + 40);
+    drawState(nodes, path, model.states[path], x, y, auto.initial === name);
+  }
+  svg.setAttribute("viewBox", `0 0 ${maxX} ${maxY}`);
+  svg.style.height = Math.max(400, maxY) + "px";
+}
+
+function drawState(g0, path, s, x, y, initial) {
+  const g = el("g", {class: "state", "data-path": path, transform: `translate(${x - W / 2},${y - H / 2})`}, g0);
+  const bad = worst(problemsOf(path, null));
+  if (bad) g.classList.add(bad);
+  if (s.final) g.classList.add("final");
+  if (s.composite || s.use) g.classList.add("composite");
+  if (sel && sel.kind === "state" && sel.path === path) g.classList.add("selected");
+  el("rect", {class: "body", width: W, height: H, rx: 14}, g);
+  if (s.composite || s.use) el("rect", {class: "inner", x: 4, y: 4, width: W - 8, height: H - 8, rx: 10}, g);
+  if (s.final) el("circle", {cx: W - 12, cy: 12, r: 4, fill: "#222"}, g);
+  const label = el("text", {x: W / 2, y: s.use ? H / 2 - 6 : H / 2}, g);
+  label.textContent = s.name;
+  if (s.use) el("text", {class: "use", x: W / 2, y: H / 2 + 11}, g).textContent = "use " + baseName(s.use);
+  if (initial) {
+    el("circle", {class: "initial", cx: -26, cy: H / 2, r: 6}, g);
+    el("path", {d: `M-20,${H / 2} L-2,${H / 2}`, stroke: "#222", "marker-end": "url(#arrow)"}, g);
+  }
+  const handle = el("circle", {class: "handle", cx: W, cy: H / 2, r: 6}, g);
+  const tip = el("title", {}, g);
+  tip.textContent = problemsOf(path, null).map((d) => `${d.code}: ${d.message}`).join("\n") || s.name;
+  g.addEventListener("mousedown", (ev) => startDrag(ev, path, ev.target === handle || ev.shiftKey));
+  g.addEventListener("dblclick", (ev) => {
+    ev.stopPropagation();
+    if (s.composite && !s.use) open(path);
+  });
+}
+
+function drawEdge(g0, labels, state, i, t, a, b, n, self) {
+  const g = el("g", {class: "edge", "data-state": state, "data-index": i}, g0);
+  const lg = el("g", {class: "edge", "data-state": state, "data-index": i}, labels);
+  const bad = worst(problemsOf(state, i));
+  const chosen = sel && sel.kind === "edge" && sel.state === state && sel.index === i;
+  for (const x of [g, lg]) {
+    if (bad) x.classList.add(bad);
+    if (chosen) x.classList.add("selected");
+  }
+  let d, lx, ly;
+  if (self) {
+    const x = a[0] + W / 2 - 10 * n, y = a[1] - H / 2;
+    d = `M${x - 20},${y} C${x - 30},${y - 50 - 12 * n} ${x + 30},${y - 50 - 12 * n} ${x + 10},${y}`;
+    lx = x - 10; ly = y - 42 - 12 * n;
+  } else {
+    const bend = (n - 1) * 28 + 14;
+    const mx = (a[0] + b[0]) / 2, my = (a[1] + b[1]) / 2;
+    const len = Math.hypot(b[0] - a[0], b[1] - a[1]) || 1;
+    const cx = mx - (b[1] - a[1]) / len * bend, cy = my + (b[0] - a[0]) / len * bend;
+    const p = border(a, [cx, cy]), q = border(b, [cx, cy]);
+    d = `M${p[0]},${p[1]} Q${cx},${cy} ${q[0]},${q[1]}`;
+    lx = (p[0] + 2 * cx + q[0]) / 4; ly = (p[1] + 2 * cy + q[1]) / 4;
+  }
+  el("path", {class: "line", d, "marker-end": "url(#arrow)"}, g);
+  el("path", {class: "hit", d}, g);
+  const guard = t.when ? `[${t.when}]` : t.after ? `after ${t.after}` : "";
+  const label = el("text", {x: lx + 4, y: ly}, lg);
+  label.textContent = `${i + 1}. ${t.name ? t.name + " " : ""}${guard}`.slice(0, 60);
+  const tip = el("title", {}, g);
+  tip.textContent = problemsOf(state, i).map((x) => `${x.code}: ${x.message}`).join("\n") ||
+    `${baseName(state)} → ${t.to} ${guard}`;
+  for (const x of [g, lg]) {
+    x.addEventListener("mousedown", (ev) => { ev.stopPropagation(); select({kind: "edge", state, index: i}); });
+  }
+}
+
+function svgPoint(ev) {
+  const svg = $("canvas");
+  const pt = svg.createSVGPoint();
+  pt.x = ev.clientX; pt.y = ev.clientY;
+  const p = pt.matrixTransform(svg.getScreenCTM().inverse());
+  return [p.x, p.y];
+}
+
+function startDrag(ev, path, connecting) {
+  ev.preventDefault();
+  ev.stopPropagation();
+  $("canvas").focus();
+  sel = {kind: "state", path};  // drawn when the button is released (the shapes stay meanwhile)
+  drag = {path, connecting, from: svgPoint(ev), moved: false, line: null};
+  if (connecting) {
+    const c = center(path);
+    drag.line = el("path", {d: `M${c[0]},${c[1]}`, stroke: "#1a55c0", "stroke-dasharray": "4 3",
+      "marker-end": "url(#arrow)", id: "rubber", "pointer-events": "none"}, $("canvas"));
+  }
+}
+
+document.addEventListener("mousemove", (ev) => {
+  if (!drag) return;
+  const p = svgPoint(ev);
+  const c = center(drag.path);
+  if (drag.connecting) {
+    drag.line.setAttribute("d", `M${c[0]},${c[1]} L${p[0]},${p[1]}`);
+    return;
+  }
+  const dx = p[0] - drag.from[0], dy = p[1] - drag.from[1];
+  if (!drag.moved && Math.hypot(dx, dy) < 3) return;
+  drag.moved = true;
+  drag.from = p;
+  model.positions[drag.path] = [c[0] + dx, c[1] + dy];
+  canvas();
+});
+
+document.addEventListener("mouseup", (ev) => {
+  if (!drag) return;
+  const d = drag;
+  drag = null;
+  marks();
+  if (d.connecting) {
+    d.line.remove();
+    const g = ev.target.closest && ev.target.closest("g.state");
+    if (g) send("add_transition", {state: d.path, to: baseName(g.dataset.path)});
+  } else if (d.moved) {
+    const [x, y] = model.positions[d.path];
+    send("move", {state: d.path, x, y});
+  }
+});
+
+// ----- navigation, selection
+function open(path) {
+  if (!(path in model.automata)) return;
+  cur = path;
+  render();
+}
+function select(what) {
+  sel = what;
+  marks();
+}
+// The selection shown without drawing again (a double-click's two clicks hit the same shapes).
+function marks() {
+  for (const g of document.querySelectorAll("g.state")) {
+    g.classList.toggle("selected", !!sel && sel.kind === "state" && sel.path === g.dataset.path);
+  }
+  for (const g of document.querySelectorAll("g.edge")) {
+    g.classList.toggle("selected", !!sel && sel.kind === "edge" && sel.state === g.dataset.state &&
+      sel.index === Number(g.dataset.index));
+  }
+  for (const s of document.querySelectorAll("#tree span")) {
+    s.classList.toggle("current", !!sel && sel.kind === "state" && sel.path === s.dataset.path);
+  }
+  panel();
+}
+
+$("canvas").addEventListener("mousedown", (ev) => {
+  if (ev.target === $("canvas")) select(null);
+});
+$("canvas").addEventListener("dblclick", (ev) => {
+  if (ev.target.closest("g.state") || ev.target.closest("g.edge") || model.read_only) return;
+  const p = svgPoint(ev);
+  ask(ev.clientX, ev.clientY, "", (name) => {
+    send("add_state", {parent: cur, name});
+    send("move", {state: prefix(cur) + name, x: p[0], y: p[1]});
+  });
+});
+
+// The inline name box, for a new state and a rename.
+function ask(clientX, clientY, value, done) {
+  const box = $("inline");
+  const r = $("canvas-box").getBoundingClientRect();
+  box.style.left = (clientX - r.left - 70) + "px";
+  box.style.top = (clientY - r.top - 12) + "px";
+  box.value = value;
+  box.hidden = false;
+  box.focus();
+  box.select();
+  box.onkeydown = (ev) => {
+    if (ev.key === "Enter" && box.value.trim()) { box.hidden = true; done(box.value.trim()); }
+    else if (ev.key === "Escape") box.hidden = true;
+    ev.stopPropagation();
+  };
+  box.onblur = () => { box.hidden = true; };
+}
+
+function inEditor(ev) {
+  return ev.target.closest && (ev.target.closest(".cm-editor") || ev.target.tagName === "INPUT");
+}
+document.addEventListener("keydown", (ev) => {
+  if (!model) return;
+  const mod = ev.ctrlKey || ev.metaKey;
+  if (mod && ev.key.toLowerCase() === "s") { ev.preventDefault(); send("save"); return; }
+  if (inEditor(ev)) return;
+  if (mod && ev.key.toLowerCase() === "z" && !ev.shiftKey) { ev.preventDefault(); send("undo"); }
+  else if (mod && (ev.key.toLowerCase() === "y" || ev.key.toLowerCase() === "z")) { ev.preventDefault(); send("redo"); }
+  else if (ev.key === "Delete" && sel) {
+    if (sel.kind === "state") send("delete_state", {path: sel.path});
+    else send("delete_transition", {state: sel.state, index: sel.index});
+  } else if (ev.key === "F2" && sel && sel.kind === "state") {
+    ev.preventDefault();
+    const g = document.querySelector(`g.state[data-path="${CSS.escape(sel.path)}"]`);
+    const r = g.getBoundingClientRect();
+    const path = sel.path;
+    ask(r.left + r.width / 2, r.top + r.height / 2, baseName(path), (name) => {
+      if (name !== baseName(path)) send("rename", {path, new: name});
+    });
+  } else if (ev.key.toLowerCase() === "n" && !mod && !model.read_only) {
+    // a new state from the keyboard: below the lowest one, named in the box
+    ev.preventDefault();
+    const names = model.automata[cur].states;
+    const y = Math.max(40, ...names.map((n) => center(prefix(cur) + n)[1])) + 90;
+    const x = names.length ? center(prefix(cur) + names[names.length - 1])[0] : 120;
+    const r = $("canvas").getBoundingClientRect();
+    ask(r.left + 120, r.top + 60, "", (name) => {
+      send("add_state", {parent: cur, name});
+      send("move", {state: prefix(cur) + name, x, y});
+    });
+  } else if (ev.key === "Backspace" && cur) { ev.preventDefault(); open(parentOf(cur)); }
+  else if (ev.key === "Enter" && sel && sel.kind === "state" && model.automata[sel.path]) open(sel.path);
+});
+
+$("up").onclick = () => open(parentOf(cur));
+$("undo").onclick = () => send("undo");
+$("redo").onclick = () => send("redo");
+$("save").onclick = () => send("save");
+$("reload").onclick = () => send("reload");
+$("search").oninput = () => tree();
+$("search").onkeydown = (ev) => {
+  if (ev.key !== "Enter") return;
+  const hit = document.querySelector("#tree span:not(.hidden)");
+  if (hit) hit.click();
+};
+window.addEventListener("beforeunload", (ev) => {
+  if (model && model.dirty) { ev.preventDefault(); ev.returnValue = ""; }
+});
+
+// ----- the side panel: a state's snippets, a transition's fields
+function panel() {
+  const box = $("panel");
+  const key = sel ? JSON.stringify(sel) : "";
+  if (key !== panelFor) {
+    panelFor = key;
+    box.textContent = "";
+    for (const k of Object.keys(editors)) {
+      if (editors[k].view) editors[k].view.destroy();
+      if (editors[k].pending) {  // typed just before another selection: sent now, not lost
+        clearTimeout(editors[k].pending);
+        editors[k].flush();
+      }
+      delete editors[k];
+    }
+    if (!sel) {
+      box.innerHTML = "<p>Select a state or an arrow to edit it.</p>";
+      return;
+    }
+    const title = document.createElement("h3");
+    box.appendChild(title);
+    const at = sel;  // what the fields edit, even when sent after another selection
+    if (at.kind === "state" && model.states[at.path].kind === "region") {
+      title.textContent = "Region " + at.path + " (double-click it to see its states)";
+    } else if (at.kind === "state") {
+      title.textContent = "State " + at.path;
+      for (const f of ["entry", "during", "exit"]) field(box, f, true,
+        (v) => send("set_state_field", {state: at.path, key: f, value: v}));
+    } else {
+      title.textContent = `Transition ${at.index + 1} of ${at.state}`;
+      for (const f of ["name", "to", "when", "after", "do"]) field(box, f, f === "when" || f === "do",
+        (v) => send("set_transition_field", {state: at.state, index: at.index, key: f, value: v}));
+      const row = document.createElement("p");
+      for (const [label, to] of [["Earlier", -1], ["Later", 1]]) {
+        const b = document.createElement("button");
+        b.textContent = label;
+        b.onclick = () => {
+          const n = model.states[at.state].transitions.length;
+          if (at.index + to < 0 || at.index + to >= n) return;
+          send("move_transition", {state: at.state, index: at.index, to: at.index + to});
+          sel = {kind: "edge", state: at.state, index: at.index + to};
+        };
+        row.appendChild(b);
+      }
+      box.appendChild(row);
+    }
+  }
+  if (!sel) return;
+  let here = $("here");
+  if (!here) {
+    here = document.createElement("ul");
+    here.id = "here";
+    box.appendChild(here);
+  }
+  here.textContent = "";
+  for (const d of sel.kind === "state" ? problemsOf(sel.path, null) : problemsOf(sel.state, sel.index)) {
+    const li = document.createElement("li");
+    li.className = d.severity;
+    li.textContent = `${d.code} line ${d.line}: ${d.message}` + (d.notes.length ? ` (${d.notes.join("; ")})` : "");
+    here.appendChild(li);
+  }
+  const data = sel.kind === "state" ? model.states[sel.path] :
+    model.states[sel.state].transitions[sel.index];
+  for (const [f, ed] of Object.entries(editors)) {
+    const value = data[f] || "";
+    if (ed.view) {
+      if (!ed.view.hasFocus && ed.view.state.doc.toString() !== value && !ed.pending) {
+        ed.quiet = true;
+        ed.view.dispatch({changes: {from: 0, to: ed.view.state.doc.length, insert: value}});
+        ed.quiet = false;
+      }
+    } else if (document.activeElement !== ed.input && !ed.pending) ed.input.value = value;
+  }
+}
+
+function field(box, f, code, change) {
+  const div = document.createElement("div");
+  div.className = "field";
+  div.dataset.field = f;
+  const label = document.createElement("label");
+  label.textContent = f;
+  div.appendChild(label);
+  box.appendChild(div);
+  const ed = {pending: null};
+  const later = (v) => {
+    clearTimeout(ed.pending);
+    ed.flush = () => { ed.pending = null; change(v); };
+    ed.pending = setTimeout(ed.flush, 300);
+  };
+  if (code && window.CM) {
+    const lang = model.language === "cpp" ? CM.cpp() : CM.python();
+    ed.view = new CM.EditorView({parent: div, state: CM.EditorState.create({doc: "",
+      extensions: [CM.basicSetup, lang, CM.EditorView.updateListener.of((u) => {
+        if (u.docChanged && !ed.quiet) later(u.state.doc.toString());
+      })]})});
+  } else {
+    ed.input = document.createElement("input");
+    ed.input.oninput = () => later(ed.input.value);
+    div.appendChild(ed.input);
+  }
+  editors[f] = ed;
+}
+
+function problems() {
+  const ul = $("problems");
+  ul.textContent = "";
+  for (const d of model.diagnostics) {
+    const li = document.createElement("li");
+    li.className = d.severity;
+    const where = d.other ? baseName(d.file) : (d.state || model.file) +
+      (d.transition !== null && d.transition !== undefined ? ` → ${d.transition + 1}` : "");
+    li.textContent = `${d.code} ${where}: ${d.message}`;
+    li.onclick = () => {
+      if (d.other || !d.state) return;
+      cur = model.states[d.state] ? model.states[d.state].parent : "";
+      select(d.transition !== null ? {kind: "edge", state: d.state, index: d.transition} :
+        {kind: "state", path: d.state});
+    };
+    ul.appendChild(li);
+  }
+  if (!model.diagnostics.length) ul.innerHTML = "<li>none</li>";
+}
+
+connect();
