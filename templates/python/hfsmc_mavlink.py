@@ -20,7 +20,10 @@ send or for the parsing of datagrams already received, never while waiting.
 With ``--clock sim`` (lockstep with ``hfsmc sim``) there is no reader thread: before
 each instant the automaton's thread reads the datagrams the simulator says it has sent
 and does the reader's timed work (heartbeat, resends, link watch) at simulated time,
-so that what is sent and received depends on nothing else.
+so that what is sent and received depends on nothing else (``lockstep_sync``, in
+hfsmc_mavlink_reader.py too). Missions and the geofence (the MISSION_ITEM_INT protocol)
+are hfsmc_mission_upload.py's, the mission API's helpers hfsmc_mission.py's, PX4's
+specifics hfsmc_px4.py's.
 """
 
 from __future__ import annotations
@@ -28,7 +31,6 @@ from __future__ import annotations
 import atexit
 import contextlib
 import math
-import select
 import sys
 import threading
 import time
@@ -59,7 +61,6 @@ POLL_S = _reader.POLL_S  # longest wait of the reader: bounds ack deadlines and 
 FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
 SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
 HOME_RATE_HZ = 1.0  # HOME_POSITION (it moves only when the autopilot sets a new home)
-DATAGRAM_WAIT_S = 10.0  # lockstep: the simulator's datagrams, counted, are that late at most
 
 # SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field"
 # (MAVLink POSITION_TARGET_TYPEMASK; bit 9, force, stays clear).
@@ -457,38 +458,6 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, _
     def _now(self) -> float:
         """Seconds: the simulated time in lockstep, else the monotonic clock."""
         return float(self._sim.now()) if self._sim is not None else time.monotonic()
-
-    def _count_datagrams(self) -> None:
-        """Lockstep: count what goes through pymavlink's UDP socket, both ways."""
-        conn = self._conn
-        if not isinstance(conn, mavutil.mavudp):
-            self._say(f"--clock sim needs a UDP link (udpin: or udpout:), not {self.url}")
-            raise SystemExit(1)
-        self._counted = _link.Counted(conn)
-
-    def lockstep_sent(self) -> int:
-        """Lockstep: the datagrams sent so far."""
-        return self._counted.sent if self._counted is not None else 0
-
-    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
-        """Lockstep, before the instant at ``t_us``: read until the simulator's ``sent``
-        datagrams have come, then do the reader's timed work; why not, or None."""
-        want = int(step["sent"])
-        end = time.monotonic() + DATAGRAM_WAIT_S
-        fd = self._conn.fd
-        while True:
-            self._drain()
-            received = self._counted.received if self._counted is not None else 0
-            if received >= want:
-                break
-            left = end - time.monotonic()
-            if left <= 0:
-                return (f"{self.name}: {want - received} of the simulator's datagrams did "
-                        f"not come in {DATAGRAM_WAIT_S:g} s (is {self.url} the simulator's link?)")
-            with contextlib.suppress(InterruptedError):
-                select.select([fd], [], [], min(left, POLL_S))
-        self._timed(self._now())
-        return None
 
     def __repr__(self) -> str:
         return f"<mavlink {self.name} {self.url}>"
