@@ -50,7 +50,8 @@ MAVLINK_FIELDS: dict[str, str] = {
     "vehicle": "bool", "mode": "str", "type": "int", "position": "vector",
     "velocity": "vector", "altitude": "number", "yaw": "number", "battery": "int",
     "acks": "acks", "location": "vector", "home": "vector", "status_text": "str",
-    "battery_failsafe": "str",
+    "battery_failsafe": "str", "mission": "pair", "fence_breached": "bool",
+    "failsafe": "str",
 }
 CAMERA_FIELDS: dict[str, str] = {"image": "image", "world": "world", "rate": "number"}
 FIELDS = {"mavlink": MAVLINK_FIELDS, "camera": CAMERA_FIELDS}
@@ -401,6 +402,11 @@ class _Reader(ExpectationReader):
             if isinstance(v, list) and len(v) == 3 and all(number(x) is not None for x in v):
                 return tuple(float(number(x)) for x in v)  # type: ignore[arg-type]
             bad = "[north, east, down] (three numbers, m or m/s)"
+        elif kind == "pair":
+            if isinstance(v, list) and len(v) == 2 and all(
+                    isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in v):
+                return (v[0], v[1])
+            bad = "[current, total] (two integers, 0 or more)"
         elif kind == "acks":
             return self.acks(v, path)
         elif kind in ("image", "world"):

@@ -75,7 +75,8 @@ NEVER_HEARD: dict[str, Any] = {
     "heartbeat_age": math.inf, "ready": False, "armed": False, "vehicle": False, "mode": "",
     "type": 0, "position": [math.nan] * 3, "velocity": [math.nan] * 3, "altitude": math.nan,
     "yaw": math.nan, "battery": -1, "location": [math.nan] * 3, "home": [math.nan] * 3,
-    "status_text": "", "battery_failsafe": "",
+    "status_text": "", "battery_failsafe": "", "mission": [0, 0], "fence_breached": False,
+    "failsafe": "",
 }
 
 

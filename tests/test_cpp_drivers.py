@@ -349,6 +349,20 @@ def test_mission_api_in_the_simulator(drivers: Path, tmp_path: Path, autopilot: 
     assert f"drone: rtl: {name}" in err.splitlines(), err
 
 
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_mission_upload_in_the_simulator(drivers: Path, tmp_path: Path, autopilot: str) -> None:
+    """The C++ mission upload, AUTO and progress on both autopilots, as the Python one in
+    tests/test_mission_upload.py."""
+    port = free_port(socket.SOCK_DGRAM)
+    extra = ("--autopilot", "px4", "--source-port", "0") if autopilot == "px4" else ()
+    with simulator(tmp_path, port, "--no-camera", "--boot-time", "2", *extra), \
+            scenario(drivers, "upload", str(port), tmp_path) as s:
+        err = passed(s, 240)
+    said = err.splitlines()
+    assert "drone: upload_mission NO_SPACE" in said, err
+    assert any(line.startswith("drone: upload_mission accepted") for line in said), err
+
+
 def test_garbage_datagrams_do_not_break_the_reader(drivers: Path, tmp_path: Path) -> None:
     port = free_port(socket.SOCK_DGRAM)
     rng = np.random.default_rng(7)

@@ -47,14 +47,17 @@ def test_check_knows_every_public_method_of_the_imported_driver(kind: str) -> No
 def test_commands_are_what_the_scenarios_expect_and_script() -> None:
     assert commands_of("mavlink") == ("set_mode", "arm", "disarm", "takeoff", "land", "rtl",
                                       "hold", "set_velocity", "goto", "goto_location",
-                                      "set_yaw")
-    assert acknowledged("mavlink") == ("set_mode", "arm", "disarm", "takeoff", "land", "rtl")
+                                      "set_yaw", "upload_mission", "upload_fence",
+                                      "enable_fence")
+    assert acknowledged("mavlink") == ("set_mode", "arm", "disarm", "takeoff", "land", "rtl",
+                                       "upload_mission", "upload_fence", "enable_fence")
     assert commands_of("camera") == () and commands_of("ros_topic") == ()
     # the docs' list of last_ack's commands is the driver's
     text = (ROOT / "docs/interfaces.md").read_text()
     row = next(line for line in text.splitlines() if line.startswith("| `last_ack(command)`"))
     assert re.findall(r"`(\w+)`", row.split("the last outcome of ")[1].split(":")[0]) == \
-        ["arm", "disarm", "takeoff", "land", "rtl", "set_mode"]
+        ["arm", "disarm", "takeoff", "land", "rtl", "set_mode", "upload_mission",
+         "upload_fence", "enable_fence"]
 
 
 @pytest.mark.parametrize("kind", KINDS)

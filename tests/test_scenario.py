@@ -27,12 +27,15 @@ FOLLOW = ROOT / "examples/follow_colors/follow_colors.yaml"
 FOLLOW_TESTS = ROOT / "examples/follow_colors/tests"
 MONITOR_TESTS = ROOT / "examples/monitor_area/tests"
 LIB_TESTS = ROOT / "examples/lib/tests"  # the library's behaviours alone (land through a lost link)
+WAYPOINTS_TESTS = ROOT / "examples/waypoints/tests"  # PX4's OFFBOARD-loss failsafe
 # Ground robots on ROS 2: Python models (their C++ twin: tests/test_scenario_ros2.py)
 ROS2_TESTS = [ROOT / "examples/bump_and_go/tests", ROOT / "examples/stop_at_wall/tests"]
 GADGET_TESTS = ROOT / "examples/udp_gadget/tests"  # a user's driver (docs/drivers.md)
 EXAMPLES = (sorted(FOLLOW_TESTS.glob("*.yaml")) + sorted(MONITOR_TESTS.glob("*.yaml"))
-            + sorted(LIB_TESTS.glob("*.yaml")) + sorted(GADGET_TESTS.glob("*.yaml")) + [p for d in ROS2_TESTS for p in sorted(d.glob("*.yaml"))])
-CPP_EXAMPLES = [p for p in EXAMPLES if p.parent not in ROS2_TESTS]
+            + sorted(LIB_TESTS.glob("*.yaml")) + sorted(GADGET_TESTS.glob("*.yaml"))
+            + sorted(WAYPOINTS_TESTS.glob("*.yaml"))
+            + [p for d in ROS2_TESTS for p in sorted(d.glob("*.yaml"))])
+CPP_EXAMPLES = [p for p in EXAMPLES if p.parent not in (*ROS2_TESTS, WAYPOINTS_TESTS)]
 
 
 def write(folder: Path, text: str, name: str = "sc.yaml") -> Path:

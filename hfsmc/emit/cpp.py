@@ -43,7 +43,8 @@ INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp"), "camera": ("camera.hpp
                             "ros2view.hpp")}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera, hfsmc_ros2): src/, beside
 # the runtime's; the library's first file names it.
-INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_mission.cpp", "hfsmc_px4.cpp"),
+INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_mission.cpp", "hfsmc_mission_upload.cpp",
+                                 "hfsmc_px4.cpp"),
                      "camera": ("hfsmc_camera.cpp",),
                      "ros2": ("hfsmc_ros2.cpp", "hfsmc_ros2_wire.cpp", "hfsmc_ros2_interface.cpp",
                               "hfsmc_ros2_playback.cpp")}

@@ -24,15 +24,16 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from hfsmc.sim import failsafe
+from hfsmc.sim.mission_hooks import ArduPilotMissions
 from hfsmc.sim.telemetry import Telemetry, ned
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
 
 SYSID, COMPID = 1, 1
-STABILIZE, GUIDED, LOITER, RTL, LAND, BRAKE = 0, 4, 5, 6, 9, 17
-MODE_NAMES = {STABILIZE: "STABILIZE", GUIDED: "GUIDED", LOITER: "LOITER", RTL: "RTL",
+STABILIZE, AUTO, GUIDED, LOITER, RTL, LAND, BRAKE = 0, 3, 4, 5, 6, 9, 17
+MODE_NAMES = {STABILIZE: "STABILIZE", AUTO: "AUTO", GUIDED: "GUIDED", LOITER: "LOITER", RTL: "RTL",
               LAND: "LAND", BRAKE: "BRAKE"}
-NEEDS_POSITION = frozenset({GUIDED, LOITER, RTL, BRAKE})
+NEEDS_POSITION = frozenset({AUTO, GUIDED, LOITER, RTL, BRAKE})
 NAVIGATING = NEEDS_POSITION  # the modes ArduPilot flags MAV_MODE_FLAG_GUIDED_ENABLED
 
 GUIDED_TIMEOUT = 3.0  # s: a velocity target without a successor expires (then hold)
@@ -99,7 +100,7 @@ class _Out:
         self.send(bytes(buf))
 
 
-class Autopilot:
+class Autopilot(ArduPilotMissions):
     """Copter's modes, commands and acknowledgements over a ``Body``; what it streams
     is in ``self.telemetry``."""
 
@@ -132,7 +133,7 @@ class Autopilot:
             "SET_POSITION_TARGET_GLOBAL_INT": self._on_target_global,
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
             "PARAM_REQUEST_LIST": self._on_param_list, "PARAM_REQUEST_READ": self._on_param_read,
-            "PARAM_SET": self._on_param_set, "MISSION_REQUEST_LIST": self._on_mission_list,
+            "PARAM_SET": self._on_param_set,
             "FILE_TRANSFER_PROTOCOL": self._on_ftp,
         }
         self._commands: dict[int, Callable[[tuple[float, ...]], int]] = {
@@ -150,6 +151,7 @@ class Autopilot:
             M.MAV_CMD_DO_CHANGE_SPEED: self._cmd_change_speed,
         }
         self.telemetry = Telemetry(self)
+        self._missions_init()
         self._apply_params()
 
     @staticmethod
@@ -162,7 +164,8 @@ class Autopilot:
             "WPNAV_ACCEL": cfg.max_accel * 100, "WPNAV_ACCEL_Z": 100,
             "LAND_SPEED": 50, "LAND_SPEED_HIGH": 0, "LAND_ALT_LOW": 1000,
             "MOT_SPOOL_TIME": 0.5, "TKOFF_SLEW_TIME": 2.0,
-            "RTL_ALT": 1500, "RTL_LOIT_TIME": 5000,
+            "RTL_ALT": 1500, "RTL_LOIT_TIME": 5000, "WPNAV_RADIUS": 200,
+            "FENCE_ENABLE": 0, "FENCE_ACTION": 1,
             "DISARM_DELAY": 10, "WP_YAW_BEHAVIOR": 2, "ARMING_CHECK": 1,
             **failsafe.ARDUPILOT_PARAMS,
         }
@@ -189,6 +192,7 @@ class Autopilot:
             self._text(M.MAV_SEVERITY_INFO, "EKF3 IMU0 is using GPS")
             self.telemetry.send("HOME_POSITION")
         self.telemetry.send_due()
+        self.missions.tick()
         self._update()
         for event in b.step():
             self._on_event(event)
@@ -218,6 +222,10 @@ class Autopilot:
         if mode in NEEDS_POSITION and not self.ready:
             self._text(M.MAV_SEVERITY_WARNING, f"Mode change to {name} failed: requires position")
             return False
+        why = self.auto_refusal() if mode == AUTO else ""
+        if why:
+            self._text(M.MAV_SEVERITY_WARNING, why)
+            return False
         self.mode = mode
         self.climbing_to = None
         self.rtl_stage = ""
@@ -227,6 +235,8 @@ class Autopilot:
         elif mode == RTL:
             self._rtl_start()
         else:
+            if mode == AUTO:
+                self.missions.restart_if_done()
             b.hold(boost=3.0 if mode == BRAKE else 1.0)
         self.log(f"mode {name}")
         return True
@@ -235,14 +245,17 @@ class Autopilot:
         b, t = self.body, self.body.t
         if self.mode == GUIDED and b.nav == "velocity" and t - self.vel_time > GUIDED_TIMEOUT:
             b.hold()
-        if self.mode == RTL:
+        if self.mode == RTL or (self.mode == AUTO and self.rtl_stage):
             self._rtl_update()
+        if self.mode == AUTO:
+            self.auto_step()
         if self.climbing_to is not None and b.landed and b.goal[2] == 0.0 \
                 and t >= self.spooled_at - 1e-9:
             b.goto(b.north, b.east, -self.climbing_to)  # spooled up: climb
         if b.armed and b.landed:
             idle = t - self.landed_since
-            if self.mode in (LAND, RTL) and idle >= self.land_detect_time - 1e-9:
+            if (self.mode in (LAND, RTL) or (self.mode == AUTO and self.missions.landing)) \
+                    and idle >= self.land_detect_time - 1e-9:
                 self._disarm("landed")
             elif idle >= self.params["DISARM_DELAY"] > 0:
                 self._disarm(f"auto-disarm after {idle:.0f} s on the ground")
@@ -468,6 +481,8 @@ class Autopilot:
             z = m.z
             if frame != M.MAV_FRAME_LOCAL_NED:  # offsets from where the vehicle is
                 x, y, z = x + b.north, y + b.east, z + b.down
+            if self.fence_refuses(x, y):
+                return
             b.goto(x, y, z)
         elif not mask & TYPEMASK_VEL:
             if not _sane(FAST, m.vx, m.vy, m.vz):
@@ -492,6 +507,8 @@ class Autopilot:
             if not _sane(FAR, n, e, m.alt - self.world.home.alt):
                 return
             up = m.alt - self.world.home.alt if frame == M.MAV_FRAME_GLOBAL_INT else m.alt
+            if self.fence_refuses(n, e):
+                return
             b.goto(n, e, -up)
         elif not mask & TYPEMASK_VEL:
             if not _sane(FAST, m.vx, m.vy, m.vz):
@@ -571,11 +588,6 @@ class Autopilot:
             self.params[m.param_id] = m.param_value
             self._apply_params()
             self._send_param(m.param_id)
-
-    def _on_mission_list(self, m: Any) -> None:
-        if self._for_me(m):  # no mission, fence or rally points: an empty list of each
-            self.mav.mission_count_send(m.get_srcSystem(), m.get_srcComponent(), 0,
-                                        getattr(m, "mission_type", 0))
 
     def _on_ftp(self, m: Any) -> None:
         """MAVLink FTP: no files here. Answer at once (a NAK, "file not found") so that a

@@ -34,6 +34,7 @@ from typing import Any, ClassVar
 
 from hfsmc.sim import failsafe
 from hfsmc.sim.autopilot import ACCEPTED, DENIED, FAR, UNSUPPORTED, Autopilot, M, _sane
+from hfsmc.sim.mission_hooks import Px4Missions
 from hfsmc.sim.telemetry import SENSORS, Telemetry
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
@@ -166,7 +167,7 @@ class Px4Telemetry(Telemetry):
                                             0, 0, 1)
 
 
-class Px4(Autopilot):
+class Px4(Px4Missions, Autopilot):
     """PX4's modes, commands, answers and failsafes over the same body as ArduPilot's."""
 
     TYPE = M.MAV_AUTOPILOT_PX4
@@ -203,7 +204,7 @@ class Px4(Autopilot):
             "MPC_LAND_ALT1": 10.0, "MPC_LAND_ALT2": 5.0, "MIS_TAKEOFF_ALT": 2.5,
             "COM_DISARM_LAND": 2.0, "COM_DISARM_PRFLT": 10.0, "COM_OF_LOSS_T": 1.0,
             "COM_OBL_RC_ACT": 0, "RTL_RETURN_ALT": 60.0, "RTL_DESCEND_ALT": 30.0,
-            "RTL_CONE_ANG": 45.0, "NAV_ACC_RAD": 2.0, **failsafe.PX4_PARAMS,
+            "RTL_CONE_ANG": 45.0, "NAV_ACC_RAD": 2.0, "GF_ACTION": 2, **failsafe.PX4_PARAMS,
         }
 
     def _apply_params(self) -> None:
@@ -230,6 +231,7 @@ class Px4(Autopilot):
             self.text(M.MAV_SEVERITY_INFO, "Ready for takeoff!")
             self.telemetry.send("HOME_POSITION")
         self.telemetry.send_due()
+        self.missions.tick()
         self._update()
         for event in b.step():
             self._on_event(event)
@@ -259,6 +261,8 @@ class Px4(Autopilot):
             b.goto(b.north, b.east, -self.climbing_to)  # ramped up: climb
         if self.mode == RTL:
             self._rtl_update()
+        if self.mode == MISSION:
+            self.auto_step()
         if self.mode == OFFBOARD and b.armed and \
                 t - self.sp_last > p["COM_OF_LOSS_T"] + FAILSAFE_DETECT:
             self._offboard_lost()
@@ -335,6 +339,10 @@ class Px4(Autopilot):
             return False
         if mode == TAKEOFF:
             return self._takeoff(math.nan)
+        why = self.auto_refusal() if mode == MISSION else ""
+        if why:
+            self.text(M.MAV_SEVERITY_CRITICAL, why)
+            return False
         self.user_mode = mode
         self.failsafe = ""
         self._enter(mode)
@@ -353,7 +361,9 @@ class Px4(Autopilot):
         elif mode == RTL:
             self._rtl_start()
         elif mode in (HOLD, OFFBOARD, AUTO_READY, MISSION):
-            b.hold()  # OFFBOARD flies the latest setpoint from the next one on
+            b.hold()
+            if mode == MISSION:
+                self.missions.restart_if_done()  # OFFBOARD flies the latest setpoint from the next one on
         b.hold_heading()
         self.log(f"mode {MODE_NAMES.get(mode, mode)}")
 

@@ -210,7 +210,10 @@ std::string Mavlink::snapshot_fields() const {
          ",\"type\":" + std::to_string(snap_.type) + ",\"autopilot\":" + std::to_string(snap_.autopilot) +
          ",\"location\":" + triple(snap_.location) + ",\"home\":" + triple(snap_.home) +
          ",\"status_text\":" + json_string(snap_.status_text) +
-         ",\"battery_failsafe\":" + json_string(snap_.battery_failsafe);
+         ",\"battery_failsafe\":" + json_string(snap_.battery_failsafe) +
+         ",\"mission\":[" + std::to_string(snap_.mission.first) + "," + std::to_string(snap_.mission.second) +
+         "],\"fence_breached\":" + (snap_.fence_breached ? "true" : "false") +
+         ",\"failsafe\":" + json_string(snap_.failsafe);
 }
 
 // -- commands (send and return; true when sent, i.e. a vehicle is known) ---------
@@ -341,6 +344,8 @@ Mavlink::Snap Mavlink::live_snapshot() const {
     n.home = s_.home;
     n.status_text = s_.status_text;
     n.battery_failsafe = s_.battery_failsafe;
+    n.mission = {s_.mission_current, s_.mission_total};
+    n.fence_breached = s_.fence_breached;
     flags = s_.ekf_flags;
     fix = s_.gps_fix;
     prearm = s_.prearm;
@@ -349,6 +354,11 @@ Mavlink::Snap Mavlink::live_snapshot() const {
                   : n.armed ? (flags & EKF_POS_HORIZ_ABS) && !(flags & EKF_CONST_POS_MODE)
                             : (flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS));
   n.ready = n.heartbeat_age < kLinkTimeoutS && fix >= GPS_FIX_TYPE_3D_FIX && position;
+  n.failsafe = std::isfinite(n.heartbeat_age) && n.heartbeat_age >= kLinkTimeoutS ? "link_lost"
+               : offboard_ && offboard_->lost()                                   ? "offboard_lost"
+               : n.fence_breached                                                  ? "fence"
+               : !n.battery_failsafe.empty()                                       ? "battery"
+                                                                                   : "";
   std::lock_guard<std::mutex> lock(link_);
   n.acks = acks_;
   return n;
@@ -380,6 +390,12 @@ void Mavlink::apply(Snap& s, const playback::Entry& e) const {
     else if (key == "home") s.home = vector();
     else if (key == "status_text") s.status_text = in.text(v, k, e.line);
     else if (key == "battery_failsafe") s.battery_failsafe = in.text(v, k, e.line);
+    else if (key == "fence_breached") s.fence_breached = in.boolean(v, k, e.line);
+    else if (key == "failsafe") s.failsafe = in.text(v, k, e.line);
+    else if (key == "mission") {
+      if (v.kind != json::Value::ARRAY || v.items.size() != 2) in.bad(e.line, "`mission` must be [current, total]");
+      s.mission = {static_cast<int>(in.whole(v.items[0], k, e.line)), static_cast<int>(in.whole(v.items[1], k, e.line))};
+    }
     else if (key == "acks") {
       if (v.kind != json::Value::OBJECT) in.bad(e.line, "`acks` must be an object");
       s.acks.clear();
@@ -408,6 +424,8 @@ bool Mavlink::command(const std::string& name, const std::string& label, uint16_
              std::initializer_list<float> params, bool quiet) {
   Pending p{name, label, cmd, {0, 0, 0, 0, 0, 0, 0}, {}, {}, true, quiet};
   std::copy(params.begin(), params.end(), p.params);
+  if (offboard_ && (name == "set_mode" || name == "land" || name == "rtl" || name == "takeoff"))
+    offboard_->clear_lost();  // the model acts on it
   if (!quiet) {
     snap_.acks[name] = snap_.vehicle ? "pending" : "not_sent";
     if (inputs_ != nullptr || !snap_.vehicle) {
@@ -515,6 +533,8 @@ void Mavlink::send_rtl_altitude(double alt) {  // a PARAM_SET: RTL_ALT in cm, PX
   say(std::string("rtl: ") + name + " set to " + fmt(value));
 }
 
+mavlink_status_t* Mavlink::tx_status() { return &wire_->tx_status; }  // under link_
+
 void Mavlink::send(const mavlink_message_t& msg) {  // under link_
   if (fd_ < 0 || !peer_known_) return;  // udpin: nobody has written to us yet
   uint8_t buf[MAVLINK_MAX_PACKET_LEN];
@@ -570,6 +590,7 @@ void Mavlink::timed(Clock::time_point now) {
     send(msg);
   }
   expire(now);
+  upload_tick(now);
   watch_link();
   if (px4()) {
     uint32_t mode;
@@ -654,6 +675,17 @@ void Mavlink::handle(const mavlink_message_t& msg) {
     uint8_t system, component;
     if (target(&system, &component) && msg.sysid == system) on_statustext(msg);
     return;
+  }
+  switch (msg.msgid) {
+    case MAVLINK_MSG_ID_MISSION_REQUEST_INT: case MAVLINK_MSG_ID_MISSION_REQUEST:
+    case MAVLINK_MSG_ID_MISSION_ACK: case MAVLINK_MSG_ID_MISSION_CURRENT:
+    case MAVLINK_MSG_ID_MISSION_ITEM_REACHED: case MAVLINK_MSG_ID_FENCE_STATUS: {
+      uint8_t system, component;
+      if (target(&system, &component) && msg.sysid == system) on_mission_message(msg);
+      return;
+    }
+    default:
+      break;
   }
   std::lock_guard<std::mutex> lock(state_);
   if (!s_.target_seen || msg.sysid != s_.target_system) return;

@@ -142,6 +142,7 @@ bool Mavlink::go_global(double lat, double lon, double alt, double heading) {
   if (!snap_.vehicle) return false;  // a stream of targets: nothing to say
   uint8_t system, component;
   if (inputs_ != nullptr || !target(&system, &component)) return true;
+  fence_check(lat, lon);
   const bool facing = !std::isnan(heading);
   px4::Target t;
   t.global = true;

@@ -98,8 +98,19 @@ void Offboard::want(bool on) {
   for (const std::string& line : lines) say_(line);
 }
 
+bool Offboard::lost() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return lost_;
+}
+
+void Offboard::clear_lost() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  lost_ = false;
+}
+
 void Offboard::want_locked(bool on, std::vector<std::string>* lines) {
   if (!on && has_target_) lines->push_back("PX4: setpoint stream stopped");
+  if (on) lost_ = false;
   wanted_ = on;
   if (!on) {
     has_target_ = false;
@@ -134,6 +145,7 @@ void Offboard::tick(double now, uint32_t mode, bool armed) {
                       " (a failsafe or a pilot): the driver stops its stream; "
                       "set_mode(\"GUIDED\") takes the vehicle back");
       want_locked(false, &lines);
+      lost_ = true;
     } else if (has_target_) {
       if (now - sent_at_ >= kResendS) {
         resend = true;

@@ -20,7 +20,10 @@ send or for the parsing of datagrams already received, never while waiting.
 With ``--clock sim`` (lockstep with ``hfsmc sim``) there is no reader thread: before
 each instant the automaton's thread reads the datagrams the simulator says it has sent
 and does the reader's timed work (heartbeat, resends, link watch) at simulated time,
-so that what is sent and received depends on nothing else.
+so that what is sent and received depends on nothing else (``lockstep_sync``, in
+hfsmc_mavlink_reader.py too). Missions and the geofence (the MISSION_ITEM_INT protocol)
+are hfsmc_mission_upload.py's, the mission API's helpers hfsmc_mission.py's, PX4's
+specifics hfsmc_px4.py's.
 """
 
 from __future__ import annotations
@@ -28,7 +31,6 @@ from __future__ import annotations
 import atexit
 import contextlib
 import math
-import select
 import sys
 import threading
 import time
@@ -41,11 +43,13 @@ try:  # beside the component, or in the hfsmc package
     from . import hfsmc_mavlink_link as _link
     from . import hfsmc_mavlink_reader as _reader
     from . import hfsmc_mission as _mission
+    from . import hfsmc_mission_upload as _upload
     from . import hfsmc_px4 as _px4
 except ImportError:
     import hfsmc_mavlink_link as _link  # type: ignore[import-not-found, no-redef]
     import hfsmc_mavlink_reader as _reader  # type: ignore[import-not-found, no-redef]
     import hfsmc_mission as _mission  # type: ignore[import-not-found, no-redef]
+    import hfsmc_mission_upload as _upload  # type: ignore[import-not-found, no-redef]
     import hfsmc_px4 as _px4  # type: ignore[import-not-found, no-redef]
 
 _MAV: Any = mavutil.mavlink
@@ -57,7 +61,6 @@ POLL_S = _reader.POLL_S  # longest wait of the reader: bounds ack deadlines and 
 FAST_RATE_HZ = 20.0  # position, velocity, attitude (option `rate`)
 SLOW_RATE_HZ = 2.0  # battery, GPS, EKF status
 HOME_RATE_HZ = 1.0  # HOME_POSITION (it moves only when the autopilot sets a new home)
-DATAGRAM_WAIT_S = 10.0  # lockstep: the simulator's datagrams, counted, are that late at most
 
 # SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field"
 # (MAVLink POSITION_TARGET_TYPEMASK; bit 9, force, stays clear).
@@ -95,7 +98,8 @@ NEVER_HEARD: dict[str, Any] = {  # the snapshot of a vehicle not heard yet
     "position": (math.nan, math.nan, math.nan), "altitude": math.nan,
     "velocity": (math.nan, math.nan, math.nan), "yaw": math.nan, "battery": -1,
     "acks": {}, "vehicle": False, "type": 0, "autopilot": 0,
-    "location": _mission.NAN3, "home": _mission.NAN3, "status_text": "", "battery_failsafe": ""}
+    "location": _mission.NAN3, "home": _mission.NAN3, "status_text": "", "battery_failsafe": "",
+    "mission": (0, 0), "fence_breached": False, "failsafe": ""}
 
 
 class VehicleQueries:
@@ -197,8 +201,16 @@ class VehicleQueries:
         critical, emergency, failed, unhealthy."""
         return str(self._snap["battery_failsafe"])
 
+    def failsafe(self) -> str:
+        """A failsafe the driver meets, for the model to react to: "link_lost" (no heartbeat
+        for 2 s), "offboard_lost" (PX4 left OFFBOARD by itself: its setpoints stopped
+        reaching it; until the model asks for a mode, a landing or RTL), "fence" (breached),
+        "battery" (a battery failsafe level); "" when none."""
+        return str(self._snap["failsafe"])
+
     def last_ack(self, command: str) -> str:
-        """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
+        """The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode,
+        upload_mission, upload_fence, enable_fence):
         accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
         pending, timeout, not_sent; "" when never sent."""
         return str(self._snap["acks"].get(command, ""))
@@ -308,6 +320,35 @@ class VehicleQueries:
         self._target_local(MAV_FRAME_LOCAL_NED, mask, (n, e, -alt), (0.0, 0.0, 0.0), 0.0,
                            heading or 0.0)
 
+    def upload_mission(self, points: Any, end: str = "hold") -> None:
+        """Upload a mission: points (lat, lon, alt above home[, heading in rad]), then
+        ``end`` (hold, land, rtl); its outcome is last_ack("upload_mission")."""
+        px4 = self._snap.get("autopilot") == _px4.AUTOPILOT_PX4
+        items, users = _upload.mission_items(self.name, points, str(end), px4, self._snap["home"])
+        self._issue("upload_mission", [_upload.plain(points), str(end)], ack=True)
+        self._upload(_upload.MISSION, items, users)
+
+    def upload_fence(self, vertices: Any) -> None:
+        """Upload an inclusion polygon of (lat, lon) vertices (3 at least; none clears the
+        fence); its outcome is last_ack("upload_fence")."""
+        items = _upload.fence_items(self.name, vertices)
+        self._issue("upload_fence", [_upload.plain(vertices)], ack=True)
+        self._upload(_upload.FENCE, items, [])
+
+    def enable_fence(self, on: bool = True) -> None:
+        """Turn the fence on or off (ArduPilot: DO_FENCE_ENABLE; PX4: on once uploaded)."""
+        self._issue("enable_fence", [bool(on)], ack=True)
+        self._fence_enable(bool(on))
+
+    def mission_progress(self) -> tuple[int, int]:
+        """(index of the point being flown to, number of points); (n, n): all reached."""
+        m = self._snap["mission"]
+        return (int(m[0]), int(m[1]))
+
+    def fence_breached(self) -> bool:
+        """The vehicle says it is outside its fence (FENCE_STATUS)."""
+        return bool(self._snap["fence_breached"])
+
     def warning_at_stop(self) -> str | None:
         """What the component says when it stops with the vehicle still armed (then nothing
         lands it: --until, an error without on_interrupt...); None when disarmed. Read from
@@ -342,6 +383,12 @@ class VehicleQueries:
     def _rtl_altitude(self, alt: float) -> None:
         """Set RTL's altitude (the live vehicle)."""
 
+    def _upload(self, kind: int, items: list[Any], users: list[int]) -> None:
+        """Start an upload (the live vehicle)."""
+
+    def _fence_enable(self, on: bool) -> None:
+        """Turn the fence on or off (the live vehicle)."""
+
     def _px4_mode(self, name: str, number: int) -> None:
         """Ask PX4 for a mode (the live vehicle)."""
 
@@ -352,7 +399,8 @@ def modes(vehicle_type: int) -> dict[int, str]:
     return dict(table or mavutil.mode_mapping_acm)
 
 
-class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _reader.Reader, VehicleQueries):
+class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _upload.UploadVehicle, _reader.Reader,
+              VehicleQueries):
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md)."""
 
     def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
@@ -369,6 +417,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _reader.Reader, VehicleQ
             sysid = 255
         self._px4_init(options)
         self._mission_init()
+        self._upload_init()
         for key in sorted(set(options) - {"rate", "ack_timeout", "source_system", "autopilot"}):
             self._say(f"unknown option `{key}` ignored (options: rate, ack_timeout, source_system, "
                       "autopilot)")
@@ -410,38 +459,6 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _reader.Reader, VehicleQ
         """Seconds: the simulated time in lockstep, else the monotonic clock."""
         return float(self._sim.now()) if self._sim is not None else time.monotonic()
 
-    def _count_datagrams(self) -> None:
-        """Lockstep: count what goes through pymavlink's UDP socket, both ways."""
-        conn = self._conn
-        if not isinstance(conn, mavutil.mavudp):
-            self._say(f"--clock sim needs a UDP link (udpin: or udpout:), not {self.url}")
-            raise SystemExit(1)
-        self._counted = _link.Counted(conn)
-
-    def lockstep_sent(self) -> int:
-        """Lockstep: the datagrams sent so far."""
-        return self._counted.sent if self._counted is not None else 0
-
-    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
-        """Lockstep, before the instant at ``t_us``: read until the simulator's ``sent``
-        datagrams have come, then do the reader's timed work; why not, or None."""
-        want = int(step["sent"])
-        end = time.monotonic() + DATAGRAM_WAIT_S
-        fd = self._conn.fd
-        while True:
-            self._drain()
-            received = self._counted.received if self._counted is not None else 0
-            if received >= want:
-                break
-            left = end - time.monotonic()
-            if left <= 0:
-                return (f"{self.name}: {want - received} of the simulator's datagrams did "
-                        f"not come in {DATAGRAM_WAIT_S:g} s (is {self.url} the simulator's link?)")
-            with contextlib.suppress(InterruptedError):
-                select.select([fd], [], [], min(left, POLL_S))
-        self._timed(self._now())
-        return None
-
     def __repr__(self) -> str:
         return f"<mavlink {self.name} {self.url}>"
 
@@ -459,6 +476,9 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _reader.Reader, VehicleQ
             position = bool(flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS))
         rel = self._relative_alt
         pos = self._position
+        failsafe = ("link_lost" if at is not None and age >= LINK_TIMEOUT_S else
+                    "offboard_lost" if self._offboard.lost else
+                    "fence" if self._breached else "battery" if self._charge else "")
         self._snap = {
             "heartbeat_age": age,
             "ready": age < LINK_TIMEOUT_S and self._gps_fix >= GPS_FIX_3D and position,
@@ -467,7 +487,8 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _reader.Reader, VehicleQ
             "position": pos, "altitude": -pos[2] if rel is None else rel,
             "velocity": self._velocity, "yaw": self._yaw, "battery": self._battery,
             "acks": dict(self._acks), "vehicle": self._target is not None, "type": hb[0],
-            "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1], **self._mission_snapshot()}
+            "autopilot": _px4.AUTOPILOT_PX4 if self._px4 else hb[1], **self._mission_snapshot(),
+            **self._upload_snapshot(), "failsafe": failsafe}
         return self._snap
 
     def _mode_name(self, hb: tuple[int, int, int, int]) -> str:
@@ -488,6 +509,8 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _reader.Reader, VehicleQ
                  quiet: bool = False) -> None:
         p = tuple(float(x) for x in params) + (0.0,) * (7 - len(params))
         target = self._target
+        if name in ("set_mode", "land", "rtl", "takeoff"):
+            self._offboard.lost = False  # the model acts on it
         if self._px4 and target is not None:
             adjusted = self._px4_command(name, command, p)
             if adjusted is None:
@@ -514,6 +537,7 @@ class Vehicle(_px4.Px4Vehicle, _mission.MissionVehicle, _reader.Reader, VehicleQ
             self._offboard.target(self._now(), ("local", frame, mask, pos, vel, yaw_rate, yaw))
 
     def _goto_global(self, lat: float, lon: float, alt: float, heading: float | None) -> None:
+        self._fence_check(lat, lon)
         self._send_global(lat, lon, alt, heading)
         if self._px4 and self._target is not None:
             self._offboard.target(self._now(), ("global", lat, lon, alt, heading))

@@ -1,16 +1,20 @@
 """The receiving side of the ``mavlink`` interface (hfsmc_mavlink.py), copied beside a
 component with it, and mixed into its ``Vehicle``.
 
-One daemon thread (``_run``; in lockstep, the automaton's thread through ``_drain`` and
+One daemon thread (``_run``; in lockstep, the automaton's thread through
+``lockstep_sync``, which counts the simulator's datagrams in, then calls ``_drain`` and
 ``_timed``) reads the socket and keeps the latest telemetry as immutable values (a float
 or a tuple, replaced whole, so that readers need no lock), watches the heartbeat, sends
 ours, matches COMMAND_ACKs to the commands waiting for them (``Pending``: resent once
 halfway to the deadline, as MAVProxy does with ``confirmation`` + 1) and logs each
-outcome once on stderr. What the automaton sends, and when it asks, is hfsmc_mavlink's.
+outcome once on stderr. The mission protocol's messages and its resends go to
+hfsmc_mission_upload.py (``_upload_message``, ``_upload_tick``). What the automaton
+sends, and when it asks, is hfsmc_mavlink's.
 """
 
 from __future__ import annotations
 
+import contextlib
 import select
 import threading
 import time
@@ -31,6 +35,7 @@ _MAV: Any = mavutil.mavlink
 LINK_TIMEOUT_S = 2.0  # no heartbeat for that long: the link is lost (docs/interfaces.md)
 GCS_HEARTBEAT_S = 1.0  # our own heartbeat, so the vehicle sees a ground station
 POLL_S = 0.05  # longest wait of the reader: bounds ack deadlines and close()
+DATAGRAM_WAIT_S = 10.0  # lockstep: the simulator's datagrams, counted, are that late at most
 PREARM_CHECK = 0x10000000  # SYS_STATUS sensor bit PX4 sets healthy once it would arm
 RESULTS = _px4.RESULTS = {0: "accepted", 1: "temporarily_rejected", 2: "denied", 3: "unsupported",
            4: "failed", 5: "in_progress", 6: "cancelled"}  # MAV_RESULT
@@ -78,12 +83,16 @@ class Reader:
     _px4: bool
     _autopilot: str
     _duplicates: _link.Duplicates
+    _counted: _link.Counted | None
+    name: str
     url: str
     _now: Any
     _say: Any
     _mode_name: Any
     _request_rates: Any
     _mission_message: Any
+    _upload_message: Any
+    _upload_tick: Any
     _late_ack: Any
     _px4_tick: Any
 
@@ -110,6 +119,7 @@ class Reader:
                 self._conn.mav.heartbeat_send(_MAV.MAV_TYPE_GCS,
                                               _MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
         self._expire(now)
+        self._upload_tick(now)
         self._watch_link()
         if self._px4:
             self._px4_tick(now)
@@ -139,7 +149,7 @@ class Reader:
             return
         if self._target is None or source[0] != self._target[0]:
             return
-        if self._mission_message(kind, msg):
+        if self._mission_message(kind, msg) or self._upload_message(kind, msg):
             return
         if kind == "LOCAL_POSITION_NED":
             self._position = (float(msg.x), float(msg.y), float(msg.z))
@@ -226,3 +236,36 @@ class Reader:
             self._gps_fix = 0  # whatever answers next says afresh whether it is ready
             self._ekf_flags = 0
             self._say(f"link lost: no heartbeat for {LINK_TIMEOUT_S:g} s")
+
+    # -- lockstep (--clock sim): the automaton's thread reads, no reader thread ------
+    def _count_datagrams(self) -> None:
+        """Lockstep: count what goes through pymavlink's UDP socket, both ways."""
+        conn = self._conn
+        if not isinstance(conn, mavutil.mavudp):
+            self._say(f"--clock sim needs a UDP link (udpin: or udpout:), not {self.url}")
+            raise SystemExit(1)
+        self._counted = _link.Counted(conn)
+
+    def lockstep_sent(self) -> int:
+        """Lockstep: the datagrams sent so far."""
+        return self._counted.sent if self._counted is not None else 0
+
+    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
+        """Lockstep, before the instant at ``t_us``: read until the simulator's ``sent``
+        datagrams have come, then do the reader's timed work; why not, or None."""
+        want = int(step["sent"])
+        end = time.monotonic() + DATAGRAM_WAIT_S
+        fd = self._conn.fd
+        while True:
+            self._drain()
+            received = self._counted.received if self._counted is not None else 0
+            if received >= want:
+                break
+            left = end - time.monotonic()
+            if left <= 0:
+                return (f"{self.name}: {want - received} of the simulator's datagrams did "
+                        f"not come in {DATAGRAM_WAIT_S:g} s (is {self.url} the simulator's link?)")
+            with contextlib.suppress(InterruptedError):
+                select.select([fd], [], [], min(left, POLL_S))
+        self._timed(self._now())
+        return None

@@ -35,7 +35,8 @@ VEHICLE_QUERIES = {"connected": "heartbeat_age", "heartbeat_age": "heartbeat_age
                    "home": "home", "distance_to": "position",
                    "distance_to_location": "location", "reached": "position",
                    "reached_location": "location", "status_text": "status_text",
-                   "battery_failsafe": "battery_failsafe"}
+                   "battery_failsafe": "battery_failsafe", "mission_progress": "mission",
+                   "fence_breached": "fence_breached", "failsafe": "failsafe"}
 CAMERA_QUERIES = {"frame": "frame", "age": "age", "ok": "age", "count": "count"}
 _TRIPLES = {"position", "velocity", "location", "home"}
 
@@ -64,11 +65,17 @@ def _normal(field: str, value: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"`{field}` must be an integer")
         return value
-    if field in ("ready", "armed", "vehicle"):
+    if field == "mission":
+        if not (isinstance(value, list) and len(value) == 2 and all(
+                isinstance(x, int) and not isinstance(x, bool) for x in value)):
+            raise ValueError("`mission` must be [current, total] (two integers)")
+        return (value[0], value[1])
+    if field in ("ready", "armed", "vehicle", "fence_breached"):
         if not isinstance(value, bool):
             raise ValueError(f"`{field}` must be true or false")
         return value
-    if field in ("mode", "status_text", "battery_failsafe") and not isinstance(value, str):
+    if field in ("mode", "status_text", "battery_failsafe", "failsafe") and \
+            not isinstance(value, str):
         raise ValueError(f"`{field}` must be a string")
     if field == "acks" and not (isinstance(value, dict)
                                 and all(isinstance(v, str) for v in value.values())):

@@ -92,11 +92,14 @@ class Offboard:
         self.sent_at = -math.inf
         self.asked_at = -math.inf
         self.mode = -1  # the vehicle's mode at the last look
+        self.lost = False  # PX4 left OFFBOARD by itself (failsafe()); until the model acts
 
     def want(self, on: bool) -> None:
         """GUIDED asked for (True) or another mode, a landing, RTL (False: the stream stops)."""
         if not on and self.args is not None:
             self.say("PX4: setpoint stream stopped")
+        if on:
+            self.lost = False
         self.wanted = on
         if not on:
             self.args = None
@@ -120,6 +123,7 @@ class Offboard:
             self.say(f"PX4 left OFFBOARD for {mode_name(mode)} (a failsafe or a pilot): the "
                      "driver stops its stream; set_mode(\"GUIDED\") takes the vehicle back")
             self.want(False)
+            self.lost = True
             return
         if self.args is None:
             return

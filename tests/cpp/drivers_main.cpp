@@ -19,6 +19,7 @@
 #include <string>
 #include <thread>
 #include <utility>
+#include <vector>
 
 #include "hfsmc/camera.hpp"
 #include "hfsmc/mavlink.hpp"
@@ -225,14 +226,17 @@ int px4(const std::string& port) {
         "OFFBOARD, flying north");
   sleep_s(2.0);  // far longer than PX4's COM_OF_LOSS_T: the driver streams
   snap();
-  check(drone.mode() == "GUIDED", "still OFFBOARD");
+  check(drone.mode() == "GUIDED" && drone.failsafe().empty(), "still OFFBOARD, no failsafe");
   wait_for_go("drop the link");
   check(wait_until([&] { return drone.heartbeat_age() < 1.0 && drone.mode() == "POSCTL"; }, 10),
         "back in POSCTL (the failsafe)");
   sleep_s(2.0);
   snap();
   check(drone.mode() == "POSCTL", "not taken back");
+  check(drone.failsafe() == "offboard_lost", "failsafe(): offboard_lost, not " + drone.failsafe());
   check(drone.land(), "land sent");
+  snap();
+  check(drone.failsafe().empty(), "the model acted: no failsafe left");
   check(wait_until([&] { return drone.mode() == "LAND"; }, 5), "LAND");
   return 0;
 }
@@ -282,6 +286,42 @@ int mission(const std::string& port, const std::string& where) {
   check(wait_until([&] { return drone.altitude() > 11.5; }, 30), "climbs to 12 m");
   check(wait_until([&] { return !drone.armed(); }, 120), "landed, disarmed");
   check(drone.distance_to(0.0, 0.0) < 1.0, "at home");
+  return 0;
+}
+
+/// Missions (docs/interfaces.md, "Missions"): an upload the vehicle refuses (too many
+/// points) is a result, a bad point throws, a mission of three points around home with a
+/// heading is flown in AUTO, its progress followed, and it lands at its last point.
+int upload(const std::string& port) {
+  hfsmc::Mavlink drone("drone", udpin(port), Options{});
+  check(wait_until([&] { return drone.ready() && !std::isnan(drone.home().x()); }, 30), "ready, home");
+  const Eigen::Vector3d home = drone.home();
+  const auto at = [&](double north, double east, double alt) {  // flat earth, as the simulator
+    const double r = 6378137.0;
+    return std::vector<double>{home.x() + north / r * 180.0 / kPi,
+                               home.y() + east / (r * std::cos(home.x() * kPi / 180.0)) * 180.0 / kPi, alt};
+  };
+  check(drone.upload_mission(std::vector<std::vector<double>>(1001, at(1, 1, 5))), "sent");
+  check(wait_until([&] { return drone.last_ack("upload_mission") == "failed"; }, 10), "refused: no space");
+  try {
+    drone.upload_mission({at(1, 1, 5), {95.0, 0.0, 5.0}});
+    fail("a latitude of 95 accepted");
+  } catch (const std::invalid_argument& e) {
+    check(std::string(e.what()) == "drone: latitude 95 is out of range -90..90 (degrees) (upload_mission point 1)",
+          std::string("thrown: ") + e.what());
+  }
+  check(drone.set_mode("GUIDED") && drone.arm() && drone.takeoff(5.0), "GUIDED, arm, takeoff sent");
+  check(wait_until([&] { return drone.altitude() > 4.5; }, 40), "took off");
+  std::vector<double> first = at(8, 0, 6);
+  first.push_back(kPi / 2);
+  check(drone.upload_mission({first, at(8, 8, 5), at(0, 8, 5)}, "land"), "mission sent");
+  check(wait_until([&] { return drone.last_ack("upload_mission") == "accepted"; }, 10), "accepted");
+  check(drone.mission_progress() == std::make_pair(0, 3), "three points, none reached");
+  drone.set_mode("AUTO");
+  check(wait_until([&] { return drone.mode() == "AUTO"; }, 5), "AUTO");
+  check(wait_until([&] { return drone.mission_progress() == std::make_pair(3, 3); }, 60), "all reached");
+  check(wait_until([&] { return !drone.armed(); }, 90), "landed, disarmed");
+  check(drone.distance_to(0.0, 8.0) < 1.0, "at the last point");
   return 0;
 }
 
@@ -351,6 +391,7 @@ int main(int argc, char** argv) {
   if (scenario == "px4") return px4(arg);
   if (scenario.rfind("mission:", 0) == 0) return mission(arg, scenario.substr(8));
   if (scenario == "camera") return camera(arg);
+  if (scenario == "upload") return upload(arg);
   std::cerr << "unknown scenario " << scenario << "\n";
   return 2;
 }

@@ -66,6 +66,7 @@
 #include "thread.hpp"
 
 struct __mavlink_message;  // mavlink_message_t of mavgen's headers (src/hfsmc_mavlink.cpp)
+struct __mavlink_status;  // mavlink_status_t
 
 namespace hfsmc {
 
@@ -158,7 +159,20 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// critical, emergency, failed, unhealthy.
   std::string battery_failsafe() const { evidence_.asked("battery_failsafe", "battery_failsafe"); return snap_.battery_failsafe; }
 
-  /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode):
+  /// (index of the point being flown to, number of points) of the mission uploaded;
+  /// (n, n) once its last point is reached (MISSION_CURRENT, MISSION_ITEM_REACHED).
+  std::pair<int, int> mission_progress() const { evidence_.asked("mission_progress", "mission"); return snap_.mission; }
+
+  /// The vehicle says it is outside its fence (FENCE_STATUS).
+  bool fence_breached() const { evidence_.asked("fence_breached", "fence_breached"); return snap_.fence_breached; }
+
+  /// A failsafe the driver meets, for the model to react to: "link_lost" (no heartbeat
+  /// for 2 s), "offboard_lost" (PX4 left OFFBOARD by itself; until the model asks for a
+  /// mode, a landing or RTL), "fence" (breached), "battery"; "" when none.
+  std::string failsafe() const { evidence_.asked("failsafe", "failsafe"); return snap_.failsafe; }
+
+  /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode,
+  /// upload_mission, upload_fence, enable_fence):
   /// accepted, denied, temporarily_rejected, unsupported, failed, cancelled,
   /// pending, timeout, not_sent; "" when never sent.
   std::string last_ack(const std::string& command) const;
@@ -216,6 +230,18 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// Turn to a heading (rad, 0 north, clockwise): on the way to the latest go_to or
   /// goto_location target, else stopped where the vehicle is (a velocity target ends).
   bool set_yaw(double heading);
+
+  /// Upload a mission (MISSION_ITEM_INT protocol): points {lat, lon, alt above home} or
+  /// {lat, lon, alt, heading in rad}, then `end` (hold, land, rtl); its outcome is
+  /// last_ack("upload_mission"). A bad point or end throws std::invalid_argument.
+  bool upload_mission(const std::vector<std::vector<double>>& points, const std::string& end = "hold");
+
+  /// Upload an inclusion polygon of {lat, lon} vertices (3 at least; none clears the
+  /// fence); its outcome is last_ack("upload_fence").
+  bool upload_fence(const std::vector<std::vector<double>>& vertices);
+
+  /// Turn the fence on or off (ArduPilot: DO_FENCE_ENABLE; PX4: on once uploaded).
+  bool enable_fence(bool on = true);
 
   /// Stop the reader and close the socket (also done by the destructor).
   void close();
@@ -276,6 +302,8 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     Eigen::Vector3d home{kNaN, kNaN, kNaN};  // lat, lon, m AMSL
     std::string status_text;  // the latest STATUSTEXT, whole
     std::string battery_failsafe;  // BATTERY_STATUS.charge_state's name
+    int mission_current = 0, mission_total = 0;  // mission_progress()
+    bool fence_breached = false;  // FENCE_STATUS.breach_status
   };
 
   struct Snap {  // what the automaton sees during one instant
@@ -294,6 +322,9 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     Eigen::Vector3d location{kNaN, kNaN, kNaN};
     Eigen::Vector3d home{kNaN, kNaN, kNaN};
     std::string status_text, battery_failsafe;
+    std::pair<int, int> mission{0, 0};
+    bool fence_breached = false;
+    std::string failsafe;
   };
 
   /// The state at hand, as a snapshot (any thread).
@@ -335,6 +366,33 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     double a = 0, b = 0, alt = 0;
   };
   Aim aim_;  // the automaton's thread only
+  // -- missions and the fence (src/hfsmc_mission_upload.cpp) ------------------------------
+  struct Item {  // one MISSION_ITEM_INT
+    uint8_t frame;
+    uint16_t command;
+    float p[4];
+    int32_t x, y;
+    float z;
+  };
+  struct Upload {  // one upload in flight, under link_
+    uint8_t kind = 0;  // MAV_MISSION_TYPE: 0 mission, 1 fence
+    std::vector<Item> items;
+    std::vector<int> users;  // each item's point (-1: none)
+    Clock::time_point sent_at{};
+    int last = -1;  // the item sent last; -1: MISSION_COUNT
+    int retries = 0;
+    std::vector<std::pair<double, double>> polygon;
+  };
+  bool start_upload(const char* name, Upload u);
+  ::__mavlink_status* tx_status();  // the sender's state, under link_
+  void send_upload(const Upload& u, uint8_t system, uint8_t component);  // under link_: MISSION_COUNT, or the item `last`
+  void on_mission_message(const mavlink_message& msg);  // the reader thread
+  void upload_tick(Clock::time_point now);
+  void fence_check(double lat, double lon);
+  std::map<uint8_t, Upload> uploads_;  // under link_
+  std::vector<int> users_;  // the mission accepted: each item's point, under link_
+  std::vector<std::pair<double, double>> fence_;  // the fence accepted, under link_
+  bool fence_on_ = false;  // under link_
   void send(const mavlink_message& msg);  // under link_
   void request_rates();
 

@@ -88,6 +88,9 @@ class Offboard {
   void tick(double now, uint32_t mode, bool armed);
   /// A target is being streamed.
   bool streaming() const;
+  /// PX4 left OFFBOARD by itself (failsafe()): true until the model asks for a mode again.
+  bool lost() const;
+  void clear_lost();
 
  private:
   static constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -104,6 +107,7 @@ class Offboard {
   double sent_at_ = -kInf;
   double asked_at_ = -kInf;
   int64_t mode_ = -1;  // the vehicle's mode at the last look
+  bool lost_ = false;
 };
 
 /// STATUSTEXT, joined when it comes in chunks (MAVLink 2: id and chunk_seq).
