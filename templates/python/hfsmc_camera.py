@@ -84,6 +84,7 @@ class Camera(Driver):
     LOCKSTEP = True
     RECONNECT_MIN_S = BACKOFF_MIN_S
     RECONNECT_MAX_S = BACKOFF_MAX_S
+    url: str  # DEFAULT_URL when none is given (open)
 
     def __init__(self, name: str, url: str | None, options: dict[str, Any],
                  playback: Any = None, sim: Any = None) -> None:
