@@ -8,6 +8,7 @@ import importlib
 import inspect
 import re
 import sys
+from typing import Any, ClassVar
 from pathlib import Path
 from types import ModuleType
 
@@ -110,3 +111,44 @@ def test_the_playback_doubles_answer_every_method_and_name_the_interface(
     assert str(e.value).startswith(f"the {kind} interface `{name}` has no method or attribute "
                                    "`fly_to`")
     assert "Fake" not in str(e.value)
+
+
+def test_the_driver_base_gives_every_driver_the_cameras_hooks(capsys: pytest.CaptureFixture[str]) -> None:
+    """Images beside the snapshot (each told to the recording once) and a reader that
+    reconnects saying each change once: the base's, not the camera's own."""
+    base = importlib.import_module("hfsmc.templates.python.hfsmc_driver")
+
+    class Pictures(base.Driver):  # type: ignore[misc,name-defined]
+        KIND = "pictures"
+        SNAPSHOT: ClassVar[dict[str, Any]] = {"n": 0}
+        FRAMES = "n"
+
+        @base.query(reads="frame")
+        def picture(self) -> Any:
+            return self.image()
+
+    d = Pictures("pics", None, {})
+    told: list[int] = []
+    d.on_frame = lambda n, image, encoded: told.append(n)
+    assert d.picture() is None and told == []
+    for n in (1, 1, 2):
+        d.hold_image(f"image {n}")
+        d.read = lambda n=n: {"n": n}
+        d.snapshot()
+        assert d.picture() == f"image {n}" and d.picture() == f"image {n}"
+    assert told == [1, 2] and d._last_seen() == "image 2"
+    tries = iter([False, False, True, False])
+
+    def attempt() -> bool:
+        got = next(tries, None)
+        if got is None:  # nothing left to try: the driver closes
+            d._stop.set()
+            return False
+        if got:
+            d.tell_up("back")
+        return got
+
+    d.RECONNECT_MIN_S = d.RECONNECT_MAX_S = 0.0
+    d.keep_connected(attempt, lambda got: "lost" if got else "not available")
+    assert capsys.readouterr().err.splitlines() == ["pics: not available", "pics: back",
+                                                    "pics: lost"]
