@@ -8,9 +8,9 @@ import importlib
 import inspect
 import re
 import sys
-from typing import Any, ClassVar
 from pathlib import Path
 from types import ModuleType
+from typing import Any, ClassVar
 
 import pytest
 
