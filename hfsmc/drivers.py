@@ -46,7 +46,8 @@ DRIVER_PROTOCOL = frozenset({"open", "read", "close", "snapshot", "apply", "send
                              "warning_at_stop", "value", "say", "start_thread", "connect",
                              "fake", "snapshot_schema", "view_fields", "wait", "now",
                              "tell_down", "tell_up", "keep_connected", "hold_image", "image",
-                             "lockstep_sent", "lockstep_sync"})
+                             "lockstep_sent", "lockstep_sync", "names", "stopping",
+                             "attribute"})
 # Plain attributes every driver has (C++: the methods name() and url()).
 ATTRIBUTES = ("name", "url")
 # C++ names that differ from the Python ones (`goto` is a C++ keyword).
