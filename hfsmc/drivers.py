@@ -6,9 +6,10 @@ argument names a key of the interface's options), the scenario files know which 
 are commands, and the recording knows the snapshot's fields:
 
 - the built-in Python drivers (``templates/python/hfsmc_mavlink.py``, ``hfsmc_camera.py``):
-  a class of what snippets call (``VehicleQueries``, ``CameraQueries``, which the
-  playback's test doubles subclass too) and the live class below it, which adds
-  ``close()``; a command is a method that tells ``self._issue``;
+  a class of what snippets call (``VehicleQueries``, which the playback's test doubles
+  subclass too; the camera's ``Camera`` is a driver on ``hfsmc_driver.Driver``, its own
+  fake) and the live class, which adds ``close()``; a command is a method that tells
+  ``self._issue``;
 - a user's Python driver (``type: driver``, ``python: FILE``): one class deriving from
   ``Driver`` (templates/python/hfsmc_driver.py) whose methods are marked ``@query`` or
   ``@command`` and whose ``KIND``, ``SNAPSHOT`` and ``OPTIONS`` are literals; read with
@@ -34,7 +35,7 @@ from typing import Any
 # Interface type -> (driver file, the snippets' class, the live class).
 SOURCES: dict[str, tuple[str, str, str]] = {
     "mavlink": ("hfsmc_mavlink.py", "VehicleQueries", "Vehicle"),
-    "camera": ("hfsmc_camera.py", "CameraQueries", "Camera"),
+    "camera": ("hfsmc_camera.py", "Camera", "Camera"),
 }
 # Types a user's driver may not take as its KIND: the built-in ones and the model keys.
 RESERVED_KINDS = frozenset({"mavlink", "camera", "ros2", "ros_topic", "ice", "driver"})
@@ -43,7 +44,10 @@ RUNTIME_ONLY = frozenset({"snapshot", "lockstep_sent", "lockstep_sync"})
 # Methods of a user's driver that belong to the runtime (hfsmc_driver.Driver's protocol).
 DRIVER_PROTOCOL = frozenset({"open", "read", "close", "snapshot", "apply", "send",
                              "warning_at_stop", "value", "say", "start_thread", "connect",
-                             "fake", "snapshot_schema", "view_fields"})
+                             "fake", "snapshot_schema", "view_fields", "wait", "now",
+                             "tell_down", "tell_up", "keep_connected", "hold_image", "image",
+                             "lockstep_sent", "lockstep_sync", "names", "stopping",
+                             "attribute"})
 # Plain attributes every driver has (C++: the methods name() and url()).
 ATTRIBUTES = ("name", "url")
 # C++ names that differ from the Python ones (`goto` is a C++ keyword).
@@ -133,7 +137,9 @@ def driver(kind: str) -> Driver | None:
     text = files("hfsmc.templates").joinpath("python").joinpath(file).read_text("utf-8")
     classes = {n.name: n for n in ast.parse(text).body if isinstance(n, ast.ClassDef)}
     methods: dict[str, Method] = {}
-    for cls, skip in ((classes[queries], frozenset[str]()), (classes[live], RUNTIME_ONLY)):
+    # a driver on hfsmc_driver.Driver (queries == live): the base's protocol is the runtime's
+    runtime = RUNTIME_ONLY | (DRIVER_PROTOCOL - {"close"}) if queries == live else RUNTIME_ONLY
+    for cls, skip in ((classes[queries], runtime), (classes[live], runtime)):
         for node in cls.body:
             if (isinstance(node, ast.FunctionDef) and not node.name.startswith("_")
                     and node.name not in skip and node.name not in methods):
@@ -297,8 +303,11 @@ def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any]
         return ()
     params = {a.arg for a in node.args.args}
     for k in mark.keywords:
+        if k.arg == "reads":  # the field a query reads (a replay's evidence): any literal
+            continue
         if k.arg != "names":
-            raise DeclarationError(f"`@{_base_name(mark)}` takes only `names=`", *_at(mark))
+            raise DeclarationError(f"`@{_base_name(mark)}` takes only `names=` and `reads=`",
+                                   *_at(mark))
         try:
             names = literal(k.value)
         except ValueError as e:

@@ -32,7 +32,7 @@ RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py"
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py",
                                "hfsmc_mavlink_reader.py", "hfsmc_mission.py",
                                "hfsmc_mission_upload.py", "hfsmc_px4.py"),
-                   "camera": ("hfsmc_camera.py",), "driver": ("hfsmc_driver.py",),
+                   "camera": ("hfsmc_camera.py", "hfsmc_driver.py"), "driver": ("hfsmc_driver.py",),
                    "ros2": ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_names.py",
                             "hfsmc_ros2_cdr.py", "hfsmc_ros2_playback.py",
                             "hfsmc_ros2_lockstep.py", "hfsmc_ros2_rpc.py",

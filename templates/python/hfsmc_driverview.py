@@ -18,9 +18,11 @@ MAX_TEXT = 80  # a value longer than that, as text, ends with an ellipsis
 
 
 def is_driver(obj: Any) -> bool:
-    """A user driver (hfsmc_driver.Driver), live or a playback's fake."""
+    """A driver shown by its fields (hfsmc_driver.Driver), live or a playback's fake; one
+    with images (``FRAMES``: the camera) is shown by the latest image a snippet obtained."""
     return isinstance(getattr(type(obj), "KIND", None), str) and \
-        isinstance(getattr(type(obj), "SNAPSHOT", None), dict) and callable(getattr(obj, "view_fields", None))
+        isinstance(getattr(type(obj), "SNAPSHOT", None), dict) and \
+        callable(getattr(obj, "view_fields", None)) and not getattr(type(obj), "FRAMES", "")
 
 
 def shown(value: Any) -> Any:

@@ -37,7 +37,7 @@ VEHICLE_QUERIES = {"connected": "heartbeat_age", "heartbeat_age": "heartbeat_age
                    "reached_location": "location", "status_text": "status_text",
                    "battery_failsafe": "battery_failsafe", "mission_progress": "mission",
                    "fence_breached": "fence_breached", "failsafe": "failsafe"}
-CAMERA_QUERIES = {"frame": "frame", "age": "age", "ok": "age", "count": "count"}
+CAMERA_FIELDS = ("count", "age", "frame", "crc32")  # what a camera's script may give
 _TRIPLES = {"position", "velocity", "location", "home"}
 
 
@@ -99,6 +99,8 @@ class Playback:
         # the entries as written, and the first that a built-in driver's fields refuse
         self.raw: dict[str, list[tuple[int, dict[str, Any], frozenset[str]]]] = {}
         self.bad: dict[str, str] = {}
+        self.images: dict[str, tuple[str, Any]] = {}  # per interface, its frame's file and image
+        self.warned: set[str] = set()  # interfaces whose frames decode to other pixels here
         path = self.path = os.path.join(folder, "inputs.jsonl")
         self.line = 0
         try:
@@ -181,9 +183,11 @@ class Playback:
         if kind == "mavlink":
             import hfsmc_mavlink  # type: ignore[import-not-found]  # beside the component
             fake = fake_vehicle(name, hfsmc_mavlink, self)
-        elif kind == "camera":
+        elif kind == "camera":  # the driver's own fake (hfsmc_driver.Driver.fake)
             import hfsmc_camera  # type: ignore[import-not-found]  # beside the component
-            fake = fake_camera(name, hfsmc_camera, self.folder, self)
+            fake = hfsmc_camera.Camera.fake(name, None, {}, self)
+            self.snapshots[name] = [(t, {k: v for k, v in values.items() if k in CAMERA_FIELDS},
+                                     lacks) for t, values, lacks in self.snapshots.get(name, [])]
         else:
             return None
         self.fakes[name] = fake
@@ -195,8 +199,9 @@ class Playback:
         the entries as written (its ``apply`` converts and checks them)."""
         self.snapshots[name] = self.raw.get(name, [])
         fields = getattr(type(fake), "SNAPSHOT", {})
+        frames = ("frame", "crc32") if getattr(type(fake), "FRAMES", "") else ()
         for t, values, _ in self.snapshots[name]:  # a field it lacks: said at start
-            odd = [k for k in values if k not in fields]
+            odd = [k for k in values if k not in fields and k not in frames]
             if odd:
                 raise PlaybackError(f"{self.path}: t={t}: the {getattr(fake, 'KIND', '')} "
                                     f"interface `{name}` has no snapshot field `{odd[0]}` "
@@ -204,6 +209,27 @@ class Playback:
         self.fakes[name] = fake
         self.place[name] = 0
         return fake
+
+    def image(self, name: str, file: str, crc: Any, count: Any) -> Any:
+        """The image a script names for a driver's frame (FRAMES, hfsmc_driver.Driver), read
+        once while it is the frame of the moment; said once when its pixels are not those
+        of the recorded run (``crc``: their CRC-32 there)."""
+        held = self.images.get(name)
+        if held is not None and held[0] == file:
+            return held[1]
+        import cv2  # a driver with frames has it
+        path = os.path.join(self.folder, file)
+        img = cv2.imread(path, cv2.IMREAD_COLOR)
+        if img is None:
+            raise PlaybackError(f"{path}: cannot read the frame (a PNG or JPEG file)")
+        if crc is not None and zlib.crc32(img.tobytes()) != crc and name not in self.warned:
+            self.warned.add(name)
+            sys.stderr.write(
+                f"{name}: frame {count} ({file}) decodes to other pixels here than in the "
+                "recorded run (another JPEG decoder): from there on this run does not "
+                "compute on the recorded pixels\n")
+        self.images[name] = (file, img)  # the frame of the moment: the previous one goes
+        return img
 
     def advance(self, t_us: int) -> None:
         """Apply every entry up to ``t_us`` to the fakes (before they take a snapshot), and
@@ -317,57 +343,3 @@ def fake_vehicle(name: str, module: Any, playback: Any = None) -> Any:
                 self.quiet = False
 
     return _guarded(Fake, VEHICLE_QUERIES)()
-
-
-def fake_camera(name: str, module: Any, folder: str, playback: Any = None) -> Any:
-    """A camera whose frames are PNG files named by the script."""
-    import cv2
-
-    class Fake(Evidence, module.CameraQueries):  # type: ignore[misc]
-        def __init__(self) -> None:
-            self.name = name
-            self.playback = playback
-            self.on_frame = None
-            self.state: dict[str, Any] = {**module.NO_FRAME, "frame": None}
-            self._snap = module.NO_FRAME
-            self._frame = None
-            self._jpeg = None  # frames come as files; a recording of this run writes PNGs
-            self._seen = None
-            self.images: dict[str, Any] = {}
-            self.warned = False
-
-        def __repr__(self) -> str:
-            return f"<camera {name} (playback)>"
-
-        def close(self) -> None:
-            """Nothing to stop (the real one's grabber)."""
-
-        def apply(self, values: dict[str, Any]) -> None:
-            self.state = {**self.state, **values}
-
-        def snapshot(self) -> dict[str, Any]:
-            file = self.state.get("frame")
-            self._frame = None if file is None else self._image(str(file), self.state)
-            snap: dict[str, Any] = {"count": self.state["count"], "age": self.state["age"]}
-            self._snap = snap
-            return snap
-
-        def _image(self, file: str, state: dict[str, Any]) -> Any:
-            img = self.images.get(file)
-            if img is None:
-                path = os.path.join(folder, file)
-                img = cv2.imread(path, cv2.IMREAD_COLOR)
-                if img is None:
-                    raise PlaybackError(f"{path}: cannot read the frame (a PNG or JPEG file)")
-                crc = state.get("crc32")
-                if crc is not None and zlib.crc32(img.tobytes()) != crc and not self.warned:
-                    self.warned = True
-                    sys.stderr.write(
-                        f"{name}: frame {state['count']} ({file}) decodes to other pixels here "
-                        "than in the recorded run (another JPEG decoder): from there on this "
-                        "run does not compute on the recorded pixels\n")
-                self.images = {file: img}  # the frame of the moment: the previous one goes
-            return img
-
-    return _guarded(Fake, CAMERA_QUERIES)()
-
