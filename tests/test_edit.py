@@ -405,3 +405,23 @@ def test_wrap_rewrites_the_active_paths_through_the_wrapped_states(tmp_path: Pat
     # Nothing about active() is diagnosed: only the transition that now crosses a level.
     codes = sorted(d.code for ds in s.by_element().values() for d in ds if d.severity == "error")
     assert codes == ["E133"], s.by_element()
+
+
+def test_an_xml_string_written_with_entities_is_a_string_to_a_rename() -> None:
+    """`&quot;speed is&quot;` is a string in the snippet: the variable's rename leaves it."""
+    text = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<hfsm version="1" name="q" language="python">\n'
+        '  <variable name="speed" type="float" init="0.0"/>\n'
+        '  <automaton initial="A">\n'
+        '    <state name="A">\n'
+        "      <entry>log(&quot;speed is&quot;, speed, 'speed')</entry>\n"
+        '      <during><![CDATA[print("&quot;", speed)]]></during>\n'
+        '      <transition to="B" after="1s"/>\n'
+        '    </state>\n'
+        '    <state name="B" final="true"/>\n'
+        '  </automaton>\n'
+        '</hfsm>\n')
+    out = apply_edits(text, XmlOps(text).rename_declaration("variable", "speed", "velocity"))
+    assert "<entry>log(&quot;speed is&quot;, velocity, 'speed')</entry>" in out
+    assert '<during><![CDATA[print("&quot;", velocity)]]></during>' in out
