@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import os
 import re
 import shlex
 import signal
@@ -27,7 +28,8 @@ from tests.test_missions import CPP_BUILD_TIMEOUT
 SHORT = "40s"  # a take-off and the start of the first stage
 
 
-def _burn(stop: object) -> None:
+def _burn(stop: object, nice: int) -> None:
+    os.nice(nice)
     while not stop.is_set():  # type: ignore[attr-defined]
         sum(i * i for i in range(10_000))
 
@@ -37,7 +39,11 @@ def cpu_burners(n: int = 2) -> Iterator[None]:
     """Every core busy (a parallel build's load) while the block runs."""
     ctx = multiprocessing.get_context("spawn")
     stop = ctx.Event()
-    procs = [ctx.Process(target=_burn, args=(stop,), daemon=True) for _ in range(n)]
+    # Alone, the burners are the load. Under `make test` the other workers' tests already
+    # load every core: the burners then only take what they leave (the lowest priority)
+    # instead of two cores from the rest of the suite.
+    nice = 19 if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1 else 0
+    procs = [ctx.Process(target=_burn, args=(stop, nice), daemon=True) for _ in range(n)]
     for p in procs:
         p.start()
     try:

@@ -451,3 +451,20 @@ async def test_a_library_state_renamed_through_the_server_renames_its_users(
     closed(client, uri)
     client.workspace_did_change_workspace_folders(types.DidChangeWorkspaceFoldersParams(
         types.WorkspaceFoldersChangeEvent(added=[], removed=[types.WorkspaceFolder(tmp_path.as_uri(), "t")])))
+
+
+async def test_a_request_right_after_opening_waits_for_the_first_check(client: LanguageClient
+                                                                      ) -> None:
+    """An editor asks for hover or symbols as soon as it opens a file: the answer waits for the
+    document's first analysis instead of being empty."""
+    text = MODEL.read_text()
+    uri = MODEL.resolve().as_uri()
+    client.text_document_did_open(types.DidOpenTextDocumentParams(types.TextDocumentItem(
+        uri, "yaml", 1, text)))
+    doc = types.TextDocumentIdentifier(uri)
+    h = await client.text_document_hover_async(types.HoverParams(doc, position(text, "period: 50ms", delta=2)))
+    assert h is not None and "period" in str(h.contents)
+    syms = await client.text_document_document_symbol_async(types.DocumentSymbolParams(doc))
+    assert syms and {"TakeOff", "Mission"} <= {s.name for s in syms}  # type: ignore[union-attr]
+    await published(client, uri)
+    closed(client, uri)

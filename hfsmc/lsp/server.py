@@ -58,6 +58,16 @@ class HfsmcServer(LanguageServer):
         doc = self.docs.get(uri)
         return doc if doc is not None and doc.analysis is not None else None
 
+    async def ready(self, uri: str) -> Doc | None:
+        """The open model once it has an analysis: a request that comes right after
+        didOpen waits for the first check instead of answering nothing."""
+        doc = self.docs.get(uri)
+        while doc is not None and doc.analysis is None and doc.task is not None \
+                and not doc.task.done():
+            await asyncio.wait({doc.task})  # a newer change may cancel it: then its successor
+            doc = self.docs.get(uri)
+        return self.model_doc(uri)
+
     async def refresh(self, uri: str, delay: float, cxx: bool = False) -> None:
         """Check the document after ``delay`` (a newer change cancels this one)."""
         if delay:
@@ -150,8 +160,8 @@ async def watched(ls: HfsmcServer, params: types.DidChangeWatchedFilesParams) ->
             ls._watch_disk(doc, ls.text(doc.uri))
 
 
-def _at(ls: HfsmcServer, uri: str, pos: types.Position) -> tuple[Analysis, int] | None:
-    doc = ls.model_doc(uri)
+async def _at(ls: HfsmcServer, uri: str, pos: types.Position) -> tuple[Analysis, int] | None:
+    doc = await ls.ready(uri)
     if doc is None or doc.analysis is None:
         return None
     a = doc.analysis
@@ -159,20 +169,20 @@ def _at(ls: HfsmcServer, uri: str, pos: types.Position) -> tuple[Analysis, int] 
 
 
 @server.feature(types.TEXT_DOCUMENT_DEFINITION)
-def definition(ls: HfsmcServer, params: types.DefinitionParams) -> types.Location | None:
-    at = _at(ls, params.text_document.uri, params.position)
+async def definition(ls: HfsmcServer, params: types.DefinitionParams) -> types.Location | None:
+    at = await _at(ls, params.text_document.uri, params.position)
     return features.definition(*at) if at else None
 
 
 @server.feature(types.TEXT_DOCUMENT_REFERENCES)
-def references(ls: HfsmcServer, params: types.ReferenceParams) -> list[types.Location]:
-    at = _at(ls, params.text_document.uri, params.position)
+async def references(ls: HfsmcServer, params: types.ReferenceParams) -> list[types.Location]:
+    at = await _at(ls, params.text_document.uri, params.position)
     return features.references(*at, params.context.include_declaration) if at else []
 
 
 @server.feature(types.TEXT_DOCUMENT_RENAME)
-def rename(ls: HfsmcServer, params: types.RenameParams) -> types.WorkspaceEdit | None:
-    at = _at(ls, params.text_document.uri, params.position)
+async def rename(ls: HfsmcServer, params: types.RenameParams) -> types.WorkspaceEdit | None:
+    at = await _at(ls, params.text_document.uri, params.position)
     if at is None:
         return None
     a, off = at
@@ -193,8 +203,8 @@ def rename(ls: HfsmcServer, params: types.RenameParams) -> types.WorkspaceEdit |
 
 @server.feature(types.TEXT_DOCUMENT_COMPLETION,
                 types.CompletionOptions(trigger_characters=[".", "$", '"', "/", ":", " "]))
-def completion(ls: HfsmcServer, params: types.CompletionParams) -> types.CompletionList:
-    doc = ls.model_doc(params.text_document.uri)
+async def completion(ls: HfsmcServer, params: types.CompletionParams) -> types.CompletionList:
+    doc = await ls.ready(params.text_document.uri)
     if doc is None or doc.analysis is None:
         return types.CompletionList(False, [])
     text = ls.text(params.text_document.uri)
@@ -205,8 +215,8 @@ def completion(ls: HfsmcServer, params: types.CompletionParams) -> types.Complet
 
 
 @server.feature(types.TEXT_DOCUMENT_HOVER)
-def hover(ls: HfsmcServer, params: types.HoverParams) -> types.Hover | None:
-    at = _at(ls, params.text_document.uri, params.position)
+async def hover(ls: HfsmcServer, params: types.HoverParams) -> types.Hover | None:
+    at = await _at(ls, params.text_document.uri, params.position)
     if at is None:
         return None
     a, off = at
@@ -215,15 +225,15 @@ def hover(ls: HfsmcServer, params: types.HoverParams) -> types.Hover | None:
 
 
 @server.feature(types.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
-def symbols(ls: HfsmcServer, params: types.DocumentSymbolParams) -> list[types.DocumentSymbol]:
-    doc = ls.model_doc(params.text_document.uri)
+async def symbols(ls: HfsmcServer, params: types.DocumentSymbolParams) -> list[types.DocumentSymbol]:
+    doc = await ls.ready(params.text_document.uri)
     return features.symbols(doc.analysis) if doc is not None and doc.analysis is not None else []
 
 
 @server.feature(types.TEXT_DOCUMENT_CODE_ACTION,
                 types.CodeActionOptions(code_action_kinds=[types.CodeActionKind.QuickFix]))
-def code_action(ls: HfsmcServer, params: types.CodeActionParams) -> list[types.CodeAction]:
-    doc = ls.model_doc(params.text_document.uri)
+async def code_action(ls: HfsmcServer, params: types.CodeActionParams) -> list[types.CodeAction]:
+    doc = await ls.ready(params.text_document.uri)
     if doc is None or doc.analysis is None:
         return []
     return features.code_actions(doc.analysis, params.text_document.uri, params.context.diagnostics)
