@@ -465,6 +465,6 @@ async def test_a_request_right_after_opening_waits_for_the_first_check(client: L
     h = await client.text_document_hover_async(types.HoverParams(doc, position(text, "period: 50ms", delta=2)))
     assert h is not None and "period" in str(h.contents)
     syms = await client.text_document_document_symbol_async(types.DocumentSymbolParams(doc))
-    assert syms and {"TakeOff", "Mission"} <= {s.name for s in syms}  # type: ignore[union-attr]
+    assert syms and {"TakeOff", "Mission"} <= {s.name for s in syms}
     await published(client, uri)
     closed(client, uri)
