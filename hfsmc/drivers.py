@@ -43,7 +43,10 @@ RUNTIME_ONLY = frozenset({"snapshot", "lockstep_sent", "lockstep_sync"})
 # Methods of a user's driver that belong to the runtime (hfsmc_driver.Driver's protocol).
 DRIVER_PROTOCOL = frozenset({"open", "read", "close", "snapshot", "apply", "send",
                              "warning_at_stop", "value", "say", "start_thread", "connect",
-                             "fake", "snapshot_schema", "view_fields"})
+                             "fake", "snapshot_schema", "view_fields", "tell", "read_options",
+                             "lockstep_sent", "lockstep_sync"})
+# Of those, the ones a driver may also give snippets (``PUBLIC``; check knows them).
+PUBLIC_PROTOCOL = frozenset({"close", "warning_at_stop"})
 # Plain attributes every driver has (C++: the methods name() and url()).
 ATTRIBUTES = ("name", "url")
 # C++ names that differ from the Python ones (`goto` is a C++ keyword).
@@ -132,6 +135,8 @@ def driver(kind: str) -> Driver | None:
     file, queries, live = source
     text = files("hfsmc.templates").joinpath("python").joinpath(file).read_text("utf-8")
     classes = {n.name: n for n in ast.parse(text).body if isinstance(n, ast.ClassDef)}
+    if any(_base_name(b) == "Driver" for b in classes[queries].bases):
+        return read_python_driver(text, kind)  # declared as a user's driver is
     methods: dict[str, Method] = {}
     for cls, skip in ((classes[queries], frozenset[str]()), (classes[live], RUNTIME_ONLY)):
         for node in cls.body:
@@ -170,9 +175,10 @@ def _method(node: ast.FunctionDef) -> Method:
 # --- a user's Python driver -------------------------------------------------------------
 
 @cache
-def read_python_driver(text: str) -> Driver:
+def read_python_driver(text: str, builtin: str | None = None) -> Driver:
     """The declaration of a user's Python driver (docs/drivers.md); DeclarationError with
-    its position when it is not one."""
+    its position when it is not one. ``builtin``: the interface type of a built-in driver
+    declared the same way (``hfsmc_mavlink.VehicleQueries``), whose KIND it is."""
     try:
         tree = ast.parse(text)
     except SyntaxError as e:
@@ -191,7 +197,8 @@ def read_python_driver(text: str) -> Driver:
         elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.value:
             consts[node.target.id] = (node.value, node)
     kind = _const(consts, "KIND", cls)
-    if not isinstance(kind, str) or not _KIND.match(kind) or kind in RESERVED_KINDS:
+    if not isinstance(kind, str) or not _KIND.match(kind) or (kind in RESERVED_KINDS
+                                                              and kind != builtin):
         raise DeclarationError(f"`KIND` must be a lower-case name (a-z, 0-9, _), not one of "
                                f"{', '.join(sorted(RESERVED_KINDS))}: `{kind}`",
                                *_at(consts["KIND"][1]))
@@ -201,18 +208,25 @@ def read_python_driver(text: str) -> Driver:
     if not (isinstance(attrs, tuple) and all(isinstance(a, str) and a in options for a in attrs)):
         raise DeclarationError("`ATTRIBUTES_FROM` must be a tuple of option names",
                                *_at(consts["ATTRIBUTES_FROM"][1]))
+    public = _const(consts, "PUBLIC", cls, ())
+    if not (isinstance(public, tuple) and all(p in PUBLIC_PROTOCOL for p in public)):
+        raise DeclarationError("`PUBLIC` must be a tuple of the runtime's methods a snippet "
+                               f"may call: {', '.join(sorted(PUBLIC_PROTOCOL))}",
+                               *_at(consts["PUBLIC"][1]))
     methods: dict[str, Method] = {}
     for node in cls.body:
         if not isinstance(node, ast.FunctionDef):
             continue
         marks = [d for d in node.decorator_list if _base_name(d) in ("query", "command")]
+        if not marks and node.name in public:  # a runtime method snippets may call too
+            methods[node.name] = _public(node)
         if not marks:
             continue
         if node.name.startswith("_") or node.name in DRIVER_PROTOCOL or node.name in ATTRIBUTES:
             raise DeclarationError(f"`{node.name}` cannot be a query or a command: the name "
                                    "is the runtime's", *_at(node))
         mark = marks[0]
-        names = _names(mark, node, options)
+        names = _names(mark, node, options, snapshot)
         params = tuple(a.arg for a in (*node.args.posonlyargs, *node.args.args))[1:]
         if node.args.vararg or node.args.kwarg or node.args.kwonlyargs:
             raise DeclarationError(f"`{node.name}`: a query or a command takes plain "
@@ -220,7 +234,10 @@ def read_python_driver(text: str) -> Driver:
                                    *_at(node))
         doc = (ast.get_docstring(node) or "").split("\n")[0]
         methods[node.name] = Method(node.name, params, len(params) - len(node.args.defaults),
-                                    _base_name(mark) == "command", False, doc, names)
+                                    _base_name(mark) == "command", _flag(mark, "ack"), doc,
+                                    names)
+    for name in public:  # the base class's (hfsmc_driver.Driver): no parameters
+        methods.setdefault(name, Method(name, (), 0, False, False, ""))
     if not methods:
         raise DeclarationError(f"`{cls.name}` marks no method `@query` or `@command`",
                                *_at(cls))
@@ -291,14 +308,42 @@ def literal(node: ast.AST) -> Any:
                      "float(\"inf\"))")
 
 
-def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any]
-           ) -> tuple[tuple[str, str], ...]:
+def _public(node: ast.FunctionDef) -> Method:
+    params = tuple(a.arg for a in (*node.args.posonlyargs, *node.args.args))[1:]
+    return Method(node.name, params, len(params) - len(node.args.defaults), False, False,
+                  (ast.get_docstring(node) or "").split("\n")[0])
+
+
+def _flag(mark: ast.AST, key: str) -> bool:
+    """``@command(ack=True)``: a literal true keyword of the mark."""
+    return isinstance(mark, ast.Call) and any(
+        k.arg == key and isinstance(k.value, ast.Constant) and k.value.value is True
+        for k in mark.keywords)
+
+
+# The keywords of the marks besides ``names`` (hfsmc_driver.query and command).
+_MARK_KEYWORDS = {"query": ("reads",), "command": ("ack", "checked")}
+
+
+def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any],
+           snapshot: dict[str, Any]) -> tuple[tuple[str, str], ...]:
     if not isinstance(mark, ast.Call):
         return ()
     params = {a.arg for a in node.args.args}
+    kind = _base_name(mark)
+    found: tuple[tuple[str, str], ...] = ()
     for k in mark.keywords:
+        if k.arg in _MARK_KEYWORDS[kind]:
+            value = k.value.value if isinstance(k.value, ast.Constant) else None
+            good = value in snapshot if k.arg == "reads" else isinstance(value, bool)
+            if not good:
+                raise DeclarationError(f"`{k.arg}` is " + ("a field of `SNAPSHOT`"
+                                       if k.arg == "reads" else "True or False"), *_at(mark))
+            continue
         if k.arg != "names":
-            raise DeclarationError(f"`@{_base_name(mark)}` takes only `names=`", *_at(mark))
+            raise DeclarationError(f"`@{kind}` takes only `names=`"
+                                   + "".join(f", `{w}=`" for w in _MARK_KEYWORDS[kind]),
+                                   *_at(mark))
         try:
             names = literal(k.value)
         except ValueError as e:
@@ -307,8 +352,8 @@ def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any]
                 p in params and o in options for p, o in names.items()):
             raise DeclarationError("`names` maps a parameter to the option that lists its "
                                    f"names (options: {', '.join(options) or 'none'})", *_at(mark))
-        return tuple(names.items())
-    return ()
+        found = tuple(names.items())
+    return found
 
 
 # --- a user's C++ driver ----------------------------------------------------------------
@@ -343,7 +388,8 @@ def read_cpp_driver(text: str) -> Driver:
                                "(kind, class, doc, snapshot, options, queries, commands, "
                                "attributes_from)", first)
     kind, cls = data.get("kind"), data.get("class")
-    if not isinstance(kind, str) or not _KIND.match(kind) or kind in RESERVED_KINDS:
+    if not isinstance(kind, str) or not _KIND.match(kind) or (kind in RESERVED_KINDS
+                                                              and kind != builtin):
         raise DeclarationError(f"`kind` must be a lower-case name, not a built-in type: "
                                f"`{kind}`", first)
     if not isinstance(cls, str) or not re.match(r"^[A-Za-z_][\w:]*$", cls):

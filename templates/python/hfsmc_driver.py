@@ -32,26 +32,47 @@ _TRUE = {"true", "yes", "on", "1"}
 _FALSE = {"false", "no", "off", "0"}
 
 
-def query(fn: F | None = None, *, names: dict[str, str] | None = None) -> Any:
+def query(fn: F | None = None, *, names: dict[str, str] | None = None,
+          reads: str | None = None) -> Any:
     """Mark a method as a query of the instant's snapshot. ``names={"param": "option"}``:
     that argument must be one of the names the option lists (``check`` finds a literal
-    that is not; a computed one fails when called)."""
+    that is not; a computed one fails when called). ``reads="field"``: the snapshot field
+    it reads, so that a replay whose recording lacks only other fields answers it
+    (``Driver.lacks``); without it any lacking field counts."""
     def mark(f: F) -> F:
         @functools.wraps(f)
         def method(self: Driver, *args: Any, **kwargs: Any) -> Any:
             self._named(f, names, args, kwargs)
-            self._asked(f.__name__)
+            if reads is None:
+                self._asked(f.__name__)
+            else:
+                self._asked_field(f.__name__, reads)
             return f(self, *args, **kwargs)
         method.hfsmc_kind = "query"  # type: ignore[attr-defined]
         return method  # type: ignore[return-value]
     return mark(fn) if fn is not None else mark
 
 
-def command(fn: F | None = None, *, names: dict[str, str] | None = None) -> Any:
+def command(fn: F | None = None, *, names: dict[str, str] | None = None, ack: bool = False,
+            checked: bool = False) -> Any:
     """Mark a method as a command: told to the recording (or the playback) with its
-    arguments, then run, live only (a fake sends nothing)."""
+    arguments, then run, live only (a fake sends nothing).
+
+    ``checked=True``: the method checks and converts its arguments itself, tells them
+    with ``self.tell(name, args)`` and then sends; it runs in a fake too (where what it
+    calls to send does nothing, and what it says of the command, a pending
+    acknowledgement, is the same as live). ``ack=True``: the driver reports the
+    command's outcome (``last_ack``; hfsmc reads it from the declaration)."""
     def mark(f: F) -> F:
         sig = inspect.signature(f)
+        if checked:
+            @functools.wraps(f)
+            def told(self: Driver, *args: Any, **kwargs: Any) -> Any:
+                self._named(f, names, args, kwargs)
+                return f(self, *args, **kwargs)
+            told.hfsmc_kind = "command"  # type: ignore[attr-defined]
+            told.hfsmc_ack = ack  # type: ignore[attr-defined]
+            return told  # type: ignore[return-value]
 
         @functools.wraps(f)
         def method(self: Driver, *args: Any, **kwargs: Any) -> Any:
@@ -62,6 +83,7 @@ def command(fn: F | None = None, *, names: dict[str, str] | None = None) -> Any:
                 self.on_command(f.__name__, list(bound.args[1:]))
             return f(self, *args, **kwargs) if self.live else None
         method.hfsmc_kind = "command"  # type: ignore[attr-defined]
+        method.hfsmc_ack = ack  # type: ignore[attr-defined]
         return method  # type: ignore[return-value]
     return mark(fn) if fn is not None else mark
 
@@ -102,17 +124,18 @@ class Driver:
     OPTIONS: ClassVar[dict[str, Any]] = {}
     ATTRIBUTES_FROM: tuple[str, ...] = ()
     DEFAULT_URL: str | None = None
+    # The live views' feed of it: "driver" (its snapshot's fields, docs/drivers.md) or
+    # "vehicle" (the mavlink vehicle panel, which reads the vehicle's queries).
+    VIEW: ClassVar[str] = "driver"
+    # Runtime methods a snippet may call too (``check`` knows them, as queries):
+    # "close", "warning_at_stop".
+    PUBLIC: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, name: str, url: str | None, options: dict[str, Any],
                  playback: Any = None) -> None:
         self.name = name
         self.url = url if url is not None else self.DEFAULT_URL
-        unknown = [k for k in options if k not in self.OPTIONS]
-        if unknown:
-            raise ValueError(f"no option `{unknown[0]}` (options: "
-                             f"{', '.join(self.OPTIONS) or 'none'})")
-        self.options = {k: _option(self.KIND, k, d, options.get(k, d))
-                        for k, d in self.OPTIONS.items()}
+        self.options = self.read_options(options)
         self.on_command: Callable[[str, list[Any]], None] | None = None
         self.playback = playback
         self.live = playback is None
@@ -178,7 +201,33 @@ class Driver:
         """``iface.NAME`` for a NAME listed by an option of ATTRIBUTES_FROM."""
         raise AttributeError(name)
 
+    def read_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        """The driver's options: the declared ones, each as its default's type (an
+        undeclared one, or a value that is not of that type, is a ValueError). A driver
+        that says and replaces a bad option instead (the built-in mavlink) overrides it."""
+        unknown = [k for k in options if k not in self.OPTIONS]
+        if unknown:
+            raise ValueError(f"no option `{unknown[0]}` (options: "
+                             f"{', '.join(self.OPTIONS) or 'none'})")
+        return {k: _option(self.KIND, k, d, options.get(k, d)) for k, d in self.OPTIONS.items()}
+
+    # -- lockstep with `hfsmc sim` (the built-in drivers; docs/drivers.md) --------------
+    def lockstep_sent(self) -> int:
+        """Lockstep: the datagrams sent to the simulator so far (none: 0)."""
+        return 0
+
+    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
+        """Lockstep, before the instant at ``t_us``: read what the simulator says it sent
+        (``step``); why it could not, or None."""
+        return None
+
     # -- helpers for the driver -------------------------------------------------------
+    def tell(self, call: str, args: list[Any]) -> None:
+        """A ``@command(checked=True)``: tell the recording (or the playback) the command
+        with its checked arguments, before sending it."""
+        if self.on_command is not None:
+            self.on_command(call, args)
+
     def value(self, field: str) -> Any:
         """A field of the instant's snapshot."""
         return self._snap[field]
@@ -233,6 +282,16 @@ class Driver:
         if lacks is None or self.quiet or self.playback is None:
             return
         self.playback.asked(self.name, query, lacks if isinstance(lacks, str) else "field", None)
+
+    def _asked_field(self, query: str, field: str) -> None:
+        """A ``@query(reads=field)``: a fake tells the playback when its script lacks it."""
+        lacks = self.lacks
+        if lacks is None or self.quiet or self.playback is None:
+            return
+        if isinstance(lacks, str):
+            self.playback.asked(self.name, query, lacks, None)
+        elif field in lacks:
+            self.playback.asked(self.name, query, field, None)
 
     def _named(self, fn: Callable[..., Any], names: dict[str, str] | None,
                args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:

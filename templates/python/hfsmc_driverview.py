@@ -18,9 +18,12 @@ MAX_TEXT = 80  # a value longer than that, as text, ends with an ellipsis
 
 
 def is_driver(obj: Any) -> bool:
-    """A user driver (hfsmc_driver.Driver), live or a playback's fake."""
+    """A driver (hfsmc_driver.Driver), live or a playback's fake, whose feed is its
+    snapshot's fields (``VIEW``: the built-in mavlink driver's is the vehicle panel)."""
     return isinstance(getattr(type(obj), "KIND", None), str) and \
-        isinstance(getattr(type(obj), "SNAPSHOT", None), dict) and callable(getattr(obj, "view_fields", None))
+        isinstance(getattr(type(obj), "SNAPSHOT", None), dict) and \
+        callable(getattr(obj, "view_fields", None)) and \
+        getattr(type(obj), "VIEW", "driver") == "driver"
 
 
 def shown(value: Any) -> Any:

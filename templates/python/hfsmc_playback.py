@@ -27,16 +27,8 @@ from typing import IO, Any
 from hfsmc_record import plain  # type: ignore[import-not-found]  # beside the component
 
 _FLOATS = {"heartbeat_age", "altitude", "yaw", "age"}
-# Each query of the fakes and the snapshot field it reads.
-VEHICLE_QUERIES = {"connected": "heartbeat_age", "heartbeat_age": "heartbeat_age",
-                   "ready": "ready", "armed": "armed", "mode": "mode", "position": "position",
-                   "altitude": "altitude", "velocity": "velocity", "yaw": "yaw",
-                   "battery": "battery", "last_ack": "acks", "location": "location",
-                   "home": "home", "distance_to": "position",
-                   "distance_to_location": "location", "reached": "position",
-                   "reached_location": "location", "status_text": "status_text",
-                   "battery_failsafe": "battery_failsafe", "mission_progress": "mission",
-                   "fence_breached": "fence_breached", "failsafe": "failsafe"}
+# Each query of the camera's fake and the snapshot field it reads (the vehicle's are
+# declared with its queries: hfsmc_mavlink.VehicleQueries, `@query(reads=...)`).
 CAMERA_QUERIES = {"frame": "frame", "age": "age", "ok": "age", "count": "count"}
 _TRIPLES = {"position", "velocity", "location", "home"}
 
@@ -286,37 +278,11 @@ def _guarded(cls: Any, queries: dict[str, str]) -> Any:
 
 
 def fake_vehicle(name: str, module: Any, playback: Any = None) -> Any:
-    """A vehicle whose snapshot comes from the script; it sends nothing."""
-
-    class Fake(Evidence, module.VehicleQueries):  # type: ignore[misc]
-        def __init__(self) -> None:
-            self.name = name
-            self.playback = playback
-            self.on_command = None
-            self.state: dict[str, Any] = dict(module.NEVER_HEARD)
-            self._snap = self.state
-
-        def __repr__(self) -> str:
-            return f"<mavlink {name} (playback)>"
-
-        def close(self) -> None:
-            """Nothing to stop (the real one's reader thread and socket)."""
-
-        def apply(self, values: dict[str, Any]) -> None:
-            self.state = {**self.state, **values}
-
-        def snapshot(self) -> dict[str, Any]:
-            self._snap = self.state
-            return self._snap
-
-        def warning_at_stop(self) -> str | None:
-            self.quiet = True  # the runtime reads the last snapshot: no snippet asks
-            try:
-                return super().warning_at_stop()  # type: ignore[no-any-return]
-            finally:
-                self.quiet = False
-
-    return _guarded(Fake, VEHICLE_QUERIES)()
+    """A vehicle whose snapshot comes from the script; it sends nothing (the driver's own
+    class, made by ``fake``: hfsmc_mavlink.VehicleQueries)."""
+    fake = module.VehicleQueries.fake(name, None, {}, playback)
+    fake.live = False  # even without a playback (a test double): never opened, sends nothing
+    return fake
 
 
 def fake_camera(name: str, module: Any, folder: str, playback: Any = None) -> Any:
