@@ -362,8 +362,9 @@ _BLOCK = re.compile(r"/\*\s*hfsmc driver[ \t]*\n(.*?)\*/", re.S)
 _SIGNATURE = re.compile(r"^\s*([A-Za-z_]\w*)\s*\(([^()]*)\)\s*(?::\s*(.*))?$")
 
 
-def read_cpp_driver(text: str) -> Driver:
-    """The declaration block of a user's C++ driver header (docs/drivers.md)."""
+def read_cpp_driver(text: str, builtin: str | None = None) -> Driver:
+    """The declaration block of a user's C++ driver header (docs/drivers.md); ``builtin``:
+    the interface type of a built-in driver's header (``hfsmc/mavlink.hpp``)."""
     import yaml  # a C++ declaration block is a few lines of YAML
 
     m = _BLOCK.search(text)

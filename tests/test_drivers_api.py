@@ -13,7 +13,16 @@ from types import ModuleType
 
 import pytest
 
-from hfsmc.drivers import ATTRIBUTES, CPP_NAMES, RUNTIME_ONLY, SOURCES, driver
+from hfsmc.drivers import (
+    ATTRIBUTES,
+    CPP_NAMES,
+    RUNTIME_ONLY,
+    SOURCES,
+    DeclarationError,
+    disagreement,
+    driver,
+    read_cpp_driver,
+)
 from hfsmc.scenario import acknowledged, commands_of
 from tests.conftest import ROOT
 
@@ -81,6 +90,36 @@ def test_the_cpp_header_declares_the_same_methods(kind: str) -> None:
         assert count == len(m.params), (name, decl.group(0))
     for attr in ATTRIBUTES:  # C++: methods
         assert re.search(rf"\b{attr}\(\)", header), attr
+
+
+def test_mavlink_is_declared_as_a_user_driver_is_in_both_languages() -> None:
+    """The built-in mavlink driver passes the one seam of docs/drivers.md: its Python class
+    derives from the driver base and marks its methods, and the C++ header's declaration
+    block agrees with it (as a user's twin drivers must, E189)."""
+    d = driver("mavlink")
+    assert d is not None and d.cls == "VehicleQueries" and d.type == "mavlink"
+    assert [k for k, _ in d.options] == ["rate", "ack_timeout", "source_system", "autopilot"]
+    assert ("fence_breached", False) in d.snapshot
+    header = (TEMPLATES / "cpp/hfsmc/mavlink.hpp").read_text()
+    cpp = read_cpp_driver(header, "mavlink")
+    assert cpp.cls == "Mavlink"
+    assert disagreement(d, cpp) is None
+    with pytest.raises(DeclarationError, match="not a built-in type"):  # a user's may not
+        read_cpp_driver(header)
+    sys.path.insert(0, str(TEMPLATES / "python"))
+    try:
+        module = importlib.import_module("hfsmc_mavlink")
+        base = importlib.import_module("hfsmc_driver")
+    finally:
+        sys.path.remove(str(TEMPLATES / "python"))
+    assert issubclass(module.Vehicle, base.Driver)
+    queries = module.VehicleQueries
+    assert queries.SNAPSHOT.keys() == dict(d.snapshot).keys()
+    for m in d.methods.values():  # marked as a user driver's methods are, but the PUBLIC
+        fn = getattr(queries, m.name)
+        mark = None if m.name in queries.PUBLIC else "command" if m.command else "query"
+        assert getattr(fn, "hfsmc_kind", None) == mark, m.name
+        assert getattr(fn, "hfsmc_ack", False) == m.acknowledged, m.name
 
 
 @pytest.mark.parametrize("kind", KINDS)
