@@ -25,13 +25,18 @@ import inspect
 import sys
 import threading
 from collections.abc import Callable
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar, overload
 
 F = TypeVar("F", bound=Callable[..., Any])
 _TRUE = {"true", "yes", "on", "1"}
 _FALSE = {"false", "no", "off", "0"}
 
 
+@overload
+def query(fn: F) -> F: ...
+@overload
+def query(fn: None = None, *, names: dict[str, str] | None = None,
+          reads: str | None = None) -> Callable[[F], F]: ...
 def query(fn: F | None = None, *, names: dict[str, str] | None = None,
           reads: str | None = None) -> Any:
     """Mark a method as a query of the instant's snapshot. ``names={"param": "option"}``:
@@ -53,6 +58,11 @@ def query(fn: F | None = None, *, names: dict[str, str] | None = None,
     return mark(fn) if fn is not None else mark
 
 
+@overload
+def command(fn: F) -> F: ...
+@overload
+def command(fn: None = None, *, names: dict[str, str] | None = None, ack: bool = False,
+            checked: bool = False) -> Callable[[F], F]: ...
 def command(fn: F | None = None, *, names: dict[str, str] | None = None, ack: bool = False,
             checked: bool = False) -> Any:
     """Mark a method as a command: told to the recording (or the playback) with its

@@ -85,7 +85,7 @@ class Reader:
     _duplicates: _link.Duplicates
     _counted: _link.Counted | None
     name: str
-    url: str
+    url: str | None
     _now: Any
     _say: Any
     _mode_name: Any
