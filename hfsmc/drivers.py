@@ -337,7 +337,7 @@ def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any],
             value = k.value.value if isinstance(k.value, ast.Constant) else None
             good = value in snapshot if k.arg == "reads" else isinstance(value, bool)
             if not good:
-                raise DeclarationError(f"`{k.arg}` is " + ("a field of `SNAPSHOT`"
+                raise DeclarationError(f"`{k.arg}` must be " + ("a field of `SNAPSHOT`"
                                        if k.arg == "reads" else "True or False"), *_at(mark))
             continue
         if k.arg != "names":

@@ -156,3 +156,71 @@ def test_the_playback_doubles_answer_every_method_and_name_the_interface(
     assert str(e.value).startswith(f"the {kind} interface `{name}` has no method or attribute "
                                    "`fly_to`")
     assert "Fake" not in str(e.value)
+
+
+_HOOKED = '''
+from hfsmc_driver import Driver, command, query
+
+
+class Gadget(Driver):
+    KIND = "gadget"
+    SNAPSHOT = {"distance": float("inf"), "acks": ""}
+    OPTIONS = {"stale": 1.0}
+    PUBLIC = ("close",)
+
+    @query(reads="distance")
+    def distance(self):
+        return self.value("distance")
+
+    @command(checked=True, ack=True)
+    def beep(self, ms):
+        if ms <= 0:
+            raise ValueError("ms > 0")
+        self.tell("beep", [int(ms)])
+        self.sent = int(ms)
+'''
+
+
+def test_the_bases_hooks_are_declared_checked_and_run(tmp_path: Path) -> None:
+    """The hooks mavlink uses, on a user's driver: read from the declaration (a wrong one at
+    its line), and at run time: a checked command tells what it checked and runs in a
+    fake too; a query that reads one field is answered when the script lacks another."""
+    from hfsmc.drivers import read_python_driver
+
+    d = read_python_driver(_HOOKED)
+    assert [(m.name, m.command, m.acknowledged) for m in d.methods.values()] == [
+        ("distance", False, False), ("beep", True, True), ("close", False, False)]
+    for wrong, said in (('reads="distance"', 'reads="far"'), ("ack=True", "ack=1"),
+                        ('PUBLIC = ("close",)', 'PUBLIC = ("open",)'),
+                        ("checked=True", "checked=True, sends=1")):
+        with pytest.raises(DeclarationError) as e:
+            read_python_driver(_HOOKED.replace(wrong, said))
+        assert e.value.line > 1, e.value.message
+    sys.path.insert(0, str(TEMPLATES / "python"))
+    try:
+        module = tmp_path / "gadget_hooked.py"
+        module.write_text(_HOOKED)
+        sys.path.insert(0, str(tmp_path))
+        cls = importlib.import_module("gadget_hooked").Gadget
+    finally:
+        sys.path[:] = [p for p in sys.path if p not in (str(tmp_path), str(TEMPLATES / "python"))]
+
+    asked: list[tuple[object, ...]] = []
+
+    class Playback:  # what a fake tells the playback of a query it cannot answer
+        def asked(self, *what: object) -> None:
+            asked.append(what[:3])
+
+    told: list[tuple[str, list[object]]] = []
+    fake = cls.fake("g", None, {}, Playback())
+    fake.on_command = lambda call, args: told.append((call, args))
+    fake.beep(2.7)  # checked, told as converted, run in the fake (it sends nothing itself)
+    assert told == [("beep", [2])] and fake.sent == 2
+    with pytest.raises(ValueError):
+        fake.beep(0)
+    assert told == [("beep", [2])]  # a refused command is not told
+    fake.lacks = frozenset({"acks"})  # the recording lacks another field: answered
+    assert fake.distance() == float("inf") and asked == []
+    fake.lacks = frozenset({"distance"})
+    fake.distance()
+    assert asked == [("g", "distance", "distance")]
