@@ -6,9 +6,11 @@ argument names a key of the interface's options), the scenario files know which 
 are commands, and the recording knows the snapshot's fields:
 
 - the built-in Python drivers (``templates/python/hfsmc_mavlink.py``, ``hfsmc_camera.py``):
-  a class of what snippets call (``VehicleQueries``, ``CameraQueries``, which the
-  playback's test doubles subclass too) and the live class below it, which adds
-  ``close()``; a command is a method that tells ``self._issue``;
+  a class of what snippets call (``VehicleQueries``, ``CameraQueries``) and the live
+  class below it. One that derives from ``Driver`` (mavlink's ``VehicleQueries``) is read
+  as a user's driver is, below (its KIND may be the built-in type; its header's
+  declaration block, ``hfsmc/mavlink.hpp``, too); otherwise a command is a method that
+  tells ``self._issue``, and the live class adds ``close()``;
 - a user's Python driver (``type: driver``, ``python: FILE``): one class deriving from
   ``Driver`` (templates/python/hfsmc_driver.py) whose methods are marked ``@query`` or
   ``@command`` and whose ``KIND``, ``SNAPSHOT`` and ``OPTIONS`` are literals; read with
