@@ -6,11 +6,10 @@ argument names a key of the interface's options), the scenario files know which 
 are commands, and the recording knows the snapshot's fields:
 
 - the built-in Python drivers (``templates/python/hfsmc_mavlink.py``, ``hfsmc_camera.py``):
-  a class of what snippets call (``VehicleQueries``, ``CameraQueries``) and the live
-  class below it. One that derives from ``Driver`` (mavlink's ``VehicleQueries``) is read
-  as a user's driver is, below (its KIND may be the built-in type; its header's
-  declaration block, ``hfsmc/mavlink.hpp``, too); otherwise a command is a method that
-  tells ``self._issue``, and the live class adds ``close()``;
+  one class deriving from the driver base (``Driver``: mavlink's ``VehicleQueries``, below
+  its live ``Vehicle``; the camera's ``Camera``), read as a user's driver is, below (its
+  KIND is the built-in type; the declaration block of its C++ header, ``hfsmc/KIND.hpp``,
+  too); each is its own fake (``Driver.fake``);
 - a user's Python driver (``type: driver``, ``python: FILE``): one class deriving from
   ``Driver`` (templates/python/hfsmc_driver.py) whose methods are marked ``@query`` or
   ``@command`` and whose ``KIND``, ``SNAPSHOT`` and ``OPTIONS`` are literals; read with
@@ -33,20 +32,20 @@ from functools import cache
 from importlib.resources import files
 from typing import Any
 
-# Interface type -> (driver file, the snippets' class, the live class).
+# Interface type -> (driver file, its class on the driver base, the live class).
 SOURCES: dict[str, tuple[str, str, str]] = {
     "mavlink": ("hfsmc_mavlink.py", "VehicleQueries", "Vehicle"),
-    "camera": ("hfsmc_camera.py", "CameraQueries", "Camera"),
+    "camera": ("hfsmc_camera.py", "Camera", "Camera"),
 }
 # Types a user's driver may not take as its KIND: the built-in ones and the model keys.
 RESERVED_KINDS = frozenset({"mavlink", "camera", "ros2", "ros_topic", "ice", "driver"})
-# The live class's methods that belong to the runtime, not to snippets.
-RUNTIME_ONLY = frozenset({"snapshot", "lockstep_sent", "lockstep_sync"})
 # Methods of a user's driver that belong to the runtime (hfsmc_driver.Driver's protocol).
 DRIVER_PROTOCOL = frozenset({"open", "read", "close", "snapshot", "apply", "send",
                              "warning_at_stop", "value", "say", "start_thread", "connect",
                              "fake", "snapshot_schema", "view_fields", "tell", "read_options",
-                             "lockstep_sent", "lockstep_sync"})
+                             "wait", "now", "tell_down", "tell_up", "keep_connected",
+                             "hold_image", "image", "lockstep_sent", "lockstep_sync", "names",
+                             "stopping", "attribute"})
 # Of those, the ones a driver may also give snippets (``PUBLIC``; check knows them).
 PUBLIC_PROTOCOL = frozenset({"close", "warning_at_stop"})
 # Plain attributes every driver has (C++: the methods name() and url()).
@@ -73,7 +72,7 @@ class Method:
     params: tuple[str, ...]  # positional-or-keyword parameters, without self
     required: int  # how many of them have no default
     command: bool  # sends something (recorded); else a query of the instant's snapshot
-    acknowledged: bool  # a command whose outcome ``last_ack`` gives (``_issue(..., ack=True)``)
+    acknowledged: bool  # a command whose outcome ``last_ack`` gives (``@command(ack=True)``)
     doc: str  # the first line of its docstring
     # (parameter, option): a literal argument must be a key of that option's names
     names: tuple[tuple[str, str], ...] = ()
@@ -134,18 +133,8 @@ def driver(kind: str) -> Driver | None:
     source = SOURCES.get(kind)
     if source is None:
         return None
-    file, queries, live = source
-    text = files("hfsmc.templates").joinpath("python").joinpath(file).read_text("utf-8")
-    classes = {n.name: n for n in ast.parse(text).body if isinstance(n, ast.ClassDef)}
-    if any(_base_name(b) == "Driver" for b in classes[queries].bases):
-        return read_python_driver(text, kind)  # declared as a user's driver is
-    methods: dict[str, Method] = {}
-    for cls, skip in ((classes[queries], frozenset[str]()), (classes[live], RUNTIME_ONLY)):
-        for node in cls.body:
-            if (isinstance(node, ast.FunctionDef) and not node.name.startswith("_")
-                    and node.name not in skip and node.name not in methods):
-                methods[node.name] = _method(node)
-    return Driver(kind, methods)
+    text = files("hfsmc.templates").joinpath("python").joinpath(source[0]).read_text("utf-8")
+    return read_python_driver(text, kind)  # declared as a user's driver is
 
 
 def _ros2_driver() -> Driver:
@@ -215,6 +204,11 @@ def read_python_driver(text: str, builtin: str | None = None) -> Driver:
         raise DeclarationError("`PUBLIC` must be a tuple of the runtime's methods a snippet "
                                f"may call: {', '.join(sorted(PUBLIC_PROTOCOL))}",
                                *_at(consts["PUBLIC"][1]))
+    frames = _const(consts, "FRAMES", cls, "")
+    if not isinstance(frames, str) or (frames and frames not in snapshot):
+        raise DeclarationError("`FRAMES` must name the snapshot field that numbers the "
+                               "images", *_at(consts["FRAMES"][1]))
+    readable = frozenset(snapshot) | ({"frame"} if frames else frozenset())
     methods: dict[str, Method] = {}
     for node in cls.body:
         if not isinstance(node, ast.FunctionDef):
@@ -228,7 +222,7 @@ def read_python_driver(text: str, builtin: str | None = None) -> Driver:
             raise DeclarationError(f"`{node.name}` cannot be a query or a command: the name "
                                    "is the runtime's", *_at(node))
         mark = marks[0]
-        names = _names(mark, node, options, snapshot)
+        names = _names(mark, node, options, readable)
         params = tuple(a.arg for a in (*node.args.posonlyargs, *node.args.args))[1:]
         if node.args.vararg or node.args.kwarg or node.args.kwonlyargs:
             raise DeclarationError(f"`{node.name}`: a query or a command takes plain "
@@ -328,7 +322,8 @@ _MARK_KEYWORDS = {"query": ("reads",), "command": ("ack", "checked")}
 
 
 def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any],
-           snapshot: dict[str, Any]) -> tuple[tuple[str, str], ...]:
+           fields: frozenset[str]) -> tuple[tuple[str, str], ...]:
+    """A mark's ``names=`` (its other keywords checked); ``fields``: what ``reads=`` may name."""
     if not isinstance(mark, ast.Call):
         return ()
     params = {a.arg for a in node.args.args}
@@ -337,10 +332,11 @@ def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any],
     for k in mark.keywords:
         if k.arg in _MARK_KEYWORDS[kind]:
             value = k.value.value if isinstance(k.value, ast.Constant) else None
-            good = value in snapshot if k.arg == "reads" else isinstance(value, bool)
+            good = value in fields if k.arg == "reads" else isinstance(value, bool)
             if not good:
-                raise DeclarationError(f"`{k.arg}` must be " + ("a field of `SNAPSHOT`"
-                                       if k.arg == "reads" else "True or False"), *_at(mark))
+                raise DeclarationError(f"`{k.arg}` must be " + (
+                    "a field of `SNAPSHOT` (or `frame`: the image of a driver with `FRAMES`)"
+                    if k.arg == "reads" else "True or False"), *_at(mark))
             continue
         if k.arg != "names":
             raise DeclarationError(f"`@{kind}` takes only `names=`"

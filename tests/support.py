@@ -137,6 +137,33 @@ def simulator(tmp: Path, port: int, *args: str) -> Iterator[subprocess.Popen[byt
     assert sim.returncode == 0, log_path.read_text()
 
 
+@contextlib.contextmanager
+def python_vehicle(tmp: Path, autopilot: str, boot_time: str) -> Iterator[Any]:
+    """The Python mavlink driver (templates/python) connected to `hfsmc sim` of
+    ``autopilot`` ("ardupilot" or "px4") in real time."""
+    sys.path.insert(0, str(ROOT / "templates" / "python"))
+    import hfsmc_mavlink  # type: ignore[import-not-found]
+    port = free_port(socket.SOCK_DGRAM)
+    extra = ("--autopilot", "px4", "--source-port", "0") if autopilot == "px4" else ()
+    try:
+        with simulator(tmp, port, "--no-camera", "--boot-time", boot_time, *extra):
+            v = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
+            try:
+                yield v
+            finally:
+                v.close()
+    finally:
+        sys.path.remove(str(ROOT / "templates" / "python"))
+
+
+def until_snapshot(v: Any, cond: Callable[[], bool], timeout: float) -> bool:
+    """Whether ``cond`` held within ``timeout`` s, a driver's snapshot taken before each try."""
+    def check() -> bool:
+        v.snapshot()
+        return cond()
+    return wait_until(check, timeout, 0.05)
+
+
 def hfsmc(*args: str, cwd: Path = ROOT, timeout: float = 120,
           ) -> subprocess.CompletedProcess[str]:
     """`hfsmc ARGS` run by this interpreter, its output captured."""

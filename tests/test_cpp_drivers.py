@@ -36,7 +36,9 @@ from tests.conftest import ROOT
 from tests.support import close_pipes, free_port, simulator
 
 MAV = mavutil.mavlink
-pytestmark = pytest.mark.timeout(180)
+# 180 s a test, and the first one also waits for the session's build of drivers_main (600 s at
+# most: one g++ with the sanitizers took over 180 s on a loaded 2-core machine).
+pytestmark = pytest.mark.timeout(180 + 600)
 
 FLAGS = ["-std=c++17", "-Wall", "-Wextra", "-Werror", "-I/usr/include/eigen3"]
 SANITIZE = ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",

@@ -10,13 +10,13 @@ import re
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any, ClassVar
 
 import pytest
 
 from hfsmc.drivers import (
     ATTRIBUTES,
     CPP_NAMES,
-    RUNTIME_ONLY,
     SOURCES,
     DeclarationError,
     disagreement,
@@ -47,7 +47,7 @@ def test_check_knows_every_public_method_of_the_imported_driver(kind: str) -> No
     found = {}
     for cls in (getattr(module, queries), getattr(module, live)):
         for name, fn in inspect.getmembers(cls, inspect.isfunction):
-            if not name.startswith("_") and name not in RUNTIME_ONLY and name not in runtime:
+            if not name.startswith("_") and name not in runtime:
                 found[name] = tuple(inspect.signature(fn).parameters)[1:]
     d = driver(kind)
     assert d is not None
@@ -92,28 +92,32 @@ def test_the_cpp_header_declares_the_same_methods(kind: str) -> None:
         assert re.search(rf"\b{attr}\(\)", header), attr
 
 
-def test_mavlink_is_declared_as_a_user_driver_is_in_both_languages() -> None:
-    """The built-in mavlink driver passes the one seam of docs/drivers.md: its Python class
+@pytest.mark.parametrize("kind", KINDS)
+def test_each_builtin_is_declared_as_a_user_driver_is_in_both_languages(kind: str) -> None:
+    """Every built-in driver passes the one seam of docs/drivers.md: its Python class
     derives from the driver base and marks its methods, and the C++ header's declaration
     block agrees with it (as a user's twin drivers must, E189)."""
-    d = driver("mavlink")
-    assert d is not None and d.cls == "VehicleQueries" and d.type == "mavlink"
-    assert [k for k, _ in d.options] == ["rate", "ack_timeout", "source_system", "autopilot"]
-    assert ("fence_breached", False) in d.snapshot
-    header = (TEMPLATES / "cpp/hfsmc/mavlink.hpp").read_text()
-    cpp = read_cpp_driver(header, "mavlink")
-    assert cpp.cls == "Mavlink"
+    file, cls, live = SOURCES[kind]
+    d = driver(kind)
+    assert d is not None and d.cls == cls and d.type == kind
+    expected = {"mavlink": (["rate", "ack_timeout", "source_system", "autopilot"],
+                            ("fence_breached", False)),
+                "camera": (["size"], ("count", 0))}[kind]
+    assert [k for k, _ in d.options] == expected[0] and expected[1] in d.snapshot
+    header = (TEMPLATES / f"cpp/hfsmc/{kind}.hpp").read_text()
+    cpp = read_cpp_driver(header, kind)
+    assert cpp.cls == {"mavlink": "Mavlink", "camera": "Camera"}[kind]
     assert disagreement(d, cpp) is None
     with pytest.raises(DeclarationError, match="not a built-in type"):  # a user's may not
         read_cpp_driver(header)
     sys.path.insert(0, str(TEMPLATES / "python"))
     try:
-        module = importlib.import_module("hfsmc_mavlink")
+        module = importlib.import_module(file[:-3])
         base = importlib.import_module("hfsmc_driver")
     finally:
         sys.path.remove(str(TEMPLATES / "python"))
-    assert issubclass(module.Vehicle, base.Driver)
-    queries = module.VehicleQueries
+    assert issubclass(getattr(module, live), base.Driver)
+    queries = getattr(module, cls)
     assert queries.SNAPSHOT.keys() == dict(d.snapshot).keys()
     for m in d.methods.values():  # marked as a user driver's methods are, but the PUBLIC
         fn = getattr(queries, m.name)
@@ -140,10 +144,9 @@ def test_the_playback_doubles_answer_every_method_and_name_the_interface(
     interface lacks is said with the interface's name, not the double's class."""
     sys.path.insert(0, str(TEMPLATES / "python"))
     try:
-        playback = importlib.import_module("hfsmc_playback")
         module = importlib.import_module(SOURCES[kind][0][:-3])
-        fake = (playback.fake_vehicle("drone", module) if kind == "mavlink"
-                else playback.fake_camera("cam", module, str(tmp_path)))
+        fake = getattr(module, SOURCES[kind][1]).fake("drone" if kind == "mavlink" else "cam",
+                                                      None, {}, None)  # the driver's own
     finally:
         sys.path.remove(str(TEMPLATES / "python"))
     d = driver(kind)
@@ -224,3 +227,42 @@ def test_the_bases_hooks_are_declared_checked_and_run(tmp_path: Path) -> None:
     fake.lacks = frozenset({"distance"})
     fake.distance()
     assert asked == [("g", "distance", "distance")]
+def test_the_driver_base_gives_every_driver_the_cameras_hooks(capsys: pytest.CaptureFixture[str]) -> None:
+    """Images beside the snapshot (each told to the recording once) and a reader that
+    reconnects saying each change once: the base's, not the camera's own."""
+    base: Any = importlib.import_module("hfsmc.templates.python.hfsmc_driver")
+
+    class Pictures(base.Driver):  # type: ignore[misc]
+        KIND = "pictures"
+        SNAPSHOT: ClassVar[dict[str, Any]] = {"n": 0}
+        FRAMES = "n"
+
+        @base.query(reads="frame")  # type: ignore[untyped-decorator]
+        def picture(self) -> Any:
+            return self.image()
+
+    d = Pictures("pics", None, {})
+    told: list[int] = []
+    d.on_frame = lambda n, image, encoded: told.append(n)
+    assert d.picture() is None and told == []
+    for n in (1, 1, 2):
+        d.hold_image(f"image {n}")
+        d.read = lambda n=n: {"n": n}
+        d.snapshot()
+        assert d.picture() == f"image {n}" and d.picture() == f"image {n}"
+    assert told == [1, 2] and d._last_seen() == "image 2"
+    tries = iter([False, False, True, False])
+
+    def attempt() -> bool:
+        got = next(tries, None)
+        if got is None:  # nothing left to try: the driver closes
+            d._stop.set()
+            return False
+        if got:
+            d.tell_up("back")
+        return got
+
+    d.RECONNECT_MIN_S = d.RECONNECT_MAX_S = 0.0
+    d.keep_connected(attempt, lambda got: "lost" if got else "not available")
+    assert capsys.readouterr().err.splitlines() == ["pics: not available", "pics: back",
+                                                    "pics: lost"]

@@ -16,6 +16,7 @@ from hfsmc.edit.session import Conflict, EditSession
 from hfsmc.edit.text import EditError, TextEdit, apply_edits
 from hfsmc.edit.xml_ops import XmlOps
 from hfsmc.edit.yaml_ops import YamlOps
+from hfsmc.emit.xml import to_xml
 from hfsmc.pipeline import compile_file
 from tests.support import library_and_users
 
@@ -353,3 +354,74 @@ def test_xml_declaration_fields_are_attributes_escaped_in_the_files_quote() -> N
         new = apply_edits(text, XmlOps(text).set_field(("parameters", "cycles", "description"), value))
         assert load(str(XML), Diagnostics(), new).data["parameters"]["cycles"]["description"] == value
         assert len(new.splitlines()) == len(text.splitlines())
+
+
+WRAP_MODEL = """\
+hfsm: 1
+name: m
+language: python
+initial: A
+states:
+  A:
+    initial: A1
+    states:
+      A1:
+        transitions:
+          - {to: A2, after: 1s}
+      A2: {}
+    transitions:
+      - {to: B, when: 'active("A/A2")'}
+  B:
+    during: |
+      if active("A/A1"):
+          pass
+    transitions:
+      - {to: C, after: 1s}
+  C:
+    final: true
+    entry: |
+      print(active("B"), active("C"))
+"""
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".xml"])
+def test_wrap_rewrites_the_active_paths_through_the_wrapped_states(tmp_path: Path,
+                                                                      suffix: str) -> None:
+    """Literal active() paths inside the wrapped states and outside them gain the new level;
+    the others are untouched."""
+    path = tmp_path / f"m{suffix}"
+    if suffix == ".yaml":
+        path.write_text(WRAP_MODEL)
+    else:
+        (tmp_path / "m.yaml").write_text(WRAP_MODEL)
+        r = compile_file(str(tmp_path / "m.yaml"))
+        assert r.model is not None
+        path.write_text(to_xml(r.model))
+    s = EditSession(str(path), path.read_text())
+    s.apply(lambda o: o.wrap_states("", ["A", "B"], "W"))
+    assert 'active("W/A/A2")' in s.text and 'active("W/A/A1")' in s.text
+    assert 'active("W/B"), active("C")' in s.text
+    assert '"A/' not in s.text.replace('"W/A/', "")
+    # Nothing about active() is diagnosed: only the transition that now crosses a level.
+    codes = sorted(d.code for ds in s.by_element().values() for d in ds if d.severity == "error")
+    assert codes == ["E133"], s.by_element()
+
+
+def test_an_xml_string_written_with_entities_is_a_string_to_a_rename() -> None:
+    """`&quot;speed is&quot;` is a string in the snippet: the variable's rename leaves it."""
+    text = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<hfsm version="1" name="q" language="python">\n'
+        '  <variable name="speed" type="float" init="0.0"/>\n'
+        '  <automaton initial="A">\n'
+        '    <state name="A">\n'
+        "      <entry>log(&quot;speed is&quot;, speed, 'speed')</entry>\n"
+        '      <during><![CDATA[print("&quot;", speed)]]></during>\n'
+        '      <transition to="B" after="1s"/>\n'
+        '    </state>\n'
+        '    <state name="B" final="true"/>\n'
+        '  </automaton>\n'
+        '</hfsm>\n')
+    out = apply_edits(text, XmlOps(text).rename_declaration("variable", "speed", "velocity"))
+    assert "<entry>log(&quot;speed is&quot;, velocity, 'speed')</entry>" in out
+    assert '<during><![CDATA[print("&quot;", velocity)]]></during>' in out

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import socket
-import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -21,8 +19,7 @@ from hfsmc.sim.autopilot import LAND, RTL, Autopilot, parse_datagram
 from hfsmc.sim.telemetry import latlon
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
-from tests.conftest import ROOT
-from tests.support import free_port, simulator, wait_until
+from tests.support import python_vehicle, until_snapshot
 
 pytestmark = pytest.mark.timeout(240)
 AUTOPILOTS = ("ardupilot", "px4")
@@ -31,26 +28,11 @@ AUTOPILOTS = ("ardupilot", "px4")
 @pytest.fixture(params=AUTOPILOTS)
 def vehicle(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Any, str]]:
     """The Python driver (templates/python) on a simulator in real time."""
-    sys.path.insert(0, str(ROOT / "templates" / "python"))
-    import hfsmc_mavlink  # type: ignore[import-not-found]
-    port = free_port(socket.SOCK_DGRAM)
-    extra = ("--autopilot", "px4", "--source-port", "0") if request.param == "px4" else ()
-    try:
-        with simulator(tmp_path, port, "--no-camera", "--boot-time", "4", *extra):
-            v = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
-            try:
-                yield v, request.param
-            finally:
-                v.close()
-    finally:
-        sys.path.remove(str(ROOT / "templates" / "python"))
+    with python_vehicle(tmp_path, request.param, "4") as v:
+        yield v, request.param
 
 
-def _until(v: Any, cond: Callable[[], bool], timeout: float) -> bool:
-    def check() -> bool:
-        v.snapshot()
-        return cond()
-    return wait_until(check, timeout, 0.05)
+_until = until_snapshot
 
 
 def _heading_error(a: float, b: float) -> float:

@@ -10,7 +10,7 @@ import math
 import signal
 import socket
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +23,7 @@ from hfsmc.sim.telemetry import latlon
 from hfsmc.sim.vehicle import Body
 from hfsmc.sim.world import World
 from tests.conftest import ROOT
-from tests.support import free_port, simulator, wait_until
+from tests.support import free_port, python_vehicle, simulator, until_snapshot
 
 pytestmark = pytest.mark.timeout(300)
 HOME = World().home
@@ -37,26 +37,11 @@ def _ll(north: float, east: float) -> tuple[float, float]:
 @pytest.fixture(params=("ardupilot", "px4"))
 def vehicle(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Any, str]]:
     """The Python driver (templates/python) on a simulator in real time, flying at 5 m."""
-    sys.path.insert(0, str(ROOT / "templates" / "python"))
-    import hfsmc_mavlink  # type: ignore[import-not-found]
-    port = free_port(socket.SOCK_DGRAM)
-    extra = ("--autopilot", "px4", "--source-port", "0") if request.param == "px4" else ()
-    try:
-        with simulator(tmp_path, port, "--no-camera", "--boot-time", "2", *extra):
-            v = hfsmc_mavlink.connect("drone", f"udpin:127.0.0.1:{port}", {})
-            try:
-                yield v, request.param
-            finally:
-                v.close()
-    finally:
-        sys.path.remove(str(ROOT / "templates" / "python"))
+    with python_vehicle(tmp_path, request.param, "2") as v:
+        yield v, request.param
 
 
-def _until(v: Any, cond: Callable[[], bool], timeout: float) -> bool:
-    def check() -> bool:
-        v.snapshot()
-        return cond()
-    return wait_until(check, timeout, 0.05)
+_until = until_snapshot
 
 
 def _airborne(v: Any) -> None:
@@ -191,7 +176,7 @@ def test_px4_offboard_loss_is_a_failsafe_the_model_sees(tmp_path: Path,
     link_lost, PX4's own failsafe takes over (POSCTL); when the link is back failsafe()
     says offboard_lost until the model asks for a mode."""
     sys.path.insert(0, str(ROOT / "templates" / "python"))
-    import hfsmc_mavlink
+    import hfsmc_mavlink  # type: ignore[import-not-found]
     port = free_port(socket.SOCK_DGRAM)
     try:
         with simulator(tmp_path, port, "--no-camera", "--boot-time", "2", "--autopilot", "px4",

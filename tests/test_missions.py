@@ -13,6 +13,7 @@ import signal
 import subprocess
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -54,52 +55,66 @@ def mission_seconds(trace: list[dict[str, object]]) -> float:
     return (end - start) / 1000
 
 
+def _flown(f: Any, status: int) -> dict[str, Any]:
+    """The checks of a whole follow_colors flight (real time or lockstep): its report."""
+    log = (f.folder / "component.log").read_text()
+    assert status == 0, log[-3000:]
+    stages = [t for t in fired_into(f.trace) if t.startswith("Mission/") and t.count("/") == 1]
+    assert stages == ["Mission/FollowBlue", "Mission/FollowGreen2", "Mission/FollowRed",
+                      "Mission/OverRed"], fired_into(f.trace)
+    # Take-off and landing by examples/lib's behaviours: paths continue into them.
+    assert [t for t in fired_into(f.trace) if not t.startswith("Mission/")] == [
+        "TakeOff/Climb", "TakeOff/Airborne", "Mission", "Land", "Land/Landed", "Done"]
+    assert f.trace[-1] == {"t": f.trace[-1]["t"], "ev": "stop", "reason": "final"}
+    report: dict[str, Any] = json.loads((f.folder / "report.json").read_text())
+    assert report["stages"] == ["green", "blue", "green", "red"]
+    truth = f.truth()
+    assert truth["armed"] is False and truth["landed"] is True
+    red = next(o for o in truth["objects"] if o["name"] == "red")
+    landing = truth["landing"]
+    assert isinstance(landing, dict)
+    assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
+    assert math.dist((report["landing"]["north"], report["landing"]["east"]),
+                     (landing["north"], landing["east"])) < 0.5
+    # ArduCopter SITL flew it in 144 s from take-off to the final state (project issue 13).
+    flown = mission_seconds(f.trace)
+    assert abs(flown / 144 - 1) < 0.15, flown
+    return report
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("mission", LANGUAGES, indirect=True)
-def test_follow_colors_flies_the_four_stages_and_lands_over_red(
-        tmp_path: Path, mission: list[str] | None) -> None:
-    with flight(tmp_path, command=mission) as f:
+def test_follow_colors_flies_the_four_stages_and_lands_over_red(tmp_path: Path) -> None:
+    """In real time (Python): the one whole flight of the suite against the wall clock."""
+    with flight(tmp_path) as f:
         status = f.component.wait(timeout=240)
         f.stop_sim()
-        log = (f.folder / "component.log").read_text()
-        assert status == 0, log[-3000:]
-        stages = [t for t in fired_into(f.trace) if t.startswith("Mission/")
-                  and t.count("/") == 1]
-        assert stages == ["Mission/FollowBlue", "Mission/FollowGreen2", "Mission/FollowRed",
-                          "Mission/OverRed"], fired_into(f.trace)
-        # Take-off and landing by examples/lib's behaviours: paths continue into them.
-        assert [t for t in fired_into(f.trace) if not t.startswith("Mission/")] == [
-            "TakeOff/Climb", "TakeOff/Airborne", "Mission", "Land", "Land/Landed", "Done"]
-        assert f.trace[-1] == {"t": f.trace[-1]["t"], "ev": "stop", "reason": "final"}
-        report = json.loads((f.folder / "report.json").read_text())
-        assert report["stages"] == ["green", "blue", "green", "red"]
-        truth = f.truth()
-        assert truth["armed"] is False and truth["landed"] is True
-        red = next(o for o in truth["objects"] if o["name"] == "red")  # type: ignore[attr-defined]
-        landing = truth["landing"]
-        assert isinstance(landing, dict)
-        assert math.dist((landing["north"], landing["east"]), (red["north"], red["east"])) < 1.0
-        assert math.dist((report["landing"]["north"], report["landing"]["east"]),
-                         (landing["north"], landing["east"])) < 0.5
-        # ArduCopter SITL flew it in 144 s from take-off to the final state (project issue 13).
-        flown = mission_seconds(f.trace)
-        assert abs(flown / 144 - 1) < 0.15, flown
+        report = _flown(f, status)
         # The component held its 20 Hz period: fewer than 5 % of its deadlines missed.
+        log = (f.folder / "component.log").read_text()
         summary = re.search(r"(\d+) ticks, (\d+) overruns", log)
         assert summary is not None, log[-2000:]
         ticks, overruns = int(summary[1]), int(summary[2])
         assert ticks > 2000 and overruns < 0.05 * (ticks + overruns), summary[0]
     # The same flight in lockstep (docs/worlds.md#simulated-time) reaches the same stages and
-    # lands within 0.2 m of the real-time one: lockstep is faithful (this real-time flight,
-    # kept for its overruns, is the comparison's other half).
-    with flight(tmp_path / "lockstep", command=mission, lockstep=True) as g:
+    # lands within 0.2 m of the real-time one: lockstep is faithful.
+    with flight(tmp_path / "lockstep", lockstep=True) as g:
         status = g.component.wait(timeout=240)
         g.sim.wait(timeout=30)  # it stops with its component
-        assert status == 0, (g.folder / "component.log").read_text()[-3000:]
-        lockstep = json.loads((g.folder / "report.json").read_text())
-    assert lockstep["stages"] == report["stages"] == ["green", "blue", "green", "red"]
+        lockstep = _flown(g, status)
     a, b = lockstep["landing"], report["landing"]
     assert math.dist((a["north"], a["east"]), (b["north"], b["east"])) < 0.2, (a, b)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(CPP_BUILD_TIMEOUT + 300)
+def test_follow_colors_cpp_flies_the_four_stages_in_lockstep(
+        tmp_path: Path, cpp_follow_colors: list[str]) -> None:
+    """The C++ twin flies the whole mission in lockstep with the same checks (its trace equals
+    the Python one's: tests/test_lockstep.py); real time is the Python flight's above."""
+    with flight(tmp_path, command=cpp_follow_colors, lockstep=True) as g:
+        status = g.component.wait(timeout=240)
+        g.sim.wait(timeout=30)
+        _flown(g, status)
 
 
 @pytest.mark.slow

@@ -87,13 +87,16 @@ class Names:
                 seen.add((r.start, r.end))
                 yield r
 
-    def snippet_names(self, text: str, start: int, end: int, dpath: PathKey) -> None:
-        """The parameters, variables and interfaces named in snippet text ``text[start:end]``."""
+    def snippet_names(self, text: str, start: int, end: int, dpath: PathKey,
+                      code: str | None = None) -> None:
+        """The parameters, variables and interfaces named in snippet text ``text[start:end]``
+        (read as ``code`` when given: the same text, entities read, at the same offsets)."""
         if not self.names:
             return
-        for s, name in identifiers(text[start:end]):
+        raw = text[start:end] if code is None else code
+        for s, name in identifiers(raw):
             kind = self.names.get(name)
-            if kind is not None and not (s > 0 and text[start + s - 1] == "&"):  # XML's &lt;
+            if kind is not None and not (s > 0 and raw[s - 1] == "&"):  # XML's &lt;
                 self.refs.append(Ref(kind, name, start + s, start + s + len(name), False, "snippet",
                                      dpath))
 

@@ -35,6 +35,23 @@ def apply_edits(text: str, edits: Iterable[TextEdit]) -> str:
     return "".join(out)
 
 
+def insert_into(chunk: str, base: int, inserts: Iterable[tuple[int, str]],
+                keep: list[tuple[int, int]] | None = None) -> tuple[str, list[tuple[int, int]]]:
+    """``chunk`` (the text from offset ``base``) with each ``(offset, text)`` of ``inserts``
+    that falls inside it inserted, and ``keep``'s ranges (offsets into the chunk) moved
+    with the text around them."""
+    ranges = list(keep or [])
+    out, pos = [], 0
+    for off, new in sorted(i for i in inserts if base <= i[0] < base + len(chunk)):
+        at = off - base
+        out += [chunk[pos:at], new]
+        pos = at
+        ranges = [(s + (len(new) if at <= s else 0), e + (len(new) if at <= e else 0))
+                  for s, e in ranges]
+    out.append(chunk[pos:])
+    return "".join(out), ranges
+
+
 def line_start(text: str, off: int) -> int:
     """The offset where the line holding ``off`` starts."""
     return max(text.rfind("\n", 0, off), text.rfind("\r", 0, off)) + 1

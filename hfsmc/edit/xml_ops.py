@@ -18,7 +18,7 @@ from typing import Any
 import yaml
 
 from hfsmc.edit.references import Ref
-from hfsmc.edit.text import EditError, TextEdit, line_end, line_start, newline_of
+from hfsmc.edit.text import EditError, TextEdit, insert_into, line_end, line_start, newline_of
 from hfsmc.edit.xml_render import AUTOMATON_ATTRS, ROOT_AUTOMATON_ATTRS, STATE_ATTRS, Style
 from hfsmc.edit.xml_tree import DECLARATIONS, TEXTS, XElement, XmlNames, parse
 from hfsmc.frontend.source import PathKey
@@ -512,6 +512,9 @@ class XmlOps:
             if r.kind == "state" and r.via in ("to", "initial", "on_interrupt") and \
                     r.target in inside and not _within(r, wrapped):
                 edits.append(TextEdit(r.start, r.end, new))
+        # Literal `active("P/A/...")` paths through a wrapped state gain the new level.
+        inserts = sorted({(r.start, new + "/") for r in self.index.refs
+                          if r.kind == "state" and r.via == "active" and r.target in inside})
         first = wrapped[0]
         pad = self._pad(first)
         if not pad:
@@ -520,10 +523,11 @@ class XmlOps:
         chunks = []
         for w in wrapped:
             s, e = self._lines(w)
-            chunk = self.text[s:e]
+            chunk, keep = insert_into(self.text[s:e], s, inserts, _verbatim_ranges(w, s))
+            inserts = [i for i in inserts if not s <= i[0] < e]
             if not chunk.endswith(("\n", "\r")):
                 chunk += self.style.nl
-            chunks.append(_reindent(chunk, step * 2, _verbatim_ranges(w, s)))
+            chunks.append(_reindent(chunk, step * 2, keep))
             if w is not first:
                 edits.append(TextEdit(s, e, ""))
         nl = self.style.nl
@@ -532,6 +536,7 @@ class XmlOps:
         tail = f"{pad}{step}</automaton>{nl}{pad}</state>{nl}"
         s, e = self._lines(first)
         edits.append(TextEdit(s, e, head + "".join(chunks) + tail))
+        edits += [TextEdit(off, off, text) for off, text in inserts]
         return sorted(edits, key=lambda x: (x.start, x.end))
 
 

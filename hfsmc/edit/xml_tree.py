@@ -171,4 +171,19 @@ class XmlNames(Names):
                     walked = f"{walked}/{seg}" if walked else seg
                     self.refs.append(Ref("state", walked, pos, pos + len(seg), False, "active", dpath))
                 pos += len(seg) + 1
-        self.snippet_names(self.text, el.open_end, el.close_start, dpath)
+        self.snippet_names(self.text, el.open_end, el.close_start, dpath,
+                           _as_code(self.text[el.open_end:el.close_start]))
+
+
+_ENTITY = re.compile(r"<!\[CDATA\[.*?\]\]>|&(quot|apos|amp|lt|gt);", re.S)
+
+
+def _as_code(text: str) -> str:
+    """Snippet ``text`` with its entities outside CDATA read as the code they stand for, at
+    the same offsets: `&quot;a&quot;` becomes `     "a     "`, so that a string written
+    with entities is a string when names are searched."""
+    def same_length(m: re.Match[str]) -> str:
+        if m.group(1) is None:  # a CDATA section: its text is the code as written
+            return m.group(0)
+        return " " * (len(m.group(0)) - 1) + {"quot": '"', "apos": "'"}.get(m.group(1), " ")
+    return _ENTITY.sub(same_length, text)

@@ -15,7 +15,7 @@ import yaml
 
 from hfsmc.edit import yaml_splice as splice
 from hfsmc.edit.references import Element, Index
-from hfsmc.edit.text import EditError, TextEdit, apply_edits
+from hfsmc.edit.text import EditError, TextEdit, apply_edits, insert_into
 from hfsmc.edit.yaml_splice import Splicer
 from hfsmc.frontend.source import PathKey
 
@@ -263,6 +263,10 @@ class YamlOps:
                     src_path = _ref_owner(r.path)
                     if src_path is None or src_path not in {(*owner, "states", n) for n in inside}:
                         edits.append(TextEdit(r.start, r.end, new))
+        # Literal `active("P/A/...")` paths through a wrapped state gain the new level.
+        moved = {prefix + n for n in inside}
+        inserts = sorted({(r.start, new + "/") for r in self.index.refs
+                          if r.kind == "state" and r.via == "active" and r.target in moved})
         if states.flow:
             raise EditError("the states are written in flow style: wrap is for block mappings")
         col = self.sp.col(states.keys[0].start)
@@ -272,7 +276,8 @@ class YamlOps:
             i = states.key_index(n)
             assert i is not None
             s, e = self.sp.entry_range(states, i)
-            chunk = self.text[s:e]
+            chunk, _ = insert_into(self.text[s:e], s, inserts)
+            inserts = [i for i in inserts if not s <= i[0] < e]
             if not chunk.endswith(("\n", "\r")):
                 chunk += self.sp.nl
             chunks.append(chunk)
@@ -287,6 +292,7 @@ class YamlOps:
         assert first is not None
         s, e = self.sp.entry_range(states, first)
         edits.append(TextEdit(s, e, head + inner))
+        edits += [TextEdit(off, off, text) for off, text in inserts]
         # `initial` of the parent pointed at a wrapped state: the references loop rewrote it
         return sorted(edits, key=lambda x: (x.start, x.end))
 

@@ -350,13 +350,15 @@ struct Camera::Grabber {
 
 Camera::Camera(const std::string& name, const std::string& url,
                const std::map<std::string, std::string>& options)
-    : g_(std::make_shared<Grabber>()) {
+    : Driver("camera", name, url.empty() ? kDefaultUrl : url, options, {{"size", ""}},
+             Policy{true, false}),
+      g_(std::make_shared<Grabber>()) {
   // FFmpeg's own messages (connection refused, ...) at every retry would drown
   // ours; it reads this when first used, so before any capture opens.
   ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);  // AV_LOG_QUIET, unless set
   g_->name = name;
-  g_->url = url.empty() ? kDefaultUrl : url;
-  options_ = options;
+  g_->url = Driver::url();
+  given_ = options;
   for (const auto& kv : options) {
     int w = 0, h = 0;
     if (kv.first == "size" && parse_size(kv.second, &w, &h)) {
@@ -368,12 +370,8 @@ Camera::Camera(const std::string& name, const std::string& url,
       g_->say("unknown option `" + kv.first + "` ignored (options: size)");
     }
   }
-  if (playback::Inputs* inputs = playback::current()) {  // a fake fed from the inputs
-    inputs_ = inputs;
-    Fed scratch;  // every entry checked now: a bad value is said before the run
-    for (const playback::Entry& e : inputs->entries(name)) apply(scratch, e);
+  if (!live()) {  // a fake fed from the inputs (the base has checked every entry)
     register_feed(this);
-    register_source(this);
     return;
   }
   if (simclock::Client* sim = simclock::current()) {  // lockstep: stamped frames
@@ -393,7 +391,6 @@ Camera::Camera(const std::string& name, const std::string& url,
     g->wake.notify_all();
   });
   register_feed(this);
-  register_source(this);
 }
 
 Camera::~Camera() {
@@ -403,50 +400,50 @@ Camera::~Camera() {
   close();
 }
 
-const std::string& Camera::name() const { return g_->name; }
-const std::string& Camera::url() const { return g_->url; }
-
 /// The latest frame (H x W, CV_8UC3, BGR); an empty Mat before the first. The
 /// same pixels until a newer frame comes: clone it before drawing on it for keeps.
 cv::Mat Camera::frame() const {
-  evidence_.asked("frame", "frame");
-  if (snap_count_ != 0 && snap_count_ != recorded_) record_frame();
+  const long long count = snap("frame", "frame").count;
+  if (count != 0 && count != recorded_) record_frame();
   std::lock_guard<std::mutex> lock(g_->mutex);
   g_->seen = snap_frame_;  // for the monitor's viewers: a header copy
-  g_->seen_count = snap_count_;
+  g_->seen_count = static_cast<long>(count);
   return snap_frame_;
 }
 
 std::string Camera::source_config() const {
   std::string options;
-  for (const auto& kv : options_)
+  for (const auto& kv : given_)
     options += (options.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
   return "{\"type\":\"camera\",\"url\":" + json_string(g_->url) + ",\"options\":{" + options + "}}";
 }
 
-void Camera::take_snapshot(long long t_us) {
-  snapshot_t_ = t_us;
+void Camera::read(CameraSnap& s) {
   if (sim_ != nullptr) {  // lockstep: the frame the simulator named at this instant
-    snap_frame_ = held_;
-    snap_jpeg_ = held_jpeg_;
-    snap_count_ = held_count_;
-    snap_age_ = held_count_ == 0 ? std::numeric_limits<double>::infinity()
-                                 : static_cast<double>(sim_->now_us() - held_us_) / 1e6;
+    read_frame_ = held_;
+    read_jpeg_ = held_jpeg_;
+    s.count = held_count_;
+    s.age = held_count_ == 0 ? std::numeric_limits<double>::infinity()
+                             : static_cast<double>(sim_->now_us() - held_us_) / 1e6;
     return;
   }
-  if (inputs_ == nullptr) {
-    std::lock_guard<std::mutex> lock(g_->mutex);
-    snap_frame_ = g_->latest;
-    snap_jpeg_ = g_->latest_jpeg;
-    snap_count_ = g_->count;
-    snap_age_ = g_->count == 0 ? std::numeric_limits<double>::infinity()
-                               : std::chrono::duration<double>(Clock::now() - g_->at).count();
+  std::lock_guard<std::mutex> lock(g_->mutex);
+  read_frame_ = g_->latest;
+  read_jpeg_ = g_->latest_jpeg;
+  s.count = g_->count;
+  s.age = g_->count == 0 ? std::numeric_limits<double>::infinity()
+                         : std::chrono::duration<double>(Clock::now() - g_->at).count();
+}
+
+void Camera::snapshot_taken() {
+  if (live()) {
+    snap_frame_ = read_frame_;
+    snap_jpeg_ = read_jpeg_;
     return;
   }
-  const std::vector<playback::Entry>& entries = inputs_->entries(g_->name);
-  for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
-  if (fed_.file != loaded_) {  // a new picture: read it once (the exact pixels of the PNG)
-    loaded_ = fed_.file;
+  const CameraSnap& fed = current();
+  if (fed.file != loaded_) {  // a new picture: read it once (the exact pixels of the PNG)
+    loaded_ = fed.file;
     image_ = cv::Mat();
     if (!loaded_.empty()) {
       try {
@@ -458,22 +455,15 @@ void Camera::take_snapshot(long long t_us) {
                      g_->name.c_str(), loaded_.c_str());
         std::exit(2);
       }
-      if (fed_.crc >= 0 && pixels_crc(image_) != static_cast<std::uint32_t>(fed_.crc) && !warned_) {
+      if (fed.crc >= 0 && pixels_crc(image_) != static_cast<std::uint32_t>(fed.crc) && !warned_) {
         warned_ = true;
         std::fprintf(stderr, "%s: frame %ld (%s) decodes to other pixels here than in the recorded run "
                      "(another JPEG decoder): from there on this run does not compute on the recorded "
-                     "pixels\n", g_->name.c_str(), fed_.count, loaded_.c_str());
+                     "pixels\n", g_->name.c_str(), static_cast<long>(fed.count), loaded_.c_str());
       }
     }
   }
   snap_frame_ = image_;
-  snap_count_ = fed_.count;
-  snap_age_ = fed_.age;
-  evidence_.at(inputs_, g_->name, t_us, next_ > 0 ? &entries[next_ - 1] : nullptr, fed_.count);
-}
-
-std::string Camera::snapshot_fields() const {
-  return "\"count\":" + std::to_string(snap_count_) + ",\"age\":" + json_number(snap_age_);
 }
 
 /// Lockstep, before the instant at t_us: wait until the frame numbered step.frame has
@@ -538,32 +528,15 @@ std::string Camera::feed_message(long long t_ms) {
          ",\"height\":" + std::to_string(image.rows) + ",\"jpeg\":\"" + base64(jpeg) + "\"}";
 }
 
-/// A playback entry over `f` (schemas/recording.md); a bad value throws InputError.
-void Camera::apply(Fed& f, const playback::Entry& e) const {
-  const playback::Inputs& in = *inputs_;
-  for (const auto& [key, v] : e.values.members) {
-    if (key == "count") {
-      f.count = static_cast<long>(in.whole(v, "count", e.line));
-    } else if (key == "age") {
-      f.age = in.number(v, "age", e.line);
-    } else if (key == "frame") {
-      f.file = v.kind == json::Value::NUL ? std::string() : in.frame_file(v, e.line);
-      f.line = e.line;
-    } else if (key == "crc32") {
-      f.crc = in.whole(v, "crc32", e.line);
-    }
-    // other fields (`t`, ...) are not part of what the automaton sees
-  }
-}
-
 /// The recording gets the frame of this instant, once (lossless PNG, base64).
 void Camera::record_frame() const {
-  recorded_ = snap_count_;
+  const long long count = current().count;
+  recorded_ = static_cast<long>(count);
   Recorder* r = recorder();
   if (r == nullptr || snap_frame_.empty()) return;
   if (!snap_jpeg_.empty()) {  // the JPEG as it came: no encoding
     const std::vector<uchar> jpeg(snap_jpeg_.ptr(), snap_jpeg_.ptr() + snap_jpeg_.total());
-    r->frame(*this, snapshot_t_, snap_count_, "jpeg", base64(jpeg), pixels_crc(snap_frame_));
+    r->frame(*this, snapshot_t_, static_cast<long>(count), "jpeg", base64(jpeg), pixels_crc(snap_frame_));
     return;
   }
   std::vector<uchar> png;
@@ -572,7 +545,7 @@ void Camera::record_frame() const {
   } catch (const cv::Exception&) {
     return;
   }
-  r->frame(*this, snapshot_t_, snap_count_, "png", base64(png), pixels_crc(snap_frame_));
+  r->frame(*this, snapshot_t_, static_cast<long>(count), "png", base64(png), pixels_crc(snap_frame_));
 }
 
 /// CRC-32 of a frame's pixels, row by row (zlib.crc32 of a numpy array's bytes).

@@ -36,12 +36,17 @@ import sys
 import threading
 import time
 import urllib.parse
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from http.client import HTTPConnection, HTTPException
-from typing import Any
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
+
+try:  # beside the component, or in the hfsmc package
+    from .hfsmc_driver import Driver, query
+except ImportError:
+    from hfsmc_driver import Driver, query  # type: ignore[import-not-found, no-redef]
 
 DEFAULT_URL = "0"  # the first video device
 BACKOFF_MIN_S = 0.2
@@ -59,105 +64,84 @@ _quiet_saved = 0
 def connect(name: str, url: str | None, options: dict[str, str], sim: Any = None) -> Camera:
     """Start grabbing frames from ``url``; returns at once. ``sim``: the simulator's clock
     (hfsmc_simclock.SimClock), which the camera then follows."""
-    return Camera(name, url or DEFAULT_URL, options, sim)
+    camera = Camera.connect(name, url, options, sim)
+    assert isinstance(camera, Camera)
+    return camera
 
 
-NO_FRAME: dict[str, Any] = {"count": 0, "age": math.inf}  # the snapshot before any frame
+class Camera(Driver):
+    """The latest frame of a video stream (BGR numpy arrays): a driver on the base of
+    every driver (hfsmc_driver.Driver, docs/drivers.md), with its images (FRAMES), the
+    simulator's clock (LOCKSTEP) and a grabber that reconnects (keep_connected).
+    Queries return the snapshot taken when the instant began (docs/recording.md)."""
 
+    KIND = "camera"
+    DEFAULT_URL = DEFAULT_URL
+    SNAPSHOT: ClassVar[dict[str, Any]] = {"count": 0, "age": math.inf}  # before any frame
+    OPTIONS: ClassVar[dict[str, Any]] = {"size": ""}
+    FRAMES = "count"
+    PUBLIC = ("close",)
+    LOCKSTEP = True
+    RECONNECT_MIN_S = BACKOFF_MIN_S
+    RECONNECT_MAX_S = BACKOFF_MAX_S
+    url: str  # DEFAULT_URL when none is given (open)
 
-class CameraQueries:
-    """What snippets call. Queries return the snapshot taken when the instant began
-    (docs/recording.md); the first time a snippet obtains a frame it is told to
-    ``on_frame`` (a recording)."""
+    def __init__(self, name: str, url: str | None, options: dict[str, Any],
+                 playback: Any = None, sim: Any = None) -> None:
+        self._size: tuple[int, int] | None = None
+        if playback is None:  # a fake keeps no options: its frames are the script's
+            for key in sorted(options):
+                if key == "size" and (m := _SIZE.match(str(options[key]))) and int(m[1]) \
+                        and int(m[2]):
+                    self._size = (int(m[1]), int(m[2]))
+                elif key == "size":
+                    _say(name, f"option size: `{options[key]}` is not WxH (320x240): frames "
+                               "kept as they come")
+                else:
+                    _say(name, f"unknown option `{key}` ignored (options: size)")
+        super().__init__(name, url, {k: v for k, v in options.items() if k in self.OPTIONS}
+                         if playback is None else {}, playback, sim)
 
-    name: str
-    _snap: dict[str, Any]
-    _frame: Any
-    _seen: Any
-    _jpeg: Any  # the frame's JPEG as the camera sent it, or None
-    _told: int = 0  # the number of the last frame told to on_frame
-    on_frame: Callable[[int, Any, Any], None] | None
-
-    def __getattr__(self, attr: str) -> Any:
-        """Only for a name the class does not have: say which interface lacks it, not
-        which Python class."""
-        name = self.__dict__.get("name", "?")
-        raise AttributeError(f"the camera interface `{name}` has no method or attribute "
-                             f"`{attr}` (docs/interfaces.md)", name=attr, obj=self)
-
+    @query(reads="frame")
     def frame(self) -> Any:
         """The latest frame when the instant began (an H x W x 3 BGR numpy array); None
         before the first. The same array until a newer one comes: copy it before drawing
         on it for keeps."""
-        img = self._frame
-        if img is not None:
-            self._seen = img  # for the monitor's viewers (one assignment: no lock)
-            count = int(self._snap["count"])
-            if count != self._told and self.on_frame is not None:  # each frame once
-                self._told = count
-                self.on_frame(count, img, self._jpeg)
-        return img
+        return self.image()
 
-    def _last_seen(self) -> Any:
-        """The latest frame a snippet obtained with ``frame()``; None before any. For the
-        monitor (hfsmc_monitor.py), which sends it to the viewers that ask for frames."""
-        return self._seen
-
+    @query(reads="age")
     def age(self) -> float:
         """Seconds since the latest frame arrived (when the instant began); inf before the first."""
         return float(self._snap["age"])
 
+    @query(reads="age")
     def ok(self) -> bool:
         """Frames are coming: the latest is less than a second old."""
-        return self.age() < STALE_S
+        return float(self._snap["age"]) < STALE_S
 
+    @query(reads="count")
     def count(self) -> int:
         """Frames received so far (a new one since the last instant when it has grown)."""
         return int(self._snap["count"])
 
-
-class Camera(CameraQueries):
-    """The latest frame of a video stream (BGR numpy arrays)."""
-
-    def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
+    def open(self) -> None:
+        """Start the grabber (the runtime's ``connect``)."""
         # FFmpeg's own messages (connection refused, ...) at every retry would
         # drown ours; it reads this when first used, so before any capture opens.
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-        self.name = name
-        self.url = url
+        self.url = str(self.url or DEFAULT_URL)
         self._cv2: Any = cv2
-        self._size: tuple[int, int] | None = None
-        for key in sorted(options):
-            if key == "size" and (m := _SIZE.match(str(options[key]))) and int(m[1]) and int(m[2]):
-                self._size = (int(m[1]), int(m[2]))
-            elif key == "size":
-                self._say(f"option size: `{options[key]}` is not WxH (320x240): frames kept as they come")
-            else:
-                self._say(f"unknown option `{key}` ignored (options: size)")
-        # (frame, monotonic time, its number, its JPEG or None), replaced whole by the grabber
+        # (frame, its time, its number, its JPEG or None), replaced whole by the grabber
         self._latest: tuple[Any, float, int, Any] | None = None
         self._raw: bool | None = None  # MJPEG read as JPEG packets: None until tried
-        self._jpeg: Any = None  # the snapshot's frame as JPEG, when it came so
         self._count = 0
-        self._snap: dict[str, Any] = NO_FRAME
-        self._frame: Any = None  # the snapshot's frame
-        self._seen: Any = None  # the latest frame a snippet obtained
-        self.on_frame: Callable[[int, Any, Any], None] | None = None
-        self._down = False  # said on stderr that the stream is down
-        self._stop = threading.Event()
-        self._sim = sim
         self._arrived = threading.Condition()  # lockstep: a frame has come
         self._held: tuple[Any, float, int, Any] | None = None  # lockstep: the frame synced
-        if sim is not None and not url.startswith("http://"):
-            self._say(f"--clock sim needs the simulator's MJPEG stream (http://...), not {url}")
+        if self.sim is not None and not self.url.startswith("http://"):
+            self.say(f"--clock sim needs the simulator's MJPEG stream (http://...), not {self.url}")
             raise SystemExit(1)
-        run = self._run if sim is None else self._run_stamped
-        self._thread = threading.Thread(target=run, name=f"camera {name}", daemon=True)
-        self._thread.start()
+        self.start_thread(self._run if self.sim is None else self._run_stamped, "grabber")
         atexit.register(self.close)
-
-    def lockstep_sent(self) -> int:
-        return 0
 
     def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
         """Lockstep, before the instant at ``t_us``: wait until the frame numbered
@@ -175,51 +159,38 @@ class Camera(CameraQueries):
         return None
 
     def __repr__(self) -> str:
-        return f"<camera {self.name} {self.url}>"
+        return f"<camera {self.name} {self.url}>" if self.live else super().__repr__()
 
-    def snapshot(self) -> dict[str, Any]:
-        """Read the stream once for the instant that begins; queries return this."""
-        latest = self._latest if self._sim is None else self._held
+    def read(self) -> dict[str, Any]:
+        """The stream's latest frame for the instant that begins; queries return this."""
+        latest = self._latest if self.sim is None else self._held
         if latest is None:
-            return self._snap
-        self._frame, self._jpeg = latest[0], latest[3]
-        now = time.monotonic() if self._sim is None else self._sim.now()
-        self._snap = {"count": latest[2], "age": now - latest[1]}
-        return self._snap
+            return {}
+        self.hold_image(latest[0], latest[3])
+        return {"count": latest[2], "age": self.now() - latest[1]}
 
     def close(self) -> None:
         """Stop the grabber (also run at exit)."""
-        self._stop.set()
-        if self._thread is not threading.current_thread():
-            self._thread.join(timeout=1.0)
+        super().close()
 
     # -- the grabber thread ----------------------------------------------------
     def _run(self) -> None:
-        pause = BACKOFF_MIN_S
-        while not self._stop.is_set():
-            cap = self._open()
-            try:
-                got = cap is not None and self._grab(cap)
-            finally:
-                if cap is not None:
-                    cap.release()
-            if self._stop.is_set():
-                return
-            if self._raw is False and not got:  # not MJPEG after all: decoded frames, at once
-                continue
-            pause = self._reconnect_after(got, pause)
+        self.keep_connected(self._attempt, self._lost)
 
-    def _reconnect_after(self, got: bool, pause: float) -> float:
-        """The stream ended (``got``: after frames came): say so once, wait before trying
-        again, doubling the wait while nothing comes; the next wait."""
-        if got:
-            pause = BACKOFF_MIN_S
-        if not self._down:
-            self._down = True
-            self._say(f"stream {'lost' if got or self._count else 'not available'} "
-                      f"at {self.url}: reconnecting")
-        self._stop.wait(pause)
-        return min(pause * 2, BACKOFF_MAX_S)
+    def _attempt(self) -> bool | None:
+        """One capture's frames until it ends: whether any came (None: not MJPEG after
+        all, opened again at once for decoded frames)."""
+        cap = self._open()
+        try:
+            got = cap is not None and self._grab(cap)
+        finally:
+            if cap is not None:
+                cap.release()
+        return None if self._raw is False and not got and not self.stopping() else got
+
+    def _lost(self, got: bool) -> str:
+        return (f"stream {'lost' if got or self._count else 'not available'} at {self.url}: "
+                "reconnecting")
 
     def _open(self) -> Any:
         cv2 = self._cv2
@@ -250,7 +221,7 @@ class Camera(CameraQueries):
         step = 1.0 / fps if 0 < fps < 1000 else 0.0  # a file plays at its rate
         got = False
         raw = bool(self._raw)  # tried on network streams only (_open)
-        while not self._stop.is_set():
+        while not self.stopping():
             try:
                 ok, img = cap.read()
             except cv2.error:
@@ -273,24 +244,21 @@ class Camera(CameraQueries):
             self._latest = (img, time.monotonic(), self._count, jpeg)
             if not got:
                 got = True
-                if self._down and not self._stop.is_set():
-                    self._down = False
-                    self._say(f"stream back at {self.url}")
+                self.tell_up(f"stream back at {self.url}")
             if step:
-                self._stop.wait(step)
+                self.wait(step)
         return got
 
     # -- the grabber of stamped frames (lockstep) -------------------------------
     def _run_stamped(self) -> None:
         """Read the simulator's MJPEG parts and their stamps, reconnecting as _run does."""
-        pause = BACKOFF_MIN_S
-        while not self._stop.is_set():
-            got = False
-            with contextlib.suppress(OSError, HTTPException, ValueError):
-                got = self._read_stamped()
-            if self._stop.is_set():
-                return
-            pause = self._reconnect_after(got, pause)
+        self.keep_connected(self._attempt_stamped, self._lost)
+
+    def _attempt_stamped(self) -> bool:
+        got = False
+        with contextlib.suppress(OSError, HTTPException, ValueError):
+            got = self._read_stamped()
+        return got
 
     def _read_stamped(self) -> bool:
         """One connection's frames until it ends; whether any came."""
@@ -303,7 +271,7 @@ class Camera(CameraQueries):
             resp = conn.getresponse()
             if resp.status != 200:
                 return False
-            while not self._stop.is_set():
+            while not self.stopping():
                 headers: dict[str, str] = {}
                 line = resp.readline()
                 while line.strip() == b"" or line.startswith(b"--"):
@@ -334,17 +302,17 @@ class Camera(CameraQueries):
                     self._arrived.notify_all()
                 if not got:
                     got = True
-                    if self._down and not self._stop.is_set():
-                        self._down = False
-                        self._say(f"stream back at {self.url}")
+                    self.tell_up(f"stream back at {self.url}")
         finally:
             conn.close()
         return got
 
-    def _say(self, text: str) -> None:
-        with contextlib.suppress(ValueError, OSError):  # stderr closed at exit: nothing to tell
-            sys.stderr.write(f"{self.name}: {text}\n")
-            sys.stderr.flush()
+
+def _say(name: str, text: str) -> None:
+    """A line before the driver is made (its options)."""
+    with contextlib.suppress(ValueError, OSError):  # stderr closed at exit: nothing to tell
+        sys.stderr.write(f"{name}: {text}\n")
+        sys.stderr.flush()
 
 
 @contextlib.contextmanager

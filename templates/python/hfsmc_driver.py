@@ -16,14 +16,25 @@ live driver and for its fake:
   ``/hfsmc/interface/NAME``, schema ``hfsmc.KIND.Snapshot``), every command too;
 - fake (``hfsmc replay``, ``hfsmc test``): made by ``fake`` without ``open()``; its
   snapshot comes from the script, and a command is recorded but its body never runs.
+
+Hooks a driver may use beyond that, which the built-in ``camera`` (hfsmc_camera.py) and
+``mavlink`` (hfsmc_mavlink.py) are built on: queries that name the field they read
+(``@query(reads=)``), commands that check their own arguments and report their outcome
+(``@command(checked=, ack=)``, ``tell``), options read its own way (``read_options``),
+runtime methods snippets may call (``PUBLIC``), the live views' feed (``VIEW``), images
+beside the snapshot (``FRAMES``, ``hold_image``, ``image``), the simulator's clock
+(``LOCKSTEP``, ``now``, ``lockstep_sent``, ``lockstep_sync``) and a reader that
+reconnects (``keep_connected``, ``tell_down``, ``tell_up``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import inspect
 import sys
 import threading
+import time
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar, overload
 
@@ -41,17 +52,14 @@ def query(fn: F | None = None, *, names: dict[str, str] | None = None,
           reads: str | None = None) -> Any:
     """Mark a method as a query of the instant's snapshot. ``names={"param": "option"}``:
     that argument must be one of the names the option lists (``check`` finds a literal
-    that is not; a computed one fails when called). ``reads="field"``: the snapshot field
-    it reads, so that a replay whose recording lacks only other fields answers it
-    (``Driver.lacks``); without it any lacking field counts."""
+    that is not; a computed one fails when called). ``reads="field"``: the one snapshot field
+    it reads (``"frame"``: a FRAMES driver's image), so that a replay whose recording lacks
+    only other fields answers it (``Driver.lacks``); without it any lacking field counts."""
     def mark(f: F) -> F:
         @functools.wraps(f)
         def method(self: Driver, *args: Any, **kwargs: Any) -> Any:
             self._named(f, names, args, kwargs)
-            if reads is None:
-                self._asked(f.__name__)
-            else:
-                self._asked_field(f.__name__, reads)
+            self._asked(f.__name__, reads)
             return f(self, *args, **kwargs)
         method.hfsmc_kind = "query"  # type: ignore[attr-defined]
         return method  # type: ignore[return-value]
@@ -140,10 +148,21 @@ class Driver:
     # Runtime methods a snippet may call too (``check`` knows them, as queries):
     # "close", "warning_at_stop".
     PUBLIC: ClassVar[tuple[str, ...]] = ()
+    # The snapshot field that numbers the driver's images ("": it gives none). A driver
+    # with images hands each instant's to ``hold_image``; a snippet gets it from
+    # ``image()``, which tells the recording each image once (/hfsmc/frame/NAME); a script
+    # names them as files (``frame``, ``crc32``); the live views show the latest one a
+    # snippet obtained instead of the fields.
+    FRAMES = ""
+    # The driver follows ``hfsmc sim``'s clock with --clock sim (``lockstep_sync``).
+    LOCKSTEP = False
+    RECONNECT_MIN_S = 0.2  # keep_connected: the first pause after the link ends
+    RECONNECT_MAX_S = 2.0  # ... doubling up to this one while nothing comes
 
     def __init__(self, name: str, url: str | None, options: dict[str, Any],
-                 playback: Any = None) -> None:
+                 playback: Any = None, sim: Any = None) -> None:
         self.name = name
+        self.sim = sim  # --clock sim: the simulator's clock (LOCKSTEP drivers only)
         self.url = url if url is not None else self.DEFAULT_URL
         self.options = self.read_options(options)
         self.on_command: Callable[[str, list[Any]], None] | None = None
@@ -155,20 +174,30 @@ class Driver:
         self._scripted: dict[str, Any] = dict(self.SNAPSHOT)
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
+        self._down = False  # said that the link is down (tell_down)
+        self.on_frame: Callable[[int, Any, Any], None] | None = None
+        self._image: Any = None  # the instant's image and its encoding as it came
+        self._encoded: Any = None
+        self._seen: Any = None  # the latest image a snippet obtained
+        self._told = 0  # the number of the last image told to on_frame
+        self._scripted_frame: dict[str, Any] = {}  # a fake: the script's `frame`, `crc32`
 
     # -- made by the runtime ----------------------------------------------------------
     @classmethod
     def connect(cls, name: str, url: str | None, options: dict[str, Any],
                 sim: Any = None) -> Driver:
         """The live driver: made, then opened (its socket, its thread)."""
-        driver = cls(name, url, options)
+        driver = cls(name, url, options, sim=sim if cls.LOCKSTEP else None)
         driver.open()
         return driver
 
     @classmethod
     def fake(cls, name: str, url: str | None, options: dict[str, Any], playback: Any) -> Driver:
-        """The driver fed from a script: never opened, it sends nothing."""
-        return cls(name, url, options, playback)
+        """The driver fed from a script: never opened, it sends nothing (even without a
+        playback: a test double)."""
+        driver = cls(name, url, options, playback)
+        driver.live = False
+        return driver
 
     @classmethod
     def snapshot_schema(cls) -> dict[str, Any]:
@@ -201,7 +230,8 @@ class Driver:
         """Stop the driver's threads (each is waited for 1 s at most)."""
         self._stop.set()
         for t in self._threads:
-            t.join(timeout=1.0)
+            if t is not threading.current_thread():
+                t.join(timeout=1.0)
 
     def warning_at_stop(self) -> str | None:
         """Something the device is left doing when the component stops, or None."""
@@ -221,16 +251,6 @@ class Driver:
                              f"{', '.join(self.OPTIONS) or 'none'})")
         return {k: _option(self.KIND, k, d, options.get(k, d)) for k, d in self.OPTIONS.items()}
 
-    # -- lockstep with `hfsmc sim` (the built-in drivers; docs/drivers.md) --------------
-    def lockstep_sent(self) -> int:
-        """Lockstep: the datagrams sent to the simulator so far (none: 0)."""
-        return 0
-
-    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
-        """Lockstep, before the instant at ``t_us``: read what the simulator says it sent
-        (``step``); why it could not, or None."""
-        return None
-
     # -- helpers for the driver -------------------------------------------------------
     def tell(self, call: str, args: list[Any]) -> None:
         """A ``@command(checked=True)``: tell the recording (or the playback) the command
@@ -244,7 +264,9 @@ class Driver:
 
     def say(self, text: str) -> None:
         """One line on stderr, `NAME: text` (as the built-in drivers say theirs)."""
-        sys.stderr.write(f"{self.name}: {text}\n")
+        with contextlib.suppress(ValueError, OSError):  # stderr closed at exit: nothing to tell
+            sys.stderr.write(f"{self.name}: {text}\n")
+            sys.stderr.flush()
 
     def start_thread(self, fn: Callable[[], None], what: str = "reader") -> None:
         """Run ``fn`` in a daemon thread until ``close`` (``self.stopping()`` tells it)."""
@@ -254,6 +276,77 @@ class Driver:
 
     def stopping(self) -> bool:
         return self._stop.is_set()
+
+    def wait(self, seconds: float) -> bool:
+        """Sleep in the driver's thread, cut short by ``close``; whether it is stopping."""
+        return self._stop.wait(seconds)
+
+    def now(self) -> float:
+        """Seconds on the driver's clock: the simulator's with --clock sim, else monotonic."""
+        return time.monotonic() if self.sim is None else float(self.sim.now())
+
+    def tell_down(self, text: str) -> None:
+        """Say ``text`` once when the link goes down (not again until ``tell_up``)."""
+        if not self._down:
+            self._down = True
+            self.say(text)
+
+    def tell_up(self, text: str) -> None:
+        """Say ``text`` once when the link is back after ``tell_down``."""
+        if self._down and not self.stopping():
+            self._down = False
+            self.say(text)
+
+    def keep_connected(self, attempt: Callable[[], bool | None],
+                       down: Callable[[bool], str]) -> None:
+        """The body of a reader thread that reconnects: ``attempt()`` connects and reads
+        until the link ends, and returns whether anything came (None: try again at once).
+        Then ``down(got)`` is said once (``tell_down``) and it waits before the next try,
+        RECONNECT_MIN_S doubling up to RECONNECT_MAX_S while nothing comes."""
+        pause = self.RECONNECT_MIN_S
+        while not self.stopping():
+            got = attempt()
+            if self.stopping():
+                return
+            if got is None:
+                continue
+            if got:
+                pause = self.RECONNECT_MIN_S
+            self.tell_down(down(got))
+            self.wait(pause)
+            pause = min(pause * 2, self.RECONNECT_MAX_S)
+
+    # -- images beside the snapshot (FRAMES) ------------------------------------------
+    def hold_image(self, image: Any, encoded: Any = None) -> None:
+        """Live, in ``read()``: the image of the instant that begins, and its bytes as the
+        device sent them (kept by ``--record``; None: the recording encodes it as PNG)."""
+        self._image, self._encoded = image, encoded
+
+    def image(self) -> Any:
+        """The instant's image (None before the first); the first time a snippet obtains
+        one it is told to the recording, and it is what the live views show."""
+        img = self._image
+        if img is not None:
+            self._seen = img  # for the monitor's viewers (one assignment: no lock)
+            number = int(self._snap[self.FRAMES])
+            if number != self._told and self.on_frame is not None:  # each image once
+                self._told = number
+                self.on_frame(number, img, self._encoded)
+        return img
+
+    def _last_seen(self) -> Any:
+        """The latest image a snippet obtained; None before any (hfsmc_monitor.py)."""
+        return self._seen
+
+    # -- the simulator's clock (LOCKSTEP) ---------------------------------------------
+    def lockstep_sent(self) -> int:
+        """--clock sim: what the driver sent the simulator in all (datagrams)."""
+        return 0
+
+    def lockstep_sync(self, t_us: int, step: dict[str, Any]) -> str | None:
+        """--clock sim, before the instant at ``t_us``: wait (bounded) until the driver
+        holds what the simulator says it sent (``step``); why not, or None."""
+        return None
 
     def names(self, option: str) -> tuple[str, ...]:
         """The names an option lists."""
@@ -272,6 +365,11 @@ class Driver:
             self._snap = {**self._snap, **got}
         else:
             self._snap = dict(self._scripted)
+            if self.FRAMES:  # the script names its images as files
+                file = self._scripted_frame.get("frame")
+                self._image = None if file is None or self.playback is None else \
+                    self.playback.image(self.name, str(file), self._scripted_frame.get("crc32"),
+                                        self._snap[self.FRAMES])
         return self._snap
 
     def view_fields(self) -> dict[str, Any]:
@@ -282,26 +380,24 @@ class Driver:
     def apply(self, values: dict[str, Any]) -> None:
         """A fake: the script's entry over the fields (unknown fields are an error)."""
         for k, v in values.items():
+            if self.FRAMES and k in ("frame", "crc32"):
+                self._scripted_frame[k] = v
+                continue
             if k not in self.SNAPSHOT:
                 raise ValueError(f"the {self.KIND} interface has no snapshot field `{k}` "
                                  f"(fields: {', '.join(self.SNAPSHOT)})")
             self._scripted[k] = _field(self.SNAPSHOT[k], v)
 
-    def _asked(self, query: str) -> None:
+    def _asked(self, query: str, field: str | None = None) -> None:
         lacks = self.lacks
         if lacks is None or self.quiet or self.playback is None:
             return
-        self.playback.asked(self.name, query, lacks if isinstance(lacks, str) else "field", None)
-
-    def _asked_field(self, query: str, field: str) -> None:
-        """A ``@query(reads=field)``: a fake tells the playback when its script lacks it."""
-        lacks = self.lacks
-        if lacks is None or self.quiet or self.playback is None:
-            return
-        if isinstance(lacks, str):
-            self.playback.asked(self.name, query, lacks, None)
-        elif field in lacks:
-            self.playback.asked(self.name, query, field, None)
+        if isinstance(lacks, str) or field is None:
+            self.playback.asked(self.name, query, lacks if isinstance(lacks, str) else "field",
+                                None)
+        elif field in lacks:  # the recording lacks the very field this query reads
+            self.playback.asked(self.name, query, field,
+                                self._snap.get(self.FRAMES) if field == "frame" else None)
 
     def _named(self, fn: Callable[..., Any], names: dict[str, str] | None,
                args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:

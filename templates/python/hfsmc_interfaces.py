@@ -18,6 +18,8 @@ from typing import Any, NoReturn
 
 # The built-in drivers: interface type -> module (beside the component).
 BUILTIN = {"mavlink": "hfsmc_mavlink", "camera": "hfsmc_camera", "ros2": "hfsmc_ros2"}
+# The built-in drivers made as a user's driver is (hfsmc_driver.Driver): module, class.
+BUILTIN_CLASSES = {"camera": ("hfsmc_camera", "Camera"), "mavlink": ("hfsmc_mavlink", "Vehicle")}
 # What to install for a module a driver imports (pip names; Debian: python3-opencv etc.).
 _INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": "numpy",
             "serial": "pyserial", "cyclonedds": "cyclonedds"}
@@ -80,7 +82,7 @@ def make_interface(name: str, kind: str, url: str | None, options: dict[str, str
     A driver whose library is missing (pymavlink, OpenCV) stops the component at
     start with what to install, rather than at the first call of a snippet.
     """
-    own = (drivers or {}).get(kind)
+    own = (drivers or {}).get(kind) or BUILTIN_CLASSES.get(kind)
     if kind not in BUILTIN and own is None:
         return Unavailable(name, f"interfaces of type `{kind}` are kept from a legacy model "
                                  "but hfsmc components cannot drive them")
@@ -95,7 +97,7 @@ def make_interface(name: str, kind: str, url: str | None, options: dict[str, str
                                           else getattr(module, own[1]).connect)
         if sim is None:
             return factory(name, url, options)
-        if own is not None:  # a user's driver does not follow the simulator's clock
+        if own is not None and not getattr(module, own[1]).LOCKSTEP:  # on the wall clock
             return factory(name, url, options)
         driver = factory(name, url, options, sim)
         sim.drivers.append(driver)

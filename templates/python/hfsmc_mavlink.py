@@ -31,7 +31,6 @@ from __future__ import annotations
 import atexit
 import math
 import threading
-import time
 from typing import Any, ClassVar
 
 from pymavlink import mavutil
@@ -89,7 +88,9 @@ MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 def connect(name: str, url: str | None, options: dict[str, str], sim: Any = None) -> Vehicle:
     """Open the link to a vehicle and start its reader; returns at once. ``sim``: the
     simulator's clock (hfsmc_simclock.SimClock), which the vehicle then follows."""
-    return Vehicle.connect(name, url, options, sim)
+    vehicle = Vehicle.connect(name, url, options, sim)
+    assert isinstance(vehicle, Vehicle)
+    return vehicle
 
 
 class VehicleQueries(_driver.Driver):
@@ -101,6 +102,7 @@ class VehicleQueries(_driver.Driver):
     ``_command`` and ``_target_local``, which a fake vehicle leaves empty."""
 
     KIND = "mavlink"
+    LOCKSTEP = True  # with --clock sim: no reader thread, lockstep_sync (hfsmc_mavlink_reader)
     VIEW = "vehicle"  # the live views' vehicle panel (hfsmc_monitor.vehicle_message)
     PUBLIC = ("warning_at_stop", "close")
     SNAPSHOT: ClassVar[dict[str, Any]] = {  # a vehicle not heard yet
@@ -461,19 +463,11 @@ class Vehicle(_send.Sender, _px4.Px4Vehicle, _mission.MissionVehicle, _upload.Up
     """A MAVLink vehicle with ArduPilot Copter conventions (docs/interfaces.md): the live
     driver (``connect``: made, then opened), with the simulator's clock in lockstep."""
 
-    @classmethod
-    def connect(cls, name: str, url: str | None, options: dict[str, Any],
-                sim: Any = None) -> Vehicle:
-        """The live vehicle: its options read (a bad one said), then its link opened and its
-        reader started (in lockstep, ``sim``: no reader thread, the runtime's
-        ``lockstep_sync``); returns at once."""
-        vehicle = cls(name, url or DEFAULT_URL, options, sim)
-        vehicle.open()
-        return vehicle
-
-    def __init__(self, name: str, url: str, options: dict[str, str], sim: Any = None) -> None:
-        super().__init__(name, url, options)
-        self._sim = sim
+    def __init__(self, name: str, url: str | None, options: dict[str, Any],
+                 playback: Any = None, sim: Any = None) -> None:
+        """The live vehicle (``connect``: made, then opened): its options read, a bad one
+        said and replaced; ``sim``: the simulator's clock in lockstep (LOCKSTEP)."""
+        super().__init__(name, url or DEFAULT_URL, options, playback, sim)
         self._snap = NEVER_HEARD
         self._rate = _link.option(name, options, "rate", FAST_RATE_HZ)
         self._ack_timeout = _link.option(name, options, "ack_timeout", ACK_TIMEOUT_S)
@@ -500,7 +494,7 @@ class Vehicle(_send.Sender, _px4.Px4Vehicle, _mission.MissionVehicle, _upload.Up
             _link.close_half_open(e)
             self._say(f"cannot open {url}: {e}")
             raise SystemExit(1) from None
-        self._start = self._now()
+        self._start = self.now()
         self._lock = threading.Lock()  # pymavlink calls and the pending commands
         self._pending: list[_reader.Pending] = []
         self._acks: dict[str, str] = {}
@@ -522,15 +516,11 @@ class Vehicle(_send.Sender, _px4.Px4Vehicle, _mission.MissionVehicle, _upload.Up
                                         daemon=True)
         self._counted: _link.Counted | None = None  # lockstep: datagrams sent and received
         self._next_heartbeat = 0.0
-        if self._sim is None:
+        if self.sim is None:
             self._thread.start()
         else:
             self._count_datagrams()
         atexit.register(self.close)
-
-    def _now(self) -> float:
-        """Seconds: the simulated time in lockstep, else the monotonic clock."""
-        return float(self._sim.now()) if self._sim is not None else time.monotonic()
 
     def __repr__(self) -> str:
         return f"<mavlink {self.name} {self.url}>"
@@ -538,7 +528,7 @@ class Vehicle(_send.Sender, _px4.Px4Vehicle, _mission.MissionVehicle, _upload.Up
     def snapshot(self) -> dict[str, Any]:
         """Read the vehicle once for the instant that begins; queries return this."""
         at = self._heartbeat_at
-        age = math.inf if at is None else self._now() - at
+        age = math.inf if at is None else self.now() - at
         flags, hb = self._ekf_flags, self._heartbeat
         armed = bool(hb[2] & MODE_FLAG_SAFETY_ARMED)
         if self._px4:
@@ -583,13 +573,13 @@ class Vehicle(_send.Sender, _px4.Px4Vehicle, _mission.MissionVehicle, _upload.Up
             frame = _px4.MAV_FRAME_BODY_NED  # PX4 turns velocities by the heading
         self._send_target(frame, mask, pos, vel, yaw_rate, yaw)
         if self._px4 and self._target is not None:
-            self._offboard.target(self._now(), ("local", frame, mask, pos, vel, yaw_rate, yaw))
+            self._offboard.target(self.now(), ("local", frame, mask, pos, vel, yaw_rate, yaw))
 
     def _goto_global(self, lat: float, lon: float, alt: float, heading: float | None) -> None:
         self._fence_check(lat, lon)
         self._send_global(lat, lon, alt, heading)
         if self._px4 and self._target is not None:
-            self._offboard.target(self._now(), ("global", lat, lon, alt, heading))
+            self._offboard.target(self.now(), ("global", lat, lon, alt, heading))
 
     def _rtl_altitude(self, alt: float) -> None:
         self._send_rtl_altitude(alt)

@@ -41,7 +41,7 @@ class Sender:
     _start: float
     _px4: bool
     _offboard: Any
-    _now: Any
+    now: Any
     _px4_command: Any
     _send_global: Any
 
@@ -59,7 +59,7 @@ class Sender:
         with self._lock:
             if target is not None:
                 self._conn.mav.command_long_send(target[0], target[1], command, 0, *p)
-                now = self._now()
+                now = self.now()
                 self._pending.append(_reader.Pending(name, label, command, p,
                                                       now + self._ack_timeout,
                                                       now + self._ack_timeout / 2, quiet))
@@ -80,7 +80,7 @@ class Sender:
         target = self._target
         if target is None:
             return  # a target is a stream, repeated each tick: nothing to say about one
-        boot_ms = int((self._now() - self._start) * 1000) & 0xFFFFFFFF
+        boot_ms = int((self.now() - self._start) * 1000) & 0xFFFFFFFF
         with self._lock:
             self._conn.mav.set_position_target_local_ned_send(
                 boot_ms, target[0], target[1], frame, mask,

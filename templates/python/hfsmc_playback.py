@@ -27,9 +27,7 @@ from typing import IO, Any
 from hfsmc_record import plain  # type: ignore[import-not-found]  # beside the component
 
 _FLOATS = {"heartbeat_age", "altitude", "yaw", "age"}
-# Each query of the camera's fake and the snapshot field it reads (the vehicle's are
-# declared with its queries: hfsmc_mavlink.VehicleQueries, `@query(reads=...)`).
-CAMERA_QUERIES = {"frame": "frame", "age": "age", "ok": "age", "count": "count"}
+CAMERA_FIELDS = ("count", "age", "frame", "crc32")  # what a camera's script may give
 _TRIPLES = {"position", "velocity", "location", "home"}
 
 
@@ -91,6 +89,8 @@ class Playback:
         # the entries as written, and the first that a built-in driver's fields refuse
         self.raw: dict[str, list[tuple[int, dict[str, Any], frozenset[str]]]] = {}
         self.bad: dict[str, str] = {}
+        self.images: dict[str, tuple[str, Any]] = {}  # per interface, its frame's file and image
+        self.warned: set[str] = set()  # interfaces whose frames decode to other pixels here
         path = self.path = os.path.join(folder, "inputs.jsonl")
         self.line = 0
         try:
@@ -170,12 +170,15 @@ class Playback:
             return fake
         if name in self.bad and kind in ("mavlink", "camera"):
             raise PlaybackError(self.bad[name])
+        # the built-in drivers' own fakes (hfsmc_driver.Driver.fake), as a user driver's
         if kind == "mavlink":
             import hfsmc_mavlink  # type: ignore[import-not-found]  # beside the component
-            fake = fake_vehicle(name, hfsmc_mavlink, self)
+            fake = hfsmc_mavlink.VehicleQueries.fake(name, None, {}, self)
         elif kind == "camera":
             import hfsmc_camera  # type: ignore[import-not-found]  # beside the component
-            fake = fake_camera(name, hfsmc_camera, self.folder, self)
+            fake = hfsmc_camera.Camera.fake(name, None, {}, self)
+            self.snapshots[name] = [(t, {k: v for k, v in values.items() if k in CAMERA_FIELDS},
+                                     lacks) for t, values, lacks in self.snapshots.get(name, [])]
         else:
             return None
         self.fakes[name] = fake
@@ -187,8 +190,9 @@ class Playback:
         the entries as written (its ``apply`` converts and checks them)."""
         self.snapshots[name] = self.raw.get(name, [])
         fields = getattr(type(fake), "SNAPSHOT", {})
+        frames = ("frame", "crc32") if getattr(type(fake), "FRAMES", "") else ()
         for t, values, _ in self.snapshots[name]:  # a field it lacks: said at start
-            odd = [k for k in values if k not in fields]
+            odd = [k for k in values if k not in fields and k not in frames]
             if odd:
                 raise PlaybackError(f"{self.path}: t={t}: the {getattr(fake, 'KIND', '')} "
                                     f"interface `{name}` has no snapshot field `{odd[0]}` "
@@ -196,6 +200,27 @@ class Playback:
         self.fakes[name] = fake
         self.place[name] = 0
         return fake
+
+    def image(self, name: str, file: str, crc: Any, count: Any) -> Any:
+        """The image a script names for a driver's frame (FRAMES, hfsmc_driver.Driver), read
+        once while it is the frame of the moment; said once when its pixels are not those
+        of the recorded run (``crc``: their CRC-32 there)."""
+        held = self.images.get(name)
+        if held is not None and held[0] == file:
+            return held[1]
+        import cv2  # a driver with frames has it
+        path = os.path.join(self.folder, file)
+        img = cv2.imread(path, cv2.IMREAD_COLOR)
+        if img is None:
+            raise PlaybackError(f"{path}: cannot read the frame (a PNG or JPEG file)")
+        if crc is not None and zlib.crc32(img.tobytes()) != crc and name not in self.warned:
+            self.warned.add(name)
+            sys.stderr.write(
+                f"{name}: frame {count} ({file}) decodes to other pixels here than in the "
+                "recorded run (another JPEG decoder): from there on this run does not "
+                "compute on the recorded pixels\n")
+        self.images[name] = (file, img)  # the frame of the moment: the previous one goes
+        return img
 
     def advance(self, t_us: int) -> None:
         """Apply every entry up to ``t_us`` to the fakes (before they take a snapshot), and
@@ -239,101 +264,3 @@ class Playback:
 
     def close(self) -> None:
         self.commands.close()
-
-
-class Evidence:
-    """What the script holds of a fake at the current instant (Playback.advance sets
-    ``lacks``): None all of it; "interface" or "instant" none of it; else the fields it
-    lacks.  Each query tells the playback when it reads what the script does not hold."""
-
-    lacks: Any = None
-    quiet = False  # the runtime's own reads (the warning at stop) are no query
-    playback: Any = None
-    name = ""
-
-    def _asked(self, query: str, field: str) -> None:
-        lacks = self.lacks
-        if lacks is None or self.quiet or self.playback is None:
-            return
-        if isinstance(lacks, str):
-            self.playback.asked(self.name, query, lacks, None)
-        elif field in lacks:
-            count = self.state.get("count") if field == "frame" else None  # type: ignore[attr-defined]
-            self.playback.asked(self.name, query, field, count)
-
-
-def _guarded(cls: Any, queries: dict[str, str]) -> Any:
-    """``cls`` with each query first telling what it reads (Evidence._asked)."""
-    def wrap(query: str, field: str, base: Any) -> Any:
-        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
-            self._asked(query, field)
-            return base(self, *args, **kwargs)
-        method.__name__ = query
-        method.__doc__ = base.__doc__
-        return method
-
-    for query, field in queries.items():
-        setattr(cls, query, wrap(query, field, getattr(cls, query)))
-    return cls
-
-
-def fake_vehicle(name: str, module: Any, playback: Any = None) -> Any:
-    """A vehicle whose snapshot comes from the script; it sends nothing (the driver's own
-    class, made by ``fake``: hfsmc_mavlink.VehicleQueries)."""
-    fake = module.VehicleQueries.fake(name, None, {}, playback)
-    fake.live = False  # even without a playback (a test double): never opened, sends nothing
-    return fake
-
-
-def fake_camera(name: str, module: Any, folder: str, playback: Any = None) -> Any:
-    """A camera whose frames are PNG files named by the script."""
-    import cv2
-
-    class Fake(Evidence, module.CameraQueries):  # type: ignore[misc]
-        def __init__(self) -> None:
-            self.name = name
-            self.playback = playback
-            self.on_frame = None
-            self.state: dict[str, Any] = {**module.NO_FRAME, "frame": None}
-            self._snap = module.NO_FRAME
-            self._frame = None
-            self._jpeg = None  # frames come as files; a recording of this run writes PNGs
-            self._seen = None
-            self.images: dict[str, Any] = {}
-            self.warned = False
-
-        def __repr__(self) -> str:
-            return f"<camera {name} (playback)>"
-
-        def close(self) -> None:
-            """Nothing to stop (the real one's grabber)."""
-
-        def apply(self, values: dict[str, Any]) -> None:
-            self.state = {**self.state, **values}
-
-        def snapshot(self) -> dict[str, Any]:
-            file = self.state.get("frame")
-            self._frame = None if file is None else self._image(str(file), self.state)
-            snap: dict[str, Any] = {"count": self.state["count"], "age": self.state["age"]}
-            self._snap = snap
-            return snap
-
-        def _image(self, file: str, state: dict[str, Any]) -> Any:
-            img = self.images.get(file)
-            if img is None:
-                path = os.path.join(folder, file)
-                img = cv2.imread(path, cv2.IMREAD_COLOR)
-                if img is None:
-                    raise PlaybackError(f"{path}: cannot read the frame (a PNG or JPEG file)")
-                crc = state.get("crc32")
-                if crc is not None and zlib.crc32(img.tobytes()) != crc and not self.warned:
-                    self.warned = True
-                    sys.stderr.write(
-                        f"{name}: frame {state['count']} ({file}) decodes to other pixels here "
-                        "than in the recorded run (another JPEG decoder): from there on this "
-                        "run does not compute on the recorded pixels\n")
-                self.images = {file: img}  # the frame of the moment: the previous one goes
-            return img
-
-    return _guarded(Fake, CAMERA_QUERIES)()
-

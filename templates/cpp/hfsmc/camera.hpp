@@ -25,8 +25,24 @@
 //
 // Options: `size: WxH` resizes every frame (320x240).
 //
+// It is a driver on hfsmc::Driver (driver.hpp, docs/drivers.md): the base keeps its
+// options, takes and records the snapshot of each instant (count, age) and feeds the
+// fake from the script (the frame's file and CRC beside the fields: CameraSnap::extra);
+// the camera adds its grabber, its frames (the recording's, the monitor's) and the lockstep.
+//
 // The class is declared here and defined in src/hfsmc_camera.cpp, compiled once into
 // the library hfsmc_camera: the component's unit sees only OpenCV's core header.
+/* hfsmc driver
+# The camera driver's declaration, as a user's C++ driver header carries one
+# (docs/drivers.md); tests/test_drivers_api.py compares it with the Python driver's
+# (hfsmc_camera.Camera). What each method does: docs/interfaces.md.
+kind: camera
+class: Camera
+doc: The latest frame of a video stream
+snapshot: {count: 0, age: .inf}
+options: {size: ''}
+queries: ["frame()", "age()", "ok()", "count()", "close()"]
+*/
 #pragma once
 
 #include <chrono>
@@ -41,6 +57,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "driver.hpp"
 #include "json.hpp"
 #include "observer.hpp"
 #include "playback.hpp"
@@ -50,7 +67,24 @@
 
 namespace hfsmc {
 
-class Camera : public Feed, public Source, public simclock::Synced {
+// What the automaton sees of a camera at one instant (hfsmc.camera.Snapshot), and the
+// frame a script names beside it.
+struct CameraSnap {
+  long long count = 0;
+  double age = std::numeric_limits<double>::infinity();
+  std::string file;  // with --playback: the frame's PNG or JPEG ("": none)
+  long long crc = -1;  // the CRC-32 of its pixels in the recorded run (-1: not given)
+  static std::vector<Field> fields(CameraSnap& s) { return {{"count", &s.count}, {"age", &s.age}}; }
+  static bool extra(CameraSnap& s, const std::string& key, const json::Value& v, int line,
+                    const playback::Inputs& in) {
+    if (key == "frame") s.file = v.kind == json::Value::NUL ? std::string() : in.frame_file(v, line);
+    else if (key == "crc32") s.crc = in.whole(v, "crc32", line);
+    return true;  // other fields (`t`, ...) are not part of what the automaton sees
+  }
+  static long long frame_number(const CameraSnap& s) { return s.count; }
+};
+
+class Camera : public Driver<CameraSnap>, public Feed, public simclock::Synced {
  public:
   static constexpr const char* kDefaultUrl = "0";  // the first video device
   static constexpr double kBackoffMinS = 0.2;
@@ -70,28 +104,25 @@ class Camera : public Feed, public Source, public simclock::Synced {
   Camera(const Camera&) = delete;
   Camera& operator=(const Camera&) = delete;
 
-  const std::string& name() const;
-  const std::string& url() const;
+  const std::string& name() const { return Driver::name(); }
+  const std::string& url() const { return Driver::url(); }
 
   /// The latest frame (H x W, CV_8UC3, BGR); an empty Mat before the first. The
   /// same pixels until a newer frame comes: clone it before drawing on it for keeps.
   cv::Mat frame() const;
 
   /// Seconds since the latest frame arrived; +inf before the first.
-  double age() const { evidence_.asked("age", "age"); return snap_age_; }
+  double age() const { return snap("age").age; }
 
   /// Frames are coming: the latest is less than a second old.
-  bool ok() const { evidence_.asked("ok", "age"); return snap_age_ < kStaleS; }
+  bool ok() const { return snap("ok", "age").age < kStaleS; }
 
   /// Frames received so far (a new one since the last tick when it has grown).
-  long count() const { evidence_.asked("count", "count"); return snap_count_; }
+  long count() const { return static_cast<long>(snap("count").count); }
 
-  // -- Source: the snapshot of each instant ---------------------------------------------
-  const std::string& source_name() const override { return name(); }
-  const char* source_type() const override { return "camera"; }
+  // -- Source: the options as given (the base takes the snapshot) -----------------------
   std::string source_config() const override;
-  void take_snapshot(long long t_us) override;
-  std::string snapshot_fields() const override;
+  std::string snapshot_schema() const override { return std::string(); }  // the built-in one
 
   // -- simclock::Synced: lockstep with `hfsmc sim` (--clock sim) --------------------------
   long long lockstep_sent() const override { return 0; }
@@ -113,16 +144,10 @@ class Camera : public Feed, public Source, public simclock::Synced {
 
   using Clock = std::chrono::steady_clock;
 
-  struct Fed {  // with --playback: the entries applied so far
-    long count = 0;
-    double age = std::numeric_limits<double>::infinity();
-    std::string file;  // the frame's PNG or JPEG ("": none)
-    int line = 0;  // where it was given
-    long long crc = -1;  // the CRC-32 of its pixels in the recorded run (-1: not given)
-  };
-
-  /// A playback entry over `f` (schemas/recording.md); a bad value throws InputError.
-  void apply(Fed& f, const playback::Entry& e) const;
+  /// Live: the grabber's latest frame (lockstep: the one synced) for the instant.
+  void read(CameraSnap& latest) override;
+  /// The instant's frame: live, what read() took; fed, the script's file, read once.
+  void snapshot_taken() override;
   /// The recording gets the frame of this instant, once (lossless PNG, base64).
   void record_frame() const;
   /// CRC-32 of a frame's pixels, row by row (zlib.crc32 of a numpy array's bytes).
@@ -140,16 +165,10 @@ class Camera : public Feed, public Source, public simclock::Synced {
   cv::Mat held_, held_jpeg_;  // lockstep: the frame synced for the coming instant
   long held_count_ = 0;
   long long held_us_ = 0;
-  std::map<std::string, std::string> options_;
-  cv::Mat snap_frame_;  // the snapshot: the automaton's thread only
-  cv::Mat snap_jpeg_;
-  long snap_count_ = 0;
-  double snap_age_ = std::numeric_limits<double>::infinity();
+  std::map<std::string, std::string> given_;  // the options as given (hfsmc.interfaces)
+  cv::Mat snap_frame_;  // the snapshot's frame: the automaton's thread only
+  cv::Mat snap_jpeg_, read_frame_, read_jpeg_;  // read_: what read() took
   mutable long recorded_ = 0;  // the number of the last frame recorded
-  playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake
-  Fed fed_;
-  std::size_t next_ = 0;  // the next entry to apply
-  playback::Evidence evidence_;  // with --playback: what the inputs hold of this instant
   std::string loaded_;  // the file image_ holds
   cv::Mat image_;
   bool warned_ = false;  // said that a frame's pixels are not the recorded ones

@@ -13,6 +13,15 @@
 // A query reads snap("query"); a command starts with `if (!command("name", args_json))
 // return;` (a fake sends nothing). The driver's own thread: start_thread(); its
 // destructor calls stop() first (the thread must end before the members it uses go).
+//
+// Hooks a Snap may declare beside `fields` (the built-in camera's, hfsmc/camera.hpp):
+//   static bool extra(Snap&, const std::string& key, const json::Value&, int line,
+//                     const playback::Inputs&)  a script's key beside the fields (the
+//       camera's `frame` file and `crc32`): true when taken; a bad value throws InputError;
+//   static long long frame_number(const Snap&)  the number of the instant's image, which a
+//       replay notes with a frame the recording lacks.
+// And a driver may be made with Policy (options it does not know ignored, no fields
+// table in the live views when it shows something else) and override snapshot_taken().
 #pragma once
 
 #include <atomic>
@@ -26,6 +35,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -44,6 +54,27 @@ struct Field {
     std::variant<double*, long long*, bool*, std::string*> ref;
 };
 
+namespace detail {
+template <class S, class = void>
+struct has_extra : std::false_type {};
+template <class S>
+struct has_extra<S, std::void_t<decltype(S::extra(std::declval<S&>(), std::declval<const std::string&>(),
+                                                  std::declval<const json::Value&>(), 0,
+                                                  std::declval<const playback::Inputs&>()))>>
+    : std::true_type {};
+template <class S, class = void>
+struct has_frame_number : std::false_type {};
+template <class S>
+struct has_frame_number<S, std::void_t<decltype(S::frame_number(std::declval<const S&>()))>>
+    : std::true_type {};
+}  // namespace detail
+
+// How a driver is made beyond its declaration.
+struct Policy {
+    bool ignore_unknown_options = false;  // the driver says them itself (the camera)
+    bool fields_view = true;  // the live views show the fields (false: the driver feeds its own)
+};
+
 template <class Snap>
 class Driver : public Source {
 public:
@@ -51,9 +82,10 @@ public:
 
     // `kind`: the declaration's kind; `declared`: each option and its default, as text.
     Driver(const char* kind, std::string name, std::string url, const Options& options,
-           const Options& declared)
+           const Options& declared, Policy policy = Policy())
         : kind_(kind), name_(std::move(name)), url_(std::move(url)), options_(declared) {
         for (const auto& kv : options) {
+            if (declared.count(kv.first) == 0 && policy.ignore_unknown_options) continue;
             if (declared.count(kv.first) == 0) {
                 std::string known;
                 for (const auto& d : declared) known += (known.empty() ? "" : ", ") + d.first;
@@ -69,7 +101,7 @@ public:
             for (const playback::Entry& e : inputs->entries(name_)) apply(scratch, e);
         }
         register_source(this);
-        view_.start(inputs_ == nullptr);
+        if (policy.fields_view) view_.start(inputs_ == nullptr);
     }
     ~Driver() override {
         unregister_source(this);
@@ -98,13 +130,17 @@ public:
             read(latest);
             snap_ = latest;
             view_.set(snap_);
+            snapshot_taken();
             return;
         }
         const std::vector<playback::Entry>& entries = inputs_->entries(name_);
         for (; next_ < entries.size() && entries[next_].t <= t_us; ++next_) apply(fed_, entries[next_]);
         snap_ = fed_;
         view_.set(snap_);
-        evidence_.at(inputs_, name_, t_us, next_ > 0 ? &entries[next_ - 1] : nullptr, -1);
+        long long number = -1;
+        if constexpr (detail::has_frame_number<Snap>::value) number = Snap::frame_number(snap_);
+        evidence_.at(inputs_, name_, t_us, next_ > 0 ? &entries[next_ - 1] : nullptr, number);
+        snapshot_taken();
     }
     std::string snapshot_fields() const override {
         Snap s = snap_;
@@ -138,12 +174,18 @@ protected:
     // automaton's thread once per instant: guard what the driver's thread shares).
     virtual void read(Snap& latest) = 0;
 
+    // After each instant's snapshot (live or fed): what the driver derives from it.
+    virtual void snapshot_taken() {}
+
     bool live() const { return inputs_ == nullptr; }
-    // The instant's snapshot, for query `query` (a playback notes what it cannot answer).
-    const Snap& snap(const char* query) const {
-        evidence_.asked(query, query);
+    // The instant's snapshot, for query `query` (a playback notes what it cannot answer),
+    // which reads `field` (by default the field of the query's name; "frame": the image).
+    const Snap& snap(const char* query, const char* field = nullptr) const {
+        evidence_.asked(query, field != nullptr ? field : query);
         return snap_;
     }
+    // The instant's snapshot, for the driver's own use (no query).
+    const Snap& current() const { return snap_; }
     // A command: told to the recording (or the playback); false when it must not be sent.
     bool command(const char* call, const std::string& args_json) {
         sent(call, args_json);
@@ -194,6 +236,9 @@ private:
             const Field* f = nullptr;
             for (const Field& x : fields)
                 if (m.first == x.name) f = &x;
+            if constexpr (detail::has_extra<Snap>::value) {
+                if (f == nullptr && Snap::extra(s, m.first, m.second, e.line, *inputs_)) continue;
+            }
             if (f == nullptr) inputs_->bad(e.line, "the " + std::string(kind_) + " interface `" + name_ +
                                                        "` has no snapshot field `" + m.first + "`");
             if (auto d = std::get_if<double*>(&f->ref)) **d = inputs_->number(m.second, f->name, e.line);
