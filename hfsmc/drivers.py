@@ -6,10 +6,10 @@ argument names a key of the interface's options), the scenario files know which 
 are commands, and the recording knows the snapshot's fields:
 
 - the built-in Python drivers (``templates/python/hfsmc_mavlink.py``, ``hfsmc_camera.py``):
-  a class of what snippets call (``VehicleQueries``, which the playback's test doubles
-  subclass too; the camera's ``Camera`` is a driver on ``hfsmc_driver.Driver``, its own
-  fake) and the live class, which adds ``close()``; a command is a method that tells
-  ``self._issue``;
+  one class deriving from the driver base (``Driver``: mavlink's ``VehicleQueries``, below
+  its live ``Vehicle``; the camera's ``Camera``), read as a user's driver is, below (its
+  KIND is the built-in type; the declaration block of its C++ header, ``hfsmc/KIND.hpp``,
+  too); each is its own fake (``Driver.fake``);
 - a user's Python driver (``type: driver``, ``python: FILE``): one class deriving from
   ``Driver`` (templates/python/hfsmc_driver.py) whose methods are marked ``@query`` or
   ``@command`` and whose ``KIND``, ``SNAPSHOT`` and ``OPTIONS`` are literals; read with
@@ -32,22 +32,22 @@ from functools import cache
 from importlib.resources import files
 from typing import Any
 
-# Interface type -> (driver file, the snippets' class, the live class).
+# Interface type -> (driver file, its class on the driver base, the live class).
 SOURCES: dict[str, tuple[str, str, str]] = {
     "mavlink": ("hfsmc_mavlink.py", "VehicleQueries", "Vehicle"),
     "camera": ("hfsmc_camera.py", "Camera", "Camera"),
 }
 # Types a user's driver may not take as its KIND: the built-in ones and the model keys.
 RESERVED_KINDS = frozenset({"mavlink", "camera", "ros2", "ros_topic", "ice", "driver"})
-# The live class's methods that belong to the runtime, not to snippets.
-RUNTIME_ONLY = frozenset({"snapshot", "lockstep_sent", "lockstep_sync"})
 # Methods of a user's driver that belong to the runtime (hfsmc_driver.Driver's protocol).
 DRIVER_PROTOCOL = frozenset({"open", "read", "close", "snapshot", "apply", "send",
                              "warning_at_stop", "value", "say", "start_thread", "connect",
-                             "fake", "snapshot_schema", "view_fields", "wait", "now",
-                             "tell_down", "tell_up", "keep_connected", "hold_image", "image",
-                             "lockstep_sent", "lockstep_sync", "names", "stopping",
-                             "attribute"})
+                             "fake", "snapshot_schema", "view_fields", "tell", "read_options",
+                             "wait", "now", "tell_down", "tell_up", "keep_connected",
+                             "hold_image", "image", "lockstep_sent", "lockstep_sync", "names",
+                             "stopping", "attribute"})
+# Of those, the ones a driver may also give snippets (``PUBLIC``; check knows them).
+PUBLIC_PROTOCOL = frozenset({"close", "warning_at_stop"})
 # Plain attributes every driver has (C++: the methods name() and url()).
 ATTRIBUTES = ("name", "url")
 # C++ names that differ from the Python ones (`goto` is a C++ keyword).
@@ -72,7 +72,7 @@ class Method:
     params: tuple[str, ...]  # positional-or-keyword parameters, without self
     required: int  # how many of them have no default
     command: bool  # sends something (recorded); else a query of the instant's snapshot
-    acknowledged: bool  # a command whose outcome ``last_ack`` gives (``_issue(..., ack=True)``)
+    acknowledged: bool  # a command whose outcome ``last_ack`` gives (``@command(ack=True)``)
     doc: str  # the first line of its docstring
     # (parameter, option): a literal argument must be a key of that option's names
     names: tuple[tuple[str, str], ...] = ()
@@ -133,18 +133,8 @@ def driver(kind: str) -> Driver | None:
     source = SOURCES.get(kind)
     if source is None:
         return None
-    file, queries, live = source
-    text = files("hfsmc.templates").joinpath("python").joinpath(file).read_text("utf-8")
-    classes = {n.name: n for n in ast.parse(text).body if isinstance(n, ast.ClassDef)}
-    methods: dict[str, Method] = {}
-    # a driver on hfsmc_driver.Driver (queries == live): the base's protocol is the runtime's
-    runtime = RUNTIME_ONLY | (DRIVER_PROTOCOL - {"close"}) if queries == live else RUNTIME_ONLY
-    for cls, skip in ((classes[queries], runtime), (classes[live], runtime)):
-        for node in cls.body:
-            if (isinstance(node, ast.FunctionDef) and not node.name.startswith("_")
-                    and node.name not in skip and node.name not in methods):
-                methods[node.name] = _method(node)
-    return Driver(kind, methods)
+    text = files("hfsmc.templates").joinpath("python").joinpath(source[0]).read_text("utf-8")
+    return read_python_driver(text, kind)  # declared as a user's driver is
 
 
 def _ros2_driver() -> Driver:
@@ -176,9 +166,10 @@ def _method(node: ast.FunctionDef) -> Method:
 # --- a user's Python driver -------------------------------------------------------------
 
 @cache
-def read_python_driver(text: str) -> Driver:
+def read_python_driver(text: str, builtin: str | None = None) -> Driver:
     """The declaration of a user's Python driver (docs/drivers.md); DeclarationError with
-    its position when it is not one."""
+    its position when it is not one. ``builtin``: the interface type of a built-in driver
+    declared the same way (``hfsmc_mavlink.VehicleQueries``), whose KIND it is."""
     try:
         tree = ast.parse(text)
     except SyntaxError as e:
@@ -197,7 +188,8 @@ def read_python_driver(text: str) -> Driver:
         elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.value:
             consts[node.target.id] = (node.value, node)
     kind = _const(consts, "KIND", cls)
-    if not isinstance(kind, str) or not _KIND.match(kind) or kind in RESERVED_KINDS:
+    if not isinstance(kind, str) or not _KIND.match(kind) or (kind in RESERVED_KINDS
+                                                              and kind != builtin):
         raise DeclarationError(f"`KIND` must be a lower-case name (a-z, 0-9, _), not one of "
                                f"{', '.join(sorted(RESERVED_KINDS))}: `{kind}`",
                                *_at(consts["KIND"][1]))
@@ -207,18 +199,30 @@ def read_python_driver(text: str) -> Driver:
     if not (isinstance(attrs, tuple) and all(isinstance(a, str) and a in options for a in attrs)):
         raise DeclarationError("`ATTRIBUTES_FROM` must be a tuple of option names",
                                *_at(consts["ATTRIBUTES_FROM"][1]))
+    public = _const(consts, "PUBLIC", cls, ())
+    if not (isinstance(public, tuple) and all(p in PUBLIC_PROTOCOL for p in public)):
+        raise DeclarationError("`PUBLIC` must be a tuple of the runtime's methods a snippet "
+                               f"may call: {', '.join(sorted(PUBLIC_PROTOCOL))}",
+                               *_at(consts["PUBLIC"][1]))
+    frames = _const(consts, "FRAMES", cls, "")
+    if not isinstance(frames, str) or (frames and frames not in snapshot):
+        raise DeclarationError("`FRAMES` must name the snapshot field that numbers the "
+                               "images", *_at(consts["FRAMES"][1]))
+    readable = frozenset(snapshot) | ({"frame"} if frames else frozenset())
     methods: dict[str, Method] = {}
     for node in cls.body:
         if not isinstance(node, ast.FunctionDef):
             continue
         marks = [d for d in node.decorator_list if _base_name(d) in ("query", "command")]
+        if not marks and node.name in public:  # a runtime method snippets may call too
+            methods[node.name] = _public(node)
         if not marks:
             continue
         if node.name.startswith("_") or node.name in DRIVER_PROTOCOL or node.name in ATTRIBUTES:
             raise DeclarationError(f"`{node.name}` cannot be a query or a command: the name "
                                    "is the runtime's", *_at(node))
         mark = marks[0]
-        names = _names(mark, node, options)
+        names = _names(mark, node, options, readable)
         params = tuple(a.arg for a in (*node.args.posonlyargs, *node.args.args))[1:]
         if node.args.vararg or node.args.kwarg or node.args.kwonlyargs:
             raise DeclarationError(f"`{node.name}`: a query or a command takes plain "
@@ -226,7 +230,10 @@ def read_python_driver(text: str) -> Driver:
                                    *_at(node))
         doc = (ast.get_docstring(node) or "").split("\n")[0]
         methods[node.name] = Method(node.name, params, len(params) - len(node.args.defaults),
-                                    _base_name(mark) == "command", False, doc, names)
+                                    _base_name(mark) == "command", _flag(mark, "ack"), doc,
+                                    names)
+    for name in public:  # the base class's (hfsmc_driver.Driver): no parameters
+        methods.setdefault(name, Method(name, (), 0, False, False, ""))
     if not methods:
         raise DeclarationError(f"`{cls.name}` marks no method `@query` or `@command`",
                                *_at(cls))
@@ -297,16 +304,43 @@ def literal(node: ast.AST) -> Any:
                      "float(\"inf\"))")
 
 
-def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any]
-           ) -> tuple[tuple[str, str], ...]:
+def _public(node: ast.FunctionDef) -> Method:
+    params = tuple(a.arg for a in (*node.args.posonlyargs, *node.args.args))[1:]
+    return Method(node.name, params, len(params) - len(node.args.defaults), False, False,
+                  (ast.get_docstring(node) or "").split("\n")[0])
+
+
+def _flag(mark: ast.AST, key: str) -> bool:
+    """``@command(ack=True)``: a literal true keyword of the mark."""
+    return isinstance(mark, ast.Call) and any(
+        k.arg == key and isinstance(k.value, ast.Constant) and k.value.value is True
+        for k in mark.keywords)
+
+
+# The keywords of the marks besides ``names`` (hfsmc_driver.query and command).
+_MARK_KEYWORDS = {"query": ("reads",), "command": ("ack", "checked")}
+
+
+def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any],
+           fields: frozenset[str]) -> tuple[tuple[str, str], ...]:
+    """A mark's ``names=`` (its other keywords checked); ``fields``: what ``reads=`` may name."""
     if not isinstance(mark, ast.Call):
         return ()
     params = {a.arg for a in node.args.args}
+    kind = _base_name(mark)
+    found: tuple[tuple[str, str], ...] = ()
     for k in mark.keywords:
-        if k.arg == "reads":  # the field a query reads (a replay's evidence): any literal
+        if k.arg in _MARK_KEYWORDS[kind]:
+            value = k.value.value if isinstance(k.value, ast.Constant) else None
+            good = value in fields if k.arg == "reads" else isinstance(value, bool)
+            if not good:
+                raise DeclarationError(f"`{k.arg}` must be " + (
+                    "a field of `SNAPSHOT` (or `frame`: the image of a driver with `FRAMES`)"
+                    if k.arg == "reads" else "True or False"), *_at(mark))
             continue
         if k.arg != "names":
-            raise DeclarationError(f"`@{_base_name(mark)}` takes only `names=` and `reads=`",
+            raise DeclarationError(f"`@{kind}` takes only `names=`"
+                                   + "".join(f", `{w}=`" for w in _MARK_KEYWORDS[kind]),
                                    *_at(mark))
         try:
             names = literal(k.value)
@@ -316,8 +350,8 @@ def _names(mark: ast.AST, node: ast.FunctionDef, options: dict[str, Any]
                 p in params and o in options for p, o in names.items()):
             raise DeclarationError("`names` maps a parameter to the option that lists its "
                                    f"names (options: {', '.join(options) or 'none'})", *_at(mark))
-        return tuple(names.items())
-    return ()
+        found = tuple(names.items())
+    return found
 
 
 # --- a user's C++ driver ----------------------------------------------------------------
@@ -326,8 +360,9 @@ _BLOCK = re.compile(r"/\*\s*hfsmc driver[ \t]*\n(.*?)\*/", re.S)
 _SIGNATURE = re.compile(r"^\s*([A-Za-z_]\w*)\s*\(([^()]*)\)\s*(?::\s*(.*))?$")
 
 
-def read_cpp_driver(text: str) -> Driver:
-    """The declaration block of a user's C++ driver header (docs/drivers.md)."""
+def read_cpp_driver(text: str, builtin: str | None = None) -> Driver:
+    """The declaration block of a user's C++ driver header (docs/drivers.md); ``builtin``:
+    the interface type of a built-in driver's header (``hfsmc/mavlink.hpp``)."""
     import yaml  # a C++ declaration block is a few lines of YAML
 
     m = _BLOCK.search(text)
@@ -352,7 +387,8 @@ def read_cpp_driver(text: str) -> Driver:
                                "(kind, class, doc, snapshot, options, queries, commands, "
                                "attributes_from)", first)
     kind, cls = data.get("kind"), data.get("class")
-    if not isinstance(kind, str) or not _KIND.match(kind) or kind in RESERVED_KINDS:
+    if not isinstance(kind, str) or not _KIND.match(kind) or (kind in RESERVED_KINDS
+                                                              and kind != builtin):
         raise DeclarationError(f"`kind` must be a lower-case name, not a built-in type: "
                                f"`{kind}`", first)
     if not isinstance(cls, str) or not re.match(r"^[A-Za-z_][\w:]*$", cls):

@@ -99,9 +99,15 @@ def test_the_link_checker_sees_links_and_skips_code() -> None:
 # -- the interfaces: every method the drivers expose -------------------------------------
 
 def python_methods(module: str, cls: str) -> set[str]:
+    """The public methods of a driver's live class; of a driver built on the driver base
+    (hfsmc_driver.Driver), not the base's runtime protocol (docs/drivers.md), except
+    those it gives snippets too (``PUBLIC``)."""
     mod = pytest.importorskip(f"hfsmc.templates.python.{module}")
-    return {n for n, _ in inspect.getmembers(getattr(mod, cls), inspect.isfunction)
-            if not n.startswith("_")}
+    live = getattr(mod, cls)
+    base = next((c for c in live.__mro__ if c.__name__ == "Driver"), None)
+    runtime = set() if base is None else set(vars(base)) - set(live.PUBLIC)
+    return {n for n, _ in inspect.getmembers(live, inspect.isfunction)
+            if not n.startswith("_") and n not in runtime}
 
 
 def cpp_methods(header: str, cls: str) -> set[str]:

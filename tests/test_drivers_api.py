@@ -14,7 +14,15 @@ from typing import Any, ClassVar
 
 import pytest
 
-from hfsmc.drivers import ATTRIBUTES, CPP_NAMES, DRIVER_PROTOCOL, RUNTIME_ONLY, SOURCES, driver
+from hfsmc.drivers import (
+    ATTRIBUTES,
+    CPP_NAMES,
+    SOURCES,
+    DeclarationError,
+    disagreement,
+    driver,
+    read_cpp_driver,
+)
 from hfsmc.scenario import acknowledged, commands_of
 from tests.conftest import ROOT
 
@@ -32,11 +40,14 @@ def test_check_knows_every_public_method_of_the_imported_driver(kind: str) -> No
     (a method added, renamed or given another parameter shows here)."""
     module = _module(kind)
     _, queries, live = SOURCES[kind]
+    # a driver built on the driver base (hfsmc_driver.Driver): the base's runtime methods
+    # are not the interface's, except those it gives snippets too (PUBLIC)
+    base = next((c for c in getattr(module, live).__mro__ if c.__name__ == "Driver"), None)
+    runtime = set() if base is None else set(vars(base)) - set(getattr(module, queries).PUBLIC)
     found = {}
     for cls in (getattr(module, queries), getattr(module, live)):
         for name, fn in inspect.getmembers(cls, inspect.isfunction):
-            if not name.startswith("_") and name not in RUNTIME_ONLY and not (
-                    queries == live and name in DRIVER_PROTOCOL - {"close"}):  # the base's
+            if not name.startswith("_") and name not in runtime:
                 found[name] = tuple(inspect.signature(fn).parameters)[1:]
     d = driver(kind)
     assert d is not None
@@ -82,6 +93,40 @@ def test_the_cpp_header_declares_the_same_methods(kind: str) -> None:
 
 
 @pytest.mark.parametrize("kind", KINDS)
+def test_each_builtin_is_declared_as_a_user_driver_is_in_both_languages(kind: str) -> None:
+    """Every built-in driver passes the one seam of docs/drivers.md: its Python class
+    derives from the driver base and marks its methods, and the C++ header's declaration
+    block agrees with it (as a user's twin drivers must, E189)."""
+    file, cls, live = SOURCES[kind]
+    d = driver(kind)
+    assert d is not None and d.cls == cls and d.type == kind
+    expected = {"mavlink": (["rate", "ack_timeout", "source_system", "autopilot"],
+                            ("fence_breached", False)),
+                "camera": (["size"], ("count", 0))}[kind]
+    assert [k for k, _ in d.options] == expected[0] and expected[1] in d.snapshot
+    header = (TEMPLATES / f"cpp/hfsmc/{kind}.hpp").read_text()
+    cpp = read_cpp_driver(header, kind)
+    assert cpp.cls == {"mavlink": "Mavlink", "camera": "Camera"}[kind]
+    assert disagreement(d, cpp) is None
+    with pytest.raises(DeclarationError, match="not a built-in type"):  # a user's may not
+        read_cpp_driver(header)
+    sys.path.insert(0, str(TEMPLATES / "python"))
+    try:
+        module = importlib.import_module(file[:-3])
+        base = importlib.import_module("hfsmc_driver")
+    finally:
+        sys.path.remove(str(TEMPLATES / "python"))
+    assert issubclass(getattr(module, live), base.Driver)
+    queries = getattr(module, cls)
+    assert queries.SNAPSHOT.keys() == dict(d.snapshot).keys()
+    for m in d.methods.values():  # marked as a user driver's methods are, but the PUBLIC
+        fn = getattr(queries, m.name)
+        mark = None if m.name in queries.PUBLIC else "command" if m.command else "query"
+        assert getattr(fn, "hfsmc_kind", None) == mark, m.name
+        assert getattr(fn, "hfsmc_ack", False) == m.acknowledged, m.name
+
+
+@pytest.mark.parametrize("kind", KINDS)
 def test_the_docs_table_lists_every_method(kind: str) -> None:
     d = driver(kind)
     assert d is not None
@@ -99,10 +144,9 @@ def test_the_playback_doubles_answer_every_method_and_name_the_interface(
     interface lacks is said with the interface's name, not the double's class."""
     sys.path.insert(0, str(TEMPLATES / "python"))
     try:
-        playback = importlib.import_module("hfsmc_playback")
         module = importlib.import_module(SOURCES[kind][0][:-3])
-        fake = (playback.fake_vehicle("drone", module) if kind == "mavlink"
-                else module.Camera.fake("cam", None, {}, None))
+        fake = getattr(module, SOURCES[kind][1]).fake("drone" if kind == "mavlink" else "cam",
+                                                      None, {}, None)  # the driver's own
     finally:
         sys.path.remove(str(TEMPLATES / "python"))
     d = driver(kind)
@@ -117,6 +161,72 @@ def test_the_playback_doubles_answer_every_method_and_name_the_interface(
     assert "Fake" not in str(e.value)
 
 
+_HOOKED = '''
+from hfsmc_driver import Driver, command, query
+
+
+class Gadget(Driver):
+    KIND = "gadget"
+    SNAPSHOT = {"distance": float("inf"), "acks": ""}
+    OPTIONS = {"stale": 1.0}
+    PUBLIC = ("close",)
+
+    @query(reads="distance")
+    def distance(self):
+        return self.value("distance")
+
+    @command(checked=True, ack=True)
+    def beep(self, ms):
+        if ms <= 0:
+            raise ValueError("ms > 0")
+        self.tell("beep", [int(ms)])
+        self.sent = int(ms)
+'''
+
+
+def test_the_bases_hooks_are_declared_checked_and_run(tmp_path: Path) -> None:
+    """The hooks mavlink uses, on a user's driver: read from the declaration (a wrong one at
+    its line), and at run time: a checked command tells what it checked and runs in a
+    fake too; a query that reads one field is answered when the script lacks another."""
+    from hfsmc.drivers import read_python_driver
+
+    d = read_python_driver(_HOOKED)
+    assert [(m.name, m.command, m.acknowledged) for m in d.methods.values()] == [
+        ("distance", False, False), ("beep", True, True), ("close", False, False)]
+    for wrong, said in (('reads="distance"', 'reads="far"'), ("ack=True", "ack=1"),
+                        ('PUBLIC = ("close",)', 'PUBLIC = ("open",)'),
+                        ("checked=True", "checked=True, sends=1")):
+        with pytest.raises(DeclarationError) as e:
+            read_python_driver(_HOOKED.replace(wrong, said))
+        assert e.value.line > 1, e.value.message
+    sys.path.insert(0, str(TEMPLATES / "python"))
+    try:
+        module = tmp_path / "gadget_hooked.py"
+        module.write_text(_HOOKED)
+        sys.path.insert(0, str(tmp_path))
+        cls = importlib.import_module("gadget_hooked").Gadget
+    finally:
+        sys.path[:] = [p for p in sys.path if p not in (str(tmp_path), str(TEMPLATES / "python"))]
+
+    asked: list[tuple[object, ...]] = []
+
+    class Playback:  # what a fake tells the playback of a query it cannot answer
+        def asked(self, *what: object) -> None:
+            asked.append(what[:3])
+
+    told: list[tuple[str, list[object]]] = []
+    fake = cls.fake("g", None, {}, Playback())
+    fake.on_command = lambda call, args: told.append((call, args))
+    fake.beep(2.7)  # checked, told as converted, run in the fake (it sends nothing itself)
+    assert told == [("beep", [2])] and fake.sent == 2
+    with pytest.raises(ValueError):
+        fake.beep(0)
+    assert told == [("beep", [2])]  # a refused command is not told
+    fake.lacks = frozenset({"acks"})  # the recording lacks another field: answered
+    assert fake.distance() == float("inf") and asked == []
+    fake.lacks = frozenset({"distance"})
+    fake.distance()
+    assert asked == [("g", "distance", "distance")]
 def test_the_driver_base_gives_every_driver_the_cameras_hooks(capsys: pytest.CaptureFixture[str]) -> None:
     """Images beside the snapshot (each told to the recording once) and a reader that
     reconnects saying each change once: the base's, not the camera's own."""

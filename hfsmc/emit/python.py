@@ -30,8 +30,9 @@ RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py"
                  "hfsmc_terminal.py", "hfsmc_monitor.py", "hfsmc_ros2view.py", "hfsmc_driverview.py",
                  "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py", "hfsmc_helpers.py")
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py",
-                               "hfsmc_mavlink_reader.py", "hfsmc_mission.py",
-                               "hfsmc_mission_upload.py", "hfsmc_px4.py"),
+                               "hfsmc_mavlink_reader.py", "hfsmc_mavlink_send.py",
+                               "hfsmc_mission.py", "hfsmc_mission_upload.py", "hfsmc_px4.py",
+                               "hfsmc_driver.py"),
                    "camera": ("hfsmc_camera.py", "hfsmc_driver.py"), "driver": ("hfsmc_driver.py",),
                    "ros2": ("hfsmc_ros2.py", "hfsmc_ros2_wire.py", "hfsmc_ros2_names.py",
                             "hfsmc_ros2_cdr.py", "hfsmc_ros2_playback.py",

@@ -59,7 +59,6 @@ _SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 _quiet_lock = threading.Lock()  # OpenCV's log level is global: grabbers share the lowering
 _quiet_depth = 0
 _quiet_saved = 0
-NO_FRAME: dict[str, Any] = {"count": 0, "age": math.inf}  # the snapshot before any frame
 
 
 def connect(name: str, url: str | None, options: dict[str, str], sim: Any = None) -> Camera:
@@ -78,9 +77,10 @@ class Camera(Driver):
 
     KIND = "camera"
     DEFAULT_URL = DEFAULT_URL
-    SNAPSHOT: ClassVar[dict[str, Any]] = NO_FRAME
+    SNAPSHOT: ClassVar[dict[str, Any]] = {"count": 0, "age": math.inf}  # before any frame
     OPTIONS: ClassVar[dict[str, Any]] = {"size": ""}
     FRAMES = "count"
+    PUBLIC = ("close",)
     LOCKSTEP = True
     RECONNECT_MIN_S = BACKOFF_MIN_S
     RECONNECT_MAX_S = BACKOFF_MAX_S

@@ -17,10 +17,14 @@ live driver and for its fake:
 - fake (``hfsmc replay``, ``hfsmc test``): made by ``fake`` without ``open()``; its
   snapshot comes from the script, and a command is recorded but its body never runs.
 
-Hooks a driver may use beyond that (the built-in ``camera``, hfsmc_camera.py, is one):
-images beside the snapshot (``FRAMES``, ``hold_image``, ``image``), the simulator's
-clock (``LOCKSTEP``, ``now``, ``lockstep_sync``) and a reader that reconnects
-(``keep_connected``, ``tell_down``, ``tell_up``).
+Hooks a driver may use beyond that, which the built-in ``camera`` (hfsmc_camera.py) and
+``mavlink`` (hfsmc_mavlink.py) are built on: queries that name the field they read
+(``@query(reads=)``), commands that check their own arguments and report their outcome
+(``@command(checked=, ack=)``, ``tell``), options read its own way (``read_options``),
+runtime methods snippets may call (``PUBLIC``), the live views' feed (``VIEW``), images
+beside the snapshot (``FRAMES``, ``hold_image``, ``image``), the simulator's clock
+(``LOCKSTEP``, ``now``, ``lockstep_sent``, ``lockstep_sync``) and a reader that
+reconnects (``keep_connected``, ``tell_down``, ``tell_up``).
 """
 
 from __future__ import annotations
@@ -48,9 +52,9 @@ def query(fn: F | None = None, *, names: dict[str, str] | None = None,
           reads: str | None = None) -> Any:
     """Mark a method as a query of the instant's snapshot. ``names={"param": "option"}``:
     that argument must be one of the names the option lists (``check`` finds a literal
-    that is not; a computed one fails when called). ``reads="field"``: the one field it
-    reads (``"frame"``: the image), so that a replay notes it only when the recording
-    lacks that field."""
+    that is not; a computed one fails when called). ``reads="field"``: the one snapshot field
+    it reads (``"frame"``: a FRAMES driver's image), so that a replay whose recording lacks
+    only other fields answers it (``Driver.lacks``); without it any lacking field counts."""
     def mark(f: F) -> F:
         @functools.wraps(f)
         def method(self: Driver, *args: Any, **kwargs: Any) -> Any:
@@ -65,12 +69,28 @@ def query(fn: F | None = None, *, names: dict[str, str] | None = None,
 @overload
 def command(fn: F) -> F: ...
 @overload
-def command(fn: None = None, *, names: dict[str, str] | None = None) -> Callable[[F], F]: ...
-def command(fn: F | None = None, *, names: dict[str, str] | None = None) -> Any:
+def command(fn: None = None, *, names: dict[str, str] | None = None, ack: bool = False,
+            checked: bool = False) -> Callable[[F], F]: ...
+def command(fn: F | None = None, *, names: dict[str, str] | None = None, ack: bool = False,
+            checked: bool = False) -> Any:
     """Mark a method as a command: told to the recording (or the playback) with its
-    arguments, then run, live only (a fake sends nothing)."""
+    arguments, then run, live only (a fake sends nothing).
+
+    ``checked=True``: the method checks and converts its arguments itself, tells them
+    with ``self.tell(name, args)`` and then sends; it runs in a fake too (where what it
+    calls to send does nothing, and what it says of the command, a pending
+    acknowledgement, is the same as live). ``ack=True``: the driver reports the
+    command's outcome (``last_ack``; hfsmc reads it from the declaration)."""
     def mark(f: F) -> F:
         sig = inspect.signature(f)
+        if checked:
+            @functools.wraps(f)
+            def told(self: Driver, *args: Any, **kwargs: Any) -> Any:
+                self._named(f, names, args, kwargs)
+                return f(self, *args, **kwargs)
+            told.hfsmc_kind = "command"  # type: ignore[attr-defined]
+            told.hfsmc_ack = ack  # type: ignore[attr-defined]
+            return told  # type: ignore[return-value]
 
         @functools.wraps(f)
         def method(self: Driver, *args: Any, **kwargs: Any) -> Any:
@@ -81,6 +101,7 @@ def command(fn: F | None = None, *, names: dict[str, str] | None = None) -> Any:
                 self.on_command(f.__name__, list(bound.args[1:]))
             return f(self, *args, **kwargs) if self.live else None
         method.hfsmc_kind = "command"  # type: ignore[attr-defined]
+        method.hfsmc_ack = ack  # type: ignore[attr-defined]
         return method  # type: ignore[return-value]
     return mark(fn) if fn is not None else mark
 
@@ -121,6 +142,12 @@ class Driver:
     OPTIONS: ClassVar[dict[str, Any]] = {}
     ATTRIBUTES_FROM: tuple[str, ...] = ()
     DEFAULT_URL: str | None = None
+    # The live views' feed of it: "driver" (its snapshot's fields, docs/drivers.md) or
+    # "vehicle" (the mavlink vehicle panel, which reads the vehicle's queries).
+    VIEW: ClassVar[str] = "driver"
+    # Runtime methods a snippet may call too (``check`` knows them, as queries):
+    # "close", "warning_at_stop".
+    PUBLIC: ClassVar[tuple[str, ...]] = ()
     # The snapshot field that numbers the driver's images ("": it gives none). A driver
     # with images hands each instant's to ``hold_image``; a snippet gets it from
     # ``image()``, which tells the recording each image once (/hfsmc/frame/NAME); a script
@@ -137,12 +164,7 @@ class Driver:
         self.name = name
         self.sim = sim  # --clock sim: the simulator's clock (LOCKSTEP drivers only)
         self.url = url if url is not None else self.DEFAULT_URL
-        unknown = [k for k in options if k not in self.OPTIONS]
-        if unknown:
-            raise ValueError(f"no option `{unknown[0]}` (options: "
-                             f"{', '.join(self.OPTIONS) or 'none'})")
-        self.options = {k: _option(self.KIND, k, d, options.get(k, d))
-                        for k, d in self.OPTIONS.items()}
+        self.options = self.read_options(options)
         self.on_command: Callable[[str, list[Any]], None] | None = None
         self.playback = playback
         self.live = playback is None
@@ -171,8 +193,11 @@ class Driver:
 
     @classmethod
     def fake(cls, name: str, url: str | None, options: dict[str, Any], playback: Any) -> Driver:
-        """The driver fed from a script: never opened, it sends nothing."""
-        return cls(name, url, options, playback)
+        """The driver fed from a script: never opened, it sends nothing (even without a
+        playback: a test double)."""
+        driver = cls(name, url, options, playback)
+        driver.live = False
+        return driver
 
     @classmethod
     def snapshot_schema(cls) -> dict[str, Any]:
@@ -216,7 +241,23 @@ class Driver:
         """``iface.NAME`` for a NAME listed by an option of ATTRIBUTES_FROM."""
         raise AttributeError(name)
 
+    def read_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        """The driver's options: the declared ones, each as its default's type (an
+        undeclared one, or a value that is not of that type, is a ValueError). A driver
+        that says and replaces a bad option instead (the built-in mavlink) overrides it."""
+        unknown = [k for k in options if k not in self.OPTIONS]
+        if unknown:
+            raise ValueError(f"no option `{unknown[0]}` (options: "
+                             f"{', '.join(self.OPTIONS) or 'none'})")
+        return {k: _option(self.KIND, k, d, options.get(k, d)) for k, d in self.OPTIONS.items()}
+
     # -- helpers for the driver -------------------------------------------------------
+    def tell(self, call: str, args: list[Any]) -> None:
+        """A ``@command(checked=True)``: tell the recording (or the playback) the command
+        with its checked arguments, before sending it."""
+        if self.on_command is not None:
+            self.on_command(call, args)
+
     def value(self, field: str) -> Any:
         """A field of the instant's snapshot."""
         return self._snap[field]

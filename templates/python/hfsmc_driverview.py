@@ -18,11 +18,13 @@ MAX_TEXT = 80  # a value longer than that, as text, ends with an ellipsis
 
 
 def is_driver(obj: Any) -> bool:
-    """A driver shown by its fields (hfsmc_driver.Driver), live or a playback's fake; one
-    with images (``FRAMES``: the camera) is shown by the latest image a snippet obtained."""
+    """A driver shown by its snapshot's fields (hfsmc_driver.Driver), live or a playback's
+    fake. Not one whose ``VIEW`` is another feed (the built-in mavlink's: the vehicle panel)
+    nor one with images (``FRAMES``: the camera), shown by the latest image a snippet obtained."""
     return isinstance(getattr(type(obj), "KIND", None), str) and \
         isinstance(getattr(type(obj), "SNAPSHOT", None), dict) and \
-        callable(getattr(obj, "view_fields", None)) and not getattr(type(obj), "FRAMES", "")
+        callable(getattr(obj, "view_fields", None)) and \
+        getattr(type(obj), "VIEW", "driver") == "driver" and not getattr(type(obj), "FRAMES", "")
 
 
 def shown(value: Any) -> Any:

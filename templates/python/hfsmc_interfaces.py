@@ -19,7 +19,7 @@ from typing import Any, NoReturn
 # The built-in drivers: interface type -> module (beside the component).
 BUILTIN = {"mavlink": "hfsmc_mavlink", "camera": "hfsmc_camera", "ros2": "hfsmc_ros2"}
 # The built-in drivers made as a user's driver is (hfsmc_driver.Driver): module, class.
-BUILTIN_CLASSES = {"camera": ("hfsmc_camera", "Camera")}
+BUILTIN_CLASSES = {"camera": ("hfsmc_camera", "Camera"), "mavlink": ("hfsmc_mavlink", "Vehicle")}
 # What to install for a module a driver imports (pip names; Debian: python3-opencv etc.).
 _INSTALL = {"pymavlink": "pymavlink", "cv2": "opencv-python-headless", "numpy": "numpy",
             "serial": "pyserial", "cyclonedds": "cyclonedds"}

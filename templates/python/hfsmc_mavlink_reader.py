@@ -85,8 +85,8 @@ class Reader:
     _duplicates: _link.Duplicates
     _counted: _link.Counted | None
     name: str
-    url: str
-    _now: Any
+    url: str | None
+    now: Any
     _say: Any
     _mode_name: Any
     _request_rates: Any
@@ -142,7 +142,7 @@ class Reader:
     def _handle(self, msg: Any) -> None:
         kind = msg.get_type()
         source = (msg.get_srcSystem(), msg.get_srcComponent())
-        if self._duplicates.seen(self._now(), source, bytes(msg.get_msgbuf())):
+        if self._duplicates.seen(self.now(), source, bytes(msg.get_msgbuf())):
             return
         if kind == "HEARTBEAT":
             self._on_heartbeat(msg, source)
@@ -181,7 +181,7 @@ class Reader:
             self._px4 = msg.autopilot == _px4.AUTOPILOT_PX4
         self._heartbeat = (int(msg.type), int(msg.autopilot), int(msg.base_mode),
                            int(msg.custom_mode))
-        self._heartbeat_at = self._now()
+        self._heartbeat_at = self.now()
         if first:
             mode = self._mode_name(self._heartbeat)
             kind = "PX4 " if self._px4 else ""
@@ -200,12 +200,12 @@ class Reader:
                 self._late_ack(msg)
                 return
             if msg.result == IN_PROGRESS:  # keep waiting for the final word, without resending
-                p.deadline = self._now() + self._ack_timeout
+                p.deadline = self.now() + self._ack_timeout
                 p.resend_at = None
                 return
             self._pending.remove(p)
             result = RESULTS.get(int(msg.result), f"result_{msg.result}")
-            self._answered[p.command] = (p.name, p.label, p.quiet, self._now() + self._ack_timeout)
+            self._answered[p.command] = (p.name, p.label, p.quiet, self.now() + self._ack_timeout)
             if not p.quiet:
                 self._acks[p.name] = result
         if p.quiet and result == "accepted":
@@ -231,7 +231,7 @@ class Reader:
 
     def _watch_link(self) -> None:
         at = self._heartbeat_at
-        if not self._lost and at is not None and self._now() - at >= LINK_TIMEOUT_S:
+        if not self._lost and at is not None and self.now() - at >= LINK_TIMEOUT_S:
             self._lost = True
             self._gps_fix = 0  # whatever answers next says afresh whether it is ready
             self._ekf_flags = 0
@@ -267,5 +267,5 @@ class Reader:
                         f"not come in {DATAGRAM_WAIT_S:g} s (is {self.url} the simulator's link?)")
             with contextlib.suppress(InterruptedError):
                 select.select([fd], [], [], min(left, POLL_S))
-        self._timed(self._now())
+        self._timed(self.now())
         return None

@@ -99,7 +99,7 @@ class MissionVehicle:
     _target: tuple[int, int] | None
     _start: float
     _px4: bool
-    _now: Any
+    now: Any
     _say: Any
     _texts: Any
 
@@ -116,7 +116,7 @@ class MissionVehicle:
             return
         mask = IGNORE_VELOCITY_ACCELERATION | IGNORE_YAW_RATE | (
             IGNORE_YAW if heading is None else 0)
-        boot_ms = int((self._now() - self._start) * 1000) & 0xFFFFFFFF
+        boot_ms = int((self.now() - self._start) * 1000) & 0xFFFFFFFF
         with self._lock:
             self._conn.mav.set_position_target_global_int_send(
                 boot_ms, target[0], target[1], MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mask,
@@ -148,7 +148,7 @@ class MissionVehicle:
             return False  # hfsmc_mavlink reads the rest
         elif kind == "STATUSTEXT":
             who = "PX4" if self._px4 else "ArduPilot"
-            for severity, text in self._texts.add(self._now(), int(msg.severity), msg.text,
+            for severity, text in self._texts.add(self.now(), int(msg.severity), msg.text,
                                                   int(getattr(msg, "id", 0)),
                                                   int(getattr(msg, "chunk_seq", 0))):
                 self._text = text

@@ -160,7 +160,7 @@ class UploadVehicle:
     _target: tuple[int, int] | None
     _acks: dict[str, str]
     _px4: bool
-    _now: Any
+    now: Any
     _say: Any
     _command: Any
 
@@ -178,7 +178,7 @@ class UploadVehicle:
             self._acks[name] = "not_sent"
             self._say(f"{name}: not sent, no vehicle yet (no heartbeat)")
             return
-        up = Upload(kind, items, users, self._now())
+        up = Upload(kind, items, users, self.now())
         if kind == FENCE:
             up.polygon = [(x / 1e7, y / 1e7) for _, _, _, _, _, _, x, y, _ in items]
         if kind in self._uploads:
@@ -225,7 +225,7 @@ class UploadVehicle:
         if kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
             up = self._uploads.get(int(getattr(msg, "mission_type", 0)))
             if up is not None and 0 <= msg.seq < len(up.items):
-                up.last, up.retries, up.sent_at = int(msg.seq), 0, self._now()
+                up.last, up.retries, up.sent_at = int(msg.seq), 0, self.now()
                 self._send_item(up, up.last)
         elif kind == "MISSION_ACK":
             self._upload_done(int(getattr(msg, "mission_type", 0)), int(msg.type))

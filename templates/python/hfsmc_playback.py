@@ -27,16 +27,6 @@ from typing import IO, Any
 from hfsmc_record import plain  # type: ignore[import-not-found]  # beside the component
 
 _FLOATS = {"heartbeat_age", "altitude", "yaw", "age"}
-# Each query of the fakes and the snapshot field it reads.
-VEHICLE_QUERIES = {"connected": "heartbeat_age", "heartbeat_age": "heartbeat_age",
-                   "ready": "ready", "armed": "armed", "mode": "mode", "position": "position",
-                   "altitude": "altitude", "velocity": "velocity", "yaw": "yaw",
-                   "battery": "battery", "last_ack": "acks", "location": "location",
-                   "home": "home", "distance_to": "position",
-                   "distance_to_location": "location", "reached": "position",
-                   "reached_location": "location", "status_text": "status_text",
-                   "battery_failsafe": "battery_failsafe", "mission_progress": "mission",
-                   "fence_breached": "fence_breached", "failsafe": "failsafe"}
 CAMERA_FIELDS = ("count", "age", "frame", "crc32")  # what a camera's script may give
 _TRIPLES = {"position", "velocity", "location", "home"}
 
@@ -180,10 +170,11 @@ class Playback:
             return fake
         if name in self.bad and kind in ("mavlink", "camera"):
             raise PlaybackError(self.bad[name])
+        # the built-in drivers' own fakes (hfsmc_driver.Driver.fake), as a user driver's
         if kind == "mavlink":
             import hfsmc_mavlink  # type: ignore[import-not-found]  # beside the component
-            fake = fake_vehicle(name, hfsmc_mavlink, self)
-        elif kind == "camera":  # the driver's own fake (hfsmc_driver.Driver.fake)
+            fake = hfsmc_mavlink.VehicleQueries.fake(name, None, {}, self)
+        elif kind == "camera":
             import hfsmc_camera  # type: ignore[import-not-found]  # beside the component
             fake = hfsmc_camera.Camera.fake(name, None, {}, self)
             self.snapshots[name] = [(t, {k: v for k, v in values.items() if k in CAMERA_FIELDS},
@@ -273,73 +264,3 @@ class Playback:
 
     def close(self) -> None:
         self.commands.close()
-
-
-class Evidence:
-    """What the script holds of a fake at the current instant (Playback.advance sets
-    ``lacks``): None all of it; "interface" or "instant" none of it; else the fields it
-    lacks.  Each query tells the playback when it reads what the script does not hold."""
-
-    lacks: Any = None
-    quiet = False  # the runtime's own reads (the warning at stop) are no query
-    playback: Any = None
-    name = ""
-
-    def _asked(self, query: str, field: str) -> None:
-        lacks = self.lacks
-        if lacks is None or self.quiet or self.playback is None:
-            return
-        if isinstance(lacks, str):
-            self.playback.asked(self.name, query, lacks, None)
-        elif field in lacks:
-            count = self.state.get("count") if field == "frame" else None  # type: ignore[attr-defined]
-            self.playback.asked(self.name, query, field, count)
-
-
-def _guarded(cls: Any, queries: dict[str, str]) -> Any:
-    """``cls`` with each query first telling what it reads (Evidence._asked)."""
-    def wrap(query: str, field: str, base: Any) -> Any:
-        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
-            self._asked(query, field)
-            return base(self, *args, **kwargs)
-        method.__name__ = query
-        method.__doc__ = base.__doc__
-        return method
-
-    for query, field in queries.items():
-        setattr(cls, query, wrap(query, field, getattr(cls, query)))
-    return cls
-
-
-def fake_vehicle(name: str, module: Any, playback: Any = None) -> Any:
-    """A vehicle whose snapshot comes from the script; it sends nothing."""
-
-    class Fake(Evidence, module.VehicleQueries):  # type: ignore[misc]
-        def __init__(self) -> None:
-            self.name = name
-            self.playback = playback
-            self.on_command = None
-            self.state: dict[str, Any] = dict(module.NEVER_HEARD)
-            self._snap = self.state
-
-        def __repr__(self) -> str:
-            return f"<mavlink {name} (playback)>"
-
-        def close(self) -> None:
-            """Nothing to stop (the real one's reader thread and socket)."""
-
-        def apply(self, values: dict[str, Any]) -> None:
-            self.state = {**self.state, **values}
-
-        def snapshot(self) -> dict[str, Any]:
-            self._snap = self.state
-            return self._snap
-
-        def warning_at_stop(self) -> str | None:
-            self.quiet = True  # the runtime reads the last snapshot: no snippet asks
-            try:
-                return super().warning_at_stop()  # type: ignore[no-any-return]
-            finally:
-                self.quiet = False
-
-    return _guarded(Fake, VEHICLE_QUERIES)()

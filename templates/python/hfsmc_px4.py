@@ -181,7 +181,7 @@ class Px4Vehicle:
     _send_setpoint: Any
     _command: Any
     _say: Any
-    _now: Any
+    now: Any
     armed: Any
     hold: Any
 
@@ -245,7 +245,7 @@ class Px4Vehicle:
         answer counts. Called with the lock held."""
         name, label, quiet, until = self._answered.get(msg.command, ("", "", True, 0.0))
         result = RESULTS.get(int(msg.result), f"result_{msg.result}")
-        if not name or self._now() > until or (quiet and result == "accepted"):
+        if not name or self.now() > until or (quiet and result == "accepted"):
             return
         if not quiet:
             if self._acks.get(name) == result:

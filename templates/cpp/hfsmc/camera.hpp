@@ -32,6 +32,17 @@
 //
 // The class is declared here and defined in src/hfsmc_camera.cpp, compiled once into
 // the library hfsmc_camera: the component's unit sees only OpenCV's core header.
+/* hfsmc driver
+# The camera driver's declaration, as a user's C++ driver header carries one
+# (docs/drivers.md); tests/test_drivers_api.py compares it with the Python driver's
+# (hfsmc_camera.Camera). What each method does: docs/interfaces.md.
+kind: camera
+class: Camera
+doc: The latest frame of a video stream
+snapshot: {count: 0, age: .inf}
+options: {size: ''}
+queries: ["frame()", "age()", "ok()", "count()", "close()"]
+*/
 #pragma once
 
 #include <chrono>

@@ -35,6 +35,31 @@
 // The class is declared here and defined in src/hfsmc_mavlink.cpp, compiled once
 // into the library hfsmc_mavlink: the component's unit sees neither mavgen's
 // headers nor the driver's code (docs/cpp.md, "Build speed").
+/* hfsmc driver
+# The mavlink driver's declaration, as a user's C++ driver header carries one
+# (docs/drivers.md); tests/test_drivers_api.py compares it with the Python driver's
+# (hfsmc_mavlink.VehicleQueries). `goto` is go_to() in C++ (a keyword); what each
+# method does: docs/interfaces.md.
+kind: mavlink
+class: Mavlink
+doc: A MAVLink vehicle with ArduPilot Copter conventions
+snapshot: {heartbeat_age: .inf, ready: false, armed: false, mode: '',
+  position: [.nan, .nan, .nan], altitude: .nan, velocity: [.nan, .nan, .nan], yaw: .nan,
+  battery: -1, acks: {}, vehicle: false, type: 0, autopilot: 0, location: [.nan, .nan, .nan],
+  home: [.nan, .nan, .nan], status_text: '', battery_failsafe: '', mission: [0, 0],
+  fence_breached: false, failsafe: ''}
+options: {rate: 20.0, ack_timeout: 3.0, source_system: 255, autopilot: auto}
+queries: ["connected()", "heartbeat_age()", "ready()", "armed()", "mode()", "position()",
+  "altitude()", "velocity()", "yaw()", "battery()", "location()", "home()",
+  "distance_to(north, east, alt)", "distance_to_location(lat, lon, alt)",
+  "reached(north, east, alt, tolerance)", "reached_location(lat, lon, alt, tolerance)",
+  "status_text()", "battery_failsafe()", "failsafe()", "last_ack(command)",
+  "mission_progress()", "fence_breached()", "warning_at_stop()", "close()"]
+commands: ["set_mode(name)", "arm()", "disarm()", "takeoff(alt)", "land()", "rtl(alt)",
+  "hold()", "set_velocity(vx, vy, vz, yaw_rate)", "goto(north, east, alt, heading)",
+  "goto_location(lat, lon, alt, heading)", "set_yaw(heading)", "upload_mission(points, end)",
+  "upload_fence(vertices)", "enable_fence(on)"]
+*/
 #pragma once
 
 #include <atomic>
