@@ -107,3 +107,72 @@ def test_monitor_area_finds_the_victims_and_lands_home_on_px4(
     print(f"monitor_area on PX4: {report['time_s']} s "
           f"({test_missions.mission_seconds(trace)} s from take-off), "
           f"altitude within {worst:.2f} m of {altitude} m, {corrections} corrections")
+
+
+def raising_follow_colors(tmp_path: Path) -> Path:
+    """follow_colors with one line more: the first stage's entry raises once the vehicle is
+    airborne and flying to green (examples/lib copied beside it, as its `use:` wants)."""
+    shutil.copytree(ROOT / "examples" / "lib", tmp_path / "lib")
+    (tmp_path / "app").mkdir()
+    model = tmp_path / "app" / "follow_colors.yaml"
+    text = (FOLLOW / "follow_colors.yaml").read_text()
+    entry = 'entry: reached(1, "green")'
+    assert text.count(entry) == 1
+    model.write_text(text.replace(entry, entry + '; raise RuntimeError("boom in flight")'))
+    return model
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_a_snippet_error_in_flight_lands_and_disarms(tmp_path: Path, autopilot: str) -> None:
+    """A snippet raises in the air: the error is said at its line, the stop (reason `error`)
+    goes through on_interrupt to examples/lib's Land, and the vehicle ends landed and
+    disarmed, exit status 1, on both autopilots."""
+    args = PX4 if autopilot == "px4" else ()
+    with flight(tmp_path, *args, model=raising_follow_colors(tmp_path), lockstep=True) as f:
+        status = f.component.wait(timeout=600)
+        f.sim.wait(timeout=30)  # it stops with its component, the truth written
+        truth = f.truth()
+        log = (f.folder / "component.log").read_text()
+        assert status == 1, log[-3000:]
+    errors = [r for r in f.trace if r["ev"] == "error"]
+    assert [(r["state"], r["snippet"]) for r in errors] == [("Mission/FollowGreen", "entry")]
+    assert [(r["reason"], r["to"]) for r in f.trace if r["ev"] == "interrupt"] == [
+        ("error", "Land")]
+    assert [r["state"] for r in f.trace if r["ev"] == "enter"][-4:] == [
+        "Land", "Land/Landing", "Land/Landed", "Done"]
+    assert f.trace[-1]["ev"] == "stop" and f.trace[-1]["reason"] == "error"
+    assert "follow_colors.yaml:115:37: error: RuntimeError: boom in flight" in log
+    assert truth["armed"] is False and truth["landed"] is True, truth
+    assert "WARNING: ARMED" not in log and "drone: land accepted" in log
+    assert 'File "' not in log  # the model's lines, not Python's
+
+
+@pytest.mark.parametrize("px4_follow", LANGUAGES, indirect=True)
+def test_a_link_lost_at_the_landing_lands_once_it_is_back_on_px4(
+        tmp_path: Path, px4_follow: list[str] | None) -> None:
+    """tests/test_missions.py's lost link on PX4: the link drops in the mission (SIGUSR1 to
+    the simulator: both ways), so the driver's setpoints stop reaching PX4 (its failsafe:
+    OFFBOARD left for POSCTL); Ctrl+C sends the component to Land, whose land command goes
+    nowhere; examples/lib/land sends it again, saying why, until the link is back: PX4
+    lands in AUTO.LAND and disarms, nothing is left armed. In lockstep at 5 times real
+    time."""
+    with flight(tmp_path, *PX4, "--speedup", "5", command=px4_follow, lockstep=True) as f:
+        f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=120)
+        f.sim.send_signal(signal.SIGUSR1)  # the link drops
+        f.wait_for("enter", "state", "LinkLost", timeout=30)
+        f.component.send_signal(signal.SIGINT)  # on_interrupt: Land, into the void
+        again = f.wait_for("log", "state", "Land/Landing", timeout=30)
+        f.sim.send_signal(signal.SIGUSR1)  # the link comes back
+        status = f.component.wait(timeout=300)
+        f.sim.wait(timeout=30)  # it stops with its component, the truth written
+        truth = f.truth()
+        log = (f.folder / "component.log").read_text()
+        assert status == 130, log[-3000:]
+    assert again["msg"] == "still armed in GUIDED (land: timeout, link lost): sending land again"
+    enters = [r["state"] for r in f.trace if r["ev"] == "enter"]
+    assert enters[-3:] == ["Land/Landing", "Land/Landed", "Done"], enters
+    assert enters.count("Land/Landing") >= 2  # sent again at least once
+    assert "drone: land: no acknowledgement in 3 s" in log and "land accepted" in log
+    assert truth["armed"] is False and truth["landed"] is True, truth
+    assert "WARNING: ARMED" not in log
