@@ -187,3 +187,46 @@ def test_a_link_lost_at_the_landing_lands_once_it_is_back_on_px4(
     assert "drone: land: no acknowledgement in 3 s" in log and "land accepted" in log
     assert truth["armed"] is False and truth["landed"] is True, truth
     assert "WARNING: ARMED" not in log
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("autopilot", "language"), [
+    ("ardupilot", "python"), ("px4", "python"),
+    pytest.param("px4", "cpp", marks=pytest.mark.timeout(test_missions.CPP_BUILD_TIMEOUT + 300))])
+def test_a_link_that_never_comes_back_is_said_loudly_at_the_stop(
+        tmp_path: Path, autopilot: str, language: str, request: pytest.FixtureRequest) -> None:
+    """The link drops for good in the mission (in simulated time: `--drop-link-after`), then
+    --time-limit sends the component to Land: its land commands go nowhere, over and over,
+    until follow_colors' interrupt_timeout (60 s) stops it (reason `timeout`, status 1).
+    The component cannot know how the vehicle ends: it says so at the stop (`WARNING: ARMED
+    ... link lost`). What the vehicle does is its autopilot's: PX4's OFFBOARD-loss failsafe
+    (POSCTL with no RC) sinks it to the ground, where its land detector disarms it;
+    ArduPilot (no GCS failsafe set) holds in GUIDED, armed."""
+    args = PX4 if autopilot == "px4" else ()
+    command = request.getfixturevalue("cpp_follow_colors") if language == "cpp" else None
+    with flight(tmp_path, *args, "--drop-link-after", "16", "--drop-link-for", "1000",
+                command=command, lockstep=True, component_args=("--time-limit", "20s")) as f:
+        status = f.component.wait(timeout=600)
+        f.sim.wait(timeout=30)
+        truth = f.truth()
+        log = (f.folder / "component.log").read_text()
+        sim_log = (f.folder / "sim.log").read_text()
+        assert status == 1, log[-3000:]
+    enters = [r["state"] for r in f.trace if r["ev"] == "enter"]
+    assert enters.index("Mission/FollowGreen/Track") < enters.index("LinkLost"), enters
+    assert [(r["reason"], r["to"]) for r in f.trace if r["ev"] == "interrupt"] == [
+        ("time_limit", "Land")]
+    assert f.trace[-1]["ev"] == "stop" and f.trace[-1]["reason"] == "timeout"
+    resent = [r["msg"] for r in f.trace if r["ev"] == "log" and r["state"] == "Land/Landing"]
+    assert len(resent) >= 10 and all("link lost): sending land again" in m for m in resent)
+    warning = re.search(r"drone: WARNING: ARMED in (\w+) at [\d.]+ m \(link lost \d+ s ago\) "
+                        r"as the component stops: nothing lands the vehicle now", log)
+    assert warning is not None, log[-3000:]
+    if autopilot == "px4":
+        assert truth["armed"] is False and truth["landed"] is True, truth
+        assert re.search(r"link dropped \(--drop-link-after\)\n.*failsafe: no setpoint for "
+                         r"1\.\d s\n.*mode POSCTL\n.*landed at .*\n.*land detector: landed\n"
+                         r".*disarmed \(landed\)\n", sim_log), sim_log
+    else:
+        assert truth["armed"] is True and truth["landed"] is False, truth
+        assert truth["mode"] == "GUIDED", truth
