@@ -230,3 +230,70 @@ def test_a_link_that_never_comes_back_is_said_loudly_at_the_stop(
     else:
         assert truth["armed"] is True and truth["landed"] is False, truth
         assert truth["mode"] == "GUIDED", truth
+
+
+LIB_MISSION = """\
+hfsm: 1
+name: lib_mission
+language: python
+interfaces:
+  drone: {{type: mavlink}}
+parameters:
+  report: {{type: str, default: ""}}
+period: 50ms
+initial: TakeOff
+states:
+  TakeOff:
+    use: {lib}/takeoff.yaml
+    with: {{altitude: 3.0, ready_timeout: 30, climb_timeout: 30}}
+    transitions:
+      - {{to: Pause, when: active("TakeOff/Airborne")}}
+      - {{to: Land, when: active("TakeOff/TimedOut")}}
+      - {{to: Done, when: active("TakeOff/NotReady")}}
+  Pause:
+    use: {lib}/hold.yaml
+    with: {{duration: 5.0}}
+    transitions: [{{to: Land, when: done()}}]
+  Land:
+    use: {lib}/land.yaml
+    transitions: [{{to: Done, when: done()}}]
+  Done: {{final: true}}
+"""
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_the_lib_behaviours_fly_on_both_autopilots(tmp_path: Path, autopilot: str) -> None:
+    """examples/lib's take-off, hold and land, used by one small mission (tests/test_lib.py's,
+    there against a fake vehicle), flown in the simulator on each autopilot in lockstep:
+    up to 3 m, 5 s held in place, landed and disarmed where it held."""
+    model = tmp_path / "lib_mission.yaml"
+    model.write_text(LIB_MISSION.format(lib=ROOT / "examples" / "lib"))
+    truth_log = tmp_path / "truth.jsonl"
+    args = PX4 if autopilot == "px4" else ()
+    with flight(tmp_path, *args, "--truth-log", str(truth_log), model=model,
+                lockstep=True) as f:
+        status = f.component.wait(timeout=300)
+        f.sim.wait(timeout=30)
+        truth = f.truth()
+        log = (f.folder / "component.log").read_text()
+        assert status == 0, log[-3000:]
+    assert [r["state"] for r in f.trace if r["ev"] == "enter"] == [
+        "TakeOff", "TakeOff/WaitReady", "TakeOff/Climb", "TakeOff/Airborne",
+        "Pause", "Pause/Holding", "Pause/Held", "Land", "Land/Landing", "Land/Landed", "Done"]
+    assert f.trace[-1]["ev"] == "stop" and f.trace[-1]["reason"] == "final"
+    assert not [r for r in f.trace if r["ev"] == "log"]  # no command sent again, no timeout
+    at = {r["state"]: int(str(r["t"])) / 1000 for r in f.trace if r["ev"] == "enter"}
+    lines = [json.loads(line) for line in truth_log.read_text().splitlines()]
+    held = [x for x in lines if at["Pause/Holding"] + 1.0 <= x["time"] <= at["Pause/Held"]]
+    assert len(held) >= 8, len(held)
+    start = held[0]["position"]
+    for x in held:  # held in place: within 0.3 m of where it was a second into the hold
+        assert math.dist((x["position"]["north"], x["position"]["east"]),
+                         (start["north"], start["east"])) < 0.3, x
+        assert abs(x["altitude"] - 3.0) < 0.4, x
+    assert truth["armed"] is False and truth["landed"] is True, truth
+    landing = truth["landing"]
+    assert isinstance(landing, dict)
+    assert math.dist((landing["north"], landing["east"]), (start["north"], start["east"])) < 0.5
+    assert "drone: takeoff accepted" in log and "drone: land accepted" in log
+    assert "WARNING: ARMED" not in log
