@@ -297,3 +297,31 @@ def test_the_lib_behaviours_fly_on_both_autopilots(tmp_path: Path, autopilot: st
     assert math.dist((landing["north"], landing["east"]), (start["north"], start["east"])) < 0.5
     assert "drone: takeoff accepted" in log and "drone: land accepted" in log
     assert "WARNING: ARMED" not in log
+
+
+@pytest.mark.parametrize(("drop_at", "language"), [
+    ("13.8", "python"), ("15.5", "python"),
+    pytest.param("13.8", "cpp", marks=pytest.mark.timeout(test_missions.CPP_BUILD_TIMEOUT + 300))])
+def test_after_a_lost_link_the_driver_never_fights_px4s_failsafe(
+        tmp_path: Path, drop_at: str, language: str, request: pytest.FixtureRequest) -> None:
+    """The link drops for 5 s just after PX4 accepted OFFBOARD: at 13.8 s before any
+    HEARTBEAT said OFFBOARD (PX4 sends one a second), at 15.5 s after one did. Either way
+    PX4's failsafe takes the vehicle to POSCTL while no setpoint reaches it, and when the
+    link is back the driver sees that PX4 left OFFBOARD by itself: it stops its stream, says
+    so, and never asks for OFFBOARD again unless the model does (follow_colors does not:
+    the vehicle sinks in POSCTL until --time-limit lands it)."""
+    command = request.getfixturevalue("cpp_follow_colors") if language == "cpp" else None
+    with flight(tmp_path, *PX4, "--drop-link-after", drop_at, "--drop-link-for", "5",
+                command=command, lockstep=True, component_args=("--time-limit", "30s")) as f:
+        status = f.component.wait(timeout=300)
+        f.sim.wait(timeout=30)
+        truth = f.truth()
+        log = (f.folder / "component.log").read_text()
+        sim_log = (f.folder / "sim.log").read_text()
+        assert status == 124, log[-3000:]
+    modes = re.findall(r"\] mode (\S+)\n", sim_log)
+    assert modes[:4] == ["AUTO.TAKEOFF", "OFFBOARD", "POSCTL", "AUTO.LAND"], sim_log
+    assert "drone: PX4 left OFFBOARD for POSCTL (a failsafe or a pilot)" in log, log
+    back = log.index("drone: link back")
+    assert "switching to OFFBOARD" not in log[back:], log
+    assert truth["armed"] is False and truth["landed"] is True, truth
