@@ -217,7 +217,7 @@ def test_a_link_that_never_comes_back_is_said_loudly_at_the_stop(
     assert [(r["reason"], r["to"]) for r in f.trace if r["ev"] == "interrupt"] == [
         ("time_limit", "Land")]
     assert f.trace[-1]["ev"] == "stop" and f.trace[-1]["reason"] == "timeout"
-    resent = [r["msg"] for r in f.trace if r["ev"] == "log" and r["state"] == "Land/Landing"]
+    resent = [str(r["msg"]) for r in f.trace if r["ev"] == "log" and r["state"] == "Land/Landing"]
     assert len(resent) >= 10 and all("link lost): sending land again" in m for m in resent)
     warning = re.search(r"drone: WARNING: ARMED in (\w+) at [\d.]+ m \(link lost \d+ s ago\) "
                         r"as the component stops: nothing lands the vehicle now", log)
