@@ -37,7 +37,7 @@ constexpr uint8_t kFrameBodyNed = 8;   // MAV_FRAME_BODY_NED: PX4 turns velociti
 constexpr double kResendS = 0.1;       // the stream's period when the snippet sends less often
 constexpr double kWarmupS = 0.6;       // stream this long before asking for OFFBOARD (PX4: 0.5 s)
 constexpr double kSwitchRetryS = 1.0;  // a refused switch is asked again after this
-constexpr double kSettleS = 0.5;  // a HEARTBEAT this long after an accepted switch shows PX4's real mode
+constexpr double kSettleS = 0.5;       // a HEARTBEAT this long after an accepted switch: PX4's mode
 constexpr double kTextWaitS = 1.0;     // a chunked STATUSTEXT whose last chunk never comes
 constexpr int kSeverityWarning = 4;    // STATUSTEXT severities up to this one are said
 
