@@ -321,6 +321,12 @@ def test_after_a_lost_link_the_driver_never_fights_px4s_failsafe(
         assert status == 124, log[-3000:]
     modes = re.findall(r"\] mode (\S+)\n", sim_log)
     assert modes[:4] == ["AUTO.TAKEOFF", "OFFBOARD", "POSCTL", "AUTO.LAND"], sim_log
+    # The simulated PX4 sends its HEARTBEAT 0.02 s past each second: one said OFFBOARD
+    # before the drop in the second case only.
+    switched = re.search(r"\[ *([\d.]+) s\] mode OFFBOARD\n", sim_log)
+    assert switched is not None
+    said = math.floor(float(drop_at) - 0.02) + 0.02 > float(switched[1])
+    assert said == (drop_at == "15.5"), (switched[1], drop_at)
     assert "drone: PX4 left OFFBOARD for POSCTL (a failsafe or a pilot)" in log, log
     back = log.index("drone: link back")
     assert "switching to OFFBOARD" not in log[back:], log
