@@ -176,7 +176,7 @@ LONGEST_FIRST = (
     "test_conformance.py", "test_missions.py", "test_tour.py", "test_drone_faults.py", "test_scenario.py",
     "test_lockstep.py",
     "test_replay.py", "test_monitor_area.py",  # monitor_area flies in lockstep: 10-30 s a language
-    "test_px4_missions.py",  # eleven lockstep flights on PX4 and ArduPilot: 5-35 s each
+    "test_px4_missions.py",  # 14 lockstep flights on PX4 and ArduPilot: 2-10 s each
     "test_cpp.py", "test_cxxcheck.py",
     "test_component_flags.py", "test_web.py", "test_cpp_drivers.py", "test_view.py",
     "test_cpp_observers.py", "test_build.py", "test_reliability.py", "test_sim_vehicle.py",
