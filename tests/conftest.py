@@ -176,13 +176,15 @@ LONGEST_FIRST = (
     "test_conformance.py", "test_missions.py", "test_tour.py", "test_drone_faults.py", "test_scenario.py",
     "test_lockstep.py",
     "test_replay.py", "test_monitor_area.py",  # monitor_area flies in lockstep: 10-30 s a language
+    "test_px4_missions.py",  # 14 lockstep flights on PX4 and ArduPilot: 2-10 s each
     "test_cpp.py", "test_cxxcheck.py",
     "test_component_flags.py", "test_web.py", "test_cpp_drivers.py", "test_view.py",
     "test_cpp_observers.py", "test_build.py", "test_reliability.py", "test_sim_vehicle.py",
     "test_wheel.py", "test_drivers.py", "test_sim_camera.py", "test_monitor.py",
 )
 # test_drone_faults.py: wall-clock link faults (205 s in all), its C++ tests sharing one build.
-SPREAD = {"test_missions.py", "test_monitor_area.py", "test_scenario.py", "test_drone_faults.py"}
+SPREAD = {"test_missions.py", "test_monitor_area.py", "test_scenario.py", "test_drone_faults.py",
+          "test_px4_missions.py"}
 # Files whose tests run once per back end, each back end building its own components once
 # (the conformance suite: one CMake project of all the twins for `cpp`, another for `cpp-asan`):
 # a group per back end, so that the two C++ builds, the longest chain, run side by side.

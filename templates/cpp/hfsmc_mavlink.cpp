@@ -595,12 +595,20 @@ void Mavlink::timed(Clock::time_point now) {
   if (px4()) {
     uint32_t mode;
     bool armed;
+    double heartbeat_at = -std::numeric_limits<double>::infinity();
     {
       std::lock_guard<std::mutex> lock(state_);
       mode = s_.custom_mode;
       armed = s_.base_mode & MAV_MODE_FLAG_SAFETY_ARMED;
+      if (s_.heartbeat_seen) heartbeat_at = seconds(s_.heartbeat_at.time_since_epoch());
     }
-    offboard_->tick(now_s(), mode, armed);
+    bool switch_accepted;
+    {
+      std::lock_guard<std::mutex> lock(link_);
+      auto it = acks_.find("set_mode");
+      switch_accepted = it != acks_.end() && it->second == "accepted";
+    }
+    offboard_->tick(now_s(), mode, armed, heartbeat_at, switch_accepted);
   }
 }
 

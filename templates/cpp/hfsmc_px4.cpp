@@ -111,6 +111,7 @@ void Offboard::clear_lost() {
 void Offboard::want_locked(bool on, std::vector<std::string>* lines) {
   if (!on && has_target_) lines->push_back("PX4: setpoint stream stopped");
   if (on) lost_ = false;
+  if (on && !wanted_) asked_at_ = -kInf;  // an earlier switch's answer is not this one's
   wanted_ = on;
   if (!on) {
     has_target_ = false;
@@ -132,7 +133,8 @@ void Offboard::target(double now, const Target& t) {
   if (first) say_("PX4: keeping a setpoint stream at 10 Hz (OFFBOARD needs one)");
 }
 
-void Offboard::tick(double now, uint32_t mode, bool armed) {
+void Offboard::tick(double now, uint32_t mode, bool armed, double heartbeat_at,
+                    bool switch_accepted) {
   std::vector<std::string> lines;
   bool resend = false, ask = false;
   Target t;
@@ -140,7 +142,10 @@ void Offboard::tick(double now, uint32_t mode, bool armed) {
     std::lock_guard<std::mutex> lock(mutex_);
     const int64_t was = mode_;
     mode_ = mode;
-    if (was == kOffboard && mode != kOffboard && wanted_) {
+    // PX4 accepted the switch (its last answer), and a HEARTBEAT since says otherwise.
+    const bool accepted = asked_at_ > -kInf && switch_accepted;
+    const bool left = was == kOffboard || (accepted && heartbeat_at > asked_at_ + kSettleS);
+    if (left && mode != kOffboard && wanted_) {
       lines.push_back("PX4 left OFFBOARD for " + mode_name(mode) +
                       " (a failsafe or a pilot): the driver stops its stream; "
                       "set_mode(\"GUIDED\") takes the vehicle back");
@@ -152,7 +157,7 @@ void Offboard::tick(double now, uint32_t mode, bool armed) {
         t = target_;
         sent_at_ = now;
       }
-      if (mode != kOffboard && armed && now - started_ >= kWarmupS &&
+      if (mode != kOffboard && armed && !accepted && now - started_ >= kWarmupS &&
           now - asked_at_ >= kSwitchRetryS) {
         asked_at_ = now;
         ask = true;

@@ -12,7 +12,9 @@ HEARTBEAT says autopilot 12 (or the option ``autopilot: px4`` says so).
   10 Hz from the driver's own thread, and switches to OFFBOARD once the stream has run
   for 0.6 s, but only while the model has asked for GUIDED (``set_mode("GUIDED")`` or a
   take-off). When PX4 leaves OFFBOARD by itself (a failsafe, a pilot), the driver stops:
-  it never fights the autopilot; ``set_mode("GUIDED")`` takes the vehicle back.
+  it never fights the autopilot; ``set_mode("GUIDED")`` takes the vehicle back. An
+  accepted switch counts as OFFBOARD reached even when no HEARTBEAT said so before the
+  link dropped (PX4 sends one a second): a later HEARTBEAT in another mode is PX4 leaving.
 - STATUSTEXT may come in chunks (one id, ``chunk_seq`` 0, 1, ...): ``Texts`` joins them.
 """
 
@@ -32,6 +34,7 @@ MAV_FRAME_BODY_NED = 8  # PX4 turns velocities in this frame by the heading
 RESEND_S = 0.1  # the stream's period when the snippet sends less often (10 Hz)
 WARMUP_S = 0.6  # stream this long before asking for OFFBOARD (PX4 wants 0.5 s)
 SWITCH_RETRY_S = 1.0  # a refused switch is asked again after this
+SETTLE_S = 0.5  # a HEARTBEAT this long after an accepted switch shows PX4's real mode
 TEXT_WAIT_S = 1.0  # a chunked STATUSTEXT whose last chunk never comes is said as it is
 SEVERITY_WARNING = 4  # STATUSTEXT severities up to this one are said on stderr
 MODE_FLAG_SAFETY_ARMED = 128  # HEARTBEAT.base_mode
@@ -100,6 +103,8 @@ class Offboard:
             self.say("PX4: setpoint stream stopped")
         if on:
             self.lost = False
+            if not self.wanted:
+                self.asked_at = -math.inf  # an earlier switch's answer is not this one's
         self.wanted = on
         if not on:
             self.args = None
@@ -115,11 +120,17 @@ class Offboard:
         self.args = args
         self.sent_at = now
 
-    def tick(self, now: float, mode: int, armed: bool) -> None:
+    def tick(self, now: float, mode: int, armed: bool, heartbeat_at: float = -math.inf,
+             switch_ack: str | None = None) -> None:
         """The reader's timed work: resend the target, switch to OFFBOARD when it is time,
-        and let go when PX4 leaves OFFBOARD by itself."""
+        and let go when PX4 leaves OFFBOARD by itself. ``heartbeat_at``: when the HEARTBEAT
+        that said ``mode`` came; ``switch_ack``: the last answer to set_mode (the switch's,
+        once asked)."""
         was, self.mode = self.mode, mode
-        if was == OFFBOARD and mode != OFFBOARD and self.wanted:
+        # PX4 accepted the switch (its last answer), and a HEARTBEAT since says otherwise.
+        accepted = self.asked_at > -math.inf and switch_ack == "accepted"
+        left = was == OFFBOARD or (accepted and heartbeat_at > self.asked_at + SETTLE_S)
+        if left and mode != OFFBOARD and self.wanted:
             self.say(f"PX4 left OFFBOARD for {mode_name(mode)} (a failsafe or a pilot): the "
                      "driver stops its stream; set_mode(\"GUIDED\") takes the vehicle back")
             self.want(False)
@@ -130,7 +141,7 @@ class Offboard:
         if now - self.sent_at >= RESEND_S:
             self.send(*self.args)
             self.sent_at = now
-        if mode != OFFBOARD and armed and now - self.started >= WARMUP_S \
+        if mode != OFFBOARD and armed and not accepted and now - self.started >= WARMUP_S \
                 and now - self.asked_at >= SWITCH_RETRY_S:
             self.asked_at = now
             self.say("PX4: setpoints streaming: switching to OFFBOARD")
@@ -174,6 +185,7 @@ class Px4Vehicle:
     _answered: dict[int, tuple[str, str, bool, float]]
     _home_amsl: float | None
     _heartbeat: tuple[int, int, int, int]
+    _heartbeat_at: float | None
     _ack_timeout: float
     _px4: bool
     _prearm: bool
@@ -201,8 +213,9 @@ class Px4Vehicle:
 
     def _px4_tick(self, now: float) -> None:
         """The reader's timed work on PX4: the setpoint stream and the OFFBOARD switch."""
-        hb = self._heartbeat
-        self._offboard.tick(now, hb[3], bool(hb[2] & MODE_FLAG_SAFETY_ARMED))
+        hb, at = self._heartbeat, self._heartbeat_at
+        self._offboard.tick(now, hb[3], bool(hb[2] & MODE_FLAG_SAFETY_ARMED),
+                            -math.inf if at is None else at, self._acks.get("set_mode"))
 
     def _px4_mode(self, name: str, number: int) -> None:
         """GUIDED on PX4: Hold on the ground (armable; targets switch to OFFBOARD once

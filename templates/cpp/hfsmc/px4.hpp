@@ -37,6 +37,7 @@ constexpr uint8_t kFrameBodyNed = 8;   // MAV_FRAME_BODY_NED: PX4 turns velociti
 constexpr double kResendS = 0.1;       // the stream's period when the snippet sends less often
 constexpr double kWarmupS = 0.6;       // stream this long before asking for OFFBOARD (PX4: 0.5 s)
 constexpr double kSwitchRetryS = 1.0;  // a refused switch is asked again after this
+constexpr double kSettleS = 0.5;       // a HEARTBEAT this long after an accepted switch: PX4's mode
 constexpr double kTextWaitS = 1.0;     // a chunked STATUSTEXT whose last chunk never comes
 constexpr int kSeverityWarning = 4;    // STATUSTEXT severities up to this one are said
 
@@ -84,8 +85,13 @@ class Offboard {
   /// The snippet sent a target (already sent once): keep it going.
   void target(double now, const Target& t);
   /// The reader's timed work: resend the target, switch to OFFBOARD when it is time, and
-  /// let go when PX4 leaves OFFBOARD by itself.
-  void tick(double now, uint32_t mode, bool armed);
+  /// let go when PX4 leaves OFFBOARD by itself. `heartbeat_at`: when the HEARTBEAT that
+  /// said `mode` came; `switch_accepted`: the last answer to set_mode (the switch's, once
+  /// asked) is accepted. An accepted switch counts as OFFBOARD reached even when no
+  /// HEARTBEAT said so before the link dropped: a later HEARTBEAT in another mode is PX4
+  /// leaving it.
+  void tick(double now, uint32_t mode, bool armed, double heartbeat_at = -kInf,
+            bool switch_accepted = false);
   /// A target is being streamed.
   bool streaming() const;
   /// PX4 left OFFBOARD by itself (failsafe()): true until the model asks for a mode again.
