@@ -44,7 +44,9 @@ int main(int argc, char** argv) {
   long seen = 0;
   int subscribers = -1;
   int publishers = 0;
-  while (std::chrono::steady_clock::now() < end && seen < want) {
+  long answered = 0;  // twists published: one per instant with a new scan (two scans may
+                     // come within one instant, on a loaded machine)
+  while (std::chrono::steady_clock::now() < end && answered < want) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     node.take_snapshot();
     if (node.subscribers("cmd_vel") != subscribers) {
@@ -69,6 +71,7 @@ int main(int argc, char** argv) {
     t.linear.x = scan->ranges.empty() ? 0.0 : scan->ranges[0];
     t.angular.z = scan->header.stamp.sec;
     node.publish("cmd_vel", t);
+    ++answered;
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // reliable: let the last go out
   std::printf("done seen=%ld\n", seen);
