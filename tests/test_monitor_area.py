@@ -10,6 +10,7 @@ import json
 import math
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 from ruamel.yaml import YAML
@@ -48,6 +49,26 @@ def flying_altitudes(trace: list[dict[str, object]], truth_log: Path) -> list[fl
     landing = next(t for t, state in tops if t > flying and state not in FLYING)
     lines = [json.loads(line) for line in truth_log.read_text().splitlines()]
     return [float(x["altitude"]) for x in lines if flying + 1.5 <= x["time"] < landing]
+
+
+def found_the_victims_and_landed_home(report: dict[str, Any], truth: dict[str, Any]) -> None:
+    """At least 4 of the 5 victims, each recorded once, within 1.5 m of the truth; landed and
+    disarmed at the take-off point, where the report says."""
+    victims = truth["victims"]
+    assert isinstance(victims, list) and len(victims) == 5
+    found = [(v["north"], v["east"]) for v in report["victims"]]
+    for v in victims:  # each recorded once
+        assert sum(math.dist((v["north"], v["east"]), p) <= 2.0 for p in found) <= 1, found
+    near = [v for v in victims
+            if any(math.dist((v["north"], v["east"]), p) <= 1.5 for p in found)]
+    assert len(near) >= 4, (found, victims)
+    assert truth["armed"] is False and truth["landed"] is True
+    landing, takeoff = truth["landing"], truth["takeoff"]
+    assert isinstance(landing, dict) and isinstance(takeoff, dict)
+    assert math.dist((landing["north"], landing["east"]),
+                     (takeoff["north"], takeoff["east"])) < 2.0
+    assert math.dist((report["landing"]["north"], report["landing"]["east"]),
+                     (landing["north"], landing["east"])) < 0.5
 
 
 def held_while_correcting(trace: list[dict[str, object]]) -> int:
@@ -121,24 +142,7 @@ def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path,
     flown = mission_seconds(trace)
     assert abs(flown / SITL_SECONDS - 1) < 0.15, flown
 
-    # At least 4 of the 5 victims, each recorded once, within 1.5 m of the truth.
-    victims = truth["victims"]
-    assert isinstance(victims, list) and len(victims) == 5
-    found = [(v["north"], v["east"]) for v in report["victims"]]
-    for v in victims:  # each recorded once
-        assert sum(math.dist((v["north"], v["east"]), p) <= 2.0 for p in found) <= 1, found
-    near = [v for v in victims
-            if any(math.dist((v["north"], v["east"]), p) <= 1.5 for p in found)]
-    assert len(near) >= 4, (found, victims)
-
-    # Landed and disarmed at the take-off point.
-    assert truth["armed"] is False and truth["landed"] is True
-    landing, takeoff = truth["landing"], truth["takeoff"]
-    assert isinstance(landing, dict) and isinstance(takeoff, dict)
-    assert math.dist((landing["north"], landing["east"]),
-                     (takeoff["north"], takeoff["east"])) < 2.0
-    assert math.dist((report["landing"]["north"], report["landing"]["east"]),
-                     (landing["north"], landing["east"])) < 0.5
+    found_the_victims_and_landed_home(report, truth)
 
     # The altitude kept within its band between take-off and landing.
     altitude = flight_altitude()
@@ -151,6 +155,9 @@ def test_monitor_area_finds_the_victims_and_lands_home(tmp_path: Path,
     assert worst <= BAND, (worst, corrections, altitudes)
     assert corrections >= 1 and report["altitude_corrections"] == corrections
     assert held_while_correcting(trace) == corrections
+    found = [(v["north"], v["east"]) for v in report["victims"]]
+    victims, landing = truth["victims"], truth["landing"]
+    assert isinstance(victims, list) and isinstance(landing, dict)
     errors = [round(min(math.dist((v["north"], v["east"]), p) for p in found), 2)
               for v in victims]
     print(f"monitor_area: {report['time_s']} s ({flown} s from take-off), victims' errors "
