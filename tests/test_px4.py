@@ -388,24 +388,18 @@ def test_driver_keeps_the_stream_up_and_never_fights_the_failsafe(
     assert _until(vehicle, lambda s: s["mode"] == "LAND", 5)
 
 
-@pytest.fixture
-def px4_mission(request: pytest.FixtureRequest) -> list[str] | None:
-    """follow_colors to fly on PX4, by language (None: flight() builds the Python one)."""
-    if request.param == "python":
-        return None
-    command: list[str] = request.getfixturevalue("cpp_follow_colors")
-    return command
+mission = test_missions.mission  # follow_colors to fly, by language
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("px4_mission", test_missions.LANGUAGES, indirect=True)
+@pytest.mark.parametrize("mission", test_missions.LANGUAGES, indirect=True)
 def test_stop_paths_end_landed_and_disarmed_on_px4(tmp_path: Path,
-                                                   px4_mission: list[str] | None) -> None:
+                                                   mission: list[str] | None) -> None:
     """Issue 29 item 5 on PX4, both languages: --time-limit and Ctrl+C both go through
     on_interrupt to Land (NAV_LAND, PX4's AUTO.LAND): the vehicle is on the ground and
     disarmed (PX4's COM_DISARM_LAND) when the component stops, nothing left armed."""
     px4_args = ("--autopilot", "px4", "--source-port", "0")
-    with flight(tmp_path / "limit", *px4_args, command=px4_mission, lockstep=True,
+    with flight(tmp_path / "limit", *px4_args, command=mission, lockstep=True,
                 component_args=("--time-limit", "30s")) as f:
         status = f.component.wait(timeout=300)
         f.sim.wait(timeout=30)
@@ -418,7 +412,7 @@ def test_stop_paths_end_landed_and_disarmed_on_px4(tmp_path: Path,
         "Land", "Land/Landing", "Land/Landed", "Done"]
     assert truth["armed"] is False and truth["landed"] is True, truth
     assert "WARNING: ARMED" not in log and "drone: land accepted" in log
-    with flight(tmp_path / "sigint", *px4_args, "--speedup", "5", command=px4_mission,
+    with flight(tmp_path / "sigint", *px4_args, "--speedup", "5", command=mission,
                 lockstep=True) as f:
         f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=120)
         time.sleep(0.4)

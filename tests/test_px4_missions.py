@@ -26,35 +26,22 @@ cpp_follow_colors = test_missions.cpp_follow_colors  # the fixtures: the C++ twi
 cpp_monitor_area = test_monitor_area.cpp_monitor_area
 
 
-@pytest.fixture
-def px4_monitor(request: pytest.FixtureRequest) -> list[str] | None:
-    """monitor_area to fly on PX4, by language (None: flight() builds the Python one)."""
-    if request.param == "python":
-        return None
-    command: list[str] = request.getfixturevalue("cpp_monitor_area")
-    return command
-
-
-@pytest.fixture
-def px4_follow(request: pytest.FixtureRequest) -> list[str] | None:
-    """follow_colors to fly on PX4, by language (None: flight() builds the Python one)."""
-    if request.param == "python":
-        return None
-    command: list[str] = request.getfixturevalue("cpp_follow_colors")
-    return command
+# The components to fly, by language (None: flight() builds the Python one).
+mission = test_missions.mission
+monitor = test_monitor_area.monitor
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("px4_monitor", LANGUAGES, indirect=True)
+@pytest.mark.parametrize("monitor", LANGUAGES, indirect=True)
 def test_monitor_area_finds_the_victims_and_lands_home_on_px4(
-        tmp_path: Path, px4_monitor: list[str] | None) -> None:
+        tmp_path: Path, monitor: list[str] | None) -> None:
     """The ArduPilot mission, not a line changed, on PX4: its take-off and landing are
     examples/lib's (takeoff.yaml: NAV_TAKEOFF, AUTO.TAKEOFF then Hold; land.yaml: NAV_LAND,
     AUTO.LAND, PX4's own disarm), its stages fly by velocity targets (OFFBOARD, the driver's
     stream), its altitude region corrects as on ArduPilot."""
     truth_log = tmp_path / "truth.jsonl"
     with flight(tmp_path, *PX4, "--truth-log", str(truth_log), model=MODEL,
-                world=MONITOR / "world.yaml", command=px4_monitor,
+                world=MONITOR / "world.yaml", command=monitor,
                 component_args=test_monitor_area.CORRECTING_BAND, lockstep=True) as f:
         status = f.component.wait(timeout=900)  # PX4's 366 messages/s, on a shared machine
         f.sim.wait(timeout=30)  # the truth written at its exit, after the disarm
@@ -133,16 +120,16 @@ def test_a_snippet_error_in_flight_lands_and_disarms(tmp_path: Path, autopilot: 
     assert 'File "' not in log  # the model's lines, not Python's
 
 
-@pytest.mark.parametrize("px4_follow", LANGUAGES, indirect=True)
+@pytest.mark.parametrize("mission", LANGUAGES, indirect=True)
 def test_a_link_lost_at_the_landing_lands_once_it_is_back_on_px4(
-        tmp_path: Path, px4_follow: list[str] | None) -> None:
+        tmp_path: Path, mission: list[str] | None) -> None:
     """tests/test_missions.py's lost link on PX4: the link drops in the mission (SIGUSR1 to
     the simulator: both ways), so the driver's setpoints stop reaching PX4 (its failsafe:
     OFFBOARD left for POSCTL); Ctrl+C sends the component to Land, whose land command goes
     nowhere; examples/lib/land sends it again, saying why, until the link is back: PX4
     lands in AUTO.LAND and disarms, nothing is left armed. In lockstep at 5 times real
     time."""
-    with flight(tmp_path, *PX4, "--speedup", "5", command=px4_follow, lockstep=True) as f:
+    with flight(tmp_path, *PX4, "--speedup", "5", command=mission, lockstep=True) as f:
         f.wait_for("enter", "state", "Mission/FollowGreen/Track", timeout=120)
         wait_for_line(f.folder / "component.log", r"set_mode GUIDED \(OFFBOARD\) accepted",
                       f.component, timeout=60)  # flying on the driver's stream
