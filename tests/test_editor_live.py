@@ -158,22 +158,24 @@ def test_a_typo_in_the_gutter_at_its_line(logged: Callable[..., Process],
     page.until(lambda: page.has('.field[data-field="entry"] .cm-content'))
     entry = page.css('.field[data-field="entry"] .cm-content')[0]
     entry.click()
-    page.chord("End")
     from selenium.webdriver.common.keys import Keys
-    page.keys(Keys.CONTROL + Keys.END)
+    page.chord(Keys.END)
     page.keys("x = countt + 1")  # line 3 of the snippet
     marker = '.field[data-field="entry"] .cm-lint-marker-error'
     page.until(lambda: page.has(marker))
-    line = page.d.execute_script(f"""
-        const m = document.querySelector('{marker}');
-        const r = m.getBoundingClientRect();
+    where = page.d.execute_script(f"""
         const lines = [...document.querySelectorAll('.field[data-field="entry"] .cm-line')];
-        return lines.findIndex(l => {{ const q = l.getBoundingClientRect();
-                                      return q.top <= r.top + r.height / 2 && r.top + r.height / 2 <= q.bottom; }}) + 1;""")
-    assert line == 3
+        const range = document.querySelector('.field[data-field="entry"] .cm-lintRange-error');
+        const g = document.querySelector('{marker}').closest('.cm-gutterElement').getBoundingClientRect();
+        const mid = g.top + g.height / 2;
+        return [lines.indexOf(range.closest('.cm-line')) + 1, range.textContent,
+                lines.findIndex(l => {{ const q = l.getBoundingClientRect();
+                                       return q.top <= mid && mid <= q.bottom; }}) + 1,
+                lines.map(l => l.textContent)];""")
+    assert where[:3] == [3, "countt + 1", 3], where
     assert page.has('.field[data-field="entry"] .cm-lintRange-error')
     page.shot("gutter-typo")
-    page.keys(Keys.BACKSPACE * 9, "count + 1")
+    page.keys(Keys.BACKSPACE * 10, "count + 1")
     page.until(lambda: not page.has(marker))
     page.shot("gutter-fixed")
     stop_editor(server)
