@@ -79,14 +79,20 @@ class Editor:
         self.conflict = False
         self.pages: set[web.WebSocketResponse] = set()
         self.live = Live(path, self.send_all, monitor)  # --monitor, Build and run
+        self._told_for: tuple[str, int] | None = None  # the text shape and found are of
+        self._shape: dict[str, Any] = {}
+        self._found: list[dict[str, Any]] = []
 
     # ----- what a page is told
 
     def state(self, message: str | None = None) -> dict[str, Any]:
         s = self.session
-        shape = structure(s)
-        found = diagnostics(s)
-        place(s.text, found)  # where in its snippet each is, for the code editors' gutters
+        key = (s.text, id(s.diagnostics))
+        if self._told_for != key:  # a save, a move or a page's arrival: the text is the same
+            self._told_for, self._shape = key, structure(s)
+            self._found = diagnostics(s)
+            place(s.text, self._found)  # where in its snippet each is, for the gutters
+        shape, found = self._shape, self._found
         return {"type": "model", "file": self.path.name, "read_only": self.read_only,
                 "dirty": s.text != s.disk, "conflict": self.conflict,
                 "can_undo": bool(s.undo_stack), "can_redo": bool(s.redo_stack),
