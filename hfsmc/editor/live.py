@@ -25,7 +25,7 @@ PAUSED = ("editing is paused while the running component is shown: Resume editin
           "(docs/editor.md)")
 
 
-class _Quiet(io.TextIOBase):
+class _Quiet(io.StringIO):
     """Where the bridge's status lines go: the page shows them, not the terminal."""
 
     def write(self, s: str) -> int:
