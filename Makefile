@@ -81,6 +81,7 @@ bench: setup
 	$(BIN)/python bench/cpp.py --json bench/results.json
 	$(BIN)/python bench/mcap.py --json bench/results.json
 	$(BIN)/python bench/edit.py --json bench/results.json
+	$(BIN)/python bench/editor.py --json bench/results.json
 	$(BIN)/python bench/cppbuild.py --json bench/results.json
 	$(BIN)/python bench/web.py --json bench/results.json
 	$(BIN)/python bench/realtime.py --json bench/results.json

@@ -414,14 +414,18 @@ def sim(args: tuple[str, ...]) -> None:
 @click.option("--web", metavar="[HOST:]PORT", default="127.0.0.1:0", show_default=True,
               help="Serve the editor's page there (loopback unless a host is named; port 0 "
                    "picks a free one). Open the URL it prints, with its token.")
+@click.option("--monitor", metavar="[HOST:]PORT",
+              help="Show the component running with --monitor there: its active states lit "
+                   "on the canvas and in the tree, editing paused until Resume editing.")
 @_guard
-def edit(model: str, web: str) -> None:
+def edit(model: str, web: str, monitor: str | None) -> None:
     """Edit MODEL in a browser page (docs/editor.md): a canvas per sub-automaton, the state
     tree, code editors for snippets and conditions, errors on what they are about, undo,
-    redo; Save changes only the edited lines."""
+    redo; Save changes only the edited lines; Build and run, and the running component's
+    states lit (--monitor)."""
     from hfsmc.commands.edit import edit as run_edit
 
-    sys.exit(run_edit(model, web))
+    sys.exit(run_edit(model, web, monitor))
 
 
 @main.command()

@@ -12,9 +12,10 @@ from hfsmc.errors import UsageError
 from hfsmc.templates.python import hfsmc_monitor  # type: ignore[import-not-found]
 
 
-def edit(model: str, web: str) -> int:
+def edit(model: str, web: str, monitor: str | None = None) -> int:
     """Serve the editor of ``model`` on ``web`` ([HOST:]PORT, loopback unless a host is
-    named) until SIGINT/SIGTERM; raises UsageError for what cannot be served."""
+    named) until SIGINT/SIGTERM, showing the component at ``monitor`` ([HOST:]PORT) when
+    given; raises UsageError for what cannot be served."""
     from hfsmc.edit.text import EditError
     from hfsmc.editor.server import Editor, serve
     from hfsmc.web.server import listen
@@ -27,8 +28,17 @@ def edit(model: str, web: str) -> int:
         host, port = hfsmc_monitor.parse_address(web)
     except ValueError as e:
         raise UsageError(f"--web: {e}") from None
+    target = None
+    if monitor is not None:
+        try:
+            target = hfsmc_monitor.parse_address(monitor)
+        except ValueError as e:
+            raise UsageError(f"--monitor: {e}") from None
+        if target[1] == 0:
+            raise UsageError(f"--monitor: bad address {monitor!r}: port 0 is not a "
+                             "component's port")
     try:
-        editor = Editor(path.resolve())
+        editor = Editor(path.resolve(), target)
     except (OSError, UnicodeDecodeError, EditError) as e:
         raise UsageError(f"{model}: cannot be edited: {e}") from None
     try:

@@ -19,6 +19,10 @@ from aiohttp import WSMsgType, web
 
 from hfsmc.edit.session import Conflict, EditSession
 from hfsmc.edit.text import EditError
+from hfsmc.editor.build import check_cxx
+from hfsmc.editor.gutter import place
+from hfsmc.editor.live import OPS as LIVE_OPS
+from hfsmc.editor.live import PAUSED, Live
 from hfsmc.editor.model import SNIPPETS, Layout, diagnostics, structure
 from hfsmc.frontend import is_xml
 from hfsmc.web.server import release_signals, stop_on_signals, url_of
@@ -28,6 +32,8 @@ WS_MESSAGE_LIMIT = 1 << 20  # a snippet is text a person typed: 1 MiB is plenty
 MAX_PAGES = 16
 FILES = {"": ("editor.html", "text/html"), "editor.js": ("editor.js", "text/javascript"),
          "editor.css": ("editor.css", "text/css"),
+         "editor_live.js": ("editor_live.js", "text/javascript"),
+         "editor_live.css": ("editor_live.css", "text/css"),
          "vendor/codemirror.js": ("vendor/codemirror.js", "text/javascript")}
 # The page's own files and its WebSocket only; no eval (CodeMirror needs none); CodeMirror
 # adds its styles as <style> elements, hence style-src 'unsafe-inline'.
@@ -65,28 +71,40 @@ def _number(args: dict[str, Any], name: str) -> float:
 class Editor:
     """The edit session of one model, its layout, and the pages that show it."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, monitor: tuple[str, int] | None = None) -> None:
         self.path = path
         self.session = EditSession.open(str(path))
         self.read_only = is_xml(self.session.text)
         self.layout = Layout.beside(path)
         self.conflict = False
         self.pages: set[web.WebSocketResponse] = set()
+        self.live = Live(path, self.send_all, monitor)  # --monitor, Build and run
+        self._told_for: tuple[str, int] | None = None  # the text shape and found are of
+        self._shape: dict[str, Any] = {}
+        self._found: list[dict[str, Any]] = []
 
     # ----- what a page is told
 
     def state(self, message: str | None = None) -> dict[str, Any]:
         s = self.session
-        shape = structure(s)
+        key = (s.text, id(s.diagnostics))
+        if self._told_for != key:  # a save, a move or a page's arrival: the text is the same
+            self._told_for, self._shape = key, structure(s)
+            self._found = diagnostics(s)
+            place(s.text, self._found)  # where in its snippet each is, for the gutters
+        shape, found = self._shape, self._found
         return {"type": "model", "file": self.path.name, "read_only": self.read_only,
                 "dirty": s.text != s.disk, "conflict": self.conflict,
                 "can_undo": bool(s.undo_stack), "can_redo": bool(s.redo_stack),
                 **shape, "positions": self.layout.positions(shape),
-                "diagnostics": diagnostics(s), "message": message,
+                "diagnostics": found, "message": message,
                 "layout_problem": self.layout.problem}
 
     async def tell_all(self, message: str | None = None) -> None:
-        text = json.dumps(self.state(message))
+        await self.send_all(self.state(message))
+
+    async def send_all(self, msg: dict[str, Any]) -> None:
+        text = json.dumps(msg)
         for ws in list(self.pages):
             with contextlib.suppress(ConnectionError, RuntimeError):
                 await ws.send_str(text)
@@ -98,8 +116,12 @@ class Editor:
         op = msg.get("op")
         args: dict[str, Any] = msg["args"] if isinstance(msg.get("args"), dict) else {}
         if op == "move":
+            if self.live.paused:
+                raise EditError(PAUSED)
             self.layout.move(_arg(args, "state", str), _number(args, "x"), _number(args, "y"))
             return None
+        if op in ("undo", "redo") and self.live.paused:
+            raise EditError(PAUSED)
         if op == "undo":
             return None if self.session.undo() else "nothing to undo"
         if op == "redo":
@@ -108,6 +130,8 @@ class Editor:
             return self.save()
         if op == "reload":
             return self.reload()
+        if self.live.paused:
+            raise EditError(PAUSED)
         if self.read_only:
             raise EditError(READ_ONLY_XML)
         make = self._operation(str(op), args)
@@ -163,6 +187,11 @@ class Editor:
             return (f"not saved: {self.path.name} changed on disk since it was read. Reload "
                     "takes the disk's text (then Ctrl+Z gives your edits back)")
         self.conflict = False
+        if "cpp" in self.session.text and structure(self.session)["language"] == "cpp":
+            # g++ over the snippets, as `hfsmc check` does: kept until the next change
+            self.session.diagnostics, note = check_cxx(self.session)
+            if note:
+                return f"saved {self.path.name}; {note}"
         return f"saved {self.path.name}"
 
     def reload(self) -> str:
@@ -232,6 +261,8 @@ async def _socket(request: web.Request) -> web.WebSocketResponse:
     editor.pages.add(ws)
     try:
         await ws.send_str(json.dumps(editor.state()))
+        await ws.send_str(json.dumps(editor.live.message()))
+        await ws.send_str(json.dumps(editor.live.log_message()))
         async for msg in ws:
             if msg.type != WSMsgType.TEXT:
                 continue
@@ -239,6 +270,13 @@ async def _socket(request: web.Request) -> web.WebSocketResponse:
                 asked = json.loads(msg.data)
                 if not isinstance(asked, dict):
                     raise BadRequest("a message is a JSON object")
+                if asked.get("op") in LIVE_OPS:  # the overlay, Build and run: live.py
+                    s = editor.session
+                    said = await editor.live.handle(str(asked["op"]), s.text == s.disk,
+                                                    editor.conflict)
+                    if said is not None:
+                        await ws.send_str(json.dumps({"type": "note", "message": said}))
+                    continue
                 said = await asyncio.to_thread(editor.handle, asked)
             except (BadRequest, EditError, ValueError, OSError) as e:
                 await ws.send_str(json.dumps({"type": "error", "message": str(e)}))
@@ -266,6 +304,8 @@ async def serve(sock: socket.socket, editor: Editor, trust: Trust, out: TextIO |
     await runner.setup()
     watching = asyncio.create_task(editor.watch())
     try:
+        if editor.live.target is not None:
+            await editor.live.watch(*editor.live.target)
         await web.SockSite(runner, sock, shutdown_timeout=1.0).start()
         if not loopback_only(sock):
             print(f"hfsmc edit: warning: the editor on {sock.getsockname()[:2]} can be reached "
@@ -278,6 +318,7 @@ async def serve(sock: socket.socket, editor: Editor, trust: Trust, out: TextIO |
         watching.cancel()
         with contextlib.suppress(asyncio.CancelledError):
             await watching
+        await editor.live.close()  # the run ends with the editor
         for ws in list(editor.pages):
             with contextlib.suppress(Exception):
                 await ws.close()

@@ -46,6 +46,7 @@ function connect() {
   ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
     if (msg.type === "error") { say(msg.message, true); return; }
+    if (msg.type !== "model") { EditorLive.take(msg); return; }  // live, run_log, note
     model = msg;
     if (!(cur in model.automata)) cur = "";
     if (sel && sel.kind === "state" && !(sel.path in model.states)) sel = null;
@@ -73,6 +74,7 @@ function render() {
   $("conflict-text").textContent = model.conflict ?
     `${model.file} changed on disk while you have unsaved edits: not saved over. ` : "";
   crumbs(); tree(); canvas(); panel(); problems();
+  EditorLive.paint();
 }
 
 function crumbs() {
@@ -456,6 +458,7 @@ function panel() {
       }
     } else if (document.activeElement !== ed.input && !ed.pending) ed.input.value = value;
   }
+  EditorLive.lint(editors, sel);
 }
 
 function field(box, f, code, change) {
@@ -475,7 +478,7 @@ function field(box, f, code, change) {
   if (code && window.CM) {
     const lang = model.language === "cpp" ? CM.cpp() : CM.python();
     ed.view = new CM.EditorView({parent: div, state: CM.EditorState.create({doc: "",
-      extensions: [CM.basicSetup, lang, CM.EditorView.updateListener.of((u) => {
+      extensions: [CM.basicSetup, lang, ...EditorLive.extensions(), CM.EditorView.updateListener.of((u) => {
         if (u.docChanged && !ed.quiet) later(u.state.doc.toString());
       })]})});
   } else {
