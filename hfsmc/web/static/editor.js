@@ -42,12 +42,14 @@ function say(text, error) {
 
 // ----- the connection
 function connect() {
-  ws = new WebSocket(`ws://${location.host}/ws`);
+  const tab = new URLSearchParams(location.search).get("file");  // a used file's tab
+  ws = new WebSocket(`ws://${location.host}/ws` + (tab ? "?file=" + encodeURIComponent(tab) : ""));
   ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
     if (msg.type === "error") { say(msg.message, true); return; }
+    if (msg.type === "clipboard") { copied(msg); return; }  // editor_clip.js
     model = msg;
-    if (!(cur in model.automata)) cur = "";
+    if (!(cur in model.automata) && !enterable(cur)) cur = "";
     if (sel && sel.kind === "state" && !(sel.path in model.states)) sel = null;
     if (sel && sel.kind === "edge" && !(model.states[sel.state] &&
         model.states[sel.state].transitions[sel.index])) sel = null;
@@ -134,8 +136,9 @@ function canvas() {
   const marker = el("marker", {id: "arrow", viewBox: "0 0 10 10", refX: 9, refY: 5,
     markerWidth: 8, markerHeight: 8, orient: "auto-start-reverse"}, defs);
   el("path", {d: "M0,0 L10,5 L0,10 z", fill: "#444"}, marker);
-  const auto = model.automata[cur];
+  const auto = model.automata[cur] || (enterable(cur) ? {states: [], initial: null} : null);
   if (!auto) return;
+  if (auto.regions) { lanes(svg, auto); return; }  // editor_lanes.js
   const names = auto.states;
   let maxX = 600, maxY = 400;
   const edges = el("g", {id: "edges"}, svg);
@@ -186,6 +189,7 @@ function drawState(g0, path, s, x, y, initial) {
   g.addEventListener("dblclick", (ev) => {
     ev.stopPropagation();
     if (s.composite && !s.use) open(path);
+    else if (s.use) openTab(path);  // editor_keys.js
   });
 }
 
@@ -279,7 +283,7 @@ document.addEventListener("mouseup", (ev) => {
 
 // ----- navigation, selection
 function open(path) {
-  if (!(path in model.automata)) return;
+  if (!(path in model.automata) && !enterable(path)) return;
   cur = path;
   render();
 }
@@ -311,6 +315,7 @@ $("canvas").addEventListener("dblclick", (ev) => {
   ask(ev.clientX, ev.clientY, "", (name) => {
     send("add_state", {parent: cur, name});
     send("move", {state: prefix(cur) + name, x: p[0], y: p[1]});
+    sel = {kind: "state", path: prefix(cur) + name};
   });
 });
 
@@ -333,7 +338,7 @@ function ask(clientX, clientY, value, done) {
 }
 
 function inEditor(ev) {
-  return ev.target.closest && (ev.target.closest(".cm-editor") || ev.target.tagName === "INPUT");
+  return ev.target.closest && (ev.target.closest(".cm-editor") || ["INPUT", "TEXTAREA"].includes(ev.target.tagName));
 }
 document.addEventListener("keydown", (ev) => {
   if (!model) return;
@@ -363,6 +368,7 @@ document.addEventListener("keydown", (ev) => {
     ask(r.left + 120, r.top + 60, "", (name) => {
       send("add_state", {parent: cur, name});
       send("move", {state: prefix(cur) + name, x, y});
+      sel = {kind: "state", path: prefix(cur) + name};
     });
   } else if (ev.key === "Backspace" && cur) { ev.preventDefault(); open(parentOf(cur)); }
   else if (ev.key === "Enter" && sel && sel.kind === "state" && model.automata[sel.path]) open(sel.path);
@@ -398,10 +404,7 @@ function panel() {
       }
       delete editors[k];
     }
-    if (!sel) {
-      box.innerHTML = "<p>Select a state or an arrow to edit it.</p>";
-      return;
-    }
+    if (!sel) return modelForms(box, true);  // editor_forms.js
     const title = document.createElement("h3");
     box.appendChild(title);
     const at = sel;  // what the fields edit, even when sent after another selection
@@ -430,7 +433,7 @@ function panel() {
       box.appendChild(row);
     }
   }
-  if (!sel) return;
+  if (!sel) return modelForms(box, false);
   let here = $("here");
   if (!here) {
     here = document.createElement("ul");
@@ -506,4 +509,4 @@ function problems() {
   if (!model.diagnostics.length) ul.innerHTML = "<li>none</li>";
 }
 
-connect();
+document.addEventListener("DOMContentLoaded", connect);  // after editor_*.js
