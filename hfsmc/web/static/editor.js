@@ -330,8 +330,8 @@ function ask(clientX, clientY, value, done) {
   box.focus();
   box.select();
   box.onkeydown = (ev) => {
-    if (ev.key === "Enter" && box.value.trim()) { box.hidden = true; done(box.value.trim()); }
-    else if (ev.key === "Escape") box.hidden = true;
+    if (ev.key === "Enter" && box.value.trim()) { box.hidden = true; $("canvas").focus(); done(box.value.trim()); }
+    else if (ev.key === "Escape") { box.hidden = true; $("canvas").focus(); }
     ev.stopPropagation();
   };
   box.onblur = () => { box.hidden = true; };
@@ -361,7 +361,7 @@ document.addEventListener("keydown", (ev) => {
   } else if (ev.key.toLowerCase() === "n" && !mod && !model.read_only) {
     // a new state from the keyboard: below the lowest one, named in the box
     ev.preventDefault();
-    const names = model.automata[cur].states;
+    const names = (model.automata[cur] || {states: []}).states;  // [] in a simple state entered
     const y = Math.max(40, ...names.map((n) => center(prefix(cur) + n)[1])) + 90;
     const x = names.length ? center(prefix(cur) + names[names.length - 1])[0] : 120;
     const r = $("canvas").getBoundingClientRect();

@@ -85,6 +85,7 @@ function modelForms(box, fresh) {
       const [name, type, value] = inputs.map((i) => i.value.trim());
       if (!name) return;
       send("add_declaration", {kind, name, type: type || null, value: value || null});
+      document.activeElement.blur();  // the forms are drawn again with the new row
     };
     b.onclick = go;
     for (const i of inputs) i.onkeydown = (ev) => { if (ev.key === "Enter") go(); };
@@ -100,7 +101,9 @@ function modelForms(box, fresh) {
   });
   const r = h("div", {class: "row add"}, ul);
   const line = h("input", {placeholder: model.language === "cpp" ? "<cmath>" : "numpy as np", id: "add-import"}, r);
-  line.onkeydown = (ev) => { if (ev.key === "Enter" && line.value.trim()) send("add_import", {line: line.value}); };
+  line.onkeydown = (ev) => {
+    if (ev.key === "Enter" && line.value.trim()) { send("add_import", {line: line.value}); line.blur(); }
+  };
 
   for (const k of ["functions", "on_shutdown"]) {
     h("h3", {}, f, k);
