@@ -52,10 +52,11 @@ class Forms(Page):
 
     def save(self, path: Path, before: bytes) -> None:
         self.chord("s")
-        self.until(lambda: path.read_bytes() != before and "saved" == self.status())
+        self.until(lambda: path.read_bytes() != before and self.status() == "saved")
 
     def selected(self) -> str | None:
-        return self.d.execute_script("return sel && sel.kind === 'state' ? sel.path : null")
+        path = self.d.execute_script("return sel && sel.kind === 'state' ? sel.path : null")
+        return None if path is None else str(path)
 
     def blank(self) -> None:
         """A click on the empty canvas: nothing selected, the forms shown."""
@@ -144,11 +145,14 @@ def test_forms_copy_paste_keys_and_tabs(logged: Callable[..., Process], follow: 
     assert page.selected() == "LinkLost2"
     page.keys(Keys.ENTER)
     page.until(lambda: page.d.execute_script("return cur") == "LinkLost2")
+    layout = follow.with_name("follow_colors.layout.yaml")  # each new state's place, written
     for name in ("Wait", "Go"):
         page.keys("n")
         page.until(lambda: page.css("#inline")[0].is_displayed())
         page.keys(name, Keys.ENTER)
-        page.until(lambda n=name: page.has(f'g.state[data-path="LinkLost2/{n}"]'))
+        path = f"LinkLost2/{name}"
+        page.until(lambda: page.has(f'g.state[data-path="{path}"]'))  # noqa: B023
+        page.until(lambda: layout.exists() and f"{path}:" in layout.read_text())  # noqa: B023
     page.keys(Keys.ARROW_UP)
     page.until(lambda: page.selected() == "LinkLost2/Wait")
     page.keys("a")
@@ -193,7 +197,7 @@ def test_forms_copy_paste_keys_and_tabs(logged: Callable[..., Process], follow: 
     page.state("TakeOff").click()
     page.keys(Keys.ENTER)
     page.until(lambda: len(driver.window_handles) == 2)
-    driver.switch_to.window([w for w in driver.window_handles if w != first][0])
+    driver.switch_to.window(next(w for w in driver.window_handles if w != first))
     page.until(lambda: driver.execute_script(
         "return document.body.dataset.ready === '1' && model.file") == "takeoff.yaml")
     assert driver.execute_script("return model.tab") == "../lib/takeoff.yaml"

@@ -13,20 +13,16 @@ import weakref
 from pathlib import Path
 from typing import Any, Protocol
 
+from hfsmc.edit.session import EditSession
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend import load
 
 MAX_FILES = 64  # a model using more files than this is not one a person draws
 
 
-class Session(Protocol):
-    path: str
-    text: str
-
-
 class Tab(Protocol):
     path: Path
-    session: Session
+    session: EditSession
 
     async def watch(self) -> None: ...
 
