@@ -153,6 +153,8 @@ def test_forms_copy_paste_keys_and_tabs(logged: Callable[..., Process], follow: 
         path = f"LinkLost2/{name}"
         page.until(lambda: page.has(f'g.state[data-path="{path}"]'))  # noqa: B023
         page.until(lambda: layout.exists() and f"{path}:" in layout.read_text())  # noqa: B023
+    page.until(lambda: page.d.execute_script(  # Go drawn where N put it: below Wait
+        "return model.positions['LinkLost2/Go'][1] > model.positions['LinkLost2/Wait'][1] + 50"))
     page.keys(Keys.ARROW_UP)
     page.until(lambda: page.selected() == "LinkLost2/Wait")
     page.keys("a")

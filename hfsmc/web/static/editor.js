@@ -13,6 +13,8 @@ let ws = null;
 let drag = null;       // a state being moved or a transition being drawn
 const editors = {};    // field -> {view, key}
 let panelFor = null;   // what the side panel was built for
+let want = null;       // the selection asked for, made once the server's model has it
+const placed = {};     // positions the page gave new states, until the server has them
 
 function send(op, args) {
   if (ws && ws.readyState === 1) ws.send(JSON.stringify({op, args: args || {}}));
@@ -46,9 +48,16 @@ function connect() {
   ws = new WebSocket(`ws://${location.host}/ws` + (tab ? "?file=" + encodeURIComponent(tab) : ""));
   ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
-    if (msg.type === "error") { say(msg.message, true); return; }
+    if (msg.type === "error") { want = null; say(msg.message, true); return; }
     if (msg.type === "clipboard") { copied(msg); return; }  // editor_clip.js
     model = msg;
+    for (const [p, xy] of Object.entries(placed)) {
+      const at = model.positions[p];
+      if (!(p in model.states) && !want) delete placed[p];
+      else if (at && Math.hypot(at[0] - xy[0], at[1] - xy[1]) < 1) delete placed[p];
+    }
+    if (want && (want.kind === "state" ? want.path in model.states : model.states[want.state] &&
+        model.states[want.state].transitions[want.index])) { sel = want; want = null; }
     if (!(cur in model.automata) && !enterable(cur)) cur = "";
     if (sel && sel.kind === "state" && !(sel.path in model.states)) sel = null;
     if (sel && sel.kind === "edge" && !(model.states[sel.state] &&
@@ -119,7 +128,7 @@ function tree() {
   build("", root);
 }
 
-function center(path) { return model.positions[path] || [80, 80]; }
+function center(path) { return placed[path] || model.positions[path] || [80, 80]; }
 
 // Where the segment from the centre of box a towards point p leaves the box.
 function border(c, p) {
@@ -242,6 +251,7 @@ function startDrag(ev, path, connecting) {
   ev.stopPropagation();
   $("canvas").focus();
   sel = {kind: "state", path};  // drawn when the button is released (the shapes stay meanwhile)
+  delete placed[path];  // the drag's position is the one that counts now
   drag = {path, connecting, from: svgPoint(ev), moved: false, line: null};
   if (connecting) {
     const c = center(path);
@@ -315,7 +325,8 @@ $("canvas").addEventListener("dblclick", (ev) => {
   ask(ev.clientX, ev.clientY, "", (name) => {
     send("add_state", {parent: cur, name});
     send("move", {state: prefix(cur) + name, x: p[0], y: p[1]});
-    sel = {kind: "state", path: prefix(cur) + name};
+    placed[prefix(cur) + name] = [p[0], p[1]];
+    want = {kind: "state", path: prefix(cur) + name};
   });
 });
 
@@ -368,7 +379,8 @@ document.addEventListener("keydown", (ev) => {
     ask(r.left + 120, r.top + 60, "", (name) => {
       send("add_state", {parent: cur, name});
       send("move", {state: prefix(cur) + name, x, y});
-      sel = {kind: "state", path: prefix(cur) + name};
+      placed[prefix(cur) + name] = [x, y];
+      want = {kind: "state", path: prefix(cur) + name};
     });
   } else if (ev.key === "Backspace" && cur) { ev.preventDefault(); open(parentOf(cur)); }
   else if (ev.key === "Enter" && sel && sel.kind === "state" && model.automata[sel.path]) open(sel.path);

@@ -78,7 +78,8 @@ window.addEventListener("keydown", (ev) => {
   else if (ev.key === "Enter") {
     const from = aim.from, to = baseName(aim.to);
     endAim();
-    sel = {kind: "edge", state: from, index: model.states[from].transitions.length};
+    say("", false);
+    want = {kind: "edge", state: from, index: model.states[from].transitions.length};
     send("add_transition", {state: from, to});
   } else if (ev.key.startsWith("Arrow")) {
     const next = nearest(aim.to, ev.key);

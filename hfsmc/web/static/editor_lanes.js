@@ -43,7 +43,7 @@ function lanes(svg, auto) {
         select({kind: "state", path: sp});
       });
     });
-    if (!inner.states.length) el("text", {class: "lane-info", x: 150, y: LANE_H / 2, "text-anchor": "start"}, g)
+    if (!inner.states.length) el("text", {class: "lane-info empty", x: 150, y: LANE_H / 2}, g)
       .textContent = "no state yet: double-click to enter, then N";
     const tip = el("title", {}, g);
     tip.textContent = problemsOf(path, null).map((d) => `${d.code}: ${d.message}`).join("\n") ||
