@@ -16,6 +16,7 @@ import yaml
 
 from hfsmc.edit.references import Index
 from hfsmc.edit.session import EditSession
+from hfsmc.editor.forms import settings
 from hfsmc.errors import Diagnostics
 from hfsmc.frontend import is_xml, load
 from hfsmc.frontend.yaml_ranges import YamlTree
@@ -45,7 +46,7 @@ def structure(session: EditSession) -> dict[str, Any]:
     states: dict[str, Any] = {}
     if isinstance(data, dict):
         _walk(data, "", automata, states)
-    return {"automata": automata, "states": states,
+    return {"automata": automata, "states": states, "settings": settings(data),
             "language": data.get("language", "python") if isinstance(data, dict) else "python"}
 
 

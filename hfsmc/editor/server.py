@@ -19,6 +19,7 @@ from aiohttp import WSMsgType, web
 
 from hfsmc.edit.session import Conflict, EditSession
 from hfsmc.edit.text import EditError
+from hfsmc.editor import clipboard, forms, tabs
 from hfsmc.editor.build import check_cxx
 from hfsmc.editor.gutter import place
 from hfsmc.editor.live import OPS as LIVE_OPS
@@ -31,6 +32,7 @@ from hfsmc.web.trust import Trust, guard, headers, loopback_only
 WS_MESSAGE_LIMIT = 1 << 20  # a snippet is text a person typed: 1 MiB is plenty
 MAX_PAGES = 16
 FILES = {"": ("editor.html", "text/html"), "editor.js": ("editor.js", "text/javascript"),
+         **{f"{n}.js": (f"{n}.js", "text/javascript") for n in forms.PAGE_SCRIPTS},
          "editor.css": ("editor.css", "text/css"),
          "editor_live.js": ("editor_live.js", "text/javascript"),
          "editor_live.css": ("editor_live.css", "text/css"),
@@ -98,7 +100,7 @@ class Editor:
                 "can_undo": bool(s.undo_stack), "can_redo": bool(s.redo_stack),
                 **shape, "positions": self.layout.positions(shape),
                 "diagnostics": found, "message": message,
-                "layout_problem": self.layout.problem}
+                "layout_problem": self.layout.problem, **tabs.links(self)}
 
     async def tell_all(self, message: str | None = None) -> None:
         await self.send_all(self.state(message))
@@ -111,8 +113,9 @@ class Editor:
 
     # ----- what a page asks
 
-    def handle(self, msg: dict[str, Any]) -> str | None:
-        """Make what the page asks; a message for the page, or None."""
+    def handle(self, msg: dict[str, Any]) -> str | dict[str, Any] | None:
+        """Make what the page asks; a message for the pages, or None, or (a dict) a reply
+        for the page that asked only."""
         op = msg.get("op")
         args: dict[str, Any] = msg["args"] if isinstance(msg.get("args"), dict) else {}
         if op == "move":
@@ -130,10 +133,14 @@ class Editor:
             return self.save()
         if op == "reload":
             return self.reload()
+        if op == "copy":
+            return clipboard.copy(self.session, _arg(args, "path", str))
         if self.live.paused:
             raise EditError(PAUSED)
         if self.read_only:
             raise EditError(READ_ONLY_XML)
+        if op == "paste":
+            return clipboard.paste(self.session, _arg(args, "parent", str), _arg(args, "text", str))
         make = self._operation(str(op), args)
         self.session.apply(make)
         if op == "rename":
@@ -175,6 +182,9 @@ class Editor:
                 raise BadRequest(f"`{key}` is not a field of a transition")
             return lambda o: o.set_field((*o.element(state).doc_path, "transitions", i, key),
                                          value or None)
+        made = forms.operation(op, a, _arg)
+        if made is not None:
+            return made
         raise BadRequest(f"no operation `{op}`")
 
     def save(self) -> str:
@@ -238,6 +248,7 @@ def make_app(editor: Editor, trust: Trust, log: TextIO | None = None) -> web.App
         app.router.add_get("/" + route, _file)
     app.router.add_get("/ws", _socket)
     app.router.add_get("/favicon.ico", _no_icon)
+    app.on_cleanup.append(lambda _app: tabs.close(editor))
     return app
 
 
@@ -252,9 +263,14 @@ async def _no_icon(request: web.Request) -> web.Response:
 
 
 async def _socket(request: web.Request) -> web.WebSocketResponse:
-    editor = request.app[_EDITOR]
     ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=WS_MESSAGE_LIMIT)
     await ws.prepare(request)
+    try:  # a `use`d file's own tab (docs/editor.md), else the model
+        editor = tabs.pick(request.app[_EDITOR], request.query.get("file"), Editor)
+    except (ValueError, OSError, UnicodeDecodeError, EditError) as e:
+        await ws.send_str(json.dumps({"type": "error", "message": str(e)}))
+        await ws.close(code=1008, message=b"not a file of this model")
+        return ws
     if len(editor.pages) >= MAX_PAGES:
         await ws.close(code=1013, message=b"too many pages")
         return ws
@@ -286,7 +302,9 @@ async def _socket(request: web.Request) -> web.WebSocketResponse:
                                               f"internal error: {type(e).__name__}: {e} "
                                               "(please report it)"}))
                 said = "error"
-            if said != "error":
+            if isinstance(said, dict):
+                await ws.send_str(json.dumps(said))
+            elif said != "error":
                 await editor.tell_all(said)
     finally:
         editor.pages.discard(ws)

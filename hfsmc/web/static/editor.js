@@ -13,6 +13,8 @@ let ws = null;
 let drag = null;       // a state being moved or a transition being drawn
 const editors = {};    // field -> {view, key}
 let panelFor = null;   // what the side panel was built for
+let want = null;       // the selection asked for, made once the server's model has it
+const placed = {};     // positions the page gave new states, until the server has them
 
 function send(op, args) {
   if (ws && ws.readyState === 1) ws.send(JSON.stringify({op, args: args || {}}));
@@ -42,13 +44,22 @@ function say(text, error) {
 
 // ----- the connection
 function connect() {
-  ws = new WebSocket(`ws://${location.host}/ws`);
+  const tab = new URLSearchParams(location.search).get("file");  // a used file's tab
+  ws = new WebSocket(`ws://${location.host}/ws` + (tab ? "?file=" + encodeURIComponent(tab) : ""));
   ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
-    if (msg.type === "error") { say(msg.message, true); return; }
+    if (msg.type === "error") { want = null; say(msg.message, true); return; }
+    if (msg.type === "clipboard") { copied(msg); return; }  // editor_clip.js
     if (msg.type !== "model") { EditorLive.take(msg); return; }  // live, run_log, note
     model = msg;
-    if (!(cur in model.automata)) cur = "";
+    for (const [p, xy] of Object.entries(placed)) {
+      const at = model.positions[p];
+      if (!(p in model.states) && !want) delete placed[p];
+      else if (at && Math.hypot(at[0] - xy[0], at[1] - xy[1]) < 1) delete placed[p];
+    }
+    if (want && (want.kind === "state" ? want.path in model.states : model.states[want.state] &&
+        model.states[want.state].transitions[want.index])) { sel = want; want = null; }
+    if (!(cur in model.automata) && !enterable(cur)) cur = "";
     if (sel && sel.kind === "state" && !(sel.path in model.states)) sel = null;
     if (sel && sel.kind === "edge" && !(model.states[sel.state] &&
         model.states[sel.state].transitions[sel.index])) sel = null;
@@ -119,7 +130,7 @@ function tree() {
   build("", root);
 }
 
-function center(path) { return model.positions[path] || [80, 80]; }
+function center(path) { return placed[path] || model.positions[path] || [80, 80]; }
 
 // Where the segment from the centre of box a towards point p leaves the box.
 function border(c, p) {
@@ -136,8 +147,9 @@ function canvas() {
   const marker = el("marker", {id: "arrow", viewBox: "0 0 10 10", refX: 9, refY: 5,
     markerWidth: 8, markerHeight: 8, orient: "auto-start-reverse"}, defs);
   el("path", {d: "M0,0 L10,5 L0,10 z", fill: "#444"}, marker);
-  const auto = model.automata[cur];
+  const auto = model.automata[cur] || (enterable(cur) ? {states: [], initial: null} : null);
   if (!auto) return;
+  if (auto.regions) { lanes(svg, auto); return; }  // editor_lanes.js
   const names = auto.states;
   let maxX = 600, maxY = 400;
   const edges = el("g", {id: "edges"}, svg);
@@ -188,6 +200,7 @@ function drawState(g0, path, s, x, y, initial) {
   g.addEventListener("dblclick", (ev) => {
     ev.stopPropagation();
     if (s.composite && !s.use) open(path);
+    else if (s.use) openTab(path);  // editor_keys.js
   });
 }
 
@@ -240,6 +253,7 @@ function startDrag(ev, path, connecting) {
   ev.stopPropagation();
   $("canvas").focus();
   sel = {kind: "state", path};  // drawn when the button is released (the shapes stay meanwhile)
+  delete placed[path];  // the drag's position is the one that counts now
   drag = {path, connecting, from: svgPoint(ev), moved: false, line: null};
   if (connecting) {
     const c = center(path);
@@ -281,7 +295,7 @@ document.addEventListener("mouseup", (ev) => {
 
 // ----- navigation, selection
 function open(path) {
-  if (!(path in model.automata)) return;
+  if (!(path in model.automata) && !enterable(path)) return;
   cur = path;
   render();
 }
@@ -313,6 +327,8 @@ $("canvas").addEventListener("dblclick", (ev) => {
   ask(ev.clientX, ev.clientY, "", (name) => {
     send("add_state", {parent: cur, name});
     send("move", {state: prefix(cur) + name, x: p[0], y: p[1]});
+    placed[prefix(cur) + name] = [p[0], p[1]];
+    want = {kind: "state", path: prefix(cur) + name};
   });
 });
 
@@ -327,15 +343,15 @@ function ask(clientX, clientY, value, done) {
   box.focus();
   box.select();
   box.onkeydown = (ev) => {
-    if (ev.key === "Enter" && box.value.trim()) { box.hidden = true; done(box.value.trim()); }
-    else if (ev.key === "Escape") box.hidden = true;
+    if (ev.key === "Enter" && box.value.trim()) { box.hidden = true; $("canvas").focus(); done(box.value.trim()); }
+    else if (ev.key === "Escape") { box.hidden = true; $("canvas").focus(); }
     ev.stopPropagation();
   };
   box.onblur = () => { box.hidden = true; };
 }
 
 function inEditor(ev) {
-  return ev.target.closest && (ev.target.closest(".cm-editor") || ev.target.tagName === "INPUT");
+  return ev.target.closest && (ev.target.closest(".cm-editor") || ["INPUT", "TEXTAREA"].includes(ev.target.tagName));
 }
 document.addEventListener("keydown", (ev) => {
   if (!model) return;
@@ -358,13 +374,15 @@ document.addEventListener("keydown", (ev) => {
   } else if (ev.key.toLowerCase() === "n" && !mod && !model.read_only) {
     // a new state from the keyboard: below the lowest one, named in the box
     ev.preventDefault();
-    const names = model.automata[cur].states;
+    const names = (model.automata[cur] || {states: []}).states;  // [] in a simple state entered
     const y = Math.max(40, ...names.map((n) => center(prefix(cur) + n)[1])) + 90;
     const x = names.length ? center(prefix(cur) + names[names.length - 1])[0] : 120;
     const r = $("canvas").getBoundingClientRect();
     ask(r.left + 120, r.top + 60, "", (name) => {
       send("add_state", {parent: cur, name});
       send("move", {state: prefix(cur) + name, x, y});
+      placed[prefix(cur) + name] = [x, y];
+      want = {kind: "state", path: prefix(cur) + name};
     });
   } else if (ev.key === "Backspace" && cur) { ev.preventDefault(); open(parentOf(cur)); }
   else if (ev.key === "Enter" && sel && sel.kind === "state" && model.automata[sel.path]) open(sel.path);
@@ -400,10 +418,7 @@ function panel() {
       }
       delete editors[k];
     }
-    if (!sel) {
-      box.innerHTML = "<p>Select a state or an arrow to edit it.</p>";
-      return;
-    }
+    if (!sel) return modelForms(box, true);  // editor_forms.js
     const title = document.createElement("h3");
     box.appendChild(title);
     const at = sel;  // what the fields edit, even when sent after another selection
@@ -432,7 +447,7 @@ function panel() {
       box.appendChild(row);
     }
   }
-  if (!sel) return;
+  if (!sel) return modelForms(box, false);
   let here = $("here");
   if (!here) {
     here = document.createElement("ul");
@@ -509,4 +524,4 @@ function problems() {
   if (!model.diagnostics.length) ul.innerHTML = "<li>none</li>";
 }
 
-connect();
+document.addEventListener("DOMContentLoaded", connect);  // after editor_*.js
