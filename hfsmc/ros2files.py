@@ -111,7 +111,7 @@ def _check_rpcs(s: Ros2Settings, node: str, ns_ok: bool, diags: Diagnostics) -> 
     """E313 for a ROS name ROS 2 forbids, E316 for a type of the wrong kind (a service
     among the actions), E312 for a name used twice."""
     names = {t.name for t in (*s.subscribe, *s.publish)}
-    for key, kind, rpcs in (("actions", "action", s.actions), ("services", "srv", s.services)):
+    for kind, rpcs in (("action", s.actions), ("srv", s.services)):
         for r in rpcs:
             if r.name in names:
                 diags.error("E312", f"`{r.name}` names two things of the interface: snippets "

@@ -125,12 +125,12 @@ def test_the_cpp_recording_is_pythons(nav_runs: dict[str, Any]) -> None:
         calls = changes([s["calls"]["reset"]["status"] for s in snaps])
         assert calls[0] == "none" and calls[-1] == "done", calls
     store = rosbags_store("jazzy")
-    goals = [s["goals"]["navigate"] for s in cpp]
+    navs = [s["goals"]["navigate"] for s in cpp]
     feedback = [store.deserialize_cdr(base64.b64decode(g["feedback"]),
                                       "nav2_msgs/action/NavigateToPose_Feedback")
-                for g in goals if g.get("feedback")]
+                for g in navs if g.get("feedback")]
     assert len(feedback) >= 3 and feedback[-1].distance_remaining < feedback[0].distance_remaining
-    results = [g["result"] for g in goals if "result" in g]
+    results = [g["result"] for g in navs if "result" in g]
     assert len(results) == 1
     assert store.deserialize_cdr(base64.b64decode(results[0]),
                                  "nav2_msgs/action/NavigateToPose_Result").error_code == 0

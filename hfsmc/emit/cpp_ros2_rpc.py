@@ -89,18 +89,16 @@ def rpcs_view(r: Ros2Settings) -> RpcsView:
 
 def _type_view(type_: str) -> RpcTypeView:
     package, kind, name = type_.split("/")
-    if kind_of(type_) == "srv":
-        parts = (("Request", "Request"), ("Response", "Response"))
-    else:
-        parts = (("Goal", "Goal"), ("Result", "Result"), ("Feedback", "Feedback"))
+    parts: tuple[str, ...] = ("Request", "Response") if kind_of(type_) == "srv" \
+        else ("Goal", "Result", "Feedback")
     impl = ("SendGoal_Request", "SendGoal_Response", "GetResult_Request", "GetResult_Response",
             "FeedbackMessage") if kind == "action" else ()
-    messages = [f"{type_}_{p}" for _, p in parts] + [f"{type_}_{p}" for p in impl]
+    messages = [f"{type_}_{p}" for p in (*parts, *impl)]
     if kind == "action":
         messages += ["action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response",
                      "action_msgs/msg/GoalStatusArray"]
     return RpcTypeView(package, kind, name, type_,
-                       tuple((member, f"{name}_{p}") for member, p in parts),
+                       tuple((p, f"{name}_{p}") for p in parts),
                        tuple(header_path(m) for m in messages))
 
 
