@@ -88,7 +88,7 @@ def ros2_settings(doc: Document, name: str, spec: Mapping[str, Any], model_name:
         diags.error("E312", "`introspection` of a ros2 interface is not supported in C++ models "
                     "yet (docs/ros2.md)", doc.span((*path, "introspection")))
     _check_topics(settings, model_name if node is None else node, ns_ok, diags)
-    _check_rpcs(settings, model_name if node is None else node, ns_ok, language, diags)
+    _check_rpcs(settings, model_name if node is None else node, ns_ok, diags)
     return settings
 
 
@@ -107,16 +107,12 @@ def _rpcs(doc: Document, path: PathKey, spec: Mapping[str, Any], key: str
     return tuple(out)
 
 
-def _check_rpcs(s: Ros2Settings, node: str, ns_ok: bool, language: str,
-                diags: Diagnostics) -> None:
+def _check_rpcs(s: Ros2Settings, node: str, ns_ok: bool, diags: Diagnostics) -> None:
     """E313 for a ROS name ROS 2 forbids, E316 for a type of the wrong kind (a service
-    among the actions), E312 for a name used twice or in a C++ model (not yet)."""
+    among the actions), E312 for a name used twice."""
     names = {t.name for t in (*s.subscribe, *s.publish)}
-    for key, kind, rpcs in (("actions", "action", s.actions), ("services", "srv", s.services)):
+    for kind, rpcs in (("action", s.actions), ("srv", s.services)):
         for r in rpcs:
-            if language == "cpp":
-                diags.error("E312", f"`{key}` of a ros2 interface are not supported in C++ "
-                            "models yet (docs/ros2.md)", r.span)
             if r.name in names:
                 diags.error("E312", f"`{r.name}` names two things of the interface: snippets "
                             "name each by its own name", r.span)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import jinja2
 
+from hfsmc.emit.cpp_ros2_rpc import RpcsView, rpc_type_files, rpcs_view
 from hfsmc.errors import CheckError, EmitError, fail
 from hfsmc.ir import Interface, Model, Ros2Topic
 from hfsmc.ros2.cpp_messages import cpp_message_files, cpp_type_name, header_path
@@ -27,6 +28,9 @@ BASE_MEMBERS = frozenset({
     "age", "count", "publishers", "subscribers", "malformed", "topic", "name", "publish",
     "subscribe", "advertise", "start", "latest", "send", "source_name", "source_type",
     "source_config", "take_snapshot", "snapshot_fields", "snapshot_schema", "sent",
+    # actions and services (SPEC 5.3)
+    "send_goal", "cancel", "goal_status", "feedback", "result", "call", "call_status",
+    "response", "action", "service", "stop_goals",
 })
 
 
@@ -54,6 +58,7 @@ class Ros2InterfaceView:
     headers: tuple[str, ...]  # the message headers it includes
     topics: tuple[TopicView, ...]
     publish_types: tuple[tuple[str, str], ...]  # (pkg::msg::Name, the publications of it)
+    rpc: RpcsView  # its actions and services
 
 
 def interface_class(name: str) -> str:
@@ -93,7 +98,8 @@ def interface_view(model: Model, i: Interface, base: str) -> Ros2InterfaceView:
         domain=r.domain if r.domain is not None else -1,
         headers=tuple(dict.fromkeys(header_path(view.type) for view in topics)),
         topics=topics,
-        publish_types=tuple((k, ", ".join(v)) for k, v in by_type.items()))
+        publish_types=tuple((k, ", ".join(v)) for k, v in by_type.items()),
+        rpc=rpcs_view(r))
 
 
 def ros2_files(model: Model, env: jinja2.Environment, base: str) -> dict[str, str]:
@@ -106,6 +112,7 @@ def ros2_files(model: Model, env: jinja2.Environment, base: str) -> dict[str, st
     except CheckError as e:  # `check` has said it already; a build says it again
         raise EmitError(e.diagnostics) from None
     out = cpp_message_files(messages, model=base)
+    out |= rpc_type_files([i.ros2 for i in ros if i.ros2 is not None], env)
     template = env.get_template("ros2_interface.hpp.j2")
     for i in ros:
         out[f"include/{interface_header(i.name)}"] = template.render(v=interface_view(model, i, base))

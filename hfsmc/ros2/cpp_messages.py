@@ -53,6 +53,7 @@ class FieldView:
 @dataclass(frozen=True, slots=True)
 class MessageView:
     package: str
+    kind: str           # msg, srv (a service's request or response), action
     name: str
     ros_type: str       # sensor_msgs/msg/LaserScan
     dds_type: str       # sensor_msgs::msg::dds_::LaserScan_
@@ -71,14 +72,16 @@ def snake_case(name: str) -> str:
 
 
 def header_path(ros_type: str) -> str:
-    """``geometry_msgs/msg/Twist`` -> ``geometry_msgs/msg/twist.hpp``."""
-    package, _, name = ros_type.split("/")
-    return f"{package}/msg/{snake_case(name)}.hpp"
+    """``geometry_msgs/msg/Twist`` -> ``geometry_msgs/msg/twist.hpp``; a service's or an
+    action's message keeps its folder (``std_srvs/srv/trigger__request.hpp``)."""
+    package, kind, name = ros_type.split("/")
+    return f"{package}/{kind}/{snake_case(name)}.hpp"
 
 
 def cpp_type_name(ros_type: str) -> str:
-    package, _, name = ros_type.split("/")
-    return f"{package}::msg::{name}"
+    """``geometry_msgs::msg::Twist``, ``std_srvs::srv::Trigger_Request``."""
+    package, kind, name = ros_type.split("/")
+    return f"{package}::{kind}::{name}"
 
 
 def _literal(text: str) -> str:
@@ -189,7 +192,7 @@ def message_view(m: Message, distro: str) -> MessageView:
             ("use string (UTF-8) in the model's own .msg files",))])
     nested = {f.type.name for f in m.fields if f.type.kind == "nested"}
     return MessageView(
-        package=m.package, name=m.short, ros_type=m.name, dds_type=m.dds_type_name,
+        package=m.package, kind=m.name.split("/")[1], name=m.short, ros_type=m.name, dds_type=m.dds_type_name,
         type_hash=m.type_hash if distro == "jazzy" else "",
         definition=_literal(m.ros2msg),
         includes=tuple(sorted(header_path(n) for n in nested)),

@@ -230,6 +230,7 @@ void Node::start() {
       throw StartError("cannot create the DDS " + std::string(e->publication ? "writer" : "reader") +
                        " of " + e->topic + ": " + dds_strretcode(e->entity));
   }
+  for (const Extra& make : extras_) make(participant_, extra_readers_, extra_writers_);
   announce();
 }
 
@@ -259,6 +260,8 @@ void Node::announce() {
   node.node_name = options_.node;
   for (const auto& e : endpoints_)
     (e->publication ? node.writer_gid_seq : node.reader_gid_seq).push_back(gid(e->entity));
+  for (dds_entity_t r : extra_readers_) node.reader_gid_seq.push_back(gid(r));
+  for (dds_entity_t w : extra_writers_) node.writer_gid_seq.push_back(gid(w));
   info.node_entities_info_seq.push_back(node);
   wire::Raw raw{cdr::serialize(info)};
   dds_write(discovery_writer_, &raw);

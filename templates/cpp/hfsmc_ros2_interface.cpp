@@ -105,6 +105,7 @@ Interface::Interface(std::string name, const char* distro, const char* node, con
 }
 
 Interface::~Interface() {
+  if (!stopped_ && node_) rpc_.cancel_running();  // a stop that did not ask (not recorded)
   if (feeding_) unregister_feed(this);
   if (sim_ != nullptr && simclock::current() == sim_) sim_->remove(this);
   unregister_source(this);
@@ -159,6 +160,8 @@ void Interface::configure(const Settings& settings, const char* distro) {
       } else {
         fail(where + ": `" + key + "`: a topic has topic, type and qos");
       }
+    } else if (key.rfind("actions.", 0) == 0 || key.rfind("services.", 0) == 0) {
+      rpc_settings_[key] = value;  // checked when the class declares its actions (rpc_decl)
     } else if ((key == "url" || key.rfind("options", 0) == 0) && value.empty()) {
       // written empty by older files: nothing to change
     } else {
@@ -202,6 +205,17 @@ const Interface::Decl& Interface::subscribed(const std::string& key, const char*
 }
 
 void Interface::start() {
+  for (const auto& kv : rpc_settings_) {  // NAME.yaml's actions and services the model lacks
+    const bool act = kv.first[0] == 'a';
+    const std::string rest = kv.first.substr(act ? 8 : 9);
+    const std::string entry = rest.substr(0, rest.find('.'));
+    bool found = false;
+    for (const rpc::Decl& d : rpc_.decls()) found = found || (d.key == entry && d.action == act);
+    if (!found)
+      fail("the configuration of interface `" + name_ + "`: `" + (act ? "actions" : "services") +
+           "` has no `" + entry + "` in the model: add it to the model and rebuild");
+  }
+  if (node_ && !rpc_.empty()) rpc_.attach(*node_);
   if (node_) {
     guard([&] { node_->start(); });
     register_feed(this);
@@ -241,6 +255,96 @@ std::string Interface::topic(const std::string& key) const {
   for (const Decl& d : decls_)
     if (d.key == key) return d.topic;
   throw std::invalid_argument(name_ + ".topic: no topic `" + key + "`");
+}
+
+// -- actions and services ------------------------------------------------------------------
+rpc::Decl Interface::rpc_decl(const char* key, const char* ros_name, double timeout, bool action,
+                              const char* type) {
+  rpc::Decl d;
+  d.key = key;
+  d.ros_name = ros_name;
+  d.type = type;
+  d.action = action;
+  d.timeout = timeout;
+  const std::string where = "the configuration of interface `" + name_ + "`: `";
+  const std::string prefix = std::string(action ? "actions." : "services.") + key + ".";
+  for (const auto& kv : rpc_settings_) {
+    if (kv.first.rfind(prefix, 0) != 0) continue;
+    const std::string field = kv.first.substr(prefix.size());
+    if (field == "name") {
+      d.ros_name = kv.second;
+    } else if (field == "timeout") {
+      char* end = nullptr;
+      const double t = std::strtod(kv.second.c_str(), &end);
+      if (kv.second.empty() || kv.second == "null") d.timeout = -1;
+      else if (*end != '\0' || !(t > 0) || !std::isfinite(t))
+        fail(where + kv.first + ": " + kv.second + "`: a time limit is seconds > 0, or null");
+      else d.timeout = t;
+    } else if (field == "type") {
+      if (kv.second != type)
+        fail(where + kv.first + ": " + kv.second + "` differs from the model's (" + type +
+             "): change the model and rebuild");
+    } else {
+      fail(where + kv.first + "`: an action or a service has name, type and timeout");
+    }
+  }
+  guard([&] { d.ros_name = resolve_topic(d.ros_name, options_.ns, options_.node); });
+  return d;
+}
+
+const rpc::Decl& Interface::rpc_typed(const std::string& name, bool action, const char* method,
+                                      const char* type) const {
+  const rpc::Decl& d = rpc_.find(name, action, method);
+  if (d.type != type)
+    throw std::invalid_argument(name_ + "." + method + ": `" + name + "` is a " + d.type + ", not a " + type);
+  return d;
+}
+
+std::string Interface::goal_status(const std::string& name) const {
+  const rpc::Decl& d = rpc_.find(name, true, "goal_status");
+  evidence_.asked("goal_status", d.key.c_str());
+  return rpc_.state(d).status;
+}
+
+std::string Interface::call_status(const std::string& name) const {
+  const rpc::Decl& d = rpc_.find(name, false, "call_status");
+  evidence_.asked("call_status", d.key.c_str());
+  return rpc_.state(d).status;
+}
+
+const void* Interface::rpc_message(const rpc::Decl& d, const char* query, bool first) const {
+  evidence_.asked(query, d.key.c_str());
+  const rpc::State& s = rpc_.state(d);
+  return (first ? s.a : s.b).msg.get();
+}
+
+void Interface::send_goal_bytes(const rpc::Decl& d, const std::vector<std::uint8_t>& cdr) {
+  const double now = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  if (rpc_.send_goal(d, cdr, now))  // recorded as the instant saw it: a replay tells the same
+    sent("cancel", "[" + json_string(d.key) + ",\"replaced\"]");
+  sent("send_goal", "[" + json_string(d.key) + "," + json_string(base64(cdr)) + "]");
+}
+
+bool Interface::cancel(const std::string& name) {
+  const rpc::Decl& d = rpc_.find(name, true, "cancel");
+  evidence_.asked("cancel", d.key.c_str());  // it reads the goal's status
+  if (!rpc::running(rpc_.state(d).status)) return false;
+  rpc_.cancel(d);
+  sent("cancel", "[" + json_string(d.key) + "]");
+  return true;
+}
+
+void Interface::call_bytes(const rpc::Decl& d, const std::vector<std::uint8_t>& cdr) {
+  const double now = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  rpc_.call(d, cdr, now);
+  sent("call", "[" + json_string(d.key) + "," + json_string(base64(cdr)) + "]");
+}
+
+std::string Interface::stop_goals() {
+  if (stopped_) return std::string();
+  stopped_ = true;
+  for (const std::string& key : rpc_.cancel_running()) sent("cancel", "[" + json_string(key) + ",\"stop\"]");
+  return std::string();
 }
 
 void Interface::send_bytes(const Decl& d, const std::vector<std::uint8_t>& cdr) {
@@ -342,7 +446,7 @@ std::string Interface::source_config() const {
          ",\"namespace\":" + json_string(options_.ns) + ",\"domain\":" +
          (domain_given_ < 0 ? std::string("null") : std::to_string(domain_given_)) +
          ",\"distro\":" + json_string(options_.distro) + ",\"subscribe\":{" + subs + "},\"publish\":{" + pubs +
-         "},\"actions\":{},\"services\":{}}}";  // no actions nor services in C++ yet
+         "}," + rpc_.config() + "}}";
 }
 
 void Interface::take_snapshot(long long t_us) {
@@ -352,6 +456,7 @@ void Interface::take_snapshot(long long t_us) {
     return;
   }
   node_->take_snapshot();
+  rpc_.snapshot(std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count());
   for (std::size_t k = 0; k < decls_.size(); ++k) {
     const Decl& d = decls_[k];
     Snap& s = snap_[k];
@@ -382,7 +487,7 @@ std::string Interface::snapshot_fields() const {
               ",\"dropped\":" + std::to_string(s.dropped) + "}";
     }
   }
-  return "\"subscriptions\":{" + subs + "},\"subscribers\":{" + pubs + "}";
+  return "\"subscriptions\":{" + subs + "},\"subscribers\":{" + pubs + "}" + rpc_.fields();
 }
 
 // The text the Python recorder registers (json.dumps of its schema), so both are alike.

@@ -97,10 +97,21 @@ Interface::FedEntry Interface::convert(const playback::Entry& e, std::vector<std
     if (v->kind != json::Value::OBJECT) bad(std::string(what) + " must be a mapping");
     return v;
   };
-  FedEntry out{e.t, {}, {}};
+  FedEntry out{e.t, {}, {}, {}};
   for (const auto& m : e.values.members)
-    if (m.first != "subscriptions" && m.first != "subscribers")
-      bad("the ros2 interface `" + name_ + "` has no snapshot field `" + m.first + "` (subscriptions, subscribers)");
+    if (m.first != "subscriptions" && m.first != "subscribers" && m.first != "goals" && m.first != "calls")
+      bad("the ros2 interface `" + name_ + "` has no snapshot field `" + m.first +
+          "` (subscriptions, subscribers, goals, calls)");
+  std::vector<bool> rpc_named(rpc_.decls().size(), false);
+  for (const char* key : {"goals", "calls"}) {
+    if (const json::Value* v = e.values.get(key)) {
+      auto given = rpc_.convert(*v, key[0] == 'g', recorded, bad, rpc_named);
+      out.rpcs.insert(out.rpcs.end(), given.begin(), given.end());
+    }
+  }
+  if (recorded)  // an action or service of the model the recorded run did not have
+    for (std::size_t k = 0; k < rpc_named.size(); ++k)
+      if (!rpc_named[k]) missing.push_back(rpc_.decls()[k].key);
   std::vector<bool> named(decls_.size(), false);
   if (const json::Value* subs = table(e.values.get("subscriptions"), "subscriptions")) {
     for (const auto& m : subs->members) {
@@ -190,7 +201,9 @@ void Interface::fake_snapshot(long long t_us) {
       }
     }
     for (const auto& s : e.subscribers) fed_subscribers_[s.first] = s.second;
+    rpc_.apply(e.rpcs);
   }
+  rpc_.fake_snapshot();
   for (std::size_t k = 0; k < decls_.size(); ++k) {
     Snap& s = snap_[k];
     if (decls_[k].publication) {

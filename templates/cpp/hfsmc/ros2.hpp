@@ -92,6 +92,13 @@ class Node {
     add(key, topic, qos, true, Tr::ros_type, Tr::dds_type, Tr::type_hash, nullptr);
   }
 
+  /// Endpoints others make on this node's participant (the action and service clients,
+  /// hfsmc/ros2_rpc.hpp): `make(participant, readers, writers)` runs in start(), before the
+  /// node is announced, and the entities it lists are announced as the node's.
+  using Extra = std::function<void(std::int32_t, std::vector<std::int32_t>&,
+                                   std::vector<std::int32_t>&)>;
+  void on_start(Extra make) { extras_.push_back(std::move(make)); }
+
   /// Create the participant, the readers and writers, and announce the node; StartError
   /// when the domain id or the network is not usable.
   void start();
@@ -159,6 +166,8 @@ class Node {
   std::int32_t discovery_writer_ = 0;
   std::vector<std::unique_ptr<Endpoint>> endpoints_;  // in the order declared
   std::map<std::string, Endpoint*> by_key_;
+  std::vector<Extra> extras_;
+  std::vector<std::int32_t> extra_readers_, extra_writers_;
 };
 
 }  // namespace ros2

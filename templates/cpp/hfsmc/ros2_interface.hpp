@@ -28,7 +28,10 @@
 //   it holds every sample the simulator's step names;
 // - with --monitor, a live interface is a Feed (observer.hpp): its topics' rates, ages,
 //   counts and matched endpoints as its node holds them, the odometry's pose, and the laser
-//   scans for the viewers that asked (hfsmc/ros2view.hpp, docs/web.md); a fake has none.
+//   scans for the viewers that asked (hfsmc/ros2view.hpp, docs/web.md); a fake has none;
+// - actions and services (SPEC 5.3): the clients of hfsmc/ros2_rpc.hpp on the node's
+//   participant; their statuses, feedback, results and responses are part of the snapshot
+//   (recorded as `goals` and `calls`), send_goal, cancel and call are commands.
 #pragma once
 
 #include <cstdint>
@@ -46,6 +49,7 @@
 #include "hfsmc/observer.hpp"
 #include "hfsmc/record.hpp"
 #include "hfsmc/ros2.hpp"
+#include "hfsmc/ros2_rpc.hpp"
 #include "hfsmc/ros2view.hpp"
 #include "hfsmc/simclock.hpp"
 
@@ -84,6 +88,18 @@ class Interface : public Source, public simclock::Synced, private Feed {
   long malformed(const std::string& key) const;
   /// The resolved ROS name of a subscription or publication (`/tb2/scan`).
   std::string topic(const std::string& key) const;
+
+  // -- actions and services (SPEC 5.3; the typed ones are the generated class's) ---------
+  /// none, pending, accepted, executing, canceling, succeeded, aborted, canceled, rejected,
+  /// no_server or timeout: the latest goal of action `name` as of this instant.
+  std::string goal_status(const std::string& name) const;
+  /// Ask the server to cancel the running goal of `name` (a command); false, and nothing
+  /// sent, when no goal runs.
+  bool cancel(const std::string& name);
+  /// none, pending, done, no_server or timeout: the latest call of service `name`.
+  std::string call_status(const std::string& name) const;
+  /// At stop: a goal still running is cancelled (recorded as `cancel` "stop"); "".
+  std::string stop_goals();
 
   // -- Source: the snapshot of each instant ----------------------------------------------
   const std::string& source_name() const override { return name_; }
@@ -132,6 +148,60 @@ class Interface : public Source, public simclock::Synced, private Feed {
   /// After the declarations: the node joins the graph (with --playback: the script is read).
   void start();
 
+  /// Declare the action `key` of type A (`nav2_msgs::action::NavigateToPose`), ROS name
+  /// `ros_name` (as written), time limit `timeout` s (< 0: none); NAME.yaml may change both.
+  template <class A>
+  void action(const char* key, const char* ros_name, double timeout) {
+    using Impl = typename A::Impl;
+    rpc::Decl d = rpc_decl(key, ros_name, timeout, true, A::type_name);
+    d.dds = {cdr::Traits<typename Impl::SendGoalService::Request>::dds_type,
+             cdr::Traits<typename Impl::SendGoalService::Response>::dds_type,
+             cdr::Traits<typename Impl::GetResultService::Request>::dds_type,
+             cdr::Traits<typename Impl::GetResultService::Response>::dds_type,
+             cdr::Traits<typename Impl::FeedbackMessage>::dds_type};
+    d.feedback = decoder<typename A::Feedback>();
+    d.result = decoder<typename A::Result>();
+    d.result_response = [](const std::uint8_t* p, std::size_t n) {
+      auto r = cdr::deserialize<typename Impl::GetResultService::Response>(p, n);
+      auto m = std::make_shared<const typename A::Result>(std::move(r.result));
+      return rpc::Decoded{m, std::make_shared<const rpc::Bytes>(cdr::serialize(*m)), r.status};
+    };
+    rpc_.declare(std::move(d));
+  }
+  /// Declare the service `key` of type S (`std_srvs::srv::Trigger`).
+  template <class S>
+  void service(const char* key, const char* ros_name, double timeout) {
+    rpc::Decl d = rpc_decl(key, ros_name, timeout, false, S::type_name);
+    d.dds = {cdr::Traits<typename S::Request>::dds_type, cdr::Traits<typename S::Response>::dds_type};
+    d.response = decoder<typename S::Response>();
+    rpc_.declare(std::move(d));
+  }
+  /// Send `goal` to action `name` (a command): a goal still running is cancelled first.
+  template <class A>
+  void send_goal_as(const std::string& name, const typename A::Goal& goal) {
+    send_goal_bytes(rpc_typed(name, true, "send_goal", A::type_name), cdr::serialize(goal));
+  }
+  template <class A>
+  const typename A::Feedback* feedback_as(const std::string& name) const {
+    return static_cast<const typename A::Feedback*>(
+        rpc_message(rpc_typed(name, true, "feedback", A::type_name), "feedback", true));
+  }
+  template <class A>
+  const typename A::Result* result_as(const std::string& name) const {
+    return static_cast<const typename A::Result*>(
+        rpc_message(rpc_typed(name, true, "result", A::type_name), "result", false));
+  }
+  /// Call service `name` with `request` (a command); a call still pending is forgotten.
+  template <class S>
+  void call_as(const std::string& name, const typename S::Request& request) {
+    call_bytes(rpc_typed(name, false, "call", S::type_name), cdr::serialize(request));
+  }
+  template <class S>
+  const typename S::Response* response_as(const std::string& name) const {
+    return static_cast<const typename S::Response*>(
+        rpc_message(rpc_typed(name, false, "response", S::type_name), "response", true));
+  }
+
   /// The latest message of subscription `key` in this instant's snapshot.
   template <class T>
   const T* latest(const char* key) const {
@@ -176,6 +246,7 @@ class Interface : public Source, public simclock::Synced, private Feed {
     long long t;
     std::vector<Given> subs;
     std::vector<std::pair<std::size_t, int>> subscribers;  // declaration index, count
+    std::vector<rpc::Rpcs::Given> rpcs;                      // goals and calls
   };
   /// This instant's snapshot of one declaration (a fake's, or the node's copied).
   struct Snap {
@@ -194,6 +265,18 @@ class Interface : public Source, public simclock::Synced, private Feed {
     }
   }
   [[noreturn]] void fail(const std::string& why) const;
+  template <class T>
+  static rpc::Decode decoder() {
+    return [](const std::uint8_t* p, std::size_t n) {
+      auto m = std::make_shared<const T>(cdr::deserialize<T>(p, n));
+      return rpc::Decoded{m, std::make_shared<const rpc::Bytes>(cdr::serialize(*m)), 0};
+    };
+  }
+  rpc::Decl rpc_decl(const char* key, const char* ros_name, double timeout, bool action, const char* type);
+  const rpc::Decl& rpc_typed(const std::string& name, bool action, const char* method, const char* type) const;
+  const void* rpc_message(const rpc::Decl& d, const char* query, bool first) const;
+  void send_goal_bytes(const rpc::Decl& d, const std::vector<std::uint8_t>& cdr);
+  void call_bytes(const rpc::Decl& d, const std::vector<std::uint8_t>& cdr);
   void configure(const Settings& settings, const char* distro);
   Decl& decl(const char* key, bool publication, const char* ros_type);
   const Decl& published(const std::string& key, const char* ros_type) const;
@@ -229,6 +312,10 @@ class Interface : public Source, public simclock::Synced, private Feed {
   std::vector<Fed> fed_;                 // per declaration
   std::vector<int> fed_subscribers_;     // per declaration (publications)
   playback::Evidence evidence_;
+  // actions and services
+  rpc::Rpcs rpc_{name_};
+  Settings rpc_settings_;  // NAME.yaml's `actions.*` and `services.*`
+  bool stopped_ = false;
 };
 
 }  // namespace ros2
