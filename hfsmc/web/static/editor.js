@@ -163,7 +163,8 @@ function canvas() {
       if (!names.includes(t.to)) return;
       const key = [name, t.to].sort().join("\u0000");
       const n = (pairs[key] = (pairs[key] || 0) + 1);
-      drawEdge(edges, labels, path, i, t, center(path), center(prefix(cur) + t.to), n, name === t.to);
+      const back = name !== t.to && model.states[prefix(cur) + t.to].transitions.some((u) => u.to === name);
+      drawEdge(edges, labels, path, i, t, center(path), center(prefix(cur) + t.to), n, name === t.to, back);
     });
   }
   for (const name of names) {
@@ -172,8 +173,36 @@ function canvas() {
     maxX = Math.max(maxX, x + W); maxY = Math.max(maxY, y + H + 40);
     drawState(nodes, path, model.states[path], x, y, auto.initial === name);
   }
-  svg.setAttribute("viewBox", `0 0 ${maxX} ${maxY}`);
+  place(labels, names.map((name) => {
+    const [x, y] = center(prefix(cur) + name);
+    return {x: x - W / 2, y: y - H / 2, width: W, height: H};
+  }));
+  const all = labels.getBBox(), minX = Math.min(0, all.x - 4);
+  maxX = Math.max(maxX, all.x + all.width + 4);
+  svg.setAttribute("viewBox", `${minX} 0 ${maxX - minX} ${maxY}`);
   svg.style.height = Math.max(400, maxY) + "px";
+}
+
+// Each arrow's label goes at the middle of its arrow unless it would cover a state or a
+// label placed before it: then a little before or after the middle, the first place clear.
+function place(labels, boxes) {
+  for (const text of labels.querySelectorAll("text")) {
+    const k = text.curve;
+    if (k) {
+      const at = (t) => [0, 1].map((j) => (1 - t) ** 2 * k.p[j] + 2 * (1 - t) * t * k.c[j] + t * t * k.q[j]);
+      for (const t of [0.5, 0.38, 0.62, 0.28, 0.72, 0.5]) {
+        const [x, y] = at(t);
+        text.setAttribute("x", x + 4 * k.side);
+        text.setAttribute("y", y);
+        if (!boxes.some((o) => overlap(o, text.getBBox()))) break;
+      }
+    }
+    boxes.push(text.getBBox());
+  }
+}
+
+function overlap(a, b) {
+  return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
 }
 
 function drawState(g0, path, s, x, y, initial) {
@@ -204,7 +233,9 @@ function drawState(g0, path, s, x, y, initial) {
   });
 }
 
-function drawEdge(g0, labels, state, i, t, a, b, n, self) {
+// back: an arrow also goes the other way between the two states; the two curves bulge to
+// opposite sides, and the label of the one bulging left is written leftwards, off the other.
+function drawEdge(g0, labels, state, i, t, a, b, n, self, back) {
   const g = el("g", {class: "edge", "data-state": state, "data-index": i}, g0);
   const lg = el("g", {class: "edge", "data-state": state, "data-index": i}, labels);
   const bad = worst(problemsOf(state, i));
@@ -213,7 +244,8 @@ function drawEdge(g0, labels, state, i, t, a, b, n, self) {
     if (bad) x.classList.add(bad);
     if (chosen) x.classList.add("selected");
   }
-  let d, lx, ly;
+  let d, lx, ly, side = 1;  // side: the label runs right (1) or left (-1) of its point
+  let cx, cy, p, q;  // the curve of an arrow between two states
   if (self) {
     const x = a[0] + W / 2 - 10 * n, y = a[1] - H / 2;
     d = `M${x - 20},${y} C${x - 30},${y - 50 - 12 * n} ${x + 30},${y - 50 - 12 * n} ${x + 10},${y}`;
@@ -222,15 +254,17 @@ function drawEdge(g0, labels, state, i, t, a, b, n, self) {
     const bend = (n - 1) * 28 + 14;
     const mx = (a[0] + b[0]) / 2, my = (a[1] + b[1]) / 2;
     const len = Math.hypot(b[0] - a[0], b[1] - a[1]) || 1;
-    const cx = mx - (b[1] - a[1]) / len * bend, cy = my + (b[0] - a[0]) / len * bend;
-    const p = border(a, [cx, cy]), q = border(b, [cx, cy]);
+    cx = mx - (b[1] - a[1]) / len * bend; cy = my + (b[0] - a[0]) / len * bend;
+    p = border(a, [cx, cy]); q = border(b, [cx, cy]);
     d = `M${p[0]},${p[1]} Q${cx},${cy} ${q[0]},${q[1]}`;
     lx = (p[0] + 2 * cx + q[0]) / 4; ly = (p[1] + 2 * cy + q[1]) / 4;
+    if (back && cx < mx - 1) side = -1;
   }
   el("path", {class: "line", d, "marker-end": "url(#arrow)"}, g);
   el("path", {class: "hit", d}, g);
   const guard = t.when ? `[${t.when}]` : t.after ? `after ${t.after}` : "";
-  const label = el("text", {x: lx + 4, y: ly}, lg);
+  const label = el("text", {x: lx + 4 * side, y: ly, "text-anchor": side < 0 ? "end" : "start"}, lg);
+  if (!self) label.curve = {p, c: [cx, cy], q, side};  // where along its arrow it may go (place())
   label.textContent = `${i + 1}. ${t.name ? t.name + " " : ""}${guard}`.slice(0, 60);
   const tip = el("title", {}, g);
   tip.textContent = problemsOf(state, i).map((x) => `${x.code}: ${x.message}`).join("\n") ||
