@@ -123,7 +123,7 @@ def _check_rpcs(s: Ros2Settings, node: str, ns_ok: bool, language: str,
             names.add(r.name)
             parts = r.type.split("/")
             if len(parts) != 3 or parts[1] != kind:
-                diags.error("E316", f"`{r.type}` is not an {'action' if kind == 'action' else 'service'} "
+                diags.error("E316", f"`{r.type}` is not {'an action' if kind == 'action' else 'a service'} "
                             f"type: `pkg/{kind}/Name`", r.type_span)
             try:
                 resolve_name(r.ros_name, s.namespace or "/" if ns_ok else "/", node)
