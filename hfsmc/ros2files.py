@@ -84,9 +84,6 @@ def ros2_settings(doc: Document, name: str, spec: Mapping[str, Any], model_name:
                             publish, _messages(doc, path, spec, diags),
                             _rpcs(doc, path, spec, "actions"), _rpcs(doc, path, spec, "services"),
                             spec.get("introspection"))
-    if settings.introspection and language == "cpp":
-        diags.error("E312", "`introspection` of a ros2 interface is not supported in C++ models "
-                    "yet (docs/ros2.md)", doc.span((*path, "introspection")))
     _check_topics(settings, model_name if node is None else node, ns_ok, diags)
     _check_rpcs(settings, model_name if node is None else node, ns_ok, language, diags)
     return settings
