@@ -84,9 +84,6 @@ def ros2_settings(doc: Document, name: str, spec: Mapping[str, Any], model_name:
                             publish, _messages(doc, path, spec, diags),
                             _rpcs(doc, path, spec, "actions"), _rpcs(doc, path, spec, "services"),
                             spec.get("introspection"))
-    if settings.introspection and language == "cpp":
-        diags.error("E312", "`introspection` of a ros2 interface is not supported in C++ models "
-                    "yet (docs/ros2.md)", doc.span((*path, "introspection")))
     _check_topics(settings, model_name if node is None else node, ns_ok, diags)
     _check_rpcs(settings, model_name if node is None else node, ns_ok, diags)
     return settings
@@ -119,7 +116,7 @@ def _check_rpcs(s: Ros2Settings, node: str, ns_ok: bool, diags: Diagnostics) -> 
             names.add(r.name)
             parts = r.type.split("/")
             if len(parts) != 3 or parts[1] != kind:
-                diags.error("E316", f"`{r.type}` is not an {'action' if kind == 'action' else 'service'} "
+                diags.error("E316", f"`{r.type}` is not {'an action' if kind == 'action' else 'a service'} "
                             f"type: `pkg/{kind}/Name`", r.type_span)
             try:
                 resolve_name(r.ros_name, s.namespace or "/" if ns_ok else "/", node)

@@ -36,3 +36,30 @@ def test_ros2_bench_quick_python(tmp_path: Path) -> None:
     assert snap["rounds"] == 5 and snap["median_ns"] > 0
     assert {t["target"].split(" ")[0] for t in fig["targets"]} == {"Python"}
     assert "load_average" in fig
+
+
+def test_ros2_rpc_bench_quick(tmp_path: Path) -> None:
+    """bench/ros2_rpc.py (issue 30): a Python component's call -> response and send_goal ->
+    accepted against the runtime's test servers, beside the bare Cyclone DDS request/reply
+    pair; every figure from real exchanges, the C++ column named and pending."""
+    out = tmp_path / "results.json"
+    p = subprocess.run([sys.executable, str(ROOT / "bench" / "ros2_rpc.py"), "--quick",
+                        "--json", str(out)], capture_output=True, text=True, timeout=300,
+                       cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-3000:] + p.stdout[-3000:]
+    fig = json.loads(out.read_text())["ros2_rpc"]
+    n = fig["exchanges"] - fig["warmup_dropped"]
+    for kind in ("call", "goal"):
+        lat = fig["latency"][kind]
+        assert set(lat) == {"bare cyclonedds", "Python", "C++"}
+        assert lat["C++"].startswith("pending")  # until C++ clients land (wt-cppact)
+        for label in ("bare cyclonedds", "Python"):
+            assert lat[label]["samples"] == n
+            assert 0 < lat[label]["p50_us"] <= lat[label]["p99_us"] <= lat[label]["max_us"]
+        assert 0 <= lat["Python"]["next_instant_percent"] <= 100
+        assert "next_instant_percent" not in lat["bare cyclonedds"]
+        ratio = fig["ratio_to_floor"][kind]["Python"]
+        assert ratio["p50"] == round(lat["Python"]["p50_us"] / lat["bare cyclonedds"]["p50_us"], 2)
+        assert fig["ratio_to_floor"][kind]["C++"].startswith("pending")
+    assert fig["targets"] == [] and "load_average" in fig
+    assert "send_goal -> accepted" in p.stdout

@@ -1,7 +1,8 @@
 """The automaton on ROS 2 (SPEC 5.4, docs/ros2.md "The automaton on ROS 2"): a component
 with `introspection: true` publishes yasmin_msgs/msg/StateMachine on /fsm_viewer and its
 JSON status on ~/hfsm/status; decoded here with rosbags from yasmin_msgs' .msg files, for
-a model with regions and a used file; off unless asked; bad settings refused."""
+a model with regions and a used file; the C++ twin's samples byte for byte the Python
+component's; off unless asked; bad settings refused."""
 
 from __future__ import annotations
 
@@ -17,11 +18,13 @@ from typing import Any
 import pytest
 
 from hfsmc.ros2.services import SHIPPED
+from tests.cppbuild import Superbuild
 from tests.ros2_support import ros2_domain
 from tests.support import hfsmc
 
 HERE = Path(__file__).resolve().parent
 MODEL = HERE / "ros2" / "models" / "introspect" / "watcher.yaml"
+CPP_MODEL = HERE / "ros2" / "models" / "introspect_cpp" / "watcher.yaml"
 LISTENER = HERE / "ros2" / "fsm_listener.py"
 STATUS_TOPIC = "/tb7/watcher/hfsm/status"
 
@@ -47,7 +50,8 @@ def rosbags_store() -> Any:
 
 def listen(folder: Path, component: list[str], domain: int, until_stop: bool = True
            ) -> list[tuple[str, bytes]]:
-    """Run the listener from ``folder``, then the component on ``domain``: every sample
+    """Run the listener from ``folder``, then the component (a Python component's file, or a
+    command) on ``domain``: every sample
     (until the component's last status, or, ``until_stop`` False, a moment after it ends)."""
     env = {**os.environ, "PYTHONPATH": str(folder), "ROS_DOMAIN_ID": str(domain)}
     listener = subprocess.Popen([sys.executable, str(LISTENER), str(domain), STATUS_TOPIC,
@@ -56,8 +60,8 @@ def listen(folder: Path, component: list[str], domain: int, until_stop: bool = T
     try:
         assert listener.stdout is not None
         assert json.loads(listener.stdout.readline()) == {"ready": True}
-        run = subprocess.run([sys.executable, *component], capture_output=True, text=True,
-                             timeout=60, env=env)
+        run = subprocess.run([sys.executable, *component] if component[0].endswith(".py")
+                             else component, capture_output=True, text=True, timeout=60, env=env)
         assert run.returncode == 0, run.stderr
         if not until_stop:
             time.sleep(0.5)
@@ -203,10 +207,65 @@ def test_the_key_in_yaml_and_xml_and_its_errors(tmp_path: Path) -> None:
     (tmp_path / "lib" / "leg.yaml").write_text(
         (MODEL.parent / "lib" / "leg.yaml").read_text().replace(
             "name: leg\n", "name: leg\nlanguage: cpp\n"))
-    bad = hfsmc("check", str(tmp_path / "cpp.yaml"))
-    assert bad.returncode == 1
-    assert "cpp.yaml:10:20: error[E312]: `introspection` of a ros2 interface is not " \
-        "supported in C++ models yet" in bad.stderr
+    good = hfsmc("check", str(tmp_path / "cpp.yaml"))  # C++ components have it too
+    assert good.returncode == 0, good.stderr
+
+
+def test_the_cpp_twin_publishes_the_python_components_bytes(component: Path,
+                                                           tmp_path: Path) -> None:
+    """The same model and instant give the same samples in both languages: every
+    configuration's StateMachine, and the JSON status of every instant both published (those
+    of the transitions and the last word, at least); each decoded with rosbags and written
+    again byte for byte (the encapsulation's options, which say how much padding DDS added,
+    and the padding aside)."""
+    sb = Superbuild(tmp_path / "build", [CPP_MODEL], build_type="Release")
+    exe = sb.executable(CPP_MODEL)
+    runs = {}
+    for lang, cmd in (("python", [str(component / "watcher.py")]),
+                      ("cpp", [str(exe), "--config", str(sb.folder(CPP_MODEL) / "watcher.yaml")])):
+        with ros2_domain() as dom:
+            runs[lang] = listen(component, cmd, dom)
+    store = rosbags_store()
+
+    def body(raw: bytes, type_name: str) -> bytes:
+        msg = store.deserialize_cdr(raw, type_name)
+        again = bytes(store.serialize_cdr(msg, type_name))
+        assert raw[:2] == again[:2] and raw[4:len(again)] == again[4:], type_name
+        assert set(raw[len(again):]) <= {0}
+        return again
+
+    machines: dict[str, list[bytes]] = {}
+    statuses: dict[str, dict[int, set[bytes]]] = {}
+    for lang, samples in runs.items():
+        machines[lang], statuses[lang] = [], {}
+        for topic, raw in samples:
+            if topic == "/fsm_viewer":
+                b = body(raw, "yasmin_msgs/msg/StateMachine")
+                if not machines[lang] or machines[lang][-1] != b:
+                    machines[lang].append(b)
+            else:
+                b = body(raw, "std_msgs/msg/String")
+                t = json.loads(store.deserialize_cdr(raw, "std_msgs/msg/String").data)["t"]
+                statuses[lang].setdefault(t, set()).add(b)
+    assert machines["cpp"] == machines["python"] and len(machines["cpp"]) == 7
+    common = statuses["cpp"].keys() & statuses["python"].keys()
+    assert {1500, 1800, 2100, 2200, 3000} <= common, sorted(common)
+    for t in sorted(common):
+        assert statuses["cpp"][t] == statuses["python"][t], t
+    last = store.deserialize_cdr(runs["cpp"][-1][1], "std_msgs/msg/String").data
+    assert json.loads(last)["stop"]["reason"] == "final"
+    # NAME.yaml turns it off (nothing on the wire), and a value that is no bool is refused
+    config = json.loads((sb.folder(CPP_MODEL) / "watcher.yaml").read_text().split("\n", 5)[-1])
+    config["interfaces"]["robot"]["introspection"] = False
+    (tmp_path / "off.yaml").write_text(json.dumps(config))
+    with ros2_domain() as dom:
+        assert listen(component, [str(exe), "--config", str(tmp_path / "off.yaml"),
+                                  "--until", "2s"], dom, until_stop=False) == []
+    config["interfaces"]["robot"]["introspection"] = "yes"
+    (tmp_path / "bad.yaml").write_text(json.dumps(config))
+    run = subprocess.run([str(exe), "--config", str(tmp_path / "bad.yaml"), "--until", "1s"],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2 and "`introspection: yes`: true or false" in run.stderr, run.stderr
 
 
 CLASH = """\

@@ -13,6 +13,7 @@ is computed here.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib.resources import files as resource_files
 
 import jinja2
 
@@ -23,6 +24,8 @@ from hfsmc.ros2.cpp_messages import cpp_message_files, cpp_type_name, header_pat
 from hfsmc.ros2.definitions import ros2_type_name
 from hfsmc.ros2files import used_messages
 
+# The introspection's observer (SPEC 5.4), copied only for a model that asks for it.
+INTROSPECTION_HEADER = "hfsmc/ros2_intro.hpp"
 # What the class of an interface has already: a subscription cannot take these names.
 BASE_MEMBERS = frozenset({
     "age", "count", "publishers", "subscribers", "malformed", "topic", "name", "publish",
@@ -59,6 +62,7 @@ class Ros2InterfaceView:
     topics: tuple[TopicView, ...]
     publish_types: tuple[tuple[str, str], ...]  # (pkg::msg::Name, the publications of it)
     rpc: RpcsView  # its actions and services
+    introspection: bool = False  # `introspection: true`: hfsmc/ros2_intro.hpp publishes the automaton
 
 
 def interface_class(name: str) -> str:
@@ -100,6 +104,7 @@ def interface_view(model: Model, i: Interface, base: str) -> Ros2InterfaceView:
         topics=topics,
         publish_types=tuple((k, ", ".join(v)) for k, v in by_type.items()),
         rpc=rpcs_view(r))
+        introspection=bool(r.introspection))
 
 
 def ros2_files(model: Model, env: jinja2.Environment, base: str) -> dict[str, str]:
@@ -116,4 +121,7 @@ def ros2_files(model: Model, env: jinja2.Environment, base: str) -> dict[str, st
     template = env.get_template("ros2_interface.hpp.j2")
     for i in ros:
         out[f"include/{interface_header(i.name)}"] = template.render(v=interface_view(model, i, base))
+    if any(i.ros2 is not None and i.ros2.introspection for i in ros):  # its yasmin_msgs too
+        out[f"include/{INTROSPECTION_HEADER}"] = resource_files("hfsmc.templates").joinpath(
+            "cpp", INTROSPECTION_HEADER).read_text("utf-8")
     return out

@@ -6,8 +6,9 @@ The definitions of a distro come from rosbags' stores (``rosbags.typesys.stores`
 from a hand-written copy; so do the RIHS01 type hashes (rosbags computes them as ROS 2
 does). The stores drop the default values that a few standard ``.msg`` files give
 (``geometry_msgs/Quaternion``'s ``w 1``): :data:`STANDARD_DEFAULTS` puts them back, each
-with the upstream line it comes from. A model's own ``.msg`` files are read line by line
-with rosbags' parser, so that a line that does not parse is reported at that line.
+with the upstream line it comes from. A model's own ``.msg``, ``.srv`` and ``.action``
+files are read line by line (hfsmc/ros2/msgfiles.py), so that a line that does not parse
+is reported at that line; their services and actions join the shipped ones.
 
 Only the closure of the types a model uses is described (:func:`message_set`): a model
 that subscribes to ``nav_msgs/msg/Odometry`` gets Odometry, Header, Time, PoseWithCovariance,
@@ -17,15 +18,18 @@ Pose, Point, Quaternion, TwistWithCovariance, Twist and Vector3, dependencies fi
 from __future__ import annotations
 
 import functools
-import keyword
 import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from hfsmc.errors import CheckError, Diagnostic, Diagnostics, Span, did_you_mean
 from hfsmc.ros2 import services
+from hfsmc.ros2.msgfiles import INTEGER_RANGES as INTEGER_RANGES
+from hfsmc.ros2.msgfiles import MsgFile as MsgFile
+from hfsmc.ros2.msgfiles import OwnFile, read_file
+from hfsmc.ros2.msgfiles import Scalar as Scalar
+from hfsmc.ros2.msgfiles import Value as Value
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -35,19 +39,12 @@ DEFAULT_DISTRO = "jazzy"
 
 Kind = Literal["primitive", "string", "wstring", "nested"]
 ArrayKind = Literal["none", "fixed", "bounded", "unbounded"]
-Scalar = bool | int | float | str
-Value = Scalar | tuple[Scalar, ...]
 
 # The primitive types of ROS 2's .msg syntax and their CDR size (= alignment) in bytes.
 # `byte` is IDL's octet, `char` IDL's uint8 (ROS 2's .msg-to-IDL mapping).
 PRIMITIVE_SIZES: dict[str, int] = {
     "bool": 1, "byte": 1, "char": 1, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2,
     "int32": 4, "uint32": 4, "int64": 8, "uint64": 8, "float32": 4, "float64": 8,
-}
-INTEGER_RANGES: dict[str, tuple[int, int]] = {
-    "byte": (0, 0xFF), "char": (0, 0xFF), "uint8": (0, 0xFF), "int8": (-0x80, 0x7F),
-    "uint16": (0, 0xFFFF), "int16": (-0x8000, 0x7FFF), "uint32": (0, 0xFFFF_FFFF),
-    "int32": (-0x8000_0000, 0x7FFF_FFFF), "uint64": (0, 2**64 - 1), "int64": (-(2**63), 2**63 - 1),
 }
 
 # Defaults that ROS 2's standard .msg files give and rosbags' stores drop (its parse trees
@@ -62,21 +59,6 @@ STANDARD_DEFAULTS: dict[str, dict[tuple[str, str], Scalar]] = {
     },
 }
 
-# Field names the generated Python or C++ could not carry (ROS 2 packages avoid them too).
-_CPP_KEYWORDS = """
-    alignas alignof and and_eq asm auto bitand bitor bool break case catch char char8_t
-    char16_t char32_t class compl concept const consteval constexpr constinit const_cast
-    continue co_await co_return co_yield decltype default delete do double dynamic_cast
-    else enum explicit export extern false float for friend goto if inline int long mutable
-    namespace new noexcept not not_eq nullptr operator or or_eq private protected public
-    register reinterpret_cast requires return short signed sizeof static static_assert
-    static_cast struct switch template this thread_local throw true try typedef typeid
-    typename union unsigned using virtual void volatile wchar_t while xor xor_eq"""
-_RESERVED = frozenset(keyword.kwlist) | frozenset(_CPP_KEYWORDS.split())
-_PACKAGE = re.compile(r"^[a-z](?:[a-z0-9]|_(?!_))*(?<!_)$")
-_MESSAGE = re.compile(r"^[A-Z][A-Za-z0-9]*$")
-_FIELD = re.compile(r"^[a-z](?:[a-z0-9]|_(?!_))*(?<!_)$")
-_CONSTANT = re.compile(r"^[A-Z](?:[A-Z0-9]|_(?!_))*(?<!_)$")
 _TYPE_NAME = re.compile(r"^([A-Za-z0-9_]+)/(?:(msg)/)?([A-Za-z0-9_]+)$")
 
 
@@ -173,14 +155,6 @@ class MessageSet:
         return tuple(sorted({m.module for m in self.messages}))
 
 
-@dataclass(frozen=True, slots=True)
-class MsgFile:
-    """A model's own ``.msg`` file: where it is, and how to name it in an error."""
-
-    path: Path
-    shown: str
-
-
 def ros2_type_name(name: str) -> str:
     """ROS 2's full name of a message type: ``geometry_msgs/Twist`` (ROS 1) and
     ``geometry_msgs/msg/Twist`` both give the latter; anything else comes back as it is."""
@@ -223,18 +197,20 @@ def message_set(distro: str, uses: Iterable[tuple[str, Span]],
             continue
         notes = [n for n in (did_you_mean(full, known),) if n]
         diags.error("E310", f"unknown ROS 2 message type `{name}` (distro {distro})", span, *notes)
-    srvs, acts = _interface_roots(distro, interfaces, roots, diags)
+    srvs, acts = _interface_roots(distro, store.own_interfaces, interfaces, roots, diags)
     if diags.has_errors:
         raise CheckError(diags.sorted())
     return MessageSet(distro, tuple(store.describe(n) for n in _closure(store, roots)),
                       srvs, acts)
 
 
-def _interface_roots(distro: str, interfaces: Iterable[tuple[str, Span]], roots: list[str],
-                     diags: Diagnostics) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The services and actions named (E316 for one hfsmc does not have), their
-    messages added to ``roots``; an action brings the cancel service and status topic."""
-    known = services.shipped(distro)
+def _interface_roots(distro: str, own: tuple[str, ...], interfaces: Iterable[tuple[str, Span]],
+                     roots: list[str], diags: Diagnostics
+                     ) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The services and actions named (E316 for one neither hfsmc nor the model's files
+    have), their messages added to ``roots``; an action brings the cancel service and
+    status topic."""
+    known = sorted({*services.shipped(distro), *own})
     srvs: set[str] = set()
     acts: set[str] = set()
     for name, span in interfaces:
@@ -270,7 +246,8 @@ class _Store:
     distro: str
     rosbags: Any  # a rosbags Typestore: the distro's, plus the model's own types
     defaults: dict[tuple[str, str], Value]  # (type, field) -> the .msg's default
-    origins: dict[str, str]  # type -> the .msg file it comes from (none for the distro's)
+    origins: dict[str, str]  # type -> the model's file it comes from (none for the distro's)
+    own_interfaces: tuple[str, ...] = ()  # the model's services and actions: pkg/srv/Name
 
     @property
     def known(self) -> tuple[str, ...]:
@@ -313,26 +290,49 @@ def _store_with(distro: str, msg_files: tuple[MsgFile, ...], diags: Diagnostics)
         return _Store(distro, base, defaults, {})
     store = get_typestore(Stores.ROS2_HUMBLE if distro == "humble" else Stores.ROS2_JAZZY)
     services.register(store, distro)
-    parsed = [p for f in msg_files if (p := _read_msg(f, diags)) is not None]
-    own = {p.name: p for p in parsed}
-    known = set(base.fielddefs) | set(own)
-    for p in parsed:
-        if p.name in base.fielddefs:
-            diags.error("E311", f"`{p.name}` is a standard message of {distro}: give the "
-                        "package another name", Span(p.file.shown, 1, 1))
-        for line, ref in p.refs:
-            if ref not in known:
-                notes = [n for n in (did_you_mean(ref, known),) if n]
-                diags.error("E311", f"unknown message type `{ref}`", Span(p.file.shown, line, 1),
-                            *notes)
+    parsed = [p for f in msg_files if (p := read_file(f, diags)) is not None]
+    _check_own(distro, base, parsed, diags)
     if diags.has_errors:
         raise CheckError(diags.sorted())
     from rosbags.typesys import get_types_from_msg
 
+    origins: dict[str, str] = {}
     for p in parsed:
-        store.register(get_types_from_msg(p.text, p.name))
-        defaults.update({(p.name, f): v for f, v in p.defaults.items()})
-    return _Store(distro, store, defaults, {p.name: p.file.shown for p in parsed})
+        if p.kind == "msg":
+            store.register(get_types_from_msg(p.text, p.name))
+        else:  # a service's or an action's messages, as rosidl derives them
+            store.register(services.types_of(p.name, p.text))
+            origins.update({n: p.file.shown for n in services.parts(p.name)})
+        for part in p.parts:
+            defaults.update({(part.name, f): v for f, v in part.defaults.items()})
+        origins[p.name] = p.file.shown
+    return _Store(distro, store, defaults, origins,
+                  tuple(sorted(p.name for p in parsed if p.kind != "msg")))
+
+
+def _check_own(distro: str, base: Any, parsed: list[OwnFile], diags: Diagnostics) -> None:
+    """E311 for a model's type named like a standard one or like another of its files,
+    and for a nested type (a field's) that neither the distro nor the model has."""
+    shipped = services.shipped(distro)
+    seen: dict[str, OwnFile] = {}
+    for p in parsed:
+        at = Span(p.file.shown, 1, 1)
+        if p.name in base.fielddefs or p.name in shipped:
+            kind = {"msg": "message", "srv": "service", "action": "action"}[p.kind]
+            diags.error("E311", f"`{p.name}` is a standard {kind} of {distro}: give the "
+                        "package another name", at)
+        if p.name in seen:
+            diags.error("E311", f"`{p.name}` is also defined by {seen[p.name].file.shown}", at)
+        seen.setdefault(p.name, p)
+    known = {n for n in base.fielddefs if "/msg/" in n} | {
+        p.name for p in parsed if p.kind == "msg"}
+    for p in parsed:
+        for part in p.parts:
+            for line, ref in part.refs:
+                if ref not in known:
+                    notes = [n for n in (did_you_mean(ref, known),) if n]
+                    diags.error("E311", f"unknown message type `{ref}`",
+                                Span(p.file.shown, line, 1), *notes)
 
 
 def _closure(store: _Store, roots: list[str]) -> list[str]:
@@ -378,129 +378,3 @@ def _field_type(desc: Any) -> FieldType:
     if base in ("string", "wstring"):
         return FieldType(base, base, int(bound), array, size)
     return FieldType("primitive", str(base), 0, array, size)
-
-
-# ---------------------------------------------------------------------------
-# a model's own .msg files
-
-
-@dataclass(frozen=True, slots=True)
-class _Parsed:
-    file: MsgFile
-    name: str
-    text: str
-    refs: tuple[tuple[int, str], ...]  # (line, nested type) as written, normalised
-    defaults: dict[str, Value]
-
-
-def _read_msg(f: MsgFile, diags: Diagnostics) -> _Parsed | None:
-    """Read one ``.msg`` file, line by line; None (with diagnostics) when it is wrong."""
-    from rosbags.typesys.base import Constant as RConstant
-    from rosbags.typesys.msg import MSGParser
-
-    start = len(diags)
-    where = Span(f.shown, 1, 1)
-    if f.path.suffix != ".msg" or f.path.parent.name != "msg":
-        diags.error("E311", "a message file is `PACKAGE/msg/Name.msg`", where)
-        return None
-    package, short = f.path.parent.parent.name, f.path.stem
-    if not _PACKAGE.match(package):
-        diags.error("E311", f"package `{package}` (the folder above msg/) is not a ROS 2 "
-                    "package name (lower case, digits, single underscores)", where)
-    if not _MESSAGE.match(short):
-        diags.error("E311", f"message name `{short}` is not CamelCase (`Detection`)", where)
-    try:
-        text = f.path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        diags.error("E311", f"cannot read the message file: {exc}", where)
-        return None
-    name = f"{package}/msg/{short}"
-    refs: list[tuple[int, str]] = []
-    defaults: dict[str, Value] = {}
-    names: set[str] = set()
-    for no, line in enumerate(text.splitlines(), 1):
-        span = Span(f.shown, no, len(line) - len(line.lstrip()) + 1)
-        try:
-            msgs = MSGParser(f"MSG: {name}\n{line}\n").specification()
-        except Exception:  # rosbags raises TypesysError (and a few others on odd input)
-            diags.error("E311", "not a ROS 2 .msg line: `TYPE NAME [DEFAULT]` or "
-                        "`TYPE NAME=VALUE`", span)
-            continue
-        items: list[Any] = [*msgs[0].constants, *msgs[0].fields]
-        for item in items:
-            if item.name in names:
-                diags.error("E311", f"`{item.name}` is defined twice", span)
-            names.add(item.name)
-            if isinstance(item, RConstant):
-                if not _CONSTANT.match(item.name):
-                    diags.error("E311", f"constant `{item.name}` is not UPPER_CASE", span)
-                _check_value(str(item.typ.value), item.value, span, diags)
-            else:
-                _read_field(item, no, span, diags, refs, defaults)
-    if len(diags) > start:
-        return None
-    return _Parsed(f, name, text, tuple(refs), defaults)
-
-
-def _read_field(item: Any, no: int, span: Span, diags: Diagnostics,
-                refs: list[tuple[int, str]], defaults: dict[str, Value]) -> None:
-    """One field line: its name, the nested type it names, its default."""
-    from rosbags.typesys.base import BaseType, Cardinality
-
-    if not _FIELD.match(item.name):
-        diags.error("E311", f"field `{item.name}` is not lower_case (ROS 2 field names)", span)
-    elif item.name in _RESERVED:
-        diags.error("E311", f"field `{item.name}` is a keyword of Python or C++: the generated "
-                    "messages could not have it", span)
-    ref = item.typ.ref
-    if not isinstance(ref, BaseType):
-        if ref.name.rsplit("/", 1)[-1] == "wstring":
-            diags.error("E311", "`wstring` is not supported yet (docs/ros2.md)", span)
-        else:
-            refs.append((no, ref.name))
-        if item.value is not None:
-            diags.error("E311", "a nested message has no default value", span)
-        return
-    if item.value is None:
-        return
-    base = str(ref.name.value)
-    if item.typ.cardinality == Cardinality.SCALAR:
-        _check_value(base, item.value, span, diags)
-        bound = int(item.typ.str_size)
-        if bound and isinstance(item.value, str) and len(item.value) > bound:
-            diags.error("E311", f"the default is longer than string<={bound}", span)
-        defaults[item.name] = item.value
-    elif not isinstance(item.value, list):
-        diags.error("E311", "an array's default is a list: `[1, 2]`", span)
-    else:
-        _check_array_default(item.typ, base, item.value, span, diags)
-        defaults[item.name] = tuple(item.value)
-
-
-def _check_array_default(typ: Any, base: str, value: list[Scalar], span: Span,
-                         diags: Diagnostics) -> None:
-    from rosbags.typesys.base import Cardinality
-
-    n = int(typ.size)
-    if typ.cardinality == Cardinality.ARRAY and len(value) != n:
-        diags.error("E311", f"the default has {len(value)} values for an array of {n}", span)
-    elif typ.cardinality == Cardinality.SEQUENCE and n and len(value) > n:
-        diags.error("E311", f"the default has {len(value)} values for at most {n}", span)
-    for v in value:
-        _check_value(base, v, span, diags)
-
-
-def _check_value(base: str, value: Any, span: Span, diags: Diagnostics) -> None:
-    """A default or constant value fits its type."""
-    if base in INTEGER_RANGES:
-        lo, hi = INTEGER_RANGES[base]
-        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            diags.error("E311", f"`{value}` is not a value of type {base} ({lo}..{hi})", span)
-    elif base == "bool":
-        if not isinstance(value, bool):
-            diags.error("E311", f"`{value}` is not a bool (true or false)", span)
-    elif base in ("float32", "float64"):
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            diags.error("E311", f"`{value}` is not a number", span)
-    elif not isinstance(value, str):
-        diags.error("E311", f"`{value}` is not a string (quote it)", span)

@@ -80,19 +80,27 @@ def derived(name: str, text: str) -> dict[str, str]:
     }
 
 
-def register(store: Any, distro: str) -> None:
-    """Register every shipped service's and action's messages in a rosbags store."""
+def types_of(name: str, text: str) -> dict[str, Any]:
+    """rosbags' descriptions of the messages ROS 2 makes of the service or action ``name``
+    whose ``.srv``/``.action`` text is ``text`` (to register in a rosbags store)."""
     from rosbags.typesys import get_types_from_msg
 
     types: dict[str, Any] = {}
+    for msg, part in derived(name, text).items():
+        if not any(line.split("#")[0].strip() for line in part.splitlines()):
+            types[msg] = ([], [])  # an empty section: rosbags' parser wants a line
+            continue
+        # a short nested name (`GoalInfo`) is of the same package, as in a .msg
+        pkg = msg.split("/")[0]
+        got = get_types_from_msg(part, f"{pkg}/msg/{msg.split('/')[-1]}")
+        for key, value in got.items():
+            types[msg if key == f"{pkg}/msg/{msg.split('/')[-1]}" else key] = value
+    return types
+
+
+def register(store: Any, distro: str) -> None:
+    """Register every shipped service's and action's messages in a rosbags store."""
+    types: dict[str, Any] = {}
     for name, path in shipped(distro).items():
-        for msg, text in derived(name, path.read_text(encoding="utf-8")).items():
-            if not any(line.split("#")[0].strip() for line in text.splitlines()):
-                types[msg] = ([], [])  # an empty section: rosbags' parser wants a line
-                continue
-            # a short nested name (`GoalInfo`) is of the same package, as in a .msg
-            pkg = msg.split("/")[0]
-            got = get_types_from_msg(text, f"{pkg}/msg/{msg.split('/')[-1]}")
-            for key, value in got.items():
-                types[msg if key == f"{pkg}/msg/{msg.split('/')[-1]}" else key] = value
+        types.update(types_of(name, path.read_text(encoding="utf-8")))
     store.register(types)

@@ -239,6 +239,7 @@ void EngineCore::instants() {
                     if (hooks) {
                         trace_values();
                         if (rec_) rec_->flush_tick();
+                        for (auto& o : observers_) o->after_instant();  // the instant ends here
                     }
                     return;
                 }
@@ -247,7 +248,10 @@ void EngineCore::instants() {
         if (hooks) {
             trace_values();
             if (rec_) rec_->flush_tick();
-            if (!observers_.empty()) sample();
+            if (!observers_.empty()) {
+                for (auto& o : observers_) o->after_instant();
+                sample();
+            }
         }
     }
 }

@@ -162,6 +162,9 @@ void Interface::configure(const Settings& settings, const char* distro) {
       }
     } else if (key.rfind("actions.", 0) == 0 || key.rfind("services.", 0) == 0) {
       rpc_settings_[key] = value;  // checked when the class declares its actions (rpc_decl)
+    } else if (key == "introspection") {  // may be turned off; on needs its messages generated
+      if (value != "true" && value != "false") fail(where + ": `introspection: " + value + "`: true or false");
+      introspection_ = value;
     } else if ((key == "url" || key.rfind("options", 0) == 0) && value.empty()) {
       // written empty by older files: nothing to change
     } else {
@@ -216,6 +219,11 @@ void Interface::start() {
            "` has no `" + entry + "` in the model: add it to the model and rebuild");
   }
   if (node_ && !rpc_.empty()) rpc_.attach(*node_);
+  if (introspection_ == "true" && introspect_ == nullptr)
+    fail("the configuration of interface `" + name_ + "`: `introspection: true`: the model does "
+         "not ask for it (its messages are not generated): change the model and rebuild");
+  if (node_ && introspect_ != nullptr && introspection_ != "false")
+    guard([&] { interface_observers().push_back(introspect_(*node_)); });
   if (node_) {
     guard([&] { node_->start(); });
     register_feed(this);
@@ -363,6 +371,7 @@ std::string Interface::feed_message(long long t_ms) {
       std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
   std::string subs, pubs;
   for (const Node::View& v : node_->views()) {
+    if (v.key[0] == '~') continue;  // the introspection's own writers (hfsmc/ros2_intro.hpp)
     const double rate = rates_.rate((v.publication ? "p/" : "s/") + v.key, now, v.count);
     std::string e = "{\"name\":" + json_string(v.key) + ",\"topic\":" + json_string(v.topic) +
                     ",\"type\":" + json_string(v.type);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <utility>
@@ -62,7 +63,17 @@ public:
                         long long overruns, double sim_rate) = 0;
     // After the `stop` record: say goodbye, flush, join threads.
     virtual void close() = 0;
+    // At the end of every instant (and of one a stop cut short), before its sample():
+    // a `ros2` interface's introspection publishes there when a state was entered or left.
+    virtual void after_instant() {}
 };
+
+// Observers an interface makes for itself (a `ros2` interface's introspection,
+// hfsmc/ros2_intro.hpp): main() hands them to the engine after those the flags ask for.
+inline std::vector<std::unique_ptr<Observer>>& interface_observers() {
+    static std::vector<std::unique_ptr<Observer>> v;
+    return v;
+}
 
 // A driver whose state a monitor sends to its viewers (schemas/monitor.md, minor version 1):
 // the `mavlink` vehicle, the `camera`. Each registers itself while it lives; the monitor's

@@ -147,6 +147,11 @@ class Interface : public Source, public simclock::Synced, private Feed {
   }
   /// After the declarations: the node joins the graph (with --playback: the script is read).
   void start();
+  /// `introspection: true` (docs/ros2.md "The automaton on ROS 2"): the generated class of a
+  /// model that asks for it gives, before start(), the maker of its observer
+  /// (hfsmc/ros2_intro.hpp); start() makes it on a live node unless NAME.yaml turned it off.
+  using IntrospectionMaker = std::unique_ptr<Observer> (*)(Node&);
+  void introspect(IntrospectionMaker make) { introspect_ = make; }
 
   /// Declare the action `key` of type A (`nav2_msgs::action::NavigateToPose`), ROS name
   /// `ros_name` (as written), time limit `timeout` s (< 0: none); NAME.yaml may change both.
@@ -297,6 +302,8 @@ class Interface : public Source, public simclock::Synced, private Feed {
   std::vector<std::string> written_;       // per declaration, its topic as written (the settings)
   int domain_given_ = -1;                  // the domain as set (-1: $ROS_DOMAIN_ID), for the recording
   std::unique_ptr<Node> node_;  // null with --playback
+  IntrospectionMaker introspect_ = nullptr;  // the model asks for introspection
+  std::string introspection_;  // NAME.yaml's `introspection` ("true", "false"), "" when not set
   bool feeding_ = false;        // registered as a Feed (a live node)
   ros2view::Rates rates_;       // the monitor thread's
   simclock::Client* sim_ = nullptr;

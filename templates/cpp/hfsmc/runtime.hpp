@@ -612,6 +612,7 @@ private:
             if constexpr (hooks) {
                 trace_values();
                 if (rec_) rec_->flush_tick();
+                for (auto& o : observers_) o->after_instant();
                 if (!stop_asked() && !observers_.empty()) sample();
             }
         }
@@ -681,6 +682,8 @@ int main(const Tables& tb, int argc, char** argv) {
         if (!s.options.trace.empty()) m->_hfsm.set_trace(open_trace(s.options));
         m->_hfsm.set_trace_variables(s.options.trace_variables);
         for (auto& observer : open_observers(s.options)) m->_hfsm.add_observer(std::move(observer));
+        for (auto& observer : interface_observers()) m->_hfsm.add_observer(std::move(observer));
+        interface_observers().clear();
         if (!s.options.record.empty()) s.record(tb, m->_hfsm_parameters_json());
         s.connect(tb);
     } catch (...) {  // a usage error, or an interface or a variable's initializer failed
