@@ -103,7 +103,7 @@ def interface_view(model: Model, i: Interface, base: str) -> Ros2InterfaceView:
         headers=tuple(dict.fromkeys(header_path(view.type) for view in topics)),
         topics=topics,
         publish_types=tuple((k, ", ".join(v)) for k, v in by_type.items()),
-        rpc=rpcs_view(r))
+        rpc=rpcs_view(r),
         introspection=bool(r.introspection))
 
 
