@@ -37,7 +37,6 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
-#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -133,20 +132,6 @@ struct Tables {
 struct Unavailable {
     Unavailable(const std::string&, const std::string&, const std::map<std::string, std::string>&) {}
 };
-
-// What an interface says when the component stops and it leaves something going: its
-// warning_at_stop() when it has one (every driver on hfsmc::Driver, driver.hpp: the
-// `mavlink` vehicle still armed), else "".
-template <class T, class = void>
-struct has_warning_at_stop : std::false_type {};
-template <class T>
-struct has_warning_at_stop<T, std::void_t<decltype(std::declval<const T&>().warning_at_stop())>>
-    : std::true_type {};
-template <class T>
-std::string warning_at_stop(const T& iface) {
-    if constexpr (has_warning_at_stop<T>::value) return iface.warning_at_stop();
-    else return std::string();
-}
 
 inline int exit_status(std::string_view reason) {
     if (reason == "sigint") return 130;
