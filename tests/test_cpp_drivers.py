@@ -24,7 +24,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, Any, ClassVar
 
 import numpy as np
 import pytest
@@ -278,7 +278,8 @@ def test_the_driver_base_records_typed_fields_as_the_python_base(include: Path,
 
     class Arm(base.Driver):  # type: ignore[misc, name-defined]
         KIND = "arm"
-        SNAPSHOT = {"at": (1.5, float("nan"), -2.0), "span": (3, 7), "acks": {}, "busy": True}
+        SNAPSHOT: ClassVar[dict[str, Any]] = {"at": (1.5, float("nan"), -2.0), "span": (3, 7),
+                                              "acks": {}, "busy": True}
 
     assert lines["schema"] == json.dumps(Arm.snapshot_schema())
     assert lines["warning"] == "still gripping"
