@@ -24,7 +24,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, Any, ClassVar
 
 import numpy as np
 import pytest
@@ -252,6 +252,38 @@ def test_headers_compile_clean_with_I_and_isystem(include: Path, tmp_path: Path)
                                 "-fsyntax-only", unit], capture_output=True, text=True,
                                timeout=120)
             assert r.returncode == 0 and r.stderr == "", (how, unit, r.stderr)
+
+
+def test_the_driver_base_records_typed_fields_as_the_python_base(include: Path,
+                                                                 tmp_path: Path) -> None:
+    """hfsmc/driver.hpp's typed fields (Numbers, Wholes, Texts: the mavlink driver's
+    vectors, mission and acks) give the JSON and the schema the Python base gives the same
+    SNAPSHOT; stop_warning() is what warning_at_stop() says; the base is a Synced."""
+    import importlib
+    import json
+
+    exe = tmp_path / "typed_fields"
+    r = subprocess.run([tool("g++"), *FLAGS, f"-I{include}", str(ROOT / "tests/cpp/typed_fields_main.cpp"),
+                        *library_sources(), "-o", str(exe)], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    out = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, check=True).stdout
+    lines = dict(line.split(" ", 1) for line in out.splitlines())
+    assert json.loads(lines["fields"]) == {"at": [1.5, "nan", -2.0], "span": [3, 7],
+                                           "acks": {"grip": "accepted", "home": "pending"},
+                                           "busy": True}
+    assert lines["fields"] == ('{"at":[1.5,"nan",-2.0],"span":[3,7],'
+                               '"acks":{"grip":"accepted","home":"pending"},"busy":true}')
+    base = importlib.import_module("hfsmc.templates.python.hfsmc_driver")
+
+    class Arm(base.Driver):  # type: ignore[misc, name-defined]
+        KIND = "arm"
+        SNAPSHOT: ClassVar[dict[str, Any]] = {"at": (1.5, float("nan"), -2.0), "span": (3, 7),
+                                              "acks": {}, "busy": True}
+
+    assert lines["schema"] == json.dumps(Arm.snapshot_schema())
+    assert lines["warning"] == "still gripping"
+    assert lines["lockstep"] == "0"
 
 
 # -- the drivers ----------------------------------------------------------------------------

@@ -37,14 +37,14 @@ RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")
-INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp"), "camera": ("camera.hpp", "driver.hpp"),
+INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp", "driver.hpp"), "camera": ("camera.hpp", "driver.hpp"),
                    "driver": ("driver.hpp",),
                    "ros2": ("ros2_interface.hpp", "ros2.hpp", "cdr.hpp", "ros2_wire.hpp",
                             "ros2view.hpp", "ros2_rpc.hpp")}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera, hfsmc_ros2): src/, beside
 # the runtime's; the library's first file names it.
-INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_mission.cpp", "hfsmc_mission_upload.cpp",
-                                 "hfsmc_px4.cpp"),
+INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_mavlink_link.cpp", "hfsmc_mavlink_commands.cpp",
+                                 "hfsmc_mission.cpp", "hfsmc_mission_upload.cpp", "hfsmc_px4.cpp"),
                      "camera": ("hfsmc_camera.cpp",),
                      "ros2": ("hfsmc_ros2.cpp", "hfsmc_ros2_wire.cpp", "hfsmc_ros2_interface.cpp",
                               "hfsmc_ros2_playback.cpp", "hfsmc_ros2_rpc.cpp")}

@@ -69,17 +69,17 @@ double distance(const Eigen::Vector3d& here, double lat, double lon, double alt)
 }  // namespace
 
 double Mavlink::distance_to(double north, double east, double alt) const {
-  evidence_.asked("distance_to", "position");
-  const double dn = north - snap_.position.x(), de = east - snap_.position.y();
+  snap("distance_to", "position");
+  const double dn = north - current().position.x(), de = east - current().position.y();
   if (std::isnan(alt)) return std::hypot(dn, de);
-  const double up = alt - snap_.altitude;
+  const double up = alt - current().altitude;
   return std::sqrt(dn * dn + de * de + up * up);
 }
 
 double Mavlink::distance_to_location(double lat, double lon, double alt) const {
-  evidence_.asked("distance_to_location", "location");
-  check_location(name_, lat, lon, std::isnan(alt) ? 0.0 : alt);
-  return distance(snap_.location, lat, lon, alt);
+  snap("distance_to_location", "location");
+  check_location(this->name(), lat, lon, std::isnan(alt) ? 0.0 : alt);
+  return distance(current().location, lat, lon, alt);
 }
 
 bool Mavlink::reached(double north, double east, double alt, double tolerance) const {
@@ -91,29 +91,29 @@ bool Mavlink::reached_location(double lat, double lon, double alt, double tolera
 }
 
 bool Mavlink::go_to(double north, double east, double alt, double heading) {
-  check_heading(name_, heading);
+  check_heading(this->name(), heading);
   std::string args = json_number(north) + "," + json_number(east) + "," + json_number(alt);
   if (!std::isnan(heading)) args += "," + json_number(heading);
-  sent("goto", "[" + args + "]");
+  tell("goto", "[" + args + "]");
   aim_ = Aim{1, north, east, alt};
   return go_local(north, east, alt, heading);
 }
 
 bool Mavlink::goto_location(double lat, double lon, double alt, double heading) {
-  check_location(name_, lat, lon, alt);
-  check_heading(name_, heading);
+  check_location(this->name(), lat, lon, alt);
+  check_heading(this->name(), heading);
   std::string args = json_number(lat) + "," + json_number(lon) + "," + json_number(alt);
   if (!std::isnan(heading)) args += "," + json_number(heading);
-  sent("goto_location", "[" + args + "]");
+  tell("goto_location", "[" + args + "]");
   aim_ = Aim{2, lat, lon, alt};
   return go_global(lat, lon, alt, heading);
 }
 
 bool Mavlink::set_yaw(double heading) {
-  check_heading(name_, heading);
+  check_heading(this->name(), heading);
   if (std::isnan(heading))
-    throw std::invalid_argument(name_ + ": set_yaw needs a heading in rad, not " + g(heading));
-  sent("set_yaw", "[" + json_number(heading) + "]");
+    throw std::invalid_argument(this->name() + ": set_yaw needs a heading in rad, not " + g(heading));
+  tell("set_yaw", "[" + json_number(heading) + "]");
   if (aim_.kind == 1) return go_local(aim_.a, aim_.b, aim_.alt, heading);
   if (aim_.kind == 2) return go_global(aim_.a, aim_.b, aim_.alt, heading);
   return target_local(MAV_FRAME_LOCAL_NED, kStopFacingMask, {0, 0, 0}, {0, 0, 0}, 0, heading);
@@ -121,12 +121,12 @@ bool Mavlink::set_yaw(double heading) {
 
 bool Mavlink::rtl(double alt) {
   if (std::isnan(alt)) {
-    sent("rtl", "[]");
+    tell("rtl", "[]");
   } else {
     if (!(alt > 0.0 && alt <= kMaxTarget))
-      throw std::invalid_argument(name_ + ": rtl altitude " + g(alt) + " m is not above home");
-    sent("rtl", "[" + json_number(alt) + "]");
-    if (inputs_ == nullptr && snap_.vehicle) send_rtl_altitude(alt);
+      throw std::invalid_argument(this->name() + ": rtl altitude " + g(alt) + " m is not above home");
+    tell("rtl", "[" + json_number(alt) + "]");
+    if (live() && current().vehicle) send_rtl_altitude(alt);
   }
   return command("rtl", "rtl", MAV_CMD_NAV_RETURN_TO_LAUNCH, {});
 }
@@ -139,9 +139,9 @@ bool Mavlink::go_local(double north, double east, double alt, double heading) {
 }
 
 bool Mavlink::go_global(double lat, double lon, double alt, double heading) {
-  if (!snap_.vehicle) return false;  // a stream of targets: nothing to say
+  if (!current().vehicle) return false;  // a stream of targets: nothing to say
   uint8_t system, component;
-  if (inputs_ != nullptr || !target(&system, &component)) return true;
+  if (!live() || !target(&system, &component)) return true;
   fence_check(lat, lon);
   const bool facing = !std::isnan(heading);
   px4::Target t;

@@ -100,28 +100,28 @@ bool inside(double lat, double lon, const std::vector<std::pair<double, double>>
 
 bool Mavlink::upload_mission(const std::vector<std::vector<double>>& points, const std::string& end) {
   if (end != "hold" && end != "land" && end != "rtl")
-    throw std::invalid_argument(name_ + ": upload_mission end `" + end + "` is not hold, land or rtl");
+    throw std::invalid_argument(this->name() + ": upload_mission end `" + end + "` is not hold, land or rtl");
   if (points.size() > kMaxPoints)
-    throw std::invalid_argument(name_ + ": upload_mission: " + std::to_string(points.size()) +
+    throw std::invalid_argument(this->name() + ": upload_mission: " + std::to_string(points.size()) +
                                 " points, more than " + std::to_string(kMaxPoints));
-  const bool px4 = snap_.autopilot == px4::kAutopilotPx4;
+  const bool px4 = current().autopilot == px4::kAutopilotPx4;
   Upload u;
   u.kind = kMission;
   if (!px4) {  // ArduPilot's item 0 is home (it writes its own there)
-    const bool ok = !std::isnan(snap_.home.x());
-    u.items.push_back({MAV_FRAME_GLOBAL, MAV_CMD_NAV_WAYPOINT, {0, 0, 0, 0}, ok ? e7(snap_.home.x()) : 0,
-                       ok ? e7(snap_.home.y()) : 0, ok ? static_cast<float>(snap_.home.z()) : 0.0f});
+    const bool ok = !std::isnan(current().home.x());
+    u.items.push_back({MAV_FRAME_GLOBAL, MAV_CMD_NAV_WAYPOINT, {0, 0, 0, 0}, ok ? e7(current().home.x()) : 0,
+                       ok ? e7(current().home.y()) : 0, ok ? static_cast<float>(current().home.z()) : 0.0f});
     u.users.push_back(-1);
   }
   for (std::size_t i = 0; i < points.size(); ++i) {
     const auto& p = points[i];
     if (p.size() != 3 && p.size() != 4)
-      throw std::invalid_argument(name_ + ": upload_mission point " + std::to_string(i) +
+      throw std::invalid_argument(this->name() + ": upload_mission point " + std::to_string(i) +
                                   " is {lat, lon, alt} or {lat, lon, alt, heading}, not " +
                                   std::to_string(p.size()) + " numbers");
-    check_point(name_, "upload_mission", "point", i, p[0], p[1], p[2]);
+    check_point(this->name(), "upload_mission", "point", i, p[0], p[1], p[2]);
     const double h = p.size() == 4 ? p[3] : std::nan("");
-    if (std::isinf(h)) throw std::invalid_argument(name_ + ": heading " + g(h) + " is not finite (upload_mission point " + std::to_string(i) + ")");
+    if (std::isinf(h)) throw std::invalid_argument(this->name() + ": heading " + g(h) + " is not finite (upload_mission point " + std::to_string(i) + ")");
     const double deg = std::isnan(h) ? h : std::fmod(std::fmod(h * 180.0 / kPi, 360.0) + 360.0, 360.0);
     if (!std::isnan(h) && !px4) {
       u.items.push_back({MAV_FRAME_MISSION, MAV_CMD_CONDITION_YAW, {static_cast<float>(deg), 0, 0, 0}, 0, 0, 0});
@@ -140,37 +140,37 @@ bool Mavlink::upload_mission(const std::vector<std::vector<double>>& points, con
     u.items.push_back({MAV_FRAME_MISSION, MAV_CMD_NAV_RETURN_TO_LAUNCH, {0, 0, 0, 0}, 0, 0, 0});
     u.users.push_back(-1);
   }
-  sent("upload_mission", "[" + points_json(points) + "," + json_string(end) + "]");
+  tell("upload_mission", "[" + points_json(points) + "," + json_string(end) + "]");
   return start_upload("upload_mission", std::move(u));
 }
 
 bool Mavlink::upload_fence(const std::vector<std::vector<double>>& vertices) {
   if (vertices.size() > kMaxPoints)
-    throw std::invalid_argument(name_ + ": upload_fence: " + std::to_string(vertices.size()) +
+    throw std::invalid_argument(this->name() + ": upload_fence: " + std::to_string(vertices.size()) +
                                 " points, more than " + std::to_string(kMaxPoints));
   if (!vertices.empty() && vertices.size() < 3)
-    throw std::invalid_argument(name_ + ": upload_fence needs at least 3 vertices, not " +
+    throw std::invalid_argument(this->name() + ": upload_fence needs at least 3 vertices, not " +
                                 std::to_string(vertices.size()));
   Upload u;
   u.kind = kFence;
   for (std::size_t i = 0; i < vertices.size(); ++i) {
     const auto& p = vertices[i];
     if (p.size() != 2)
-      throw std::invalid_argument(name_ + ": upload_fence vertex " + std::to_string(i) +
+      throw std::invalid_argument(this->name() + ": upload_fence vertex " + std::to_string(i) +
                                   " is {lat, lon}, not " + std::to_string(p.size()) + " numbers");
-    check_point(name_, "upload_fence", "vertex", i, p[0], p[1], 0.0);
+    check_point(this->name(), "upload_fence", "vertex", i, p[0], p[1], 0.0);
     u.items.push_back({MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
                        {static_cast<float>(vertices.size()), 0, 0, 0}, e7(p[0]), e7(p[1]), 0});
     u.polygon.emplace_back(e7(p[0]) / 1e7, e7(p[1]) / 1e7);
   }
-  sent("upload_fence", "[" + points_json(vertices) + "]");
+  tell("upload_fence", "[" + points_json(vertices) + "]");
   return start_upload("upload_fence", std::move(u));
 }
 
 bool Mavlink::enable_fence(bool on) {
-  sent("enable_fence", on ? "[true]" : "[false]");
-  if (snap_.autopilot != px4::kAutopilotPx4 || inputs_ != nullptr) {
-    if (snap_.autopilot != px4::kAutopilotPx4 && inputs_ == nullptr) {
+  tell("enable_fence", on ? "[true]" : "[false]");
+  if (current().autopilot != px4::kAutopilotPx4 || !live()) {
+    if (current().autopilot != px4::kAutopilotPx4 && live()) {
       std::lock_guard<std::mutex> lock(link_);
       fence_on_ = on;
     }
@@ -193,15 +193,15 @@ bool Mavlink::enable_fence(bool on) {
     }
     acks_["enable_fence"] = result;
   }
-  snap_.acks["enable_fence"] = "pending";
+  instant().acks["enable_fence"] = "pending";
   say(line);
   return true;
 }
 
 bool Mavlink::start_upload(const char* name, Upload u) {
-  snap_.acks[name] = snap_.vehicle ? "pending" : "not_sent";
-  if (inputs_ != nullptr) return snap_.vehicle;
-  if (!snap_.vehicle) {
+  instant().acks[name] = current().vehicle ? "pending" : "not_sent";
+  if (!live()) return current().vehicle;
+  if (!current().vehicle) {
     say(std::string(name) + ": not sent, no vehicle yet (no heartbeat)");
     std::lock_guard<std::mutex> lock(link_);
     acks_[name] = "not_sent";

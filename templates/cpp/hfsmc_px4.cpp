@@ -223,11 +223,11 @@ double Mavlink::now_s() const {  // as Python's driver counts: simulated µs / 1
 bool Mavlink::px4_mode(const std::string& name, uint32_t number) {
   const bool guided = number == px4::kOffboard;
   offboard_->want(guided);
-  if (guided && snap_.armed) {
+  if (guided && current().armed) {
     if (!offboard_->streaming()) hold();
     // the switch comes from the stream (last_ack("set_mode") says its answer)
-    snap_.acks["set_mode"] = snap_.vehicle ? "pending" : "not_sent";
-    return snap_.vehicle;
+    instant().acks["set_mode"] = current().vehicle ? "pending" : "not_sent";
+    return current().vehicle;
   }
   if (guided) {
     number = px4::kHold;

@@ -84,7 +84,7 @@ struct CameraSnap {
   static long long frame_number(const CameraSnap& s) { return s.count; }
 };
 
-class Camera : public Driver<CameraSnap>, public Feed, public simclock::Synced {
+class Camera : public Driver<CameraSnap>, public Feed {  // simclock::Synced through the base
  public:
   static constexpr const char* kDefaultUrl = "0";  // the first video device
   static constexpr double kBackoffMinS = 0.2;

@@ -1,5 +1,6 @@
-// hfsmc/driver.hpp: the base of a user's C++ driver (`type: driver`, docs/drivers.md).
-// Copied into a C++ component whose model names a driver of its own.
+// hfsmc/driver.hpp: the base of a C++ driver (`type: driver`, docs/drivers.md), the
+// built-in `mavlink` and `camera` drivers' too. Copied into a C++ component whose model
+// names a driver of its own, or the camera or a mavlink vehicle.
 //
 // The C++ twin of templates/python/hfsmc_driver.py. A driver derives from
 // hfsmc::Driver<Snap>, where Snap is a plain struct of the snapshot's fields with their
@@ -10,18 +11,31 @@
 // driver's), tells every command to the recording or the playback, and keeps the
 // options (the declared defaults under the model's and NAME.yaml's values).
 //
+// A field is a double, a long long, a bool or a std::string, or one of the typed kinds:
+// Numbers (a fixed array of doubles: an Eigen::Vector3d's data(); JSON [x, y, z]),
+// Wholes (a fixed array of whole numbers: [current, total]) and Texts (a map of names to
+// texts: the acks of commands; a JSON object, which a script's entry replaces whole).
+//
 // A query reads snap("query"); a command starts with `if (!command("name", args_json))
-// return;` (a fake sends nothing). The driver's own thread: start_thread(); its
-// destructor calls stop() first (the thread must end before the members it uses go).
+// return;` (a fake sends nothing). A command that checks its arguments and runs in a fake
+// too (what it calls to send does nothing there) tells them with tell(), and may change
+// the instant's snapshot until the next one with instant() (a pending ack). The driver's
+// own thread: start_thread(), which loops until stopping(); its destructor calls stop()
+// first (the thread must end before the members it uses go).
 //
 // Hooks a Snap may declare beside `fields` (the built-in camera's, hfsmc/camera.hpp):
 //   static bool extra(Snap&, const std::string& key, const json::Value&, int line,
 //                     const playback::Inputs&)  a script's key beside the fields (the
-//       camera's `frame` file and `crc32`): true when taken; a bad value throws InputError;
+//       camera's `frame` file and `crc32`): true when taken; a bad value throws InputError
+//       (returning true for every key ignores what the driver does not know: mavlink);
 //   static long long frame_number(const Snap&)  the number of the instant's image, which a
 //       replay notes with a frame the recording lacks.
-// And a driver may be made with Policy (options it does not know ignored, no fields
-// table in the live views when it shows something else) and override snapshot_taken().
+// And a driver may be made with Policy (options it does not know ignored, or all of them
+// kept as given for it to read and say itself; no fields table in the live views when it
+// shows something else: it is a Feed of its own) and override snapshot_taken(),
+// stop_warning() (what warning_at_stop() says when the component stops with the device
+// busy: the vehicle still armed) and simclock::Synced's lockstep_sent() and
+// lockstep_sync() once it has joined `hfsmc sim`'s lockstep with join_lockstep().
 #pragma once
 
 #include <atomic>
@@ -44,14 +58,31 @@
 #include "hfsmc/observer.hpp"
 #include "hfsmc/playback.hpp"
 #include "hfsmc/record.hpp"
+#include "hfsmc/simclock.hpp"
 #include "hfsmc/thread.hpp"
 
 namespace hfsmc {
 
+// A fixed array of numbers in a Snap (an Eigen::Vector3d's data()): a JSON array of `n`
+// numbers; `shape` names its items in a script's error ("[x, y, z]").
+struct Numbers {
+    double* at;
+    int n;
+    const char* shape = nullptr;
+};
+// A fixed array of whole numbers (a mission's [current, total]).
+struct Wholes {
+    long long* at;
+    int n;
+    const char* shape = nullptr;
+};
+// A map of names to texts (the acks of commands): a JSON object.
+using Texts = std::map<std::string, std::string>;
+
 // One snapshot field: its name and where it lives in a Snap.
 struct Field {
     const char* name;
-    std::variant<double*, long long*, bool*, std::string*> ref;
+    std::variant<double*, long long*, bool*, std::string*, Numbers, Wholes, Texts*> ref;
 };
 
 namespace detail {
@@ -67,24 +98,88 @@ struct has_frame_number : std::false_type {};
 template <class S>
 struct has_frame_number<S, std::void_t<decltype(S::frame_number(std::declval<const S&>()))>>
     : std::true_type {};
+
+// A field's value as the recording has it (the Python driver's JSON).
+inline std::string field_json(const Field& f) {
+    if (auto d = std::get_if<double*>(&f.ref)) return json_number(**d);
+    if (auto i = std::get_if<long long*>(&f.ref)) return std::to_string(**i);
+    if (auto b = std::get_if<bool*>(&f.ref)) return **b ? "true" : "false";
+    if (auto s = std::get_if<std::string*>(&f.ref)) return json_string(**s);
+    std::string out;
+    if (auto a = std::get_if<Numbers>(&f.ref)) {
+        for (int k = 0; k < a->n; ++k) out += (k == 0 ? "" : ",") + json_number(a->at[k]);
+        return "[" + out + "]";
+    }
+    if (auto w = std::get_if<Wholes>(&f.ref)) {
+        for (int k = 0; k < w->n; ++k) out += (k == 0 ? "" : ",") + std::to_string(w->at[k]);
+        return "[" + out + "]";
+    }
+    for (const auto& kv : *std::get<Texts*>(f.ref))
+        out += (out.empty() ? "" : ",") + json_string(kv.first) + ":" + json_string(kv.second);
+    return "{" + out + "}";
+}
+
+// A field's JSON Schema, as the Python driver's snapshot_schema() gives it.
+inline std::string field_schema(const Field& f) {
+    if (std::holds_alternative<double*>(f.ref)) return "{\"type\": [\"number\", \"string\"]}";
+    if (std::holds_alternative<long long*>(f.ref)) return "{\"type\": \"integer\"}";
+    if (std::holds_alternative<bool*>(f.ref)) return "{\"type\": \"boolean\"}";
+    if (std::holds_alternative<std::string*>(f.ref)) return "{\"type\": [\"string\", \"null\"]}";
+    if (std::holds_alternative<Texts*>(f.ref)) return "{}";
+    return "{\"type\": \"array\"}";
+}
+
+// A script's value over a field; a bad one throws InputError at `line`.
+inline void field_apply(const Field& f, const json::Value& v, int line, const playback::Inputs& in) {
+    const auto items = [&](int n, const char* shape, const char* of) {
+        if (v.kind != json::Value::ARRAY || v.items.size() != static_cast<std::size_t>(n))
+            in.bad(line, "`" + std::string(f.name) + "` must be " +
+                             (shape != nullptr ? std::string(shape) : "an array of " + std::to_string(n) + of));
+    };
+    if (auto d = std::get_if<double*>(&f.ref)) {
+        **d = in.number(v, f.name, line);
+    } else if (auto i = std::get_if<long long*>(&f.ref)) {
+        **i = in.whole(v, f.name, line);
+    } else if (auto b = std::get_if<bool*>(&f.ref)) {
+        **b = in.boolean(v, f.name, line);
+    } else if (auto s = std::get_if<std::string*>(&f.ref)) {
+        **s = in.text(v, f.name, line);
+    } else if (auto a = std::get_if<Numbers>(&f.ref)) {
+        items(a->n, a->shape, " numbers");
+        for (int k = 0; k < a->n; ++k) a->at[k] = in.number(v.items[k], f.name, line);
+    } else if (auto w = std::get_if<Wholes>(&f.ref)) {
+        items(w->n, w->shape, " integers");
+        for (int k = 0; k < w->n; ++k) w->at[k] = in.whole(v.items[k], f.name, line);
+    } else {
+        if (v.kind != json::Value::OBJECT) in.bad(line, "`" + std::string(f.name) + "` must be an object");
+        Texts& m = *std::get<Texts*>(f.ref);
+        m.clear();
+        for (const auto& kv : v.members) m[kv.first] = in.text(kv.second, f.name, line);
+    }
+}
 }  // namespace detail
 
 // How a driver is made beyond its declaration.
 struct Policy {
     bool ignore_unknown_options = false;  // the driver says them itself (the camera)
     bool fields_view = true;  // the live views show the fields (false: the driver feeds its own)
+    // The options as given, neither checked nor merged with the declared defaults: the
+    // driver reads them, says a bad or unknown one and goes on (mavlink); recorded so.
+    bool own_options = false;
 };
 
 template <class Snap>
-class Driver : public Source {
+class Driver : public Source, public simclock::Synced {
 public:
     using Options = std::map<std::string, std::string>;
 
     // `kind`: the declaration's kind; `declared`: each option and its default, as text.
     Driver(const char* kind, std::string name, std::string url, const Options& options,
            const Options& declared, Policy policy = Policy())
-        : kind_(kind), name_(std::move(name)), url_(std::move(url)), options_(declared) {
+        : kind_(kind), name_(std::move(name)), url_(std::move(url)),
+          options_(policy.own_options ? options : declared) {
         for (const auto& kv : options) {
+            if (policy.own_options) break;
             if (declared.count(kv.first) == 0 && policy.ignore_unknown_options) continue;
             if (declared.count(kv.first) == 0) {
                 std::string known;
@@ -104,6 +199,7 @@ public:
         if (policy.fields_view) view_.start(inputs_ == nullptr);
     }
     ~Driver() override {
+        leave_lockstep();
         unregister_source(this);
         stop();
     }
@@ -112,6 +208,23 @@ public:
 
     const std::string& name() const { return name_; }
     const std::string& url() const { return url_; }
+
+    // What the component says when it stops with the device left busy (the runtime calls
+    // it, a snippet may too; no replay notes it as a question): stop_warning(), "" for none.
+    std::string warning_at_stop() const {
+        evidence_.quiet(true);
+        struct Loud {
+            const playback::Evidence& e;
+            ~Loud() { e.quiet(false); }
+        } loud{evidence_};
+        return stop_warning();
+    }
+
+    // -- simclock::Synced: nothing to wait for unless the driver has joined the lockstep --
+    long long lockstep_sent() const override { return 0; }
+    std::string lockstep_sync(long long /*t_us*/, const simclock::Step& /*step*/) override {
+        return std::string();
+    }
 
     // -- Source: the snapshot of each instant -------------------------------------------
     const std::string& source_name() const override { return name_; }
@@ -145,26 +258,16 @@ public:
     std::string snapshot_fields() const override {
         Snap s = snap_;
         std::string out;
-        for (const Field& f : Snap::fields(s)) {
-            out += (out.empty() ? "\"" : ",\"") + std::string(f.name) + "\":";
-            if (auto d = std::get_if<double*>(&f.ref)) out += json_number(**d);
-            else if (auto i = std::get_if<long long*>(&f.ref)) out += std::to_string(**i);
-            else if (auto b = std::get_if<bool*>(&f.ref)) out += **b ? "true" : "false";
-            else out += json_string(*std::get<std::string*>(f.ref));
-        }
+        for (const Field& f : Snap::fields(s))
+            out += (out.empty() ? "\"" : ",\"") + std::string(f.name) + "\":" + detail::field_json(f);
         return out;
     }
     // The JSON Schema of the recorded snapshot: the text the Python driver's recording has.
     std::string snapshot_schema() const override {
         Snap s;
         std::string props = "\"t\": {\"type\": \"integer\"}";
-        for (const Field& f : Snap::fields(s)) {
-            const char* type = std::holds_alternative<double*>(f.ref)      ? "[\"number\", \"string\"]"
-                               : std::holds_alternative<long long*>(f.ref) ? "\"integer\""
-                               : std::holds_alternative<bool*>(f.ref)      ? "\"boolean\""
-                                                                           : "[\"string\", \"null\"]";
-            props += ", \"" + std::string(f.name) + "\": {\"type\": " + type + "}";
-        }
+        for (const Field& f : Snap::fields(s))
+            props += ", \"" + std::string(f.name) + "\": " + detail::field_schema(f);
         return "{\"title\": \"What the automaton saw of a " + std::string(kind_) +
                " during one instant\", \"type\": \"object\", \"properties\": {" + props + "}}";
     }
@@ -177,6 +280,9 @@ protected:
     // After each instant's snapshot (live or fed): what the driver derives from it.
     virtual void snapshot_taken() {}
 
+    // What warning_at_stop() says (the instant's snapshot at hand: current()); "": none.
+    virtual std::string stop_warning() const { return std::string(); }
+
     bool live() const { return inputs_ == nullptr; }
     // The instant's snapshot, for query `query` (a playback notes what it cannot answer),
     // which reads `field` (by default the field of the query's name; "frame": the image).
@@ -186,13 +292,23 @@ protected:
     }
     // The instant's snapshot, for the driver's own use (no query).
     const Snap& current() const { return snap_; }
+    // The instant's snapshot, which a command changes until the next instant (live and
+    // fed alike: a pending ack).
+    Snap& instant() { return snap_; }
     // A command: told to the recording (or the playback); false when it must not be sent.
     bool command(const char* call, const std::string& args_json) {
-        sent(call, args_json);
+        tell(call, args_json);
         return live();
     }
-    // One line on stderr, `NAME: text`.
-    void say(const std::string& text) const { std::fprintf(stderr, "%s: %s\n", name_.c_str(), text.c_str()); }
+    // A command that checked its own arguments: told to the recording (or the playback)
+    // as they are; what it then sends is the driver's (nothing when !live()).
+    void tell(const char* call, const std::string& args_json) { sent(call, args_json); }
+    // One line on stderr, `NAME: text`, in one write (lines of two threads never mix).
+    void say(const std::string& text) const {
+        const std::string line = name_ + ": " + text + "\n";
+        std::fwrite(line.data(), 1, line.size(), stderr);
+        std::fflush(stderr);
+    }
     void start_thread(std::function<void()> fn) { threads_.push_back(quiet_thread(std::move(fn))); }
     bool stopping() const { return stop_.load(); }
     // End the driver's threads; the derived destructor calls it first.
@@ -202,6 +318,23 @@ protected:
             if (t.joinable()) t.join();
         threads_.clear();
     }
+    // --clock sim, live: join `hfsmc sim`'s lockstep (before each instant the clock calls
+    // lockstep_sync(), which waits, bounded, for what the simulator says it sent); the
+    // simulator's clock, or nullptr on the wall clock. The base leaves it when it goes.
+    simclock::Client* join_lockstep() {
+        if (lockstep_ == nullptr && live() && simclock::current() != nullptr) {
+            lockstep_ = simclock::current();
+            lockstep_->add(this);
+        }
+        return lockstep_;
+    }
+    // Leave the lockstep (a derived destructor may, first).
+    void leave_lockstep() {
+        if (lockstep_ != nullptr && simclock::current() == lockstep_) lockstep_->remove(this);
+        lockstep_ = nullptr;
+    }
+    // The options: the declared ones with the model's values, or (Policy::own_options) as given.
+    const Options& options() const { return options_; }
     const std::string& option(const std::string& key) const { return options_.at(key); }
     double option_number(const std::string& key) const { return std::stod(option(key)); }
     // The names an option lists ("scan, odom", "[scan, odom]").
@@ -241,10 +374,7 @@ private:
             }
             if (f == nullptr) inputs_->bad(e.line, "the " + std::string(kind_) + " interface `" + name_ +
                                                        "` has no snapshot field `" + m.first + "`");
-            if (auto d = std::get_if<double*>(&f->ref)) **d = inputs_->number(m.second, f->name, e.line);
-            else if (auto i = std::get_if<long long*>(&f->ref)) **i = inputs_->whole(m.second, f->name, e.line);
-            else if (auto b = std::get_if<bool*>(&f->ref)) **b = inputs_->boolean(m.second, f->name, e.line);
-            else *std::get<std::string*>(f->ref) = inputs_->text(m.second, f->name, e.line);
+            detail::field_apply(*f, m.second, e.line, *inputs_);
         }
     }
 
@@ -290,7 +420,8 @@ private:
                     fields += (**i < (1LL << 53) && **i > -(1LL << 53)) ? std::to_string(**i)
                                                                          : json_string(std::to_string(**i));
                 else if (auto b = std::get_if<bool*>(&f.ref)) fields += **b ? "true" : "false";
-                else fields += json_string(cut(*std::get<std::string*>(f.ref)));
+                else if (auto s = std::get_if<std::string*>(&f.ref)) fields += json_string(cut(**s));
+                else fields += json_string(cut(printed(f)));
                 fields += "}";
             }
             return "{\"type\":\"driver\",\"t\":" + std::to_string(t_ms) + ",\"name\":" + json_string(name_) +
@@ -305,6 +436,24 @@ private:
             char b[32];
             std::snprintf(b, sizeof b, "%.6g", v);
             return b;
+        }
+        // A list or a map as Python prints the shown values: [1.5, nan, 3], {'arm': 'accepted'}.
+        static std::string printed(const Field& f) {
+            std::string out;
+            if (auto a = std::get_if<Numbers>(&f.ref)) {
+                for (int k = 0; k < a->n; ++k) {
+                    const double v = a->at[k];
+                    out += (k == 0 ? "" : ", ") + (std::isfinite(v) ? float_repr(std::stod(number(v))) : float_repr(v));
+                }
+                return "[" + out + "]";
+            }
+            if (auto w = std::get_if<Wholes>(&f.ref)) {
+                for (int k = 0; k < w->n; ++k) out += (k == 0 ? "" : ", ") + std::to_string(w->at[k]);
+                return "[" + out + "]";
+            }
+            for (const auto& kv : *std::get<Texts*>(f.ref))
+                out += (out.empty() ? "" : ", ") + string_repr(kv.first) + ": " + string_repr(kv.second);
+            return "{" + out + "}";
         }
         // At most 80 characters (code points): longer ends with an ellipsis.
         static std::string cut(const std::string& text) {
@@ -339,6 +488,7 @@ private:
     playback::Evidence evidence_;
     std::atomic<bool> stop_{false};
     std::vector<std::thread> threads_;
+    simclock::Client* lockstep_ = nullptr;  // joined with join_lockstep()
     View view_{kind_, name_};  // last: gone first
 };
 

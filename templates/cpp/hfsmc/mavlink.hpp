@@ -15,11 +15,16 @@
 // waits on the network: a query copies the state at hand, a command sends one
 // datagram on a non-blocking socket and returns.
 //
-// The automaton sees one snapshot per instant (docs/recording.md): the engine calls
-// take_snapshot() when an instant begins, and every query reads that copy. A command
-// is sent at once; its last_ack() says `pending` (or `not_sent`) until the next
-// snapshot. With --playback DIR the vehicle is a fake: no socket, no thread, its
-// snapshots from DIR/inputs.jsonl, its commands appended to DIR/commands.jsonl.
+// The driver is built on hfsmc::Driver<MavlinkSnap> (driver.hpp, docs/drivers.md), as a
+// user's driver is: the base takes the snapshot of each instant (docs/recording.md:
+// live, read() copies the state at hand; with --playback DIR the vehicle is a fake, with
+// no socket and no thread, its snapshots from DIR/inputs.jsonl), records it, tells every
+// command to the recording or the playback (DIR/commands.jsonl), keeps the options as
+// given (Policy::own_options: a bad or unknown one is said and replaced here), owns the
+// reader thread and joins the lockstep. Every query reads the instant's snapshot; a
+// command is sent at once, and its last_ack() says `pending` (or `not_sent`) until the
+// next snapshot. The live views show the vehicle panel (this class is a Feed of its
+// own: Policy::fields_view off), from the state at hand.
 //
 // Two mutexes, never held together and never while waiting: `state_` guards
 // the telemetry, `link_` the MAVLink parser and sender state, the socket's
@@ -32,9 +37,11 @@
 // replies). A URL that cannot be opened is said on stderr and the process
 // exits with status 1, as the Python driver's SystemExit(1) does.
 //
-// The class is declared here and defined in src/hfsmc_mavlink.cpp, compiled once
-// into the library hfsmc_mavlink: the component's unit sees neither mavgen's
-// headers nor the driver's code (docs/cpp.md, "Build speed").
+// The class is declared here and defined in src/hfsmc_mavlink*.cpp (the snapshot and
+// the queries; _link: the socket, the parser and the reader's work; _commands: what is
+// sent and its acks), hfsmc_mission*.cpp and hfsmc_px4.cpp, compiled once into the
+// library hfsmc_mavlink: the component's unit sees neither mavgen's headers nor the
+// driver's code (docs/cpp.md, "Build speed").
 /* hfsmc driver
 # The mavlink driver's declaration, as a user's C++ driver header carries one
 # (docs/drivers.md); tests/test_drivers_api.py compares it with the Python driver's
@@ -82,6 +89,7 @@ commands: ["set_mode(name)", "arm()", "disarm()", "takeoff(alt)", "land()", "rtl
 
 #include <Eigen/Core>
 
+#include "driver.hpp"
 #include "json.hpp"
 #include "observer.hpp"
 #include "playback.hpp"
@@ -95,7 +103,49 @@ struct __mavlink_status;  // mavlink_status_t
 
 namespace hfsmc {
 
-class Mavlink : public Feed, public Source, public simclock::Synced {
+// What the automaton sees of a vehicle during one instant (hfsmc.mavlink.Snapshot), in
+// the recording's order.
+struct MavlinkSnap {
+  static constexpr double kInf = std::numeric_limits<double>::infinity();
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  double heartbeat_age = kInf;
+  bool ready = false, armed = false;
+  std::string mode;
+  Eigen::Vector3d position{kNaN, kNaN, kNaN};
+  double altitude = kNaN;
+  Eigen::Vector3d velocity{kNaN, kNaN, kNaN};
+  double yaw = kNaN;
+  long long battery = -1;
+  std::map<std::string, std::string> acks;
+  bool vehicle = false;  // a vehicle has been heard: commands are sent
+  long long type = 0;  // its HEARTBEAT type (the mode names)
+  long long autopilot = 0;  // its HEARTBEAT autopilot (12: PX4's mode names and ways)
+  Eigen::Vector3d location{kNaN, kNaN, kNaN};
+  Eigen::Vector3d home{kNaN, kNaN, kNaN};
+  std::string status_text, battery_failsafe;
+  long long mission[2] = {0, 0};  // current, total
+  bool fence_breached = false;
+  std::string failsafe;
+
+  static std::vector<Field> fields(MavlinkSnap& s) {
+    return {{"heartbeat_age", &s.heartbeat_age}, {"ready", &s.ready}, {"armed", &s.armed},
+            {"mode", &s.mode}, {"position", Numbers{s.position.data(), 3, "[x, y, z]"}},
+            {"altitude", &s.altitude}, {"velocity", Numbers{s.velocity.data(), 3, "[x, y, z]"}},
+            {"yaw", &s.yaw}, {"battery", &s.battery}, {"acks", &s.acks}, {"vehicle", &s.vehicle},
+            {"type", &s.type}, {"autopilot", &s.autopilot},
+            {"location", Numbers{s.location.data(), 3, "[x, y, z]"}},
+            {"home", Numbers{s.home.data(), 3, "[x, y, z]"}}, {"status_text", &s.status_text},
+            {"battery_failsafe", &s.battery_failsafe},
+            {"mission", Wholes{s.mission, 2, "[current, total]"}},
+            {"fence_breached", &s.fence_breached}, {"failsafe", &s.failsafe}};
+  }
+  // Other keys of a script's entry (`t`, ...) are not part of what the automaton sees.
+  static bool extra(MavlinkSnap&, const std::string&, const json::Value&, int, const playback::Inputs&) {
+    return true;
+  }
+};
+
+class Mavlink : public Driver<MavlinkSnap>, public Feed {
  public:
   static constexpr const char* kDefaultUrl = "udpin:127.0.0.1:14550";
   static constexpr double kLinkTimeoutS = 2.0;   // no heartbeat for that long: link lost
@@ -113,53 +163,50 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
           const std::map<std::string, std::string>& options);
   ~Mavlink() override;
 
-  /// What the component says when it stops with the vehicle still armed (then nothing
-  /// lands it: --until, an error without on_interrupt...); "" when disarmed.
-  std::string warning_at_stop() const;
   Mavlink(const Mavlink&) = delete;
   Mavlink& operator=(const Mavlink&) = delete;
 
-  const std::string& name() const { return name_; }
-  const std::string& url() const { return url_; }
+  const std::string& name() const { return Driver::name(); }
+  const std::string& url() const { return Driver::url(); }
 
   // -- state: the snapshot of the instant (never waits on the network) ----------------
   /// A heartbeat from the vehicle within the last 2 s.
-  bool connected() const { evidence_.asked("connected", "heartbeat_age"); return snap_.heartbeat_age < kLinkTimeoutS; }
+  bool connected() const { return snap("connected", "heartbeat_age").heartbeat_age < kLinkTimeoutS; }
 
   /// Seconds since the vehicle's last heartbeat; +inf before the first.
-  double heartbeat_age() const { evidence_.asked("heartbeat_age", "heartbeat_age"); return snap_.heartbeat_age; }
+  double heartbeat_age() const { return snap("heartbeat_age").heartbeat_age; }
 
   /// The vehicle would accept GUIDED: connected, a 3D GPS fix, an absolute EKF position
   /// (while disarmed a predicted one will do; once armed not in constant-position mode).
-  bool ready() const { evidence_.asked("ready", "ready"); return snap_.ready; }
+  bool ready() const { return snap("ready").ready; }
 
   /// The vehicle's last heartbeat says its motors are armed.
-  bool armed() const { evidence_.asked("armed", "armed"); return snap_.armed; }
+  bool armed() const { return snap("armed").armed; }
 
   /// The flight mode's name (GUIDED, LAND, RTL, ...; PX4's names on PX4); "" before the
   /// first heartbeat.
-  std::string mode() const { evidence_.asked("mode", "mode"); return snap_.mode; }
+  std::string mode() const { return snap("mode").mode; }
 
   /// (north, east, down) in m from the EKF origin (LOCAL_POSITION_NED); NaN before any.
-  Eigen::Vector3d position() const { evidence_.asked("position", "position"); return snap_.position; }
+  Eigen::Vector3d position() const { return snap("position").position; }
 
   /// m above home (GLOBAL_POSITION_INT.relative_alt, else -down); NaN before any.
-  double altitude() const { evidence_.asked("altitude", "altitude"); return snap_.altitude; }
+  double altitude() const { return snap("altitude").altitude; }
 
   /// (vn, ve, vd) in m/s (LOCAL_POSITION_NED); NaN before any.
-  Eigen::Vector3d velocity() const { evidence_.asked("velocity", "velocity"); return snap_.velocity; }
+  Eigen::Vector3d velocity() const { return snap("velocity").velocity; }
 
   /// Heading in rad (ATTITUDE), 0 north, positive clockwise; NaN before any.
-  double yaw() const { evidence_.asked("yaw", "yaw"); return snap_.yaw; }
+  double yaw() const { return snap("yaw").yaw; }
 
   /// Battery remaining in percent (SYS_STATUS); -1 when unknown.
-  int battery() const { evidence_.asked("battery", "battery"); return snap_.battery; }
+  int battery() const { return static_cast<int>(snap("battery").battery); }
 
   /// (lat, lon) in degrees and m above home (GLOBAL_POSITION_INT); NaN before a GPS fix.
-  Eigen::Vector3d location() const { evidence_.asked("location", "location"); return snap_.location; }
+  Eigen::Vector3d location() const { return snap("location").location; }
 
   /// Home: (lat, lon) in degrees and m above mean sea level (HOME_POSITION); NaN before.
-  Eigen::Vector3d home() const { evidence_.asked("home", "home"); return snap_.home; }
+  Eigen::Vector3d home() const { return snap("home").home; }
 
   /// m from the vehicle to a local point (m from the EKF origin); with `alt` (m above
   /// home) in 3-D, else (NaN) horizontally. NaN before a position.
@@ -178,23 +225,26 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   bool reached_location(double lat, double lon, double alt, double tolerance = 1.0) const;
 
   /// The autopilot's latest STATUSTEXT (chunks joined); "" before any.
-  std::string status_text() const { evidence_.asked("status_text", "status_text"); return snap_.status_text; }
+  std::string status_text() const { return snap("status_text").status_text; }
 
   /// The battery's failsafe level (BATTERY_STATUS.charge_state): "" (none), low,
   /// critical, emergency, failed, unhealthy.
-  std::string battery_failsafe() const { evidence_.asked("battery_failsafe", "battery_failsafe"); return snap_.battery_failsafe; }
+  std::string battery_failsafe() const { return snap("battery_failsafe").battery_failsafe; }
 
   /// (index of the point being flown to, number of points) of the mission uploaded;
   /// (n, n) once its last point is reached (MISSION_CURRENT, MISSION_ITEM_REACHED).
-  std::pair<int, int> mission_progress() const { evidence_.asked("mission_progress", "mission"); return snap_.mission; }
+  std::pair<int, int> mission_progress() const {
+    const long long* m = snap("mission_progress", "mission").mission;
+    return {static_cast<int>(m[0]), static_cast<int>(m[1])};
+  }
 
   /// The vehicle says it is outside its fence (FENCE_STATUS).
-  bool fence_breached() const { evidence_.asked("fence_breached", "fence_breached"); return snap_.fence_breached; }
+  bool fence_breached() const { return snap("fence_breached").fence_breached; }
 
   /// A failsafe the driver meets, for the model to react to: "link_lost" (no heartbeat
   /// for 2 s), "offboard_lost" (PX4 left OFFBOARD by itself; until the model asks for a
   /// mode, a landing or RTL), "fence" (breached), "battery"; "" when none.
-  std::string failsafe() const { evidence_.asked("failsafe", "failsafe"); return snap_.failsafe; }
+  std::string failsafe() const { return snap("failsafe").failsafe; }
 
   /// The last outcome of a command (arm, disarm, takeoff, land, rtl, set_mode,
   /// upload_mission, upload_fence, enable_fence):
@@ -202,14 +252,10 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   /// pending, timeout, not_sent; "" when never sent.
   std::string last_ack(const std::string& command) const;
 
-  // -- Source: the snapshot of each instant ---------------------------------------------
-  const std::string& source_name() const override { return name_; }
-  const char* source_type() const override { return "mavlink"; }
-  std::string source_config() const override;
-  void take_snapshot(long long t_us) override;
-  std::string snapshot_fields() const override;
+  // -- Source: the base takes, records and plays back the snapshot ----------------------
+  std::string snapshot_schema() const override { return std::string(); }  // the built-in one
 
-  // -- simclock::Synced: lockstep with `hfsmc sim` (--clock sim) --------------------------
+  // -- simclock::Synced (joined through the base): lockstep with `hfsmc sim` (--clock sim)
   long long lockstep_sent() const override { return sent_; }
   std::string lockstep_sync(long long t_us, const simclock::Step& step) override;
 
@@ -273,15 +319,16 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
 
  private:
   using mavlink_message = ::__mavlink_message;
+  using Snap = MavlinkSnap;
   // -- for the monitor's viewers (Feed: private here, called through the base) -------
   const char* feed_kind() const override { return "vehicle"; }
-  std::string feed_name() const override { return name_; }
+  std::string feed_name() const override { return name(); }
   /// A `vehicle` message (schemas/monitor.md) from the state at hand: no request is sent.
   std::string feed_message(long long t_ms) override;
 
   using Clock = std::chrono::steady_clock;
-  static constexpr double kInf = std::numeric_limits<double>::infinity();
-  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  static constexpr double kInf = MavlinkSnap::kInf;
+  static constexpr double kNaN = MavlinkSnap::kNaN;
   // SET_POSITION_TARGET_LOCAL_NED.type_mask: a set bit means "ignore that field".
   static constexpr uint16_t kIgnorePosition = 0b0000'0000'0111;
   static constexpr uint16_t kIgnoreVelocity = 0b0000'0011'1000;
@@ -331,32 +378,13 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     bool fence_breached = false;  // FENCE_STATUS.breach_status
   };
 
-  struct Snap {  // what the automaton sees during one instant
-    double heartbeat_age = kInf;
-    bool ready = false, armed = false;
-    std::string mode;
-    Eigen::Vector3d position{kNaN, kNaN, kNaN};
-    double altitude = kNaN;
-    Eigen::Vector3d velocity{kNaN, kNaN, kNaN};
-    double yaw = kNaN;
-    int battery = -1;
-    std::map<std::string, std::string> acks;
-    bool vehicle = false;  // a vehicle has been heard: commands are sent
-    int type = 0;  // its HEARTBEAT type (the mode names)
-    int autopilot = 0;  // its HEARTBEAT autopilot (12: PX4's mode names and ways)
-    Eigen::Vector3d location{kNaN, kNaN, kNaN};
-    Eigen::Vector3d home{kNaN, kNaN, kNaN};
-    std::string status_text, battery_failsafe;
-    std::pair<int, int> mission{0, 0};
-    bool fence_breached = false;
-    std::string failsafe;
-  };
-
   /// The state at hand, as a snapshot (any thread).
   Snap live_snapshot() const;
-
-  /// A playback entry over `s` (schemas/recording.md); a bad value throws InputError.
-  void apply(Snap& s, const playback::Entry& e) const;
+  /// Live, when an instant begins: the state at hand.
+  void read(Snap& latest) override { latest = live_snapshot(); }
+  /// What warning_at_stop() says: the vehicle still armed (then nothing lands it:
+  /// --until, an error without on_interrupt...); "" when disarmed.
+  std::string stop_warning() const override;
 
   struct Mode {
     uint32_t number;
@@ -456,8 +484,8 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   std::string open_socket();
 
   // -- helpers -----------------------------------------------------------------------
-  double option(const std::map<std::string, std::string>& options, const std::string& key,
-                double fallback) const;
+  /// Option `key` as a positive number, else (said) `fallback`.
+  double positive_option(const std::string& key, double fallback) const;
   static ModeTable modes(uint8_t type);
   static std::string mode_name(uint8_t type, uint32_t custom);
   static std::string result_name(uint8_t result);
@@ -468,11 +496,7 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   static Clock::duration duration(double s) {
     return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
   }
-  void say(const std::string& text) const;
 
-  const std::string name_;
-  const std::string url_;
-  const std::map<std::string, std::string> options_;
   simclock::Client* sim_ = nullptr;  // --clock sim: no reader thread, simulated time
   long long sent_ = 0, received_ = 0;  // datagrams, for the lockstep
   Clock::time_point next_heartbeat_{};
@@ -480,11 +504,6 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
   Clock::time_point now() const;  // the simulated time in lockstep, else the steady clock
   void timed(Clock::time_point now);
   const Clock::time_point start_;
-  Snap snap_;  // the automaton's thread only
-  playback::Inputs* inputs_ = nullptr;  // --playback: the inputs that feed this fake
-  Snap fed_;  // with --playback: the entries applied so far
-  std::size_t next_ = 0;  // the next entry to apply
-  playback::Evidence evidence_;  // with --playback: what the inputs hold of this instant
   std::string autopilot_ = "auto";  // option `autopilot`: auto, ardupilot or px4
   std::atomic<bool> px4_{false};  // PX4 (the option, else the first heartbeat)
   std::unique_ptr<px4::Offboard> offboard_;
@@ -522,11 +541,6 @@ class Mavlink : public Feed, public Source, public simclock::Synced {
     std::map<uint64_t, int> count;
   };
   std::map<uint16_t, Recent> recent_;
-  std::atomic<bool> stop_{false};
-  std::thread reader_;
 };
-
-// Found by the generated class's _hfsm_warnings_at_stop() (runtime.hpp has the default).
-inline std::string warning_at_stop(const Mavlink& vehicle) { return vehicle.warning_at_stop(); }
 
 }  // namespace hfsmc

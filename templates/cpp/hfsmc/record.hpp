@@ -20,6 +20,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -84,6 +85,22 @@ protected:
     void sent(const char* call, const std::string& args);
     long long snapshot_t_ = 0;  // the time of the current snapshot, us
 };
+
+// What an interface says when the component stops and it leaves something going: its
+// warning_at_stop() when it has one (every driver on hfsmc::Driver, driver.hpp: the
+// `mavlink` vehicle still armed), else "".
+namespace detail {
+template <class T, class = void>
+struct has_warning_at_stop : std::false_type {};
+template <class T>
+struct has_warning_at_stop<T, std::void_t<decltype(std::declval<const T&>().warning_at_stop())>>
+    : std::true_type {};
+}  // namespace detail
+template <class T>
+std::string warning_at_stop(const T& iface) {
+    if constexpr (detail::has_warning_at_stop<T>::value) return iface.warning_at_stop();
+    else return std::string();
+}
 
 inline std::vector<Source*>& sources() {  // in the order the interfaces were made
     static std::vector<Source*> v;

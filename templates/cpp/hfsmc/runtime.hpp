@@ -133,11 +133,6 @@ struct Unavailable {
     Unavailable(const std::string&, const std::string&, const std::map<std::string, std::string>&) {}
 };
 
-// What an interface says when the component stops and it leaves something going (the
-// `mavlink` vehicle still armed: mavlink.hpp overloads this); "" for the others.
-template <class T>
-std::string warning_at_stop(const T&) { return std::string(); }
-
 inline int exit_status(std::string_view reason) {
     if (reason == "sigint") return 130;
     if (reason == "sigterm") return 143;
