@@ -17,9 +17,8 @@ In one run, in a ROS 2 domain no test holds meanwhile, on loopback (bench/ros2.p
    each round trip from its write to the reply's take on a WaitSet.
 
 It reports p50, p99 and max of each, and the component's p50 and p99 over the floor's.
-The C++ column: C++ action and service clients are another helper's work (wt-cppact); when
-they land, a twin model `ros2_rpc.cpp.yaml` joins `LANGS` below (bench/cpp.py's build_cpp
-builds it) and its figures fill the column that reads "pending" until then.
+The C++ row is the twin model bench/models/ros2_rpc.cpp.yaml (built Release by
+bench/cpp.py's build_cpp), against the same servers.
 
 Usage::
 
@@ -42,19 +41,19 @@ from pathlib import Path
 from typing import Any
 
 from component import busy_percent, cpu_counters  # bench/, beside this script
-from cpp import build_python
+from cpp import build_cpp, build_python
 from report import finish_targets, hfsmc_revision, loadavg, machine, table
 from ros2 import LOOPBACK, Procs, must_succeed, percentiles, ros2_domain
 
 HERE = Path(__file__).resolve().parent
 MODEL = HERE / "models" / "ros2_rpc.yaml"
+MODEL_CPP = HERE / "models" / "ros2_rpc.cpp.yaml"
 PEERS = HERE / "ros2_rpc_peers.py"
 WORK = HERE / "_work" / "ros2_rpc"
 KEY = "ros2_rpc"
 KINDS = ("call", "goal")  # call -> response; send_goal -> accepted
 PERIOD_MS = 1  # the client model's period: an answer is seen at an instant, never between
-LANGS = ("Python",)  # "C++" joins once C++ clients exist (wt-cppact): see the docstring
-PENDING = "pending: C++ action and service clients (wt-cppact)"
+LANGS = ("Python", "C++")
 
 
 @dataclass(frozen=True)
@@ -89,6 +88,8 @@ def figures_of(rows: list[list[int]]) -> dict[str, Any]:
 def measure(mode: Mode, log: Callable[[str], None]) -> dict[str, Any]:
     WORK.mkdir(parents=True, exist_ok=True)
     script = build_python(MODEL, WORK / "py")
+    exe = build_cpp(MODEL_CPP, WORK / "cpp").exe
+    command = {"Python": [sys.executable, str(script)], "C++": [str(exe)]}
     me = [sys.executable, str(PEERS)]
     runs: dict[str, dict[str, Any]] = {}
     with ros2_domain() as dom:
@@ -108,7 +109,7 @@ def measure(mode: Mode, log: Callable[[str], None]) -> dict[str, Any]:
                     ps.start("test servers", [*me, "servers", "--folder", str(script.parent),
                                               "--seconds", f"{budget:g}"])
                     client = ps.start(f"{label} component", [
-                        sys.executable, str(script), "--until", f"{budget:g}s",
+                        *command[label], "--until", f"{budget:g}s",
                         "--param", f"out={f}", "--param", f"n={mode.exchanges}"])
                 client.wait(timeout=budget + 30)
                 for _what, p in ps.procs:  # the servers are done once the client is
@@ -128,10 +129,8 @@ def measure(mode: Mode, log: Callable[[str], None]) -> dict[str, Any]:
     ratios: dict[str, Any] = {}
     for kind in KINDS:
         ratios[kind] = {lang: {q: round(runs[lang][kind][f"{q}_us"] / floor[kind][f"{q}_us"], 2)
-                               for q in ("p50", "p99")} if lang in runs else PENDING
-                        for lang in ("Python", "C++")}
-    return {"latency": {kind: {label: (runs[label][kind] if label in runs else PENDING)
-                               for label in ("bare cyclonedds", "Python", "C++")}
+                               for q in ("p50", "p99")} for lang in LANGS}
+    return {"latency": {kind: {label: runs[label][kind] for label in ("bare cyclonedds", *LANGS)}
                         for kind in KINDS},
             "machine_busy_percent": {label: r["machine_busy_percent"] for label, r in runs.items()},
             "ratio_to_floor": ratios, "exchanges": mode.exchanges, "warmup_dropped": mode.warmup,
@@ -140,7 +139,7 @@ def measure(mode: Mode, log: Callable[[str], None]) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="ROS 2 services and actions on loopback: call -> "
-                                 "response and goal -> accepted of a Python component against "
+                                 "response and goal -> accepted of Python and C++ components against "
                                  "a bare Cyclone DDS request/reply pair.")
     ap.add_argument("--quick", action="store_true", help="fewer exchanges")
     ap.add_argument("--json", type=Path, metavar="OUT",
@@ -165,17 +164,15 @@ def main(argv: list[str] | None = None) -> int:
         rows = []
         for label, f in figs["latency"][kind].items():
             ratio = figs["ratio_to_floor"][kind].get(label)
-            rows.append([label, PENDING if isinstance(f, str) else
-                         f"{f['p50_us']:g} / {f['p99_us']:g} / {f['max_us']:g}",
-                         "-" if label == "bare cyclonedds" or isinstance(ratio, str) else
-                         f"x{ratio['p50']:g}, x{ratio['p99']:g}",
-                         f"{f['next_instant_percent']:g} %" if isinstance(f, dict)
-                         and "next_instant_percent" in f else "-"])
+            rows.append([label, f"{f['p50_us']:g} / {f['p99_us']:g} / {f['max_us']:g}",
+                         "-" if ratio is None else f"x{ratio['p50']:g}, x{ratio['p99']:g}",
+                         f"{f['next_instant_percent']:g} %" if "next_instant_percent" in f
+                         else "-"])
         for line in table(rows, ["client", "latency", "over the floor", "next instant"]):
             log(line)
     figures: dict[str, Any] = {
         "description": "ROS 2 services and actions on loopback (Cyclone DDS): call -> "
-                       "response and send_goal -> accepted of a Python component (1 ms "
+                       "response and send_goal -> accepted of a Python and a C++ component (1 ms "
                        "period: to the snapshot that holds the answer) against the "
                        "runtime's test servers, beside a bare cyclonedds-python "
                        "request/reply pair on the same topics (the floor)",
