@@ -274,15 +274,17 @@ ROOM = "name: room\nseed: 1\nwalls:\n  - [[0, 0], [6, 0], [6, 4], [0, 4], [0, 0]
 def run_against_sim(tmp: Path, world: str, domain: int, component: Path, *args: str,
                     env: dict[str, str] | None = None) -> tuple[subprocess.CompletedProcess[str],
                                                                 dict[str, object]]:
-    """Start the simulator on ``domain``, run the component until it stops by itself
-    (bounded), stop the simulator: the component's run and the truth of the robots."""
+    """Start the simulator on ``domain``, run the component (a Python script, or a C++
+    executable) until it stops by itself (bounded), stop the simulator: the component's run
+    and the truth of the robots."""
     (tmp / "world.yaml").write_text(world)
     sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--robot", "diffdrive",
                             "--world", str(tmp / "world.yaml"), "--domain", str(domain),
                             "--truth", str(tmp / "truth.json")],
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        run = subprocess.run([sys.executable, str(component), "--until", "40s", *args],
+        command = [sys.executable, str(component)] if component.suffix == ".py" else [str(component)]
+        run = subprocess.run([*command, "--until", "40s", *args],
                              capture_output=True, text=True, timeout=90,
                              env={**os.environ, **(env or {})})
     finally:

@@ -24,7 +24,7 @@ from hfsmc.errors import Span
 from hfsmc.ros2.definitions import message_set, rosbags_store
 from tests.cppbuild import Superbuild
 from tests.ros2_support import NAV, ROOM, build_component, generate, ros2_domain, run_against_sim
-from tests.support import ROOT, hfsmc, interrupt
+from tests.support import ROOT, hfsmc
 
 MODELS = ROOT / "tests" / "ros2" / "models"
 NAV_CPP = MODELS / "nav_cpp" / "nav_cpp.yaml"
@@ -77,32 +77,15 @@ def nav_runs(build: Superbuild, tmp_path_factory: pytest.TempPathFactory) -> dic
         folder = tmp / lang
         folder.mkdir()
         with ros2_domain() as dom:
-            run, truth = _against_sim(folder, dom, exe, lang, "--record", str(folder / "run.mcap"))
+            run, truth = _against_sim(folder, dom, exe, "--record", str(folder / "run.mcap"))
         out[lang] = {"run": run, "truth": truth, "mcap": folder / "run.mcap"}
     out["py_model"] = tmp / "nav.yaml"
     return out
 
 
-def _against_sim(folder: Path, dom: int, exe: Path, lang: str, *args: str
+def _against_sim(folder: Path, dom: int, exe: Path, *args: str
                  ) -> tuple[subprocess.CompletedProcess[str], dict[str, object]]:
-    if lang == "python":
-        return run_against_sim(folder, WORLD, dom, exe, *args, env={"ROS_DOMAIN_ID": str(dom)})
-    (folder / "world.yaml").write_text(WORLD)
-    sim = subprocess.Popen([sys.executable, "-m", "hfsmc", "sim", "--robot", "diffdrive", "--world",
-                            str(folder / "world.yaml"), "--domain", str(dom), "--truth",
-                            str(folder / "truth.json")], stdout=subprocess.DEVNULL,
-                           stderr=subprocess.PIPE, cwd=ROOT)
-    try:
-        run = subprocess.run([str(exe), "--until", "40s", *args], capture_output=True, text=True,
-                             timeout=90, env={**os.environ, "ROS_DOMAIN_ID": str(dom)})
-    finally:
-        status = interrupt(sim, timeout=30)
-        assert sim.stderr is not None
-        err = sim.stderr.read().decode()
-        sim.stderr.close()
-    assert status == 0, err
-    truth = json.loads((folder / "truth.json").read_text())["robots"]
-    return run, truth
+    return run_against_sim(folder, WORLD, dom, exe, *args, env={"ROS_DOMAIN_ID": str(dom)})
 
 
 def test_a_cpp_model_resets_odometry_and_drives_to_the_pose(nav_runs: dict[str, Any]) -> None:

@@ -33,7 +33,8 @@ from hfsmc.ros2files import model_distro
 
 RUNTIME_FILES = ("runtime.hpp", "json.hpp", "observer.hpp", "thread.hpp", "view.hpp",
                  "viewstate.hpp", "address.hpp", "monitor.hpp", "mcap.hpp", "record.hpp",
-                 "playback.hpp", "jsonread.hpp", "jsonvalue.hpp", "simclock.hpp", "helpers.hpp")
+                 "playback.hpp", "jsonread.hpp", "jsonvalue.hpp", "simclock.hpp", "helpers.hpp",
+                 "base64.hpp")
 RUNTIME_SOURCE = "hfsmc_runtime.cpp"  # the automaton-independent part, one library
 # The library hfsmc_runtime: start-up, the engine's model-independent part, --record, JSON.
 RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsmc_json.cpp")

@@ -32,6 +32,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "hfsmc/camera.hpp"
+#include "hfsmc/base64.hpp"
 #include "hfsmc/mcap.hpp"  // crc32
 
 namespace hfsmc {
@@ -554,26 +555,6 @@ std::uint32_t Camera::pixels_crc(const cv::Mat& m) {
   const std::size_t row = static_cast<std::size_t>(m.cols) * m.elemSize();
   for (int y = 0; y < m.rows; ++y) crc = mcap::crc32(crc, m.ptr(y), row);
   return crc;
-}
-
-std::string Camera::base64(const std::vector<uchar>& data) {
-  static const char digits[] =
-      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((data.size() + 2) / 3 * 4);
-  std::size_t i = 0;
-  for (; i + 2 < data.size(); i += 3) {
-    const unsigned v = (data[i] << 16) | (data[i + 1] << 8) | data[i + 2];
-    out += {digits[v >> 18], digits[(v >> 12) & 63], digits[(v >> 6) & 63], digits[v & 63]};
-  }
-  if (i + 1 == data.size()) {
-    const unsigned v = data[i] << 16;
-    out += {digits[v >> 18], digits[(v >> 12) & 63], '=', '='};
-  } else if (i + 2 == data.size()) {
-    const unsigned v = (data[i] << 16) | (data[i + 1] << 8);
-    out += {digits[v >> 18], digits[(v >> 12) & 63], digits[(v >> 6) & 63], '='};
-  }
-  return out;
 }
 
 bool Camera::parse_size(const std::string& text, int* w, int* h) {

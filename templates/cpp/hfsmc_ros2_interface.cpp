@@ -8,6 +8,7 @@
 #include <thread>
 #include <utility>
 
+#include "hfsmc/base64.hpp"
 #include "hfsmc/json.hpp"
 #include "hfsmc/playback.hpp"
 #include "hfsmc/runtime.hpp"
@@ -19,24 +20,6 @@ namespace {
 
 constexpr double kMatchWaitS = 10.0;   // discovery between the simulator's nodes and ours
 constexpr double kSampleWaitS = 10.0;  // the samples a step names (schemas/lockstep.md)
-
-std::string base64(const std::vector<std::uint8_t>& data) {
-  static const char* const abc = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  std::size_t k = 0;
-  for (; k + 2 < data.size(); k += 3) {
-    const unsigned v = (data[k] << 16) | (data[k + 1] << 8) | data[k + 2];
-    out += {abc[v >> 18], abc[(v >> 12) & 63], abc[(v >> 6) & 63], abc[v & 63]};
-  }
-  if (k + 1 == data.size()) {
-    const unsigned v = data[k] << 16;
-    out += {abc[v >> 18], abc[(v >> 12) & 63], '=', '='};
-  } else if (k + 2 == data.size()) {
-    const unsigned v = (data[k] << 16) | (data[k + 1] << 8);
-    out += {abc[v >> 18], abc[(v >> 12) & 63], abc[(v >> 6) & 63], '='};
-  }
-  return out;
-}
 
 // `reliability=best_effort,durability=volatile,depth=5` (the model's three keys) or a
 // profile's name; what is not written keeps the default profile's value.

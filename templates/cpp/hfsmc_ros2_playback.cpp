@@ -17,49 +17,12 @@
 #include <utility>
 #include <vector>
 
+#include "hfsmc/base64.hpp"
 #include "hfsmc/playback.hpp"
 #include "hfsmc/ros2_interface.hpp"
 
 namespace hfsmc {
 namespace ros2 {
-
-namespace {
-
-// Strict base64 (as Python's b64decode(validate=True)): the alphabet, padding only at the end,
-// a length that is a multiple of 4. False when the text is not that.
-bool unbase64(const std::string& text, std::vector<std::uint8_t>& out) {
-  if (text.size() % 4 != 0) return false;
-  out.clear();
-  out.reserve(text.size() / 4 * 3);
-  unsigned acc = 0;
-  int bits = 0;
-  std::size_t pad = 0;
-  for (std::size_t k = 0; k < text.size(); ++k) {
-    const char c = text[k];
-    int v;
-    if (c >= 'A' && c <= 'Z') v = c - 'A';
-    else if (c >= 'a' && c <= 'z') v = c - 'a' + 26;
-    else if (c >= '0' && c <= '9') v = c - '0' + 52;
-    else if (c == '+') v = 62;
-    else if (c == '/') v = 63;
-    else if (c == '=' && k + 2 >= text.size()) v = -1;
-    else return false;
-    if (v < 0) {
-      ++pad;
-      continue;
-    }
-    if (pad > 0) return false;  // data after padding
-    acc = (acc << 6) | static_cast<unsigned>(v);
-    bits += 6;
-    if (bits >= 8) {
-      bits -= 8;
-      out.push_back(static_cast<std::uint8_t>((acc >> bits) & 0xFF));
-    }
-  }
-  return true;
-}
-
-}  // namespace
 
 void Interface::read_script() {
   const std::vector<playback::Entry>& entries = inputs_->entries(name_);

@@ -152,7 +152,6 @@ class Camera : public Driver<CameraSnap>, public Feed {  // simclock::Synced thr
   void record_frame() const;
   /// CRC-32 of a frame's pixels, row by row (zlib.crc32 of a numpy array's bytes).
   static std::uint32_t pixels_crc(const cv::Mat& m);
-  static std::string base64(const std::vector<uchar>& data);
 
   struct Grabber;  // the grabber thread's state (src/hfsmc_camera.cpp)
 

@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "hfsmc/base64.hpp"
 #include "hfsmc/jsonvalue.hpp"
 
 namespace hfsmc {
@@ -71,8 +72,8 @@ struct State {
 bool running(const std::string& goal_status);
 bool goal_status_known(const std::string& s);
 bool call_status_known(const std::string& s);
-std::string base64(const Bytes& data);
-bool unbase64(const std::string& text, Bytes& out);
+using hfsmc::base64;  // hfsmc/base64.hpp: the bytes a recording keeps as text
+using hfsmc::unbase64;
 
 class Client;  // one live action or service client (src/hfsmc_ros2_rpc.cpp)
 
