@@ -88,6 +88,7 @@ bench: setup
 	$(BIN)/python bench/realtime.py --json bench/results.json
 	$(BIN)/python bench/ros2.py --json bench/results.json
 	$(BIN)/python bench/ros2_rpc.py --json bench/results.json
+	$(BIN)/python bench/patrol.py --runs 3 --json bench/results.json
 	$(BIN)/python bench/record.py --json bench/results.json
 	$(BIN)/python bench/lockstep.py --json bench/results.json
 

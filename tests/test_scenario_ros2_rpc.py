@@ -1,7 +1,8 @@
 """`hfsmc test` scenarios that script action servers and service responses (docs/testing.md,
 "Action servers and service responses"): accepted with feedback over time then succeeded,
 rejected, aborted with its result, cancelled by the model, a server that appears late, no
-server then the time limit, a call answered late or never; every mistake at its place."""
+server then the time limit, a call answered late or never; each scenario run against the
+Python model and its C++ twin (the same file, the same outcome); every mistake at its place."""
 
 from __future__ import annotations
 
@@ -65,6 +66,62 @@ states:
   End: {final: true}
 """
 
+# The C++ twin of MODEL: the same states, log lines and commands.
+MODEL_CPP = """\
+hfsm: 1
+name: nav_cpp
+language: cpp
+imports: ["<cstdio>", "<string>"]
+parameters:
+  cancel_after: {type: float, default: -1.0}
+variables: {dist: -1.0}
+interfaces:
+  robot:
+    type: ros2
+    actions:
+      navigate: {name: navigate_to_pose, type: nav2_msgs/action/NavigateToPose, timeout: 3s}
+    services:
+      reset: {name: reset_odometry, type: std_srvs/srv/Trigger, timeout: 1s}
+functions: |
+  static std::string g(double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", v);
+    return text;
+  }
+initial: Reset
+states:
+  Reset:
+    entry: robot.call("reset", std_srvs::srv::Trigger::Request());
+    transitions:
+      - to: Go
+        when: robot.call_status("reset") == "done" && robot.response("reset")->success
+      - {to: Failed, when: robot.call_status("reset") == "timeout"}
+  Go:
+    entry: |
+      nav2_msgs::action::NavigateToPose::Goal goal;
+      goal.pose.pose.position.x = 2.0;
+      robot.send_goal("navigate", goal);
+    during: |
+      const auto* f = robot.feedback("navigate");
+      if (f != nullptr && f->distance_remaining != dist) {
+        dist = f->distance_remaining;
+        log("dist " + g(dist));
+      }
+      if (cancel_after >= 0 && elapsed() >= cancel_after && robot.goal_status("navigate") == "executing")
+        robot.cancel("navigate");
+    transitions:
+      - {to: Done, when: robot.goal_status("navigate") == "succeeded"}
+      - to: Failed
+        when: robot.goal_status("navigate") == "rejected" || robot.goal_status("navigate") == "aborted" || robot.goal_status("navigate") == "canceled" || robot.goal_status("navigate") == "timeout"
+  Failed:
+    entry: |
+      const auto* r = robot.result("navigate");
+      log(robot.goal_status("navigate") + " " + robot.call_status("reset") + " " + (r != nullptr ? std::to_string(r->error_code) : std::string("-")));
+    transitions: [{to: End, after: 100ms}]
+  Done: {final: true}
+  End: {final: true}
+"""
+
 RESET = "    - {at: 0s, reset: {response: {success: true}, after: 200ms}}\n"
 NAVIGATE = """\
     - at: 0s
@@ -77,13 +134,21 @@ NAVIGATE = """\
 """
 
 
-def run(tmp: Path, inputs: str, expect: str, params: str = "") -> subprocess.CompletedProcess[str]:
+def write(tmp: Path, name: str, inputs: str, expect: str, params: str = "") -> Path:
+    """A scenario of both twins (nav.yaml and nav_cpp.yaml beside it)."""
     (tmp / "nav.yaml").write_text(MODEL)
-    (tmp / "sc.yaml").write_text(f"model: nav.yaml\nuntil: 5s\n{params}inputs:\n  robot:\n"
-                                 f"{inputs}expect:\n{expect}")
-    return subprocess.run([sys.executable, "-m", "hfsmc", "test", str(tmp / "sc.yaml")],
-                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL,
-                          env={**os.environ, "XDG_CACHE_HOME": str(tmp / "cache")})
+    (tmp / "nav_cpp.yaml").write_text(MODEL_CPP)
+    (tmp / f"{name}.yaml").write_text(
+        f"model: {{python: nav.yaml, cpp: nav_cpp.yaml}}\nuntil: 5s\n{params}inputs:\n"
+        f"  robot:\n{inputs}expect:\n{expect}")
+    return tmp / f"{name}.yaml"
+
+
+def hfsmc_test(cache: Path, *scenarios: Path) -> subprocess.CompletedProcess[str]:
+    """`hfsmc test` of the scenarios, one build cache (the C++ twin is compiled once)."""
+    return subprocess.run([sys.executable, "-m", "hfsmc", "test", *map(str, scenarios)],
+                          capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
+                          env={**os.environ, "XDG_CACHE_HOME": str(cache)})
 
 
 CASES = {
@@ -114,34 +179,54 @@ CASES = {
 }
 
 
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """Every case's scenario run at once in both languages: (the cache, the output)."""
+    tmp = tmp_path_factory.mktemp("servers")
+    files = [write(tmp, case, inputs, expect, params)
+             for case, (inputs, params, expect) in CASES.items()]
+    r = hfsmc_test(tmp / "cache", *files)
+    return tmp / "cache", r.stdout + r.stderr
+
+
 @pytest.mark.parametrize("case", list(CASES))
-def test_a_scripted_server_answers_as_a_live_one(tmp_path: Path, case: str) -> None:
-    inputs, params, expect = CASES[case]
-    r = run(tmp_path, inputs, expect, params)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "sc.yaml::python PASSED" in r.stdout
+def test_a_scripted_server_answers_as_a_live_one_in_both_languages(runs: tuple[Path, str],
+                                                                   case: str) -> None:
+    out = runs[1]
+    assert f"{case}.yaml::python PASSED" in out, out
+    assert f"{case}.yaml::cpp PASSED" in out, out
 
 
-def test_a_scripted_server_can_fail_a_scenario(tmp_path: Path) -> None:
-    r = run(tmp_path, RESET + NAVIGATE.replace("after: 2s", "after: 2.5s"),
-            "  - {entered: Done, between: [2.2s, 2.2s]}\n")
+def test_a_scripted_server_can_fail_a_scenario_in_both_languages(
+        runs: tuple[Path, str], tmp_path: Path) -> None:
+    late = write(tmp_path, "late", RESET + NAVIGATE.replace("after: 2s", "after: 2.5s"),
+                 "  - {entered: Done, between: [2.2s, 2.2s]}\n")
+    # a rejected goal is not a canceled one: the C++ twin is held to the script as well
+    rejected = write(tmp_path, "rejected", RESET + "    - {at: 0s, navigate: {accept: false}}\n",
+                     "  - {log: canceled done 0, before: 1s}\n")
+    r = hfsmc_test(runs[0], late, rejected)
     assert r.returncode == 1, r.stdout + r.stderr
+    for name in ("late", "rejected"):
+        for lang in ("python", "cpp"):
+            assert f"{name}.yaml::{lang} FAILED" in r.stdout, r.stdout
 
 
-def problems(tmp: Path, inputs: str) -> list[str]:
+def problems(tmp: Path, inputs: str, model: str) -> list[str]:
     (tmp / "nav.yaml").write_text(MODEL)
-    (tmp / "sc.yaml").write_text(f"model: nav.yaml\nuntil: 5s\ninputs:\n  robot:\n{inputs}"
+    (tmp / "nav_cpp.yaml").write_text(MODEL_CPP)
+    (tmp / "sc.yaml").write_text(f"model: {model}\nuntil: 5s\ninputs:\n  robot:\n{inputs}"
                                  "expect:\n  - {entered: Done}\n")
     diags = Diagnostics()
     sc = read_scenario(str(tmp / "sc.yaml"), diags)
     assert sc is not None
-    result = compile_file(str(tmp / "nav.yaml"))
+    result = compile_file(str(tmp / model))
     assert result.model is not None
     check_against_model(sc, result.model, diags)
     return [f"{d.span.line}:{d.span.col}: {d.code} {d.message}" for d in diags.sorted()]
 
 
-def test_mistakes_are_found_at_their_place(tmp_path: Path) -> None:
+@pytest.mark.parametrize("model", ["nav.yaml", "nav_cpp.yaml"])
+def test_mistakes_are_found_at_their_place(tmp_path: Path, model: str) -> None:
     cases = {
         "navigate: {acept: false}": "5:27: E190 `acept` is not a key of a scripted action server",
         "navigate: {end: exploded}": "5:32: E193 `end` is one of succeeded, aborted (a cancel "
@@ -159,4 +244,4 @@ def test_mistakes_are_found_at_their_place(tmp_path: Path) -> None:
         "dock: {accept: true}": "5:16: E195 the ros2 interface `robot` subscribes to no `dock`",
     }
     for entry, said in cases.items():
-        assert problems(tmp_path, f"    - {{at: 0s, {entry}}}\n") == [said], entry
+        assert problems(tmp_path, f"    - {{at: 0s, {entry}}}\n", model) == [said], entry

@@ -41,14 +41,15 @@ RUNTIME_SOURCES = (RUNTIME_SOURCE, "hfsmc_engine.cpp", "hfsmc_record.cpp", "hfsm
 INTERFACE_FILES = {"mavlink": ("mavlink.hpp", "px4.hpp", "driver.hpp"), "camera": ("camera.hpp", "driver.hpp"),
                    "driver": ("driver.hpp",),
                    "ros2": ("ros2_interface.hpp", "ros2.hpp", "cdr.hpp", "ros2_wire.hpp",
-                            "ros2view.hpp", "ros2_rpc.hpp")}
+                            "ros2view.hpp", "ros2_rpc.hpp", "ros2_servers.hpp")}
 # A driver's code, one library each (hfsmc_mavlink, hfsmc_camera, hfsmc_ros2): src/, beside
 # the runtime's; the library's first file names it.
 INTERFACE_SOURCES = {"mavlink": ("hfsmc_mavlink.cpp", "hfsmc_mavlink_link.cpp", "hfsmc_mavlink_commands.cpp",
                                  "hfsmc_mission.cpp", "hfsmc_mission_upload.cpp", "hfsmc_px4.cpp"),
                      "camera": ("hfsmc_camera.cpp",),
                      "ros2": ("hfsmc_ros2.cpp", "hfsmc_ros2_wire.cpp", "hfsmc_ros2_interface.cpp",
-                              "hfsmc_ros2_playback.cpp", "hfsmc_ros2_rpc.cpp")}
+                              "hfsmc_ros2_playback.cpp", "hfsmc_ros2_rpc.cpp",
+                              "hfsmc_ros2_servers.cpp")}
 # What each driver's library links against, besides hfsmc_runtime.
 _DRIVER_LINKS = {"mavlink": "Eigen3::Eigen", "camera": "${OpenCV_LIBS}",
                  "ros2": "CycloneDDS::ddsc"}

@@ -311,6 +311,8 @@ const void* Interface::rpc_message(const rpc::Decl& d, const char* query, bool f
 
 void Interface::send_goal_bytes(const rpc::Decl& d, const std::vector<std::uint8_t>& cdr) {
   const double now = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  const std::size_t k = static_cast<std::size_t>(&d - rpc_.decls().data());
+  if (!node_ && servers_.scripted(k)) servers_.send(k, snapshot_t_);
   if (rpc_.send_goal(d, cdr, now))  // recorded as the instant saw it: a replay tells the same
     sent("cancel", "[" + json_string(d.key) + ",\"replaced\"]");
   sent("send_goal", "[" + json_string(d.key) + "," + json_string(base64(cdr)) + "]");
@@ -321,12 +323,15 @@ bool Interface::cancel(const std::string& name) {
   evidence_.asked("cancel", d.key.c_str());  // it reads the goal's status
   if (!rpc::running(rpc_.state(d).status)) return false;
   rpc_.cancel(d);
+  if (!node_) servers_.cancel(static_cast<std::size_t>(&d - rpc_.decls().data()), snapshot_t_);
   sent("cancel", "[" + json_string(d.key) + "]");
   return true;
 }
 
 void Interface::call_bytes(const rpc::Decl& d, const std::vector<std::uint8_t>& cdr) {
   const double now = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  const std::size_t k = static_cast<std::size_t>(&d - rpc_.decls().data());
+  if (!node_ && servers_.scripted(k)) servers_.send(k, snapshot_t_);
   rpc_.call(d, cdr, now);
   sent("call", "[" + json_string(d.key) + "," + json_string(base64(cdr)) + "]");
 }

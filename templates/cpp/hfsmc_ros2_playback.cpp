@@ -8,7 +8,9 @@
 // script (not `recorded`) a field left out follows the samples: `count` +1 per sample, `age`
 // the time since the latest sample's entry, `publishers` 1 from the first. A recorded
 // script's names the model does not have are left out, and what the model has and the
-// entry lacks is no evidence: a query of it is written to DIR/unanswered.jsonl.
+// entry lacks is no evidence: a query of it is written to DIR/unanswered.jsonl. A scenario's
+// `servers` (scripted action and service servers, hfsmc/ros2_servers.hpp) answer the goals
+// and calls the model sends.
 #include <algorithm>
 #include <cmath>
 #include <exception>
@@ -28,11 +30,18 @@ void Interface::read_script() {
   const std::vector<playback::Entry>& entries = inputs_->entries(name_);
   fed_.assign(decls_.size(), Fed{});
   fed_subscribers_.assign(decls_.size(), 0);
+  // A scenario's script: no server unless it scripts one. A script that gives the goals' and
+  // calls' values itself (a recording, or one written by hand) answers with those.
+  bool gives = false;
   for (const playback::Entry& e : entries) {
     std::vector<std::string> missing = e.unrecorded;
     script_.push_back(convert(e, missing));
     marks_.push_back(playback::Entry{e.t, e.line, json::Value{}, std::move(missing)});
+    for (const char* key : {"goals", "calls"})
+      if (const json::Value* v = e.values.get(key))
+        gives = gives || (v->kind == json::Value::OBJECT && !v->members.empty());
   }
+  servers_.start(rpc_.decls(), !inputs_->recorded() && !gives);
 }
 
 Interface::FedEntry Interface::convert(const playback::Entry& e, std::vector<std::string>& missing) const {
@@ -60,11 +69,14 @@ Interface::FedEntry Interface::convert(const playback::Entry& e, std::vector<std
     if (v->kind != json::Value::OBJECT) bad(std::string(what) + " must be a mapping");
     return v;
   };
-  FedEntry out{e.t, {}, {}, {}};
+  FedEntry out{e.t, {}, {}, {}, {}};
   for (const auto& m : e.values.members)
-    if (m.first != "subscriptions" && m.first != "subscribers" && m.first != "goals" && m.first != "calls")
+    if (m.first != "subscriptions" && m.first != "subscribers" && m.first != "goals" && m.first != "calls" &&
+        (recorded || m.first != "servers"))
       bad("the ros2 interface `" + name_ + "` has no snapshot field `" + m.first +
-          "` (subscriptions, subscribers, goals, calls)");
+          "` (subscriptions, subscribers, goals, calls" + (recorded ? ")" : ", servers)"));
+  if (const json::Value* v = e.values.get("servers"))
+    out.servers = rpc::Scripted::convert(*v, rpc_.decls(), bad);
   std::vector<bool> rpc_named(rpc_.decls().size(), false);
   for (const char* key : {"goals", "calls"}) {
     if (const json::Value* v = e.values.get(key)) {
@@ -165,8 +177,14 @@ void Interface::fake_snapshot(long long t_us) {
     }
     for (const auto& s : e.subscribers) fed_subscribers_[s.first] = s.second;
     rpc_.apply(e.rpcs);
+    servers_.hold(e.servers);
   }
   rpc_.fake_snapshot();
+  for (std::size_t k = 0; k < rpc_.decls().size(); ++k) {  // what the scripted servers answer
+    const rpc::Decl& d = rpc_.decls()[k];
+    rpc::State answered;
+    if (servers_.answer(k, d, t_us, answered)) rpc_.state(d) = std::move(answered);
+  }
   for (std::size_t k = 0; k < decls_.size(); ++k) {
     Snap& s = snap_[k];
     if (decls_[k].publication) {

@@ -31,7 +31,8 @@
 //   scans for the viewers that asked (hfsmc/ros2view.hpp, docs/web.md); a fake has none;
 // - actions and services (SPEC 5.3): the clients of hfsmc/ros2_rpc.hpp on the node's
 //   participant; their statuses, feedback, results and responses are part of the snapshot
-//   (recorded as `goals` and `calls`), send_goal, cancel and call are commands.
+//   (recorded as `goals` and `calls`), send_goal, cancel and call are commands; with
+//   --playback a scenario's scripted servers answer them (hfsmc/ros2_servers.hpp).
 #pragma once
 
 #include <cstdint>
@@ -50,6 +51,7 @@
 #include "hfsmc/record.hpp"
 #include "hfsmc/ros2.hpp"
 #include "hfsmc/ros2_rpc.hpp"
+#include "hfsmc/ros2_servers.hpp"
 #include "hfsmc/ros2view.hpp"
 #include "hfsmc/simclock.hpp"
 
@@ -166,6 +168,7 @@ class Interface : public Source, public simclock::Synced, private Feed {
              cdr::Traits<typename Impl::FeedbackMessage>::dds_type};
     d.feedback = decoder<typename A::Feedback>();
     d.result = decoder<typename A::Result>();
+    d.blank = blank<typename A::Result>;
     d.result_response = [](const std::uint8_t* p, std::size_t n) {
       auto r = cdr::deserialize<typename Impl::GetResultService::Response>(p, n);
       auto m = std::make_shared<const typename A::Result>(std::move(r.result));
@@ -179,6 +182,7 @@ class Interface : public Source, public simclock::Synced, private Feed {
     rpc::Decl d = rpc_decl(key, ros_name, timeout, false, S::type_name);
     d.dds = {cdr::Traits<typename S::Request>::dds_type, cdr::Traits<typename S::Response>::dds_type};
     d.response = decoder<typename S::Response>();
+    d.blank = blank<typename S::Response>;
     rpc_.declare(std::move(d));
   }
   /// Send `goal` to action `name` (a command): a goal still running is cancelled first.
@@ -252,6 +256,7 @@ class Interface : public Source, public simclock::Synced, private Feed {
     std::vector<Given> subs;
     std::vector<std::pair<std::size_t, int>> subscribers;  // declaration index, count
     std::vector<rpc::Rpcs::Given> rpcs;                      // goals and calls
+    rpc::Holding servers;                                    // a scenario's scripted servers
   };
   /// This instant's snapshot of one declaration (a fake's, or the node's copied).
   struct Snap {
@@ -276,6 +281,11 @@ class Interface : public Source, public simclock::Synced, private Feed {
       auto m = std::make_shared<const T>(cdr::deserialize<T>(p, n));
       return rpc::Decoded{m, std::make_shared<const rpc::Bytes>(cdr::serialize(*m)), 0};
     };
+  }
+  template <class T>
+  static rpc::Decoded blank() {
+    auto m = std::make_shared<const T>();
+    return rpc::Decoded{m, std::make_shared<const rpc::Bytes>(cdr::serialize(*m)), 0};
   }
   rpc::Decl rpc_decl(const char* key, const char* ros_name, double timeout, bool action, const char* type);
   const rpc::Decl& rpc_typed(const std::string& name, bool action, const char* method, const char* type) const;
@@ -321,6 +331,7 @@ class Interface : public Source, public simclock::Synced, private Feed {
   playback::Evidence evidence_;
   // actions and services
   rpc::Rpcs rpc_{name_};
+  rpc::Scripted servers_;  // --playback: a scenario's scripted servers
   Settings rpc_settings_;  // NAME.yaml's `actions.*` and `services.*`
   bool stopped_ = false;
 };

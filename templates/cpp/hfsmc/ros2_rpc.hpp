@@ -61,6 +61,7 @@ struct Decl {
   std::vector<std::string> dds;
   Decode feedback, result, result_response;  // an action's (standalone Feedback, Result)
   Decode response;                           // a service's
+  std::function<Decoded()> blank;            // the default Result (an action) or Response
 };
 
 /// The latest goal of an action or call of a service, as an instant sees it.
