@@ -58,6 +58,10 @@ def test_a_goal_is_accepted_gets_feedback_and_succeeds_and_a_call_is_done(tmp_pa
     assert r["feedback"] == 2.5 and r["result"] == [0, "done"]
     assert statuses(r["seen"], 1) == ["pending", "done"] and r["response"] == "ok"
     assert r["cancel_nothing"] is False  # a cancel with nothing running sends nothing
+    # before any goal or call: the statuses say none, a result or response read is None,
+    # and a cancel is False (nothing sent: the first request the server saw was the goal)
+    assert r["before"] == {"status": "none", "result": None, "feedback": None, "call": "none",
+                           "response": None, "cancel": False}
 
 
 def test_the_requests_are_rosbags_bytes_after_rmw_cyclonedds_cpps_header(tmp_path: Path) -> None:

@@ -47,6 +47,9 @@ def main() -> None:
             ep.reader.take = taking
     cli = client(1.5 if SCENARIO in ("no_server", "timeout") else None)
     cli.snapshot()
+    before = {"status": cli.goal_status("nav"), "result": cli.result("nav"),  # nothing sent yet
+              "feedback": cli.feedback("nav"), "call": cli.call_status("reset"),
+              "response": cli.response("reset"), "cancel": cli.cancel("nav")}
     goal = NavigateToPose.Goal(behavior_tree="bt")
     goal.pose.pose.position.x = 1.25
     cli.send_goal("nav", goal)
@@ -89,6 +92,7 @@ def main() -> None:
            "response": None if cli.response("reset") is None else cli.response("reset").message,
            "raw": raw, "client_ids": [cli._actions["nav"].send_ep.ident,
                                       cli._services["reset"].ep.ident],
+           "before": before,
            "cancel_nothing": cli.cancel("nav") if cli.goal_status("nav") not in rpc.RUNNING
            else None}
     print(json.dumps(out))
