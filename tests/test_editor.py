@@ -196,6 +196,23 @@ def test_edit_in_the_page(server: Server, model: Path, browsers: Callable[..., A
     page.css("#up")[0].click()
     page.until(lambda: page.has('g.state[data-path="Mission"]'))
 
+    # the tree: Mission folded hides its subtree, unfolded shows it; a search shows only
+    # the states whose path matches, and Enter opens the first one's automaton
+    shown = '#tree span[data-path="Mission/FollowBlue/Lost"]'
+    assert page.has(shown)
+    page.css('#tree b.fold[data-fold="Mission"]')[0].click()
+    page.until(lambda: not page.has(shown))
+    page.css('#tree b.fold[data-fold="Mission"]')[0].click()
+    page.until(lambda: page.has(shown))
+    page.css("#search")[0].send_keys("followblu")
+    page.until(lambda: [e.text for e in page.css("#tree span:not(.hidden)")] ==
+               ["FollowBlue", "Track", "Lost"])
+    page.css("#search")[0].send_keys(Keys.ENTER)
+    page.until(lambda: page.has('g.state.selected[data-path="Mission/FollowBlue"]'))
+    page.css("#search")[0].clear()
+    page.css("#up")[0].click()
+    page.until(lambda: page.has('g.state[data-path="Mission"]'))
+
     # a rename saved: only the lines naming it change, and the model checks clean
     page.state("LinkLost").click()
     page.keys(Keys.F2)

@@ -103,6 +103,8 @@ function crumbs() {
   parts.forEach((p, i) => add(p, parts.slice(0, i + 1).join("/")));
 }
 
+const folded = new Set();  // the composites whose subtree the tree hides (▸), until unfolded
+
 function tree() {
   const root = $("tree");
   root.textContent = "";
@@ -118,9 +120,18 @@ function tree() {
       if (worst(problemsOf(path)) === "error") span.classList.add("bad");
       if (q && !path.toLowerCase().includes(q)) span.classList.add("hidden");
       span.onclick = () => { sel = {kind: "state", path}; open(owner); };
+      const inner = model.automata[path];
+      if (inner) {  // a composite: ▾ folds its subtree, ▸ unfolds it (a search shows all)
+        const fold = document.createElement("b");
+        fold.className = "fold";
+        fold.dataset.fold = path;
+        fold.textContent = folded.has(path) ? "▸" : "▾";
+        fold.onclick = () => { folded.has(path) ? folded.delete(path) : folded.add(path); tree(); };
+        li.appendChild(fold);
+      }
       li.appendChild(span);
       ul.appendChild(li);
-      if (model.automata[path]) {
+      if (inner && (q || !folded.has(path))) {
         const sub = document.createElement("ul");
         li.appendChild(sub);
         build(path, sub);
