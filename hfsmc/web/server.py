@@ -1,9 +1,9 @@
 """``hfsmc view --web``: serve a page that draws a running component live.
 
 One aiohttp server, on loopback unless a host is named: ``/`` is the page,
-``/app.js`` and ``/app.css`` its own code (package data: nothing is fetched
-from elsewhere), ``/sub?state=PATH`` a composite state's sub-automaton drawn
-alone, ``/ws`` the WebSocket each page reads its messages from
+``/app.css`` and its scripts (SCRIPTS: ``/app.js`` and the parts it uses) its
+own code (package data: nothing is fetched from elsewhere), ``/sub?state=PATH``
+a composite state's sub-automaton drawn alone, ``/ws`` the WebSocket each page reads its messages from
 (docs/web.md). What a page sends is thrown away, but for a replay's controls. The monitor
 client and what the pages are told live in hfsmc/web/bridge.py.
 """
@@ -27,8 +27,12 @@ from hfsmc.web.trust import Trust, guard, headers, loopback_only
 
 MAX_PAGES = 64  # pages served at once; more WebSockets are closed at once
 WS_MESSAGE_LIMIT = 1 << 16  # a page sends nothing legitimate: a bigger frame closes its socket
-STATIC = {"": ("index.html", "text/html"), "app.js": ("app.js", "text/javascript"),
-          "ros2.js": ("ros2.js", "text/javascript"), "app.css": ("app.css", "text/css")}
+# The page's scripts, in index.html's order: page.js first (the parts' shared data), app.js
+# last (the connection and the messages, handed to the others).
+SCRIPTS = ("ros2.js", "page.js", "diagram.js", "states.js", "lists.js", "status.js", "feeds.js",
+           "replay.js", "app.js")
+STATIC = {"": ("index.html", "text/html"), "app.css": ("app.css", "text/css"),
+          **{name: (name, "text/javascript") for name in SCRIPTS}}
 # Only the page's own files and its WebSocket; the SVG is inline.
 CSP = ("default-src 'none'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
        "img-src 'self' data:; connect-src 'self'; base-uri 'none'; form-action 'none'; "
@@ -50,10 +54,8 @@ def make_app(bridge: Bridge, trust: Trust, log: TextIO | None = None) -> web.App
     app.on_response_prepare.append(headers)
     app[_BRIDGE] = bridge
     app[_FILES] = static_files()
-    app.router.add_get("/", _file)
-    app.router.add_get("/app.js", _file)
-    app.router.add_get("/ros2.js", _file)
-    app.router.add_get("/app.css", _file)
+    for route in STATIC:  # the fixed list: nothing else of the package is served
+        app.router.add_get("/" + route, _file)
     app.router.add_get("/ws", _socket)
     app.router.add_get("/sub", _sub)
     app.router.add_get("/favicon.ico", _no_icon)
