@@ -24,6 +24,7 @@ from typing import Any
 import pytest
 
 from hfsmc.commands.view import view
+from hfsmc.web.server import SCRIPTS
 from tests.support import (
     BLINKER,
     RECORDS,
@@ -82,7 +83,8 @@ def web(logged: Callable[..., Process], tmp_path: Path) -> Web:
 
 
 def test_every_route_needs_the_token_of_the_run(web: Web) -> None:
-    routes = ["/", "/app.js", "/app.css", "/sub?state=Blinking", "/favicon.ico", "/ws"]
+    scripts = [f"/{name}" for name in SCRIPTS]
+    routes = ["/", *scripts, "/app.css", "/sub?state=Blinking", "/favicon.ico", "/ws"]
     for path in routes:
         extra = HANDSHAKE if path == "/ws" else {}
         for cookie in ({}, {"Cookie": f"hfsmc-view-{web.port}=nope"},
@@ -99,7 +101,7 @@ def test_every_route_needs_the_token_of_the_run(web: Web) -> None:
     assert status == 303 and headers["Location"] == "/"
     assert headers["Set-Cookie"] == (f"hfsmc-view-{web.port}={web.token}; HttpOnly; Path=/; "
                                      "SameSite=Strict")
-    for path, want in (("/", 200), ("/app.js", 200), ("/app.css", 200),
+    for path, want in (("/", 200), *((script, 200) for script in scripts), ("/app.css", 200),
                        ("/sub?state=Blinking", 200), ("/sub?state=Nope", 404),
                        ("/favicon.ico", 204), ("/ws", 101)):
         extra = HANDSHAKE if path == "/ws" else {}
@@ -117,6 +119,25 @@ def test_every_route_needs_the_token_of_the_run(web: Web) -> None:
     assert "hfsmc view: refused GET /app.js: no token\n" in err
     assert err.count("refused GET /app.js: no token") == 1, err  # said once
     assert "warning" not in err  # on loopback: nothing to warn about
+
+
+def test_the_page_loads_the_scripts_served_and_nothing_else_is_served(web: Web) -> None:
+    html = (ROOT / "hfsmc/web/static/index.html").read_text()
+    loaded = re.findall(r"<script\b[^>]*>", html)
+    # Each script a file of its own (no inline code: the CSP allows none), in the server's order.
+    assert loaded == [f'<script src="{name}">' for name in SCRIPTS], loaded
+    assert loaded[-1] == '<script src="app.js">'  # the start, once the parts are defined
+    for name in SCRIPTS:
+        status, headers, text = web.ask(f"/{name}", {"Cookie": web.cookie})
+        assert status == 200 and headers["Content-Type"] == "text/javascript; charset=utf-8", name
+        assert "script-src 'self';" in headers["Content-Security-Policy"], name
+        assert text == (ROOT / "hfsmc/web/static" / name).read_text(), name
+        assert "eval(" not in text and "new Function" not in text, name
+    # The package's other files (the editor's page, its bundle, the Python) are not the
+    # view's: not served, even with the cookie.
+    for path in ("/editor.js", "/editor.html", "/index.html", "/server.py", "/static/app.js",
+                 "/vendor/codemirror.js", "/app.js/", "/APP.JS", "/page.js.map"):
+        assert web.ask(path, {"Cookie": web.cookie})[0] == 404, path
 
 
 def test_the_websocket_opens_only_for_the_page_s_own_origin(web: Web) -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from hfsmc.web.server import SCRIPTS
 from tests.conftest import ROOT
 
 
@@ -33,7 +34,7 @@ def test_wheel_contents(wheel: Path) -> None:
                      "hfsmc/templates/cpp/CMakeLists.txt.j2", "hfsmc/templates/cpp/hfsmc_runtime.cpp",
                      "hfsmc/templates/cpp/hfsmc/runtime.hpp", "hfsmc/templates/cpp/hfsmc/mavlink.hpp",
                      "hfsmc/web/server.py", "hfsmc/web/static/index.html",
-                     "hfsmc/web/static/app.js", "hfsmc/web/static/app.css",
+                     *(f"hfsmc/web/static/{name}" for name in SCRIPTS), "hfsmc/web/static/app.css",
                      "hfsmc/editor/server.py", "hfsmc/web/static/editor.html",
                      "hfsmc/web/static/editor.js", "hfsmc/web/static/vendor/codemirror.js"):
         assert required in names, f"{required} missing from {wheel.name}"
