@@ -82,6 +82,10 @@ def test_the_cpp_header_declares_the_same_methods(kind: str) -> None:
     body = header[header.index(f"class {cls} ") :]
     body = body[: body.index("\n};")]
     public = body.split("private:")[0]
+    if re.search(rf"class {cls} : public Driver<", header):  # and what its base offers
+        base = (TEMPLATES / "cpp/hfsmc/driver.hpp").read_text()
+        base = base[base.index("class Driver : ") :]
+        public += re.split(r"\n *(?:private|protected):", base[: base.index("\n};")])[0]
     for m in (*d.methods.values(),):
         name = CPP_NAMES.get(m.name, m.name)
         decl = re.search(rf"\b{name}\(([^)]*)\)", public)
