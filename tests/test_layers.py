@@ -49,25 +49,50 @@ def test_an_import_against_the_layers_is_refused(tmp_path: Path, module: str, li
     assert broken in " ".join(run.stdout.split()), run.stdout
 
 
+RUNTIME = ROOT / "templates" / "python"
+# The Python runtime's core, top to bottom (docs/architecture.md): each imports only those
+# below it; `|` separates modules of one layer that import neither each other nor those above.
+RUNTIME_LAYERS = ("hfsmc_main", "hfsmc_load", "hfsmc_runtime", "hfsmc_trace | hfsmc_traceback")
+
+
+def imports(path: Path) -> list[tuple[int, str]]:
+    """(line, top-level module) of every import in ``path``, at any depth."""
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(ast.parse(path.read_text("utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.level:
+            names = [node.module or a.name for a in node.names]  # from . import x
+        elif isinstance(node, ast.ImportFrom):
+            names = [node.module or ""]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        else:
+            continue
+        found += [(node.lineno, name.split(".")[0]) for name in names]
+    return found
+
+
 def test_the_runtime_modules_import_nothing_of_hfsmc() -> None:
     """templates/python/*.py are copied into every component, which runs without hfsmc:
     they import the standard library, optional packages, and each other only."""
-    runtime = ROOT / "templates" / "python"
-    own = {p.stem for p in runtime.glob("*.py")}
-    found: list[str] = []
-    for path in sorted(runtime.glob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text("utf-8"))):
-            if isinstance(node, ast.ImportFrom) and node.level:
-                names = [node.module or a.name for a in node.names]  # from . import x
-            elif isinstance(node, ast.ImportFrom):
-                names = [node.module or ""]
-            elif isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            else:
-                continue
-            for name in names:
-                top = name.split(".")[0]
-                if top == "hfsmc" or (top.startswith("hfsmc_") and top not in own):
-                    found.append(f"{path.name}:{node.lineno}: {name}")
+    own = {p.stem for p in RUNTIME.glob("*.py")}
+    found = [f"{path.name}:{line}: {top}" for path in sorted(RUNTIME.glob("*.py"))
+             for line, top in imports(path)
+             if top == "hfsmc" or (top.startswith("hfsmc_") and top not in own)]
     assert own >= {"hfsmc_runtime", "hfsmc_monitor", "hfsmc_view"}
     assert found == []
+
+
+def test_the_runtime_core_imports_go_one_way() -> None:
+    """The engine imports neither the command line nor the loading of used files; the
+    loading does not import the command line; the trace and the reports import none."""
+    layers = [[m.strip() for m in layer.split("|")] for layer in RUNTIME_LAYERS]
+    core = {m for layer in layers for m in layer}
+    wrong: list[str] = []
+    for k, layer in enumerate(layers):
+        allowed = {m for below in layers[k + 1:] for m in below}
+        for module in layer:
+            for line, top in imports(RUNTIME / f"{module}.py"):
+                if top in core and top not in allowed:
+                    wrong.append(f"{module}.py:{line}: imports {top}")
+    assert wrong == []
+    assert len(core) == 5 and all((RUNTIME / f"{m}.py").is_file() for m in core)

@@ -101,7 +101,7 @@ def component_flags() -> list[str]:
     """The flags a component takes, read from the Python runtime's argument parser
     (the C++ component takes the same ones)."""
     try:
-        text = files("hfsmc.templates.python").joinpath("hfsmc_runtime.py").read_text("utf-8")
+        text = files("hfsmc.templates.python").joinpath("hfsmc_main.py").read_text("utf-8")
     except OSError:
         return []
     return list(dict.fromkeys(re.findall(r"add_argument\(\s*\"(--[a-z][a-z-]*)\"", text)))

@@ -26,7 +26,8 @@ from hfsmc.pycheck import import_statement
 from hfsmc.ros2.python_messages import python_message_files
 from hfsmc.ros2files import used_messages
 
-RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py",
+RUNTIME_FILES = ("hfsmc_runtime.py", "hfsmc_trace.py", "hfsmc_traceback.py", "hfsmc_load.py",
+                 "hfsmc_main.py", "hfsmc_interfaces.py", "hfsmc_viewstate.py", "hfsmc_view.py",
                  "hfsmc_terminal.py", "hfsmc_monitor.py", "hfsmc_ros2view.py", "hfsmc_driverview.py",
                  "hfsmc_record.py", "hfsmc_playback.py", "hfsmc_simclock.py", "hfsmc_helpers.py")
 INTERFACE_FILES = {"mavlink": ("hfsmc_mavlink.py", "hfsmc_mavlink_link.py",
@@ -133,7 +134,7 @@ class TransitionPaths:
 
 @dataclass(frozen=True, slots=True)
 class PythonInstanceView:
-    """An instance of a used file: the arguments of ``hfsmc_runtime.load_instance``."""
+    """An instance of a used file: the arguments of ``hfsmc_load.load_instance``."""
 
     number: int  # `_hfsm_i{number}`
     module: str  # its file's module, beside the component: `_hfsm_use_NAME`
