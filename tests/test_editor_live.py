@@ -7,6 +7,8 @@ refused or taken in-process."""
 from __future__ import annotations
 
 import asyncio
+import io
+import os
 import shutil
 import signal
 import sys
@@ -18,6 +20,7 @@ from typing import Any
 import pytest
 
 from hfsmc.edit.text import EditError
+from hfsmc.editor.build import Run
 from hfsmc.editor.server import Editor
 from tests.support import ROOT, Process, build_blinker, free_port, hfsmc, needs_browser, wait_until
 from tests.test_editor import EDIT_URL, Page, Server
@@ -263,3 +266,69 @@ def test_bad_monitor_arguments(tmp_path: Path) -> None:
     for bad, said in (("nope:x", "--monitor: "), ("0", "port 0 is not a component's port")):
         r = hfsmc("edit", str(model), "--monitor", bad)
         assert r.returncode in (1, 2) and said in r.stderr and "Traceback" not in r.stderr
+
+
+SLOW_LANDING = """\
+hfsm: 1
+name: slow
+description: Flies until asked to stop, then lands for LANDING.
+on_interrupt: Landing
+period: 50ms
+initial: Flying
+states:
+  Flying:
+    during: pass
+  Landing:
+    transitions:
+      - {to: Down, after: LANDING}
+  Down:
+    final: true
+"""
+
+
+@pytest.mark.parametrize(("landing", "second_ctrl_c"), [("2s", False), ("60s", True)])
+def test_the_editor_waits_for_its_runs_landing(tmp_path: Path, landing: str,
+                                               second_ctrl_c: bool) -> None:
+    """The editor stopping ends its run as Ctrl+C ends `hfsmc run`: the run's on_interrupt
+    is waited for (a landing is never cut short) and said; only a second Ctrl+C kills it,
+    with the warning that a vehicle may be left armed."""
+    model = tmp_path / "slow.yaml"
+    model.write_text(SLOW_LANDING.replace("LANDING", landing))
+
+    async def go() -> tuple[str, int | None, list[str]]:
+        lines: list[str] = []
+        monitor = asyncio.Event()
+
+        async def on_lines(got: list[dict[str, Any]]) -> None:
+            lines.extend(x["text"] for x in got)
+
+        async def on_monitor(_host: str, _port: int) -> None:
+            monitor.set()
+
+        async def on_end(_status: int) -> None:
+            return None
+
+        run = Run(model, on_lines, on_monitor, on_end)
+        await run.start()
+        await asyncio.wait_for(monitor.wait(), 60)
+        await asyncio.sleep(1.0)  # flying: its instants run (the announcement comes first)
+        log = io.StringIO()
+        closing = asyncio.ensure_future(run.close(log))
+        for _ in range(400):
+            if "waiting for the run" in log.getvalue() or closing.done():
+                break
+            await asyncio.sleep(0.05)
+        assert "Ctrl+C again kills it" in log.getvalue(), (log.getvalue(), lines[-6:], run.status)
+        assert run.running  # still landing: not killed
+        if second_ctrl_c:
+            os.kill(os.getpid(), signal.SIGINT)  # the editor's second Ctrl+C (its loop's)
+        await asyncio.wait_for(closing, 60)
+        return log.getvalue(), run.status, lines
+
+    said, status, lines = asyncio.run(go())
+    if second_ctrl_c:
+        assert status == -signal.SIGKILL
+        assert "run killed (SIGKILL): a vehicle it drove may still be armed" in said
+    else:
+        assert status == 130, lines  # landed: on_interrupt reached its final state
+        assert "killed" not in said

@@ -2,8 +2,10 @@
 ``hfsmc run MODEL -- --monitor 127.0.0.1:0`` does, in the model's folder, its stdout and
 stderr lines passed to the page, its monitor port read from its own announcement, Stop
 as Ctrl+C (SIGINT: the component goes through ``on_interrupt``), then, asked again, a
-kill. One run at a time; the run ends when the editor ends. The page gives no argument:
-the command line is fixed here.
+kill. One run at a time; the run ends when the editor ends, as `hfsmc run` ends on Ctrl+C:
+the editor waits for its `on_interrupt` (a landing is never cut short), and kills it only on
+a second Ctrl+C, saying that a vehicle may be left armed. The page gives no argument: the
+command line is fixed here.
 
 And the C++ check at save: g++ ``-fsyntax-only`` over the generated code, as ``hfsmc
 check`` does for a ``language: cpp`` model."""
@@ -26,7 +28,7 @@ from hfsmc.errors import Diagnostic
 
 LOG_LINES = 2000  # kept for a page opened late; older lines are dropped
 LINE_LIMIT = 4000  # characters of one line shown; the rest is cut
-QUIT_S = 5.0  # when the editor stops: SIGINT, then this long before SIGKILL
+KILLED = "run killed (SIGKILL): a vehicle it drove may still be armed, or moving"
 _ANNOUNCE = re.compile(r"^monitor: listening on (\S+):(\d+)$")
 
 
@@ -104,19 +106,36 @@ class Run:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(self.proc.pid, sig)
         return "stopping the run (SIGINT: through on_interrupt; Stop again kills it)" \
-            if sig == signal.SIGINT else "run killed (SIGKILL)"
+            if sig == signal.SIGINT else KILLED
 
-    async def close(self) -> None:
-        """End the run with the editor: SIGINT, then SIGKILL after QUIT_S."""
+    async def close(self, log: Any = None) -> None:
+        """End the run with the editor as Ctrl+C ends `hfsmc run`: SIGINT, then wait for the
+        run (its on_interrupt may be landing a drone); a second SIGINT or SIGTERM to the
+        editor kills it, and says so on ``log`` (stderr)."""
+        log = log if log is not None else sys.stderr
         if self.running and self.proc is not None:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.proc.pid, signal.SIGINT)
-            try:
-                await asyncio.wait_for(asyncio.shield(self.proc.wait()), QUIT_S)
-            except TimeoutError:
+            again = asyncio.Event()
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+                    loop.add_signal_handler(sig, again.set)
+            ended = asyncio.ensure_future(self.proc.wait())
+            waiting = asyncio.ensure_future(again.wait())
+            done, _ = await asyncio.wait({ended, waiting}, timeout=0.5,
+                                         return_when=asyncio.FIRST_COMPLETED)
+            if not done:
+                print(f"hfsmc edit: waiting for the run of {self.model.name} to stop through "
+                      "its on_interrupt (Ctrl+C again kills it)", file=log, flush=True)
+                done, _ = await asyncio.wait({ended, waiting},
+                                             return_when=asyncio.FIRST_COMPLETED)
+            if ended not in done:
                 with contextlib.suppress(ProcessLookupError):
                     os.killpg(self.proc.pid, signal.SIGKILL)
-                await self.proc.wait()
+                print(f"hfsmc edit: {self.model.name}: {KILLED}", file=log, flush=True)
+                await ended
+            waiting.cancel()
         if self._task is not None:
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(self._task, 2.0)
