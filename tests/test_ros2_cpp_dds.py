@@ -95,12 +95,15 @@ def test_fast_dds_scan_in_twist_out(builds: dict[str, Path], domain: int,
     # three twists (without, the component waited its whole 60 s for scans nobody sent).
     comp = _start(started, build / "component", "bump", "/", "jazzy", domain, 60, 3)
     peer = _start(started, build / "fastdds_peer", domain, 60, 3)
-    seen = []  # the peer sends once the component's reader has matched its writer
+    # The peer sends once both sides have matched: the component's reader its writer (else
+    # a scan is lost to the volatile reader), and the component's writer its reader (else
+    # the component's twists go to nobody, and the peer waits its whole 60 s for them).
+    seen = []
     for line in comp.stdout or ():  # the component ends itself after 60 s at most
         seen.append(line)
-        if line.startswith("publishers 1"):
+        if {"publishers 1\n", "subscribers 1\n"} <= set(seen):
             break
-    assert seen and seen[-1].startswith("publishers 1"), seen
+    assert {"publishers 1\n", "subscribers 1\n"} <= set(seen), seen
     peer_out, peer_err = peer.communicate("go\n", timeout=90)
     comp_out, comp_err = comp.communicate(timeout=90)
     comp_out = "".join(seen) + comp_out

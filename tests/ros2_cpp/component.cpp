@@ -52,6 +52,7 @@ int main(int argc, char** argv) {
     if (node.subscribers("cmd_vel") != subscribers) {
       subscribers = node.subscribers("cmd_vel");
       std::printf("subscribers %d\n", subscribers);
+      std::fflush(stdout);
     }
     if (node.publishers("scan") != publishers) {  // its reader has matched a writer
       publishers = node.publishers("scan");
