@@ -72,7 +72,6 @@ demo: setup
 	  $(BIN)/hfsmc diagram $$m -o build/diagrams/$$(basename $${m%.*}).svg || exit 1; \
 	done
 	BIN=$(BIN) scripts/demo.sh
-	@echo "Edit the demo's model in your browser: $(BIN)/hfsmc edit examples/follow_colors/follow_colors.yaml (docs/editor.md)"
 
 bench: setup
 	$(BIN)/python -m pip install -q -e '.[bench]'
