@@ -7,7 +7,7 @@ rosbags).
 
 usage: fsm_listener.py DOMAIN STATUS_TOPIC SECONDS
 Prints {"ready": true}, then one JSON line per sample, {"topic", "cdr" (hex)}; stops after
-SECONDS, or after the first status whose component has stopped."""
+SECONDS, or a second after the first status whose component has stopped."""
 
 from __future__ import annotations
 
@@ -31,12 +31,16 @@ for topic, type_name in (("/fsm_viewer", "yasmin_msgs/msg/StateMachine"),
 print(json.dumps({"ready": True}), flush=True)
 end = time.monotonic() + seconds
 stopped = False
-while time.monotonic() < end and not stopped:
+while time.monotonic() < end:
     for topic, reader in readers.items():
         for sample in reader.take(100):
             raw = sample.__dict__.get("raw")
             if raw is None:
                 continue
             print(json.dumps({"topic": topic, "cdr": bytes(raw).hex()}), flush=True)
-            stopped = stopped or (topic == status_topic and b'"stop":{' in bytes(raw))
+            if not stopped and topic == status_topic and b'"stop":{' in bytes(raw):
+                # the last status; the other topic's last samples come from another writer,
+                # with no order between the two: read on a moment for them
+                stopped = True
+                end = min(end, time.monotonic() + 1.0)
     time.sleep(0.01)
